@@ -1,0 +1,200 @@
+//! The command line (SPEC section 9: a contract that scripts and tests depend on).
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+/// vcnc — a virtual 5-axis CNC: identify the closed-loop dynamics of each feed drive from an
+/// air-cutting run, then predict the contour errors a 5-axis toolpath will leave on the part.
+#[derive(Debug, Parser)]
+#[command(name = "vcnc", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+    /// Downgrade unknown G-code words and codes to warnings (still printed).
+    #[arg(long, global = true)]
+    pub lenient: bool,
+    /// Worker threads (default: all cores). Results are bit-identical for any count.
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Print less: no tables, no progress bars.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// The main job on the embedded default (NMV5000 + spiral): identify all five axes, predict
+    /// the spiral's contour errors with the true and the identified drives, and compare.
+    Demo {
+        /// Output folder.
+        #[arg(long, default_value = "vcnc-demo")]
+        out: PathBuf,
+    },
+    /// Identify each axis' closed-loop model: from a simulated machine (interpolate the
+    /// identification program, run the true drive, identify, validate) or from a measured trace.
+    Identify(IdentifyArgs),
+    /// Run a program through the machine's true drives.
+    Simulate {
+        machine: PathBuf,
+        program: PathBuf,
+        /// Also simulate this identified model file and add `<AXIS>_model` columns.
+        #[arg(long)]
+        model: Option<PathBuf>,
+        #[arg(long, default_value = "vcnc-simulate")]
+        out: PathBuf,
+    },
+    /// Predict tool-tip and orientation contour errors of a program with the true and the
+    /// identified drives.
+    Predict {
+        machine: PathBuf,
+        program: PathBuf,
+        /// Identified model file (from `vcnc identify`); identified on the fly when absent.
+        #[arg(long)]
+        model: Option<PathBuf>,
+        #[arg(long, default_value = "vcnc-predict")]
+        out: PathBuf,
+    },
+    /// Interpolate a program into the reference trajectory at the sample period.
+    Interpolate {
+        machine: PathBuf,
+        program: PathBuf,
+        #[arg(long, default_value = "vcnc-interpolate")]
+        out: PathBuf,
+    },
+    /// Forward or inverse kinematics of the machine on a CSV of axes or poses.
+    Kinematics {
+        machine: PathBuf,
+        direction: Direction,
+        /// Input CSV: columns X Y Z A C (forward) or px py pz ox oy oz (inverse).
+        #[arg(long)]
+        input: PathBuf,
+        /// Output CSV (default: standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Inverse-kinematics branch (sign of A).
+        #[arg(long, default_value = "-1", allow_hyphen_values = true)]
+        branch: i8,
+    },
+    /// Tracking and disturbance frequency responses of each axis (CSV and SVG Bode plots).
+    Frf {
+        machine: PathBuf,
+        /// Also plot this identified model file beside the true drives.
+        #[arg(long)]
+        model: Option<PathBuf>,
+        #[arg(long, default_value = "vcnc-frf")]
+        out: PathBuf,
+    },
+    /// Sweep machine-file keys over the cartesian product of their values.
+    Sweep(SweepArgs),
+    /// Join the outputs of sharded sweeps.
+    SweepMerge {
+        /// Shard output folders.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Generate G-code programs on standard output.
+    Gen {
+        #[command(subcommand)]
+        what: GenCommand,
+    },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Direction {
+    Forward,
+    Inverse,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TraceUnits {
+    /// metres (converted to mm)
+    M,
+    /// millimetres
+    Mm,
+    /// degrees
+    Deg,
+}
+
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// Machine file (simulated machine). Not with --trace.
+    #[arg(required_unless_present = "trace", conflicts_with = "trace")]
+    pub machine: Option<PathBuf>,
+    /// Axes to identify (default: all).
+    #[arg(long = "axis", value_name = "A")]
+    pub axes: Vec<String>,
+    /// Seed of the identification program and the PSO (default: the machine file's).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Measured trace CSV with time, reference and actual position columns.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+    /// Sample period of the trace in seconds (default: from its time column).
+    #[arg(long, requires = "trace")]
+    pub ts: Option<f64>,
+    /// Units of the trace's positions.
+    #[arg(long, value_enum, default_value = "mm", requires = "trace")]
+    pub units: TraceUnits,
+    /// Name of the time column.
+    #[arg(long, default_value = "t", requires = "trace")]
+    pub t_col: String,
+    /// Name of the reference-position column.
+    #[arg(long, default_value = "xr", requires = "trace")]
+    pub xr_col: String,
+    /// Name of the actual-position column.
+    #[arg(long, default_value = "x", requires = "trace")]
+    pub x_col: String,
+    #[arg(long, default_value = "vcnc-identify")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    pub machine: PathBuf,
+    pub program: PathBuf,
+    /// `KEY=V1,V2,...` or `KEY=start:stop:count`; KEY is a dotted machine-file path such as
+    /// `axes.X.controller.kv`. Repeat for a cartesian product.
+    #[arg(long = "set", value_name = "KEY=VALUES", required = true)]
+    pub sets: Vec<String>,
+    /// Identified model file: add the identified-model prediction beside each configuration.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Run shard i of n (1-based), a deterministic 1/n of the product.
+    #[arg(long, value_name = "i/n")]
+    pub shard: Option<String>,
+    #[arg(long, default_value = "vcnc-sweep")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum GenCommand {
+    /// The paper's identification excitation for one axis.
+    Identification {
+        /// Axis letter.
+        #[arg(long, default_value = "X")]
+        axis: String,
+        /// Number of random moves.
+        #[arg(long, default_value_t = 70)]
+        moves: usize,
+        /// Moves stay within ±RANGE (mm or deg).
+        #[arg(long, default_value_t = 50.0)]
+        range: f64,
+        /// Highest feed, units/s.
+        #[arg(long, default_value_t = 250.0)]
+        max_feed: f64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// The 5-axis spiral of SPEC section 6 in tool-centre-point mode.
+    Spiral {
+        /// Feed along the tool-tip path, mm/s.
+        #[arg(long, default_value_t = 75.0)]
+        feed: f64,
+        /// Segment length along the tip path, mm.
+        #[arg(long, default_value_t = 0.5)]
+        segment: f64,
+    },
+}

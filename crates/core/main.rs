@@ -1,0 +1,135 @@
+//! `vcnc`: the command-line front end (SPEC section 9). Library crates do the work; this binary
+//! parses arguments, prints tables and progress, writes files atomically and draws SVG plots.
+//!
+//! Exit codes: 0 ok, 1 runtime failure, 2 bad input (every message names the file, and the line
+//! and column where there is one).
+
+mod cli;
+mod cmd_gen;
+mod cmd_identify;
+mod cmd_kinematics;
+mod cmd_predict;
+mod cmd_sim;
+mod cmd_sweep;
+mod output;
+mod plot;
+mod report;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use crate::cli::{Cli, Command};
+
+/// An error caused by the user's input (a file, an option, data): exit code 2.
+#[derive(Debug)]
+pub struct BadInput(pub String);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadInput {}
+
+/// Shorthand: a bad-input error with this message.
+pub fn bad_input(msg: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(BadInput(msg.into()))
+}
+
+/// Global settings every command sees.
+pub struct Ctx {
+    pub lenient: bool,
+    pub quiet: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            // clap prints help/version to stdout (exit 0) and usage errors to stderr (exit 2).
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    if let Some(n) = cli.threads {
+        if n == 0 {
+            eprintln!("vcnc: --threads must be at least 1");
+            return ExitCode::from(2);
+        }
+        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+            eprintln!("vcnc: cannot start {n} threads: {e}");
+            return ExitCode::from(1);
+        }
+    }
+    let ctx = Ctx {
+        lenient: cli.lenient,
+        quiet: cli.quiet,
+    };
+    match run(cli.command, &ctx) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let code = exit_code(&e);
+            eprintln!("vcnc: {}", render(&e));
+            ExitCode::from(code)
+        }
+    }
+}
+
+fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
+    match command {
+        Command::Demo { out } => cmd_predict::demo(&out, ctx),
+        Command::Identify(args) => cmd_identify::identify(&args, ctx),
+        Command::Simulate {
+            machine,
+            program,
+            model,
+            out,
+        } => cmd_sim::simulate(&machine, &program, model.as_deref(), &out, ctx),
+        Command::Predict {
+            machine,
+            program,
+            model,
+            out,
+        } => cmd_predict::predict(&machine, &program, model.as_deref(), &out, ctx),
+        Command::Interpolate { machine, program, out } => cmd_sim::interpolate(&machine, &program, &out, ctx),
+        Command::Kinematics {
+            machine,
+            direction,
+            input,
+            out,
+            branch,
+        } => cmd_kinematics::kinematics(&machine, direction, &input, out.as_deref(), branch),
+        Command::Frf { machine, model, out } => cmd_sim::frf(&machine, model.as_deref(), &out, ctx),
+        Command::Sweep(args) => cmd_sweep::sweep(&args, ctx),
+        Command::SweepMerge { dirs, out } => cmd_sweep::merge(&dirs, &out, ctx),
+        Command::Gen { what } => cmd_gen::generate(&what),
+    }
+}
+
+/// 2 when any error in the chain is the user's input, else 1.
+fn exit_code(e: &anyhow::Error) -> u8 {
+    for cause in e.chain() {
+        if cause.downcast_ref::<BadInput>().is_some() {
+            return 2;
+        }
+        if let Some(m) = cause.downcast_ref::<vcnc_machine::Error>() {
+            return if m.is_bad_input() { 2 } else { 1 };
+        }
+        if cause.downcast_ref::<clap::Error>().is_some() {
+            return 2;
+        }
+    }
+    1
+}
+
+/// The error and its causes, one per line after the first.
+fn render(e: &anyhow::Error) -> String {
+    let mut s = e.to_string();
+    for cause in e.chain().skip(1) {
+        s.push_str("\n  caused by: ");
+        s.push_str(&cause.to_string());
+    }
+    s
+}

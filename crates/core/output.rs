@@ -1,0 +1,85 @@
+//! Output files: every file is written to a temporary file in its destination folder and renamed
+//! into place, so a reader (or a run that is killed midway) sees either the old file or the
+//! complete new one, never a half-written one.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+/// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = parent_dir(path);
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".vcnc-").suffix(".tmp");
+    // Temporary files are private (0600) by default; results are ordinary files.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    let mut tmp = builder
+        .tempfile_in(&dir)
+        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
+    tmp.write_all(bytes)
+        .and_then(|_| tmp.as_file().sync_all())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    fail_point(path)?;
+    tmp.persist(path)
+        .map_err(|e| e.error)
+        .with_context(|| format!("cannot move the new {} into place", path.display()))?;
+    Ok(())
+}
+
+/// Pretty JSON, written atomically.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    write_atomic(path, text.as_bytes())
+}
+
+/// A CSV table, built in memory and written atomically.
+pub fn write_csv(path: &Path, header: &[String], columns: &[&[f64]]) -> Result<()> {
+    let rows = columns.iter().map(|c| c.len()).max().unwrap_or(0);
+    let mut w = csv::WriterBuilder::new().from_writer(Vec::with_capacity(rows * columns.len() * 12));
+    w.write_record(header)?;
+    let mut record: Vec<String> = Vec::with_capacity(columns.len());
+    for k in 0..rows {
+        record.clear();
+        for c in columns {
+            record.push(c.get(k).map(|v| format_num(*v)).unwrap_or_default());
+        }
+        w.write_record(&record)?;
+    }
+    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("csv buffer: {e}"))?;
+    write_atomic(path, &bytes)
+}
+
+/// Shortest round-trip representation of a float (so CSV values reload bit-identically).
+pub fn format_num(v: f64) -> String {
+    if v == 0.0 {
+        "0".to_string()
+    } else {
+        format!("{v}")
+    }
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Test hook: when `VCNC_FAIL_WRITE` names this file's name, fail after the temporary file is
+/// written and before the rename, as a crash or full disk would. Lets the end-to-end tests check
+/// that an interrupted run leaves the previous file intact.
+fn fail_point(path: &Path) -> Result<()> {
+    if let Ok(name) = std::env::var("VCNC_FAIL_WRITE") {
+        if path.file_name().is_some_and(|f| f.to_string_lossy() == name) {
+            anyhow::bail!("injected write failure for {} (VCNC_FAIL_WRITE)", path.display());
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,67 @@
+//! The crate's one error type.
+
+use std::fmt;
+
+/// Which input sequence an error refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Sequence {
+    /// The reference (commanded) poses.
+    Reference,
+    /// The actual (measured or simulated) poses.
+    Actual,
+}
+
+impl fmt::Display for Sequence {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Sequence::Reference => "reference",
+            Sequence::Actual => "actual",
+        })
+    }
+}
+
+/// Every failure of this crate, carrying the offending values.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// The reference or the actual sequence has no pose.
+    #[error("the {0} pose sequence is empty")]
+    Empty(Sequence),
+
+    /// A tip position or tool axis contains NaN or an infinity.
+    #[error("{which} pose {sample}: {what} ({}, {}, {}) is not finite", v[0], v[1], v[2])]
+    NonFinite {
+        /// Which sequence.
+        which: Sequence,
+        /// Index of the pose in it.
+        sample: usize,
+        /// `"tip position (mm)"` or `"tool axis"`.
+        what: &'static str,
+        /// The offending vector.
+        v: [f64; 3],
+    },
+
+    /// A tool axis has zero length, so no orientation error can be measured.
+    #[error("{which} pose {sample}: tool axis ({}, {}, {}) has zero length", o[0], o[1], o[2])]
+    ZeroOrientation {
+        /// Which sequence.
+        which: Sequence,
+        /// Index of the pose in it.
+        sample: usize,
+        /// The offending vector (unitless).
+        o: [f64; 3],
+    },
+
+    /// A [`SearchWindow`](crate::SearchWindow) setting is unusable.
+    #[error("bad search window: {name} = {value}: {reason}")]
+    BadWindow {
+        /// Field name.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What is required.
+        reason: &'static str,
+    },
+}
+
+/// Shorthand for this crate's results.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,216 @@
+//! Feed drives for vcnc: the "true" machine (plant, controllers, encoder) whose dynamics vcnc
+//! identifies, and the 7-parameter closed-loop model the identifier fits (SPEC section 3).
+//!
+//! - [`params`]: plain parameter data as the machine file holds it ([`DriveParams`]: [`Plant`],
+//!   [`ControllerSpec`] with gains or desired poles, [`Encoder`], servo rate), checked into a
+//!   [`Drive`] by [`DriveParams::validate`] (raw → checked, like ripgrep's `LowArgs` → `HiArgs`).
+//! - [`design`]: P-PI, PID and sliding-mode gains from desired poles.
+//! - [`sim`]: the drive in the time domain at the servo rate ([`Drive::simulate`] →
+//!   [`DriveTrace`]) and the effective poles of the sampled loop.
+//! - [`model`]: the closed-loop model ([`ClosedLoopModel`]) with poles, FRFs and simulation.
+//! - [`presets`]: the paper's Table 1 drive and the NMV5000 axes designed from Table 3.
+//!
+//! ```
+//! use vcnc_drive::{Reference, SimOptions, table1_drive};
+//!
+//! let drive = table1_drive().validate()?; // the paper's Table 1 P-PI drive, Tc = 0.3 N m
+//! let model = drive.closed_loop_model(); // a1 = 238.4335, a2 = 48421.586, ...
+//! let poles = model.poles().expect("finite");
+//! assert!((poles.wn_hz() - 30.569).abs() < 1e-3);
+//!
+//! // A 100 mm/s ramp sampled at 1 ms, run through the true drive at 20 kHz.
+//! let n = 2000;
+//! let pos: Vec<f64> = (0..n).map(|k| 100.0 * k as f64 * 1e-3).collect();
+//! let (vel, acc) = (vec![100.0; n], vec![0.0; n]);
+//! let r = Reference { pos: &pos, vel: &vel, acc: &acc };
+//! let trace = drive.simulate(r, 1e-3)?;
+//! let x_model = model.simulate(r, 1e-3, &SimOptions::default())?;
+//! // Steady following error (1 - Vff) V / (Kv rg) = 0.449 mm; the model agrees to a few µm
+//! // (friction and the 0.1 µm encoder are on in the drive).
+//! let e = pos[n - 1] - trace.position[n - 1];
+//! assert!((e - 0.4488).abs() < 2e-3);
+//! assert!((trace.position[n - 1] - x_model[n - 1]).abs() < 5e-3);
+//! # Ok::<(), vcnc_drive::Error>(())
+//! ```
+
+pub mod design;
+pub mod model;
+pub mod params;
+pub mod presets;
+pub mod sim;
+
+pub use design::{design_pid, design_ppi, design_smc};
+pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
+pub use params::{
+    Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,
+    SmcGains,
+};
+pub use presets::{NMV5000_TABLE3, nmv5000_axis_design, table1_drive};
+pub use sim::{DriveTrace, simulate_drive};
+
+/// Errors of the drive crate. Each variant carries the values needed to act on it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A signal had no samples.
+    #[error("the reference signal is empty")]
+    EmptySignal,
+    /// Position, velocity and acceleration slices of different lengths.
+    #[error("signal lengths differ: position {pos}, velocity {vel}, acceleration {acc} samples")]
+    LengthMismatch {
+        /// Position samples.
+        pos: usize,
+        /// Velocity samples.
+        vel: usize,
+        /// Acceleration samples.
+        acc: usize,
+    },
+    /// NaN or infinity in an input signal.
+    #[error("the reference {signal} is not finite at sample {index}")]
+    NonFinite {
+        /// Which signal.
+        signal: &'static str,
+        /// First bad sample.
+        index: usize,
+    },
+    /// Sample period not positive and finite.
+    #[error("sample period must be positive and finite, got {ts} s")]
+    BadSamplePeriod {
+        /// The period given, s.
+        ts: f64,
+    },
+    /// Model coefficients not finite, or their discretisation overflowed.
+    #[error("the closed-loop model has non-finite coefficients or cannot be discretised")]
+    NonFiniteModel,
+    /// A physical parameter, gain or setting outside its valid range. `name` is the key path
+    /// below the axis (`plant.j`, `controller.kv`, `servo_rate_hz`, ...).
+    #[error("{name} = {value} is invalid: it must be {expected}")]
+    BadParameter {
+        /// Key path of the parameter, e.g. `plant.j`.
+        name: &'static str,
+        /// The value given (in the parameter's own unit).
+        value: f64,
+        /// What a valid value is, e.g. "positive and finite".
+        expected: &'static str,
+    },
+    /// A controller given neither complete gains nor a pole design.
+    #[error(
+        "controller kind = \"{kind}\" needs `{gain}` (or `design = {{ p_hz, wn_hz, zeta }}` instead of gains)"
+    )]
+    MissingGain {
+        /// Controller kind (`p-pi`, `pid`, `smc`).
+        kind: &'static str,
+        /// The missing key.
+        gain: &'static str,
+    },
+    /// A controller given both a gain and a pole design.
+    #[error(
+        "controller kind = \"{kind}\" has both `{gain}` and `design`: give gains or desired poles, not both"
+    )]
+    GainsAndDesign {
+        /// Controller kind (`p-pi`, `pid`, `smc`).
+        kind: &'static str,
+        /// The gain that conflicts with the design.
+        gain: &'static str,
+    },
+    /// The closed loop has a pole in the right half plane (or on the imaginary axis other than a
+    /// single pole at the origin of a drive without integral action).
+    #[error("{}", unstable_message(model, poles))]
+    Unstable {
+        /// Closed-loop model of the rejected gains.
+        model: ClosedLoopModel,
+        /// Its poles, when they can be written as $(p, \omega_n, \zeta)$.
+        poles: Option<Poles>,
+    },
+    /// Desired poles not finite or not strictly stable.
+    #[error(
+        "desired poles p = {p_hz} Hz, wn = {wn_hz} Hz, zeta = {zeta} are not a stable design: each must be positive and finite"
+    )]
+    BadDesign {
+        /// Real pole, Hz.
+        p_hz: f64,
+        /// Natural frequency, Hz.
+        wn_hz: f64,
+        /// Damping ratio.
+        zeta: f64,
+    },
+    /// P-PI design from poles: the quadratic for $K_v r_g$ has no real root (SPEC section 3).
+    #[error(
+        "desired poles p = {p_hz} Hz, wn = {wn_hz} Hz, zeta = {zeta} cannot be reached by a P-PI cascade \
+         on a plant with B/J = {b_over_j} 1/s: Kv*rg must solve P K^2 - a2 K + a3 = 0, whose discriminant \
+         a2^2 - 4 P a3 = {discriminant} is negative (raise zeta or p relative to wn)"
+    )]
+    Unreachable {
+        /// Real pole, Hz.
+        p_hz: f64,
+        /// Natural frequency, Hz.
+        wn_hz: f64,
+        /// Damping ratio.
+        zeta: f64,
+        /// Plant's mechanical pole $B/J$, 1/s.
+        b_over_j: f64,
+        /// $a_2^2 - 4 P a_3$, 1/s⁴.
+        discriminant: f64,
+    },
+    /// The design needs a negative proportional or derivative gain: the desired $a_1$ is below
+    /// the damping the plant already has.
+    #[error(
+        "these poles need {gain} = {value} < 0: the desired a1 = {a1} 1/s is below the plant's own \
+         damping B/J = {b_over_j} 1/s (choose faster poles)"
+    )]
+    NegativeGain {
+        /// Gain name (`kp`, `kd`).
+        gain: &'static str,
+        /// The gain the design would need.
+        value: f64,
+        /// Desired $a_1 = p + 2\zeta\omega_n$, 1/s.
+        a1: f64,
+        /// Plant $B/J$, 1/s.
+        b_over_j: f64,
+    },
+    /// Servo rate not an integer multiple of the logging rate.
+    #[error(
+        "the servo rate {servo_rate_hz} Hz is not an integer multiple (>= 1) of the logging rate \
+         1/ts = {:.3} Hz", 1.0 / ts
+    )]
+    ServoRate {
+        /// Servo rate, Hz.
+        servo_rate_hz: f64,
+        /// Logging period, s.
+        ts: f64,
+    },
+    /// No preset for this axis name.
+    #[error("no NMV5000 design for axis {axis:?}: expected one of X, Y, Z, A, C")]
+    UnknownAxis {
+        /// The axis asked for.
+        axis: char,
+    },
+}
+
+fn unstable_message(model: &ClosedLoopModel, poles: &Option<Poles>) -> String {
+    use std::f64::consts::TAU;
+    let roots = model.roots();
+    let mut s = String::from("the closed loop is unstable: poles at s/2pi = ");
+    for (i, r) in roots.iter().enumerate() {
+        if i > 0 {
+            s.push_str(", ");
+        }
+        if r.im == 0.0 {
+            s.push_str(&format!("{:.4} Hz", r.re / TAU));
+        } else {
+            s.push_str(&format!("{:.4}{:+.4}i Hz", r.re / TAU, r.im / TAU));
+        }
+    }
+    if let Some(p) = poles {
+        s.push_str(&format!(
+            " (p = {:.4} Hz, wn = {:.4} Hz, zeta = {:.4})",
+            p.p_hz(),
+            p.wn_hz(),
+            p.zeta
+        ));
+    }
+    s.push_str(&format!(
+        "; a1 = {}, a2 = {}, a3 = {} (Routh-Hurwitz needs a1 > 0, a3 >= 0, a1 a2 > a3)",
+        model.a1, model.a2, model.a3
+    ));
+    s
+}

@@ -1,0 +1,144 @@
+//! Reference drives from the paper (SPEC section 7), shared by the machine files and the tests.
+
+use std::f64::consts::PI;
+
+use crate::Error;
+use crate::params::{
+    ControllerSpec, DEFAULT_SERVO_RATE_HZ, DriveParams, Encoder, Plant, PoleDesign,
+};
+
+/// The paper's Table 1 virtual P-PI ball-screw drive (SPEC section 7): $r_g = 1.5915$ mm/rad,
+/// $J = 0.01$ kg·m², $B = 0.0418572$ N·m·s/rad, $K_a = K_t = 1$, $K_v = 70$ (rad/s)/mm,
+/// $K_p = 2.342478$, $K_i = 223.252126$, $V_{ff} = 0.5$, $B_{ff} = 0.1$, $J_{ff} = 0$.
+/// Its exact poles are 30.569 Hz / 0.44519 / 10.7296 Hz.
+///
+/// Coulomb friction: SPEC's realistic $T_c = 0.3$ N·m ($d_c = 47.7$ mm/s²) instead of the
+/// table's $d_c = 2.68$, which is too small to matter. Default encoder and servo rate.
+pub fn table1_drive() -> DriveParams {
+    DriveParams {
+        plant: Plant {
+            j: 0.01,
+            b: 0.0418572,
+            ka: 1.0,
+            kt: 1.0,
+            rg: 1.5915,
+            coulomb_torque: 0.3,
+            u_max: None,
+        },
+        controller: ControllerSpec::PPi {
+            kv: Some(70.0),
+            kp: Some(2.342478),
+            ki: Some(223.252126),
+            design: None,
+            vff: 0.5,
+            bff: 0.1,
+            jff: 0.0,
+        },
+        encoder: Encoder::default(),
+        servo_rate_hz: DEFAULT_SERVO_RATE_HZ,
+    }
+}
+
+/// The NMV5000's five P-PI axes, "Actual" columns of the paper's Table 3 (SPEC section 7):
+/// `(axis, poles)`.
+pub const NMV5000_TABLE3: [(char, PoleDesign); 5] = [
+    (
+        'X',
+        PoleDesign {
+            p_hz: 19.30,
+            wn_hz: 55.54,
+            zeta: 0.39,
+        },
+    ),
+    (
+        'Y',
+        PoleDesign {
+            p_hz: 22.12,
+            wn_hz: 73.50,
+            zeta: 0.27,
+        },
+    ),
+    (
+        'Z',
+        PoleDesign {
+            p_hz: 22.20,
+            wn_hz: 73.60,
+            zeta: 0.28,
+        },
+    ),
+    (
+        'A',
+        PoleDesign {
+            p_hz: 9.29,
+            wn_hz: 31.90,
+            zeta: 0.47,
+        },
+    ),
+    (
+        'C',
+        PoleDesign {
+            p_hz: 8.45,
+            wn_hz: 27.30,
+            zeta: 0.57,
+        },
+    ),
+];
+
+/// Mechanical pole $B/J$ of every NMV5000 axis, 1/s (SPEC section 7).
+pub const NMV5000_B_OVER_J: f64 = 4.19;
+
+/// A drive for one NMV5000 axis (`'X'`, `'Y'`, `'Z'`, `'A'`, `'C'`, case-insensitive) whose P-PI
+/// gains are designed from its Table 3 poles (SPEC section 7: the real physical parameters are
+/// not public). The controller is returned as a design (`design = { .. }`); validate it to get
+/// the gains.
+///
+/// Assumed physics (not from the paper): $K_a = K_t = 1$ as in Table 1, $B/J = 4.19$ 1/s, and
+///
+/// | axis | drive | $r_g$ | $J$ kg·m² | $T_c$ N·m | $d_c$ |
+/// |---|---|---|---|---|---|
+/// | X | ball screw, 10 mm pitch | 10/2π mm/rad | 0.012 | 0.3 | 39.8 mm/s² |
+/// | Y | ball screw, 10 mm pitch | 10/2π mm/rad | 0.010 | 0.3 | 47.7 mm/s² |
+/// | Z | ball screw, 10 mm pitch | 10/2π mm/rad | 0.008 | 0.3 | 59.7 mm/s² |
+/// | A | direct-drive trunnion | 180/π deg/rad | 0.5 | 1.5 | 172 deg/s² |
+/// | C | direct-drive table | 180/π deg/rad | 0.2 | 0.8 | 229 deg/s² |
+///
+/// Feed-forward as Table 1: $V_{ff} = 0.5$, $B_{ff} = 0.1$, $J_{ff} = 0$. Default encoder
+/// (0.1 µm / 0.0001°) and servo rate (20 kHz).
+pub fn nmv5000_axis_design(axis: char) -> Result<DriveParams, Error> {
+    let axis = axis.to_ascii_uppercase();
+    let (_, design) = NMV5000_TABLE3
+        .iter()
+        .find(|(a, _)| *a == axis)
+        .ok_or(Error::UnknownAxis { axis })?;
+    let screw = 10.0 / (2.0 * PI);
+    let direct = 180.0 / PI;
+    let (rg, j, tc) = match axis {
+        'X' => (screw, 0.012, 0.3),
+        'Y' => (screw, 0.010, 0.3),
+        'Z' => (screw, 0.008, 0.3),
+        'A' => (direct, 0.5, 1.5),
+        _ => (direct, 0.2, 0.8),
+    };
+    Ok(DriveParams {
+        plant: Plant {
+            j,
+            b: NMV5000_B_OVER_J * j,
+            ka: 1.0,
+            kt: 1.0,
+            rg,
+            coulomb_torque: tc,
+            u_max: None,
+        },
+        controller: ControllerSpec::PPi {
+            kv: None,
+            kp: None,
+            ki: None,
+            design: Some(*design),
+            vff: 0.5,
+            bff: 0.1,
+            jff: 0.0,
+        },
+        encoder: Encoder::default(),
+        servo_rate_hz: DEFAULT_SERVO_RATE_HZ,
+    })
+}

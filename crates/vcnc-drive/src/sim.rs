@@ -1,0 +1,941 @@
+//! Time-domain simulation of the "true" drive: the plant with Coulomb friction and true sticking,
+//! the encoder, and the controller running at the servo rate (SPEC section 3).
+//!
+//! # Timing
+//!
+//! The reference arrives as samples at the logging period $T_s$ (1 ms: the CNC interpolator
+//! cycle). Between samples the servo loop sees the position, velocity and acceleration samples
+//! each interpolated linearly ("fine interpolation", as a CNC's servo interpolates between
+//! interpolator cycles). [`crate::ClosedLoopModel::simulate`] applies the same first-order hold
+//! to the same samples, so a perfect model reproduces the drive up to the servo-rate
+//! discretisation, which vanishes in proportion to the servo period $h$.
+//!
+//! At every servo tick $t_k$ the controller reads the encoder $\hat x_k$, computes $u_k$, and
+//! holds it over $[t_k, t_k + h)$ (zero-order hold: the unavoidable half-period lag of a digital
+//! controller, which makes the difference to the continuous loop first order in $h$). The drive
+//! starts at rest at the first reference sample with every controller state zero; the trace
+//! records each logging instant's encoder reading, true position and velocity, and $u$.
+//!
+//! # Plant step (exact linear part, implicit friction)
+//!
+//! In axis units, $\ddot x = -\beta \dot x + c\,u - d_c \operatorname{sgn}\dot x$ with
+//! $\beta = B/J$, $c = K_aK_t r_g/J$, $d_c = T_c r_g/J$. Over one period with $u$ and the friction
+//! force $f$ held, the exact solution is
+//!
+//! $$ v_{k+1} = e^{-\beta h} v_k + \varphi_1 (c u_k - f), \qquad
+//!    x_{k+1} = x_k + \varphi_1 v_k + \varphi_2 (c u_k - f), $$
+//!
+//! $\varphi_1 = \int_0^h e^{-\beta s}ds$, $\varphi_2 = \int_0^h\!\int_0^s e^{-\beta r}dr\,ds$. The
+//! friction is set-valued and chosen implicitly, as in Kikuuwe et al. (2005) and SPEC section 3
+//! (whose implicit-Euler form this generalises: with $e^{-\beta h} \approx 1/(1 + \beta h)$ it is
+//! the same step): with $v^* = e^{-\beta h} v_k + \varphi_1 c\,u_k$ and $L = \varphi_1 d_c$,
+//! the axis sticks ($v_{k+1} = 0$, $f$ whatever keeps it there) if $|v^*| \le L$, else
+//! $v_{k+1} = v^* - L\operatorname{sgn}(v^*)$. An axis at rest with $|K_aK_t u| \le T_c$
+//! therefore stays exactly at rest.
+//!
+//! # Controllers
+//!
+//! Integrals of the position error use the trapezoidal rule (Tustin), exact to $O(h^2)$;
+//! integrals of quantities that are derivatives of measured or commanded positions use the
+//! positions themselves (the P-PI's $\int(\omega_c - \dot\theta)dt$ contains
+//! $\int \dot\theta\,dt = \theta - \theta_0$ exactly, as an incremental PI fed with encoder
+//! differences computes it). The velocity is the second-order backward difference of the
+//! encoder, $\hat v_k = (3\hat x_k - 4\hat x_{k-1} + \hat x_{k-2})/(2h)$, exact for motion of
+//! constant acceleration, so the velocity feedback adds no lag to first order. With a saturation
+//! limit, the integrator holds while $u$ is saturated and its increment would drive $u$ further
+//! into the limit (conditional-integration anti-windup).
+//!
+//! Variables are named as in SPEC section 3 and the paper (`kv`, `kp`, `ki`, `lambda`, `ks`,
+//! `rho`, `je_hat`, `be_hat`, `dc`); `xm` is the encoder reading $\hat x$, `xr`, `vr`, `ar` the
+//! interpolated reference, `h` the servo period.
+
+use nalgebra::{Complex, SMatrix};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::Error;
+use crate::model::{ClosedLoopModel, Poles, Reference};
+use crate::params::{Controller, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, SmcGains};
+
+/// What a drive simulation logs at every sample of the reference (period `ts`). Memory is
+/// O(samples), independent of the servo rate.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DriveTrace {
+    /// Logging period $T_s$, s.
+    pub ts: f64,
+    /// Encoder reading $\hat x$ (quantised, with noise if configured), axis units. This is what
+    /// a real drive's trace contains and what identification should use.
+    pub position: Vec<f64>,
+    /// True axis position $x$, axis units.
+    pub true_position: Vec<f64>,
+    /// True axis velocity $\dot x$, axis units/s.
+    pub velocity: Vec<f64>,
+    /// Control signal $u$ computed at the sample instant (after saturation), V.
+    pub control: Vec<f64>,
+    /// Servo ticks at which $u$ was saturated (0 without a limit).
+    pub saturated_ticks: u64,
+}
+
+impl DriveTrace {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.position.len()
+    }
+
+    /// No samples.
+    pub fn is_empty(&self) -> bool {
+        self.position.is_empty()
+    }
+}
+
+/// Validates `params` and simulates the drive through `reference` (samples at period `ts`, s).
+/// See [`Drive::simulate`].
+pub fn simulate_drive(
+    params: &DriveParams,
+    reference: Reference<'_>,
+    ts: f64,
+) -> Result<DriveTrace, Error> {
+    params.validate()?.simulate(reference, ts)
+}
+
+/// One reference sample seen by the servo loop.
+#[derive(Debug, Clone, Copy)]
+struct RefSample {
+    xr: f64,
+    vr: f64,
+    ar: f64,
+}
+
+/// Controller history and integrator, common to every law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CtrlState {
+    /// Integrator state (meaning depends on the law).
+    integ: f64,
+    /// Encoder readings at the previous two ticks.
+    xm1: f64,
+    xm2: f64,
+    /// Reference position at the previous tick.
+    xr1: f64,
+}
+
+/// One discrete control law, written as an affine function of the current encoder reading
+/// $\hat x_k$ so that the servo loop can keep the work that does not depend on it off the
+/// loop-carried dependency chain: the direct part of $u$ is `direct0 + gd * xm`, the integrator
+/// increment `d_int0 + gi * xm`, and $u$ = direct part + `k_int` × integrator. Monomorphised so
+/// the inner loop has no dispatch.
+trait Law {
+    /// `(direct0, d_int0)`: the terms with $\hat x_k$ set to 0.
+    fn terms0(&self, s: &CtrlState, r: RefSample) -> (f64, f64);
+    /// `(gd, gi, k_int)`: slopes in $\hat x_k$ and the integral gain.
+    fn slopes(&self) -> (f64, f64, f64);
+}
+
+/// P-PI with constants folded (see [`PPiGains`]):
+/// $u = K_p(\omega_c - \hat v/r_g) + K_i I + \text{ff}$ with
+/// $I = \int(\omega_c - \dot\theta)dt = K_v\int e\,dt + V_{ff}(x_r - x_{r0})/r_g - (\hat x - \hat x_0)/r_g$.
+struct PPiLaw {
+    kp: f64,
+    ki: f64,
+    kv: f64,
+    vff_over_rg: f64,
+    inv_rg: f64,
+    half_h_kv: f64,
+    inv_2h: f64,
+    ff_a: f64,
+    ff_v: f64,
+}
+
+impl Law for PPiLaw {
+    #[inline(always)]
+    fn terms0(&self, s: &CtrlState, r: RefSample) -> (f64, f64) {
+        let e1 = s.xr1 - s.xm1;
+        // v_hat with the current reading set to 0.
+        let v_hat0 = (s.xm2 - 4.0 * s.xm1) * self.inv_2h;
+        // omega_c - theta_dot, rad/s.
+        let w_err0 = self.kv * r.xr + self.vff_over_rg * r.vr - self.inv_rg * v_hat0;
+        let direct0 = self.kp * w_err0 + self.ff_a * r.ar + self.ff_v * r.vr;
+        // Increment of the integral: Kv int(e) by the trapezoid rule, the velocity terms exactly
+        // from position increments.
+        let d_int0 =
+            self.half_h_kv * (r.xr + e1) + self.vff_over_rg * (r.xr - s.xr1) + self.inv_rg * s.xm1;
+        (direct0, d_int0)
+    }
+
+    fn slopes(&self) -> (f64, f64, f64) {
+        (
+            -self.kp * (self.kv + self.inv_rg * 3.0 * self.inv_2h),
+            -(self.half_h_kv + self.inv_rg),
+            self.ki,
+        )
+    }
+}
+
+/// PID with constants folded (see [`PidGains`]).
+struct PidLaw {
+    kp: f64,
+    ki: f64,
+    kd: f64,
+    half_h: f64,
+    inv_2h: f64,
+    ff_a: f64,
+    ff_v: f64,
+}
+
+impl Law for PidLaw {
+    #[inline(always)]
+    fn terms0(&self, s: &CtrlState, r: RefSample) -> (f64, f64) {
+        let e1 = s.xr1 - s.xm1;
+        let v_hat0 = (s.xm2 - 4.0 * s.xm1) * self.inv_2h;
+        let direct0 =
+            self.kp * r.xr + self.kd * (r.vr - v_hat0) + self.ff_a * r.ar + self.ff_v * r.vr;
+        (direct0, self.half_h * (r.xr + e1))
+    }
+
+    fn slopes(&self) -> (f64, f64, f64) {
+        (
+            -(self.kp + self.kd * 3.0 * self.inv_2h),
+            -self.half_h,
+            self.ki,
+        )
+    }
+}
+
+/// Sliding mode with constants folded (see [`SmcGains`]):
+/// $u = \hat J_e(\ddot x_r + \lambda\dot e) + \hat B_e\hat v + K_s S + \rho\int S\,dt$,
+/// $\int S\,dt = \lambda\int e\,dt + e - e_0$.
+struct SmcLaw {
+    lambda: f64,
+    ks: f64,
+    rho: f64,
+    je_hat: f64,
+    be_hat: f64,
+    half_h_lambda: f64,
+    inv_2h: f64,
+}
+
+impl Law for SmcLaw {
+    #[inline(always)]
+    fn terms0(&self, s: &CtrlState, r: RefSample) -> (f64, f64) {
+        let e1 = s.xr1 - s.xm1;
+        let v_hat0 = (s.xm2 - 4.0 * s.xm1) * self.inv_2h;
+        let e_dot0 = r.vr - v_hat0;
+        let surface0 = self.lambda * r.xr + e_dot0;
+        let direct0 =
+            self.je_hat * (r.ar + self.lambda * e_dot0) + self.be_hat * v_hat0 + self.ks * surface0;
+        (direct0, self.half_h_lambda * (r.xr + e1) + (r.xr - e1))
+    }
+
+    fn slopes(&self) -> (f64, f64, f64) {
+        // d v_hat / d xm = 3/(2h); d e / d xm = -1; d e_dot / d xm = -3/(2h).
+        let dv = 3.0 * self.inv_2h;
+        (
+            -self.je_hat * self.lambda * dv + self.be_hat * dv - self.ks * (self.lambda + dv),
+            -(self.half_h_lambda + 1.0),
+            self.rho,
+        )
+    }
+}
+
+/// Exact zero-order-hold step of the linear plant with implicit Coulomb friction (module docs).
+#[derive(Debug, Clone, Copy)]
+struct PlantStep {
+    /// $e^{-\beta h}$.
+    decay: f64,
+    phi1: f64,
+    phi2: f64,
+    /// Acceleration per volt $c = K_aK_t r_g / J$, axis units/s² per V.
+    c: f64,
+    /// Friction velocity bound $L = \varphi_1 d_c$.
+    stick: f64,
+    /// Friction acceleration $d_c$.
+    dc: f64,
+    /// Position gain on $v_k$ when the step ends stuck: $\varphi_1 - \varphi_2 e^{-\beta h}/\varphi_1$.
+    stuck_dx: f64,
+}
+
+impl PlantStep {
+    fn new(plant: &Plant, h: f64) -> Result<PlantStep, Error> {
+        let beta = plant.b_over_j();
+        // exp of [[0, 1, 0], [0, -beta, 1], [0, 0, 0]] h gives phi1 (row 0 col 1 = int e^{-beta s}),
+        // phi2 (row 0 col 2) and the decay (row 1 col 1) without cancellation for small beta h.
+        #[rustfmt::skip]
+        let m = SMatrix::<f64, 3, 3>::new(
+            0.0, h, 0.0,
+            0.0, -beta * h, h,
+            0.0, 0.0, 0.0,
+        );
+        let e = m.exp();
+        let (decay, phi1, phi2) = (e[(1, 1)], e[(0, 1)], e[(0, 2)]);
+        let c = plant.ka_kt() * plant.rg / plant.j;
+        let dc = plant.dc();
+        let step = PlantStep {
+            decay,
+            phi1,
+            phi2,
+            c,
+            stick: phi1 * dc,
+            dc,
+            stuck_dx: phi1 - phi2 * decay / phi1,
+        };
+        let all = [decay, phi1, phi2, c, dc, step.stuck_dx];
+        if all.iter().all(|v| v.is_finite()) && phi1 > 0.0 {
+            Ok(step)
+        } else {
+            Err(Error::NonFiniteModel)
+        }
+    }
+
+    /// Ends a step from the friction-free predictions $v^*$ and $x^*$ (with $f = 0$):
+    /// sticks if $|v^*| \le L$, else applies $f = d_c \operatorname{sgn} v^*$.
+    #[inline(always)]
+    fn finish(&self, x: &mut f64, v: &mut f64, v_star: f64, x_star: f64) {
+        if v_star.abs() <= self.stick {
+            // Stuck at the end of the step: the friction force is whatever makes v = 0.
+            *x += self.stuck_dx * *v;
+            *v = 0.0;
+        } else {
+            let f = self.dc.copysign(v_star);
+            *x = x_star - self.phi2 * f;
+            *v = v_star - self.phi1 * f;
+        }
+    }
+}
+
+/// Encoder reading with quantisation and Box–Muller Gaussian noise from a seeded ChaCha8.
+struct EncoderReader {
+    q: f64,
+    inv_q: f64,
+    std: f64,
+    rng: ChaCha8Rng,
+    spare: Option<f64>,
+}
+
+impl EncoderReader {
+    fn new(enc: &Encoder) -> EncoderReader {
+        EncoderReader {
+            q: enc.resolution,
+            inv_q: if enc.resolution > 0.0 {
+                1.0 / enc.resolution
+            } else {
+                0.0
+            },
+            std: enc.noise_std,
+            rng: ChaCha8Rng::seed_from_u64(enc.seed),
+            spare: None,
+        }
+    }
+
+    /// $q\,\mathrm{round}(x/q)$ (ties to even), or $x$ when $q = 0$.
+    #[inline(always)]
+    fn quantise(&self, x: f64) -> f64 {
+        // 1.5 * 2^52: adding and subtracting it rounds to an integer (ties to even) for
+        // |y| < 2^51, without a libm call.
+        const MAGIC: f64 = 6_755_399_441_055_744.0;
+        if self.q > 0.0 {
+            let y = x * self.inv_q;
+            let n = if y.abs() < 2_251_799_813_685_248.0 {
+                (y + MAGIC) - MAGIC
+            } else {
+                y.round()
+            };
+            n * self.q
+        } else {
+            x
+        }
+    }
+
+    #[inline(never)]
+    fn gaussian(&mut self) -> f64 {
+        if let Some(z) = self.spare.take() {
+            return z;
+        }
+        // u1 in (0, 1] so the log is finite.
+        let u1 = 1.0 - self.rng.random::<f64>();
+        let u2 = self.rng.random::<f64>();
+        let r = (-2.0 * u1.ln()).sqrt();
+        let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
+        self.spare = Some(r * s);
+        r * c
+    }
+
+    #[inline(always)]
+    fn read(&mut self, x: f64) -> f64 {
+        let y = if self.std > 0.0 {
+            x + self.std * self.gaussian()
+        } else {
+            x
+        };
+        self.quantise(y)
+    }
+}
+
+/// The servo loop state: plant and controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct LoopState {
+    x: f64,
+    v: f64,
+    ctrl: CtrlState,
+}
+
+/// Constants of one servo loop.
+struct Servo<L> {
+    law: L,
+    plant: PlantStep,
+    u_max: f64,
+    /// Slopes of the law in the reading: direct part, integrator increment, and of $u$.
+    gd: f64,
+    gi: f64,
+    k_int: f64,
+    gu: f64,
+    /// Plant coefficients folded with the law: $\varphi_1 c$, $\varphi_2 c$, and their
+    /// products with `gu`.
+    phi1_c: f64,
+    phi2_c: f64,
+    phi1_c_gu: f64,
+    phi2_c_gu: f64,
+}
+
+impl<L: Law> Servo<L> {
+    fn new(law: L, plant: PlantStep, u_max: f64) -> Servo<L> {
+        let (gd, gi, k_int) = law.slopes();
+        let gu = gd + k_int * gi;
+        let (phi1_c, phi2_c) = (plant.phi1 * plant.c, plant.phi2 * plant.c);
+        Servo {
+            law,
+            plant,
+            u_max,
+            gd,
+            gi,
+            k_int,
+            gu,
+            phi1_c,
+            phi2_c,
+            phi1_c_gu: phi1_c * gu,
+            phi2_c_gu: phi2_c * gu,
+        }
+    }
+
+    /// One servo tick from the encoder reading `xm`: control $u_k$ (saturated) and plant step
+    /// over the period. Returns `(u, saturated)`.
+    ///
+    /// Everything that does not depend on `xm` is computed first; on the unsaturated path `xm`
+    /// enters the new position and velocity through one multiply-add each, so the loop-carried
+    /// chain is short (this is an algebraic rearrangement of $u = $ direct + $K$·integrator and
+    /// of the plant step, not an approximation).
+    #[inline(always)]
+    fn tick(&self, st: &mut LoopState, xm: f64, r: RefSample) -> (f64, bool) {
+        let (direct0, d_int0) = self.law.terms0(&st.ctrl, r);
+        let integ0 = st.ctrl.integ + d_int0;
+        let u0 = direct0 + self.k_int * integ0;
+        let u = u0 + self.gu * xm;
+        let p = &self.plant;
+        let (x, v) = (st.x, st.v);
+        let saturated = u.abs() > self.u_max;
+        let u_applied = if !saturated {
+            st.ctrl.integ = integ0 + self.gi * xm;
+            let v_star = (p.decay * v + self.phi1_c * u0) + self.phi1_c_gu * xm;
+            let x_star = (x + p.phi1 * v + self.phi2_c * u0) + self.phi2_c_gu * xm;
+            p.finish(&mut st.x, &mut st.v, v_star, x_star);
+            u
+        } else {
+            // Conditional integration: hold the integrator if its increment pushes u further
+            // into the limit.
+            let d_int = d_int0 + self.gi * xm;
+            let mut u = u;
+            if self.k_int * d_int * u > 0.0 {
+                u = direct0 + self.gd * xm + self.k_int * st.ctrl.integ;
+            } else {
+                st.ctrl.integ += d_int;
+            }
+            let u = u.clamp(-self.u_max, self.u_max);
+            let a_u = p.c * u;
+            let v_star = p.decay * v + p.phi1 * a_u;
+            let x_star = x + p.phi1 * v + p.phi2 * a_u;
+            p.finish(&mut st.x, &mut st.v, v_star, x_star);
+            u
+        };
+        st.ctrl.xm2 = st.ctrl.xm1;
+        st.ctrl.xm1 = xm;
+        st.ctrl.xr1 = r.xr;
+        (u_applied, saturated)
+    }
+
+    fn run(
+        &self,
+        reference: Reference<'_>,
+        n_sub: usize,
+        enc: &mut EncoderReader,
+        trace: &mut DriveTrace,
+    ) {
+        let n = reference.pos.len();
+        let (pos, vel, acc) = (reference.pos, reference.vel, reference.acc);
+        let x0 = pos[0];
+        let xm0 = enc.quantise(x0);
+        let mut st = LoopState {
+            x: x0,
+            v: 0.0,
+            ctrl: CtrlState {
+                integ: 0.0,
+                xm1: xm0,
+                xm2: xm0,
+                xr1: x0,
+            },
+        };
+        let inv_sub = 1.0 / n_sub as f64;
+        let mut saturated_ticks = 0u64;
+        for k in 0..n {
+            let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
+            let last = k + 1 == n;
+            let (dp, dv, da) = if last {
+                (0.0, 0.0, 0.0)
+            } else {
+                (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
+            };
+            // Tick 0 of the sample: log it.
+            let xm = enc.read(st.x);
+            trace.position.push(xm);
+            trace.true_position.push(st.x);
+            trace.velocity.push(st.v);
+            let r = RefSample {
+                xr: p0,
+                vr: v0,
+                ar: a0,
+            };
+            let (u, sat) = self.tick(&mut st, xm, r);
+            saturated_ticks += sat as u64;
+            trace.control.push(u);
+            if last {
+                break;
+            }
+            for j in 1..n_sub {
+                let w = j as f64 * inv_sub;
+                let r = RefSample {
+                    xr: p0 + w * dp,
+                    vr: v0 + w * dv,
+                    ar: a0 + w * da,
+                };
+                let xm = enc.read(st.x);
+                let (_, sat) = self.tick(&mut st, xm, r);
+                saturated_ticks += sat as u64;
+            }
+        }
+        trace.saturated_ticks = saturated_ticks;
+    }
+
+    /// One tick of the linear loop (ideal encoder, zero reference): for building the sampled
+    /// closed loop's transition matrix.
+    fn linear_tick(&self, st: &mut LoopState) {
+        let r = RefSample {
+            xr: 0.0,
+            vr: 0.0,
+            ar: 0.0,
+        };
+        let xm = st.x;
+        self.tick(st, xm, r);
+    }
+}
+
+/// Dispatches once on the controller kind to a monomorphised servo loop.
+fn with_servo<R>(
+    drive: &Drive,
+    h: f64,
+    plant_override: Option<&Plant>,
+    f: impl FnOnce(ServoRef<'_>) -> R,
+) -> Result<R, Error> {
+    let plant = plant_override.unwrap_or(drive.plant());
+    let plant_step = PlantStep::new(plant, h)?;
+    let u_max = plant.u_max.unwrap_or(f64::INFINITY);
+    let inv_2h = 0.5 / h;
+    let (j, b, rg, k) = (plant.j, plant.b, plant.rg, plant.ka_kt());
+    Ok(match *drive.controller() {
+        Controller::PPi(PPiGains {
+            kv,
+            kp,
+            ki,
+            vff,
+            bff,
+            jff,
+        }) => f(ServoRef::PPi(&Servo::new(
+            PPiLaw {
+                kp,
+                ki,
+                kv,
+                vff_over_rg: vff / rg,
+                inv_rg: 1.0 / rg,
+                half_h_kv: 0.5 * h * kv,
+                ff_a: jff * j / (rg * k),
+                ff_v: bff * b / (rg * k),
+                inv_2h,
+            },
+            plant_step,
+            u_max,
+        ))),
+        Controller::Pid(PidGains {
+            kp,
+            ki,
+            kd,
+            jff,
+            bff,
+        }) => f(ServoRef::Pid(&Servo::new(
+            PidLaw {
+                kp,
+                ki,
+                kd,
+                half_h: 0.5 * h,
+                ff_a: jff * j / (rg * k),
+                ff_v: bff * b / (rg * k),
+                inv_2h,
+            },
+            plant_step,
+            u_max,
+        ))),
+        Controller::Smc(SmcGains {
+            lambda,
+            ks,
+            rho,
+            je_hat,
+            be_hat,
+        }) => f(ServoRef::Smc(&Servo::new(
+            SmcLaw {
+                lambda,
+                ks,
+                rho,
+                je_hat,
+                be_hat,
+                half_h_lambda: 0.5 * h * lambda,
+                inv_2h,
+            },
+            plant_step,
+            u_max,
+        ))),
+    })
+}
+
+enum ServoRef<'a> {
+    PPi(&'a Servo<PPiLaw>),
+    Pid(&'a Servo<PidLaw>),
+    Smc(&'a Servo<SmcLaw>),
+}
+
+/// Servo ticks per logging period: `servo_rate_hz * ts` rounded, which must match to 1e-9.
+fn ticks_per_sample(servo_rate_hz: f64, ts: f64) -> Result<usize, Error> {
+    if !(ts > 0.0 && ts.is_finite()) {
+        return Err(Error::BadSamplePeriod { ts });
+    }
+    let ratio = servo_rate_hz * ts;
+    let n = ratio.round();
+    if !(n >= 1.0 && (ratio - n).abs() <= 1e-9 * n && n < 1e9) {
+        return Err(Error::ServoRate { servo_rate_hz, ts });
+    }
+    Ok(n as usize)
+}
+
+impl Drive {
+    /// Simulates the drive through `reference` (samples at period `ts`, s), with the controller
+    /// at the servo rate, which must be an integer multiple of $1/T_s$. The drive starts at rest
+    /// at `reference.pos[0]` with every controller state zero. See the module documentation for
+    /// the interpolation, the plant step and the controller discretisation.
+    ///
+    /// Errors: the reference's ([`Reference::check`]: empty, lengths, non-finite),
+    /// [`Error::BadSamplePeriod`], [`Error::ServoRate`]. Cost: about 10 ns per servo tick
+    /// (30 s at 20 kHz ≈ 10 ms; see `benches/drive.rs`), memory O(samples).
+    pub fn simulate(&self, reference: Reference<'_>, ts: f64) -> Result<DriveTrace, Error> {
+        let mut trace = DriveTrace::default();
+        self.simulate_into(reference, ts, &mut trace)?;
+        Ok(trace)
+    }
+
+    /// As [`Drive::simulate`], reusing `trace`'s buffers (cleared first).
+    pub fn simulate_into(
+        &self,
+        reference: Reference<'_>,
+        ts: f64,
+        trace: &mut DriveTrace,
+    ) -> Result<(), Error> {
+        let n = reference.check()?;
+        let n_sub = ticks_per_sample(self.servo_rate_hz(), ts)?;
+        let h = ts / n_sub as f64;
+        trace.ts = ts;
+        for v in [
+            &mut trace.position,
+            &mut trace.true_position,
+            &mut trace.velocity,
+            &mut trace.control,
+        ] {
+            v.clear();
+            v.reserve(n);
+        }
+        trace.saturated_ticks = 0;
+        let mut enc = EncoderReader::new(self.encoder());
+        with_servo(self, h, None, |servo| match servo {
+            ServoRef::PPi(s) => s.run(reference, n_sub, &mut enc, trace),
+            ServoRef::Pid(s) => s.run(reference, n_sub, &mut enc, trace),
+            ServoRef::Smc(s) => s.run(reference, n_sub, &mut enc, trace),
+        })
+    }
+
+    /// Transition matrix $M$ of the sampled linear closed loop at the servo rate (friction,
+    /// quantisation, noise and saturation off, zero reference): $z_{k+1} = M z_k$ with
+    /// $z = [x, \dot x, \text{integrator}, \hat x_{k-1}, \hat x_{k-2}]$. Built column by column by
+    /// running the simulator's own servo tick on unit states, so it is the matrix of the code,
+    /// not of a separate derivation.
+    pub fn sampled_transition_matrix(&self) -> Result<SMatrix<f64, 5, 5>, Error> {
+        let h = 1.0 / self.servo_rate_hz();
+        let linear_plant = Plant {
+            coulomb_torque: 0.0,
+            u_max: None,
+            ..self.plant().clone()
+        };
+        let to_vec = |s: &LoopState| [s.x, s.v, s.ctrl.integ, s.ctrl.xm1, s.ctrl.xm2];
+        with_servo(self, h, Some(&linear_plant), |servo| {
+            let mut m = SMatrix::<f64, 5, 5>::zeros();
+            for col in 0..5 {
+                let mut z = [0.0; 5];
+                z[col] = 1.0;
+                let mut st = LoopState {
+                    x: z[0],
+                    v: z[1],
+                    ctrl: CtrlState {
+                        integ: z[2],
+                        xm1: z[3],
+                        xm2: z[4],
+                        xr1: 0.0,
+                    },
+                };
+                match servo {
+                    ServoRef::PPi(s) => s.linear_tick(&mut st),
+                    ServoRef::Pid(s) => s.linear_tick(&mut st),
+                    ServoRef::Smc(s) => s.linear_tick(&mut st),
+                }
+                for (row, v) in to_vec(&st).iter().enumerate() {
+                    m[(row, col)] = *v;
+                }
+            }
+            m
+        })
+    }
+
+    /// Effective continuous poles of the sampled closed loop: the three slowest eigenvalues $z$
+    /// of [`Drive::sampled_transition_matrix`] (the other two are fast parasitic modes of the
+    /// velocity estimator and the hold) mapped by $s = \ln(z)/h$. Returns the three poles (rad/s)
+    /// and their $(p, \omega_n, \zeta)$ form. SPEC section 3: at 20 kHz they lie within 1 % of the
+    /// continuous design; at 1 kHz they move by several percent.
+    pub fn effective_poles(&self) -> Result<([Complex<f64>; 3], Poles), Error> {
+        let m = self.sampled_transition_matrix()?;
+        if !m.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteModel);
+        }
+        let h = 1.0 / self.servo_rate_hz();
+        let schur = m.try_schur(1e-15, 10_000).ok_or(Error::NonFiniteModel)?;
+        let mut z: Vec<Complex<f64>> = schur.complex_eigenvalues().iter().copied().collect();
+        z.sort_by(|a, b| b.norm().total_cmp(&a.norm()));
+        let mut s = [Complex::new(0.0, 0.0); 3];
+        for (si, zi) in s.iter_mut().zip(&z) {
+            *si = zi.ln() / h;
+        }
+        // Real cubic through the three roots (conjugate pairs make the imaginary parts vanish).
+        let a1 = -(s[0] + s[1] + s[2]).re;
+        let a2 = (s[0] * s[1] + s[0] * s[2] + s[1] * s[2]).re;
+        let a3 = -(s[0] * s[1] * s[2]).re;
+        let cubic = ClosedLoopModel {
+            a1,
+            a2,
+            a3,
+            b0: 0.0,
+            b1: 0.0,
+            b2: 0.0,
+            dc: 0.0,
+        };
+        let poles = cubic.poles().ok_or(Error::NonFiniteModel)?;
+        Ok((s, poles))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    fn plant(tc: f64) -> Plant {
+        Plant {
+            j: 0.01,
+            b: 0.0418572,
+            ka: 1.0,
+            kt: 1.0,
+            rg: 1.5915,
+            coulomb_torque: tc,
+            u_max: None,
+        }
+    }
+
+    #[test]
+    fn plant_step_is_the_exact_solution_under_constant_input() {
+        // Truth: closed-form solution of x'' = -beta x' + a with constant a:
+        // v(t) = v0 e^{-beta t} + (a/beta)(1 - e^{-beta t}),
+        // x(t) = x0 + (v0 - a/beta)(1 - e^{-beta t})/beta + (a/beta) t.
+        let p = plant(0.0);
+        let h = 5e-5;
+        let step = PlantStep::new(&p, h).unwrap();
+        let beta = p.b / p.j;
+        let (x0, v0, u) = (3.0, -20.0, 7.0);
+        let a = step.c * u;
+        let (mut x, mut v) = (x0, v0);
+        let n = 20_000; // 1 s
+        for _ in 0..n {
+            let v_star = step.decay * v + step.phi1 * a;
+            let x_star = x + step.phi1 * v + step.phi2 * a;
+            step.finish(&mut x, &mut v, v_star, x_star);
+        }
+        let t = n as f64 * h;
+        let e = (-beta * t).exp();
+        let v_exact = v0 * e + a / beta * (1.0 - e);
+        let x_exact = x0 + (v0 - a / beta) * (1.0 - e) / beta + a / beta * t;
+        assert_relative_eq!(v, v_exact, max_relative = 1e-10);
+        assert_relative_eq!(x, x_exact, max_relative = 1e-10);
+    }
+
+    #[test]
+    fn friction_step_sticks_below_breakaway_and_slides_above() {
+        // Truth: Coulomb's law. At rest, a drive torque below Tc leaves the axis exactly at rest;
+        // above it, the axis accelerates at (Ka Kt u - Tc) rg / J.
+        let p = plant(0.3);
+        let h = 5e-5;
+        let step = PlantStep::new(&p, h).unwrap();
+        for u in [0.0, 0.1, -0.29999, 0.3] {
+            let (mut x, mut v) = (1.25, 0.0);
+            for _ in 0..1000 {
+                let a = step.c * u;
+                let x_star = x + step.phi2 * a;
+                step.finish(&mut x, &mut v, step.phi1 * a, x_star);
+            }
+            assert_eq!((x, v), (1.25, 0.0), "u = {u}");
+        }
+        let u = 0.5;
+        let (mut x, mut v) = (0.0, 0.0);
+        let a = step.c * u;
+        let v_star = step.decay * v + step.phi1 * a;
+        let x_star = x + step.phi1 * v + step.phi2 * a;
+        step.finish(&mut x, &mut v, v_star, x_star);
+        let expected_acc = (u - 0.3) * p.rg / p.j;
+        assert_relative_eq!(v / h, expected_acc, max_relative = 1e-3);
+        assert!(x > 0.0);
+    }
+
+    #[test]
+    fn quantiser_rounds_to_the_grid() {
+        let enc = EncoderReader::new(&Encoder {
+            resolution: 1e-4,
+            noise_std: 0.0,
+            seed: 0,
+        });
+        assert_eq!(enc.quantise(0.00014), 1e-4);
+        assert_eq!(enc.quantise(-0.00016), -2e-4);
+        assert_relative_eq!(enc.quantise(123.456_789), 123.4568, max_relative = 1e-15);
+        // Beyond the magic-number range it falls back to round().
+        assert_eq!(enc.quantise(1e12), 1e12);
+        let ideal = EncoderReader::new(&Encoder::ideal());
+        assert_eq!(ideal.quantise(0.123_456_789), 0.123_456_789);
+    }
+
+    #[test]
+    fn servo_rate_must_be_a_multiple_of_the_logging_rate() {
+        assert_eq!(ticks_per_sample(20_000.0, 1e-3).unwrap(), 20);
+        assert_eq!(ticks_per_sample(1_000.0, 1e-3).unwrap(), 1);
+        assert!(matches!(
+            ticks_per_sample(15_500.0, 1e-3 / 3.0),
+            Err(Error::ServoRate { .. })
+        ));
+        assert!(matches!(
+            ticks_per_sample(500.0, 1e-3),
+            Err(Error::ServoRate { .. })
+        ));
+        assert!(matches!(
+            ticks_per_sample(20_000.0, 0.0),
+            Err(Error::BadSamplePeriod { .. })
+        ));
+    }
+
+    #[test]
+    fn law_slopes_match_the_terms() {
+        // Truth: finite differences of the law in the reading; `slopes` must be the derivative
+        // of what the tick computes, or the rearranged tick would differ from the plain law.
+        let s = CtrlState {
+            integ: 0.3,
+            xm1: 1.2,
+            xm2: 1.1,
+            xr1: 1.25,
+        };
+        let r = RefSample {
+            xr: 1.3,
+            vr: 50.0,
+            ar: 400.0,
+        };
+        let h = 5e-5;
+        let inv_2h = 0.5 / h;
+        let ppi = PPiLaw {
+            kp: 2.3,
+            ki: 223.0,
+            kv: 70.0,
+            vff_over_rg: 0.5 / 1.59,
+            inv_rg: 1.0 / 1.59,
+            half_h_kv: 0.5 * h * 70.0,
+            inv_2h,
+            ff_a: 0.01,
+            ff_v: 0.002,
+        };
+        let pid = PidLaw {
+            kp: 30.0,
+            ki: 800.0,
+            kd: 0.5,
+            half_h: 0.5 * h,
+            inv_2h,
+            ff_a: 0.0,
+            ff_v: 0.01,
+        };
+        let smc = SmcLaw {
+            lambda: 67.0,
+            ks: 0.01,
+            rho: 3.0,
+            je_hat: 0.006,
+            be_hat: 0.02,
+            half_h_lambda: 0.5 * h * 67.0,
+            inv_2h,
+        };
+        fn check<L: Law>(law: &L, s: &CtrlState, r: RefSample, direct: impl Fn(f64) -> (f64, f64)) {
+            let (gd, gi, _) = law.slopes();
+            let (d0, i0) = law.terms0(s, r);
+            let (d_ref0, i_ref0) = direct(0.0);
+            assert_relative_eq!(d0, d_ref0, max_relative = 1e-12, epsilon = 1e-9);
+            assert_relative_eq!(i0, i_ref0, max_relative = 1e-12, epsilon = 1e-12);
+            let (d1, i1) = direct(1.0);
+            assert_relative_eq!(gd, d1 - d_ref0, max_relative = 1e-9);
+            assert_relative_eq!(gi, i1 - i_ref0, max_relative = 1e-9);
+        }
+        // The laws as SPEC section 3 writes them, with the BDF2 velocity.
+        let vhat = |xm: f64| (3.0 * xm - 4.0 * s.xm1 + s.xm2) * inv_2h;
+        check(&ppi, &s, r, |xm| {
+            let e = r.xr - xm;
+            let e1 = s.xr1 - s.xm1;
+            let w = 70.0 * e + 0.5 / 1.59 * r.vr - vhat(xm) / 1.59;
+            let d = 2.3 * w + 0.01 * r.ar + 0.002 * r.vr;
+            let di = 70.0 * h * (e + e1) / 2.0 + 0.5 * (r.xr - s.xr1) / 1.59 - (xm - s.xm1) / 1.59;
+            (d, di)
+        });
+        check(&pid, &s, r, |xm| {
+            let e = r.xr - xm;
+            let e1 = s.xr1 - s.xm1;
+            (
+                30.0 * e + 0.5 * (r.vr - vhat(xm)) + 0.01 * r.vr,
+                h * (e + e1) / 2.0,
+            )
+        });
+        check(&smc, &s, r, |xm| {
+            let e = r.xr - xm;
+            let e1 = s.xr1 - s.xm1;
+            let ed = r.vr - vhat(xm);
+            let sv = 67.0 * e + ed;
+            let d = 0.006 * (r.ar + 67.0 * ed) + 0.02 * vhat(xm) + 0.01 * sv;
+            (d, 67.0 * h * (e + e1) / 2.0 + (e - e1))
+        });
+    }
+}

@@ -1,0 +1,135 @@
+//! Reference programs for the drive tests and benches: an identification-like sequence of random
+//! rest-to-rest trapezoidal moves, sampled exactly (position, velocity, acceleration) at `ts`.
+
+#![allow(dead_code)]
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Sampled reference: position (mm), velocity (mm/s), acceleration (mm/s²).
+pub struct Program {
+    pub pos: Vec<f64>,
+    pub vel: Vec<f64>,
+    pub acc: Vec<f64>,
+}
+
+impl Program {
+    pub fn reference(&self) -> vcnc_drive::Reference<'_> {
+        vcnc_drive::Reference {
+            pos: &self.pos,
+            vel: &self.vel,
+            acc: &self.acc,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.pos.len()
+    }
+}
+
+/// One rest-to-rest trapezoidal move starting at `t0` from `x0`: accelerate at `a` for `ta`,
+/// cruise at `vp` for `tc`, decelerate for `ta`, then dwell until `t0 + ta + tc + ta + dwell`.
+struct Move {
+    t0: f64,
+    x0: f64,
+    dir: f64,
+    a: f64,
+    vp: f64,
+    ta: f64,
+    tc: f64,
+    end: f64,
+}
+
+impl Move {
+    /// (position, velocity, acceleration) at absolute time t in [t0, end].
+    fn eval(&self, t: f64) -> (f64, f64, f64) {
+        let tau = t - self.t0;
+        let (ta, tc, a, vp) = (self.ta, self.tc, self.a, self.vp);
+        let (s, v, acc) = if tau < ta {
+            (0.5 * a * tau * tau, a * tau, a)
+        } else if tau < ta + tc {
+            (0.5 * a * ta * ta + vp * (tau - ta), vp, 0.0)
+        } else if tau < 2.0 * ta + tc {
+            let d = tau - ta - tc;
+            (
+                0.5 * a * ta * ta + vp * tc + vp * d - 0.5 * a * d * d,
+                vp - a * d,
+                -a,
+            )
+        } else {
+            (a * ta * ta + vp * tc, 0.0, 0.0)
+        };
+        (self.x0 + self.dir * s, self.dir * v, self.dir * acc)
+    }
+}
+
+/// Random rest-to-rest moves between targets uniform in ±`range` mm, peak speed up to `v_max`,
+/// acceleration up to `a_max`, dwell 50–300 ms, for `duration` s, sampled at `ts`. Starts with
+/// 0.1 s at rest at `x_start`.
+pub fn identification_program(
+    seed: u64,
+    duration: f64,
+    ts: f64,
+    x_start: f64,
+    range: f64,
+    v_max: f64,
+    a_max: f64,
+) -> Program {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut moves = Vec::new();
+    let mut t = 0.1;
+    let mut x = x_start;
+    while t < duration {
+        let target = x_start + range * (2.0 * rng.random::<f64>() - 1.0);
+        let vp_max = v_max * (0.1 + 0.9 * rng.random::<f64>());
+        let a = a_max * (0.2 + 0.8 * rng.random::<f64>());
+        let dwell = 0.05 + 0.25 * rng.random::<f64>();
+        let d = (target - x).abs();
+        let (vp, ta, tc) = if d * a < vp_max * vp_max {
+            let vp = (d * a).sqrt();
+            (vp, vp / a, 0.0)
+        } else {
+            (vp_max, vp_max / a, (d - vp_max * vp_max / a) / vp_max)
+        };
+        let end = t + 2.0 * ta + tc + dwell;
+        moves.push(Move {
+            t0: t,
+            x0: x,
+            dir: (target - x).signum(),
+            a,
+            vp,
+            ta,
+            tc,
+            end,
+        });
+        x = target;
+        t = end;
+    }
+    let n = (duration / ts).round() as usize + 1;
+    let mut prog = Program {
+        pos: Vec::with_capacity(n),
+        vel: Vec::with_capacity(n),
+        acc: Vec::with_capacity(n),
+    };
+    let mut m = 0;
+    for k in 0..n {
+        let t = k as f64 * ts;
+        while m < moves.len() && t >= moves[m].end {
+            m += 1;
+        }
+        let (p, v, a) = match moves.get(m) {
+            Some(mv) if t >= mv.t0 => mv.eval(t),
+            Some(mv) => (mv.x0, 0.0, 0.0),
+            None => (x, 0.0, 0.0),
+        };
+        prog.pos.push(p);
+        prog.vel.push(v);
+        prog.acc.push(a);
+    }
+    prog
+}
+
+/// The identification-like program of the drive tests: 30 s, ±50 mm, 250 mm/s, 2500 mm/s².
+pub fn standard_program() -> Program {
+    identification_program(7, 30.0, 1e-3, 0.0, 50.0, 250.0, 2500.0)
+}

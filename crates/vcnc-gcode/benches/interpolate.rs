@@ -1,0 +1,54 @@
+//! Parse + interpret + interpolate benchmarks: the spiral (SPEC section 6) and an
+//! identification program (defaults, axis X).
+//!
+//! Run: `CARGO_TARGET_DIR=/work/targets/vcnc-gcode cargo bench -p vcnc-gcode --bench interpolate`
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
+use vcnc_gcode::{
+    IdentificationOptions, InterpOptions, InterpolateOptions, Limits, SpiralOptions,
+    TcpProgramOptions, identification, load, spiral_points, tcp_program,
+};
+
+/// Tool axis → (A, C) in degrees for the bench only: branch −1 of SPEC section 5,
+/// a = −acos(o_z), c = atan2(−o_x, −o_y), c unwrapped continuously.
+fn spiral_program() -> String {
+    let pts = spiral_points(&SpiralOptions::default()).expect("default spiral options are valid");
+    let mut out = Vec::with_capacity(pts.len());
+    let mut prev_c: Option<f64> = None;
+    for q in &pts {
+        let a = -q.o[2].clamp(-1.0, 1.0).acos();
+        let mut c = (-q.o[0]).atan2(-q.o[1]);
+        if let Some(pc) = prev_c {
+            c += std::f64::consts::TAU * ((pc - c) / std::f64::consts::TAU).round();
+        }
+        prev_c = Some(c);
+        out.push((q.p, a.to_degrees(), c.to_degrees()));
+    }
+    tcp_program(&out, &TcpProgramOptions::default()).expect("finite points")
+}
+
+fn bench(c: &mut Criterion) {
+    let spiral = spiral_program();
+    let mut limits = Limits::uniform(250.0, 2500.0);
+    limits.tcp_max_vel = 75.0;
+    limits.tcp_max_acc = 1500.0;
+    for i in 3..6 {
+        limits.axes[i].max_vel = 1000.0;
+        limits.axes[i].max_acc = 1.0e5;
+    }
+    let opts = InterpolateOptions::default();
+    let io = InterpOptions::default();
+    c.bench_function("spiral: parse + interpret + interpolate (1 ms)", |b| {
+        b.iter(|| load(black_box(&spiral), &io, &limits, &opts).map(|r| r.trajectory.len()))
+    });
+    let ident = identification('X', &IdentificationOptions::default()).expect("defaults are valid");
+    let limits = Limits::uniform(250.0, 2500.0);
+    c.bench_function(
+        "identification X: parse + interpret + interpolate (1 ms)",
+        |b| b.iter(|| load(black_box(&ident), &io, &limits, &opts).map(|r| r.trajectory.len())),
+    );
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,194 @@
+//! G-code front end of vcnc: parsing, modal interpretation, trapezoidal interpolation at the
+//! sample period, and the program generators (SPEC section 2).
+//!
+//! The stages are kept apart (STYLE, the gcode-rs model):
+//!
+//! | module | input → output | main type |
+//! |---|---|---|
+//! | [`syntax`] | text → blocks, words, comments with spans; every diagnostic | [`Program`] |
+//! | [`interp`] | blocks → moves in mm and degrees (modal state, units, arcs, feeds) | [`Toolpath`] |
+//! | [`interpolate`](mod@interpolate) | moves + limits → samples of position, velocity, acceleration | [`Trajectory`] |
+//! | [`generate`] | options → G-code text (identification excitation, 5-axis spiral) | `String` |
+//!
+//! ```
+//! use vcnc_gcode::{load, InterpOptions, InterpolateOptions, Limits};
+//!
+//! let src = "G21 G90 G61\nG0 X0\nG1 X10 F600\nM2\n";
+//! let limits = Limits::uniform(250.0, 2500.0);
+//! let run = load(src, &InterpOptions::default(), &limits, &InterpolateOptions::default()).unwrap();
+//! // 10 mm at 10 mm/s with 2500 mm/s²: T = L/V + V/A = 1.004 s.
+//! assert!((run.trajectory.duration_s() - 1.004).abs() < 1e-9);
+//! assert_eq!(run.trajectory.axis('X').unwrap().pos.last(), Some(&10.0));
+//! ```
+
+pub mod diag;
+pub mod generate;
+pub mod interp;
+pub mod interpolate;
+pub mod syntax;
+
+pub use diag::{Diagnostic, Severity, Span};
+pub use generate::{
+    IdentificationOptions, SpiralOptions, TcpProgramOptions, TipPose, identification,
+    spiral_points, tcp_program,
+};
+pub use interp::{ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, Toolpath, interpret};
+pub use interpolate::{
+    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, InverseTimePolicy, Limits, Trajectory,
+    interpolate,
+};
+pub use syntax::{
+    Block, Comment, CommentKind, LineNumber, ParseOptions, Program, Word, parse, parse_bytes,
+    parse_with,
+};
+
+/// Axis letters in the order used by every `[f64; 6]` position: X Y Z (mm), A B C (deg).
+pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+
+/// Errors of this crate. Each carries the values needed to act on it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// The program has errors (parse or interpretation); all of them are listed.
+    #[error("the program has {} error(s); first: {}", count_errors(.diagnostics), first_error(.diagnostics))]
+    Program {
+        /// Every diagnostic, errors and warnings, in order.
+        diagnostics: Vec<Diagnostic>,
+    },
+    /// A limit is negative or not finite.
+    #[error("limit {name} of axis {axis} is {value}; it must be a finite number ≥ 0")]
+    InvalidLimit {
+        /// Axis letter (`-` for the tool-tip path limits).
+        axis: char,
+        /// Which limit.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+    },
+    /// An option is out of its range.
+    #[error("option {name} = {value} is invalid: expected {expected}")]
+    InvalidOption {
+        /// Option name.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What is accepted.
+        expected: &'static str,
+    },
+    /// A move needs an axis whose limit is zero.
+    #[error("line {line}: axis {axis} must move but its {what} limit is 0")]
+    AxisCannotMove {
+        /// Axis letter (`-` for the tool-tip path).
+        axis: char,
+        /// `"velocity"` or `"acceleration"`.
+        what: &'static str,
+        /// Source line of the move.
+        line: u32,
+    },
+    /// The trajectory would exceed [`InterpolateOptions::max_samples`].
+    #[error(
+        "the trajectory needs {samples:.0} samples ({duration_s:.3} s), more than the limit of {max}"
+    )]
+    TooManySamples {
+        /// Samples needed (at least).
+        samples: f64,
+        /// The limit.
+        max: usize,
+        /// Duration reached, s.
+        duration_s: f64,
+    },
+    /// A `G93` block cannot last 1/F within the limits.
+    #[error(
+        "line {line}: inverse-time feed asks for {requested_s:.6} s but the axis limits need at least {min_s:.6} s"
+    )]
+    InverseTimeInfeasible {
+        /// Source line.
+        line: u32,
+        /// 1/F, s.
+        requested_s: f64,
+        /// Shortest feasible time, s.
+        min_s: f64,
+    },
+    /// A computed quantity is not finite (degenerate input).
+    #[error("line {line}: {what} is not finite or not positive")]
+    NonFinite {
+        /// Source line.
+        line: u32,
+        /// What was computed.
+        what: &'static str,
+    },
+    /// An axis letter outside `XYZABC`.
+    #[error("unknown axis '{name}': expected one of X Y Z A B C")]
+    UnknownAxis {
+        /// The letter.
+        name: char,
+    },
+    /// A generator option is out of range.
+    #[error("generator option {name} = {value} is invalid: expected {expected}")]
+    InvalidGenerator {
+        /// Option name.
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What is accepted.
+        expected: &'static str,
+    },
+}
+
+fn count_errors(d: &[Diagnostic]) -> usize {
+    d.iter().filter(|d| d.is_error()).count()
+}
+
+fn first_error(d: &[Diagnostic]) -> String {
+    d.iter()
+        .find(|d| d.is_error())
+        .map_or_else(String::new, ToString::to_string)
+}
+
+/// Everything [`load`] produces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    /// The syntax tree.
+    pub program: Program,
+    /// The interpreted moves.
+    pub toolpath: Toolpath,
+    /// The samples.
+    pub trajectory: Trajectory,
+    /// Every warning (parser, interpreter, interpolator), in that order.
+    pub warnings: Vec<Diagnostic>,
+}
+
+/// Parse, interpret and interpolate `src` in one call.
+///
+/// [`InterpOptions::lenient`] also makes the parser lenient. Any error diagnostic gives
+/// [`Error::Program`] with all diagnostics of the failing stage (and the parser's).
+pub fn load(
+    src: &str,
+    interp_opts: &InterpOptions,
+    limits: &Limits,
+    opts: &InterpolateOptions,
+) -> Result<Loaded, Error> {
+    let parse_opts = ParseOptions {
+        lenient: interp_opts.lenient,
+        ..ParseOptions::default()
+    };
+    let (program, mut diags) = parse_with(src, &parse_opts);
+    if diags.iter().any(Diagnostic::is_error) {
+        return Err(Error::Program { diagnostics: diags });
+    }
+    let (toolpath, warnings) = match interpret(&program, interp_opts) {
+        Ok(r) => r,
+        Err(more) => {
+            diags.extend(more);
+            return Err(Error::Program { diagnostics: diags });
+        }
+    };
+    diags.extend(warnings);
+    let trajectory = interpolate(&toolpath, limits, opts)?;
+    diags.extend(trajectory.warnings.iter().cloned());
+    Ok(Loaded {
+        program,
+        toolpath,
+        trajectory,
+        warnings: diags,
+    })
+}

@@ -1,0 +1,478 @@
+//! Property tests over random programs and limits (SPEC section 2, "Properties that must hold"):
+//! no sample exceeds a limit, blocks end on their programmed points, exact-stop durations are
+//! the rounded time-optimal ones, G20 programs equal their G21 twins, G91 equals G90; and no
+//! input panics the parser, the interpreter or the interpolator.
+
+use proptest::prelude::*;
+use std::fmt::Write;
+use vcnc_gcode::{
+    Feed, InterpOptions, InterpolateOptions, InverseTimePolicy, Limits, Move, MoveKind,
+    ParseOptions, Trajectory, interpolate, interpret, load, parse_bytes, parse_with,
+};
+
+#[derive(Debug, Clone)]
+enum Op {
+    /// Straight move by `d` (mm, deg); `feed` in units/s; `rapid` for G0.
+    Line {
+        rapid: bool,
+        d: [f64; 6],
+        feed: f64,
+    },
+    /// Arc of radius `r` starting at angle `phi0` on its circle, sweeping `sweep` rad, with a
+    /// helical rise `dz`.
+    Arc {
+        ccw: bool,
+        r: f64,
+        phi0: f64,
+        sweep: f64,
+        dz: f64,
+        feed: f64,
+    },
+    /// Inverse-time straight move lasting `minutes`.
+    InverseTime {
+        d: [f64; 6],
+        minutes: f64,
+    },
+    Dwell(f64),
+    PathMode(bool),
+    Tcp(bool),
+}
+
+fn disp() -> impl Strategy<Value = [f64; 6]> {
+    // Each axis moves with probability ½; X Y Z within ±40 mm, A B C within ±90°.
+    prop::array::uniform6((any::<bool>(), -1.0f64..1.0)).prop_map(|a| {
+        let mut d = [0.0; 6];
+        for (i, (on, v)) in a.iter().enumerate() {
+            if *on {
+                d[i] = v * if i < 3 { 40.0 } else { 90.0 };
+            }
+        }
+        d
+    })
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    prop_oneof![
+        4 => (any::<bool>(), disp(), 5.0f64..250.0).prop_map(|(rapid, d, feed)| Op::Line { rapid, d, feed }),
+        2 => (any::<bool>(), 1.0f64..40.0, -3.2f64..3.2, 0.1f64..6.0, -10.0f64..10.0, 5.0f64..250.0)
+            .prop_map(|(ccw, r, phi0, sweep, dz, feed)| Op::Arc { ccw, r, phi0, sweep, dz, feed }),
+        1 => (disp(), 0.005f64..0.05).prop_map(|(d, minutes)| Op::InverseTime { d, minutes }),
+        1 => (0.0f64..0.3).prop_map(Op::Dwell),
+        2 => any::<bool>().prop_map(Op::PathMode),
+        1 => any::<bool>().prop_map(Op::Tcp),
+    ]
+}
+
+fn limits() -> impl Strategy<Value = Limits> {
+    (
+        prop::array::uniform6((20.0f64..500.0, 200.0f64..20000.0)),
+        20.0f64..500.0,
+        200.0f64..20000.0,
+    )
+        .prop_map(|(axes, tv, ta)| {
+            let mut l = Limits::uniform(1.0, 1.0);
+            for (i, (v, a)) in axes.iter().enumerate() {
+                l.axes[i].max_vel = *v;
+                l.axes[i].max_acc = *a;
+            }
+            l.tcp_max_vel = tv;
+            l.tcp_max_acc = ta;
+            l
+        })
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Style {
+    Absolute,
+    Incremental,
+    Inch,
+}
+
+/// Write the ops as a program in the given style. The opening block positions the machine at
+/// a fixed start.
+fn render(ops: &[Op], style: Style) -> String {
+    let names = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+    let k = if style == Style::Inch {
+        1.0 / 25.4
+    } else {
+        1.0
+    };
+    let len = |v: f64| v * k;
+    let mut pos = [5.0, -3.0, 2.0, 10.0, 0.0, -20.0];
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{} G90 G17 G94 G61",
+        if style == Style::Inch { "G20" } else { "G21" }
+    );
+    let mut first = String::from("G0");
+    for (i, p) in pos.iter().enumerate() {
+        let v = if i < 3 { len(*p) } else { *p };
+        let _ = write!(first, " {}{}", names[i], v);
+    }
+    let _ = writeln!(out, "{first}");
+    if style == Style::Incremental {
+        let _ = writeln!(out, "G91");
+    }
+    let axis_words = |out: &mut String, pos: &[f64; 6], new: &[f64; 6], only_moving: bool| {
+        for i in 0..6 {
+            if only_moving && new[i] == pos[i] {
+                continue;
+            }
+            let v = match style {
+                Style::Incremental => new[i] - pos[i],
+                _ => new[i],
+            };
+            let v = if i < 3 { len(v) } else { v };
+            let _ = write!(out, " {}{}", names[i], v);
+        }
+    };
+    for op in ops {
+        match op {
+            Op::Line { rapid, d, feed } => {
+                let new: [f64; 6] = std::array::from_fn(|i| pos[i] + d[i]);
+                if new == pos {
+                    continue;
+                }
+                let xyz = (0..3).any(|i| new[i] != pos[i]);
+                out.push_str(if *rapid { "G0" } else { "G1" });
+                axis_words(&mut out, &pos, &new, true);
+                if !rapid {
+                    // Pure rotary feeds are deg/min and never scaled.
+                    let f = if xyz { len(feed * 60.0) } else { feed * 60.0 };
+                    let _ = write!(out, " F{f}");
+                }
+                out.push('\n');
+                pos = new;
+            }
+            Op::Arc {
+                ccw,
+                r,
+                phi0,
+                sweep,
+                dz,
+                feed,
+            } => {
+                let (cx, cy) = (pos[0] - r * phi0.cos(), pos[1] - r * phi0.sin());
+                let end = if *ccw { phi0 + sweep } else { phi0 - sweep };
+                let mut new = pos;
+                new[0] = cx + r * end.cos();
+                new[1] = cy + r * end.sin();
+                new[2] = pos[2] + dz;
+                out.push_str(if *ccw { "G3" } else { "G2" });
+                axis_words(&mut out, &pos, &new, false);
+                let _ = writeln!(
+                    out,
+                    " I{} J{} F{}",
+                    len(cx - pos[0]),
+                    len(cy - pos[1]),
+                    len(feed * 60.0)
+                );
+                pos = new;
+            }
+            Op::InverseTime { d, minutes } => {
+                let new: [f64; 6] = std::array::from_fn(|i| pos[i] + d[i]);
+                if new == pos {
+                    continue;
+                }
+                out.push_str("G93 G1");
+                axis_words(&mut out, &pos, &new, true);
+                let _ = writeln!(out, " F{}\nG94", 1.0 / minutes);
+                pos = new;
+            }
+            Op::Dwell(p) => {
+                let _ = writeln!(out, "G4 P{p}");
+            }
+            Op::PathMode(g64) => {
+                let _ = writeln!(out, "{}", if *g64 { "G64" } else { "G61" });
+            }
+            Op::Tcp(on) => {
+                let _ = writeln!(out, "{}", if *on { "G43.4" } else { "G49" });
+            }
+        }
+    }
+    out.push_str("M2\n");
+    out
+}
+
+fn all_axes() -> InterpolateOptions {
+    InterpolateOptions {
+        axes: Some(vec!['X', 'Y', 'Z', 'A', 'B', 'C']),
+        inverse_time: InverseTimePolicy::Stretch,
+        ..InterpolateOptions::default()
+    }
+}
+
+fn continuous(m: &Move) -> bool {
+    !m.exact_stop
+        && matches!(m.feed, Some(Feed::UnitsPerMin(_)))
+        && matches!(m.kind, MoveKind::Linear | MoveKind::Arc(_))
+}
+
+fn xyz_basis(m: &Move) -> bool {
+    matches!(m.kind, MoveKind::Arc(_)) || (0..3).any(|i| m.end[i] != m.start[i])
+}
+
+/// Independent oracle: the time-optimal rest-to-rest time of a straight move (module doc
+/// equations, recomputed here from the limits).
+fn t_star_line(m: &Move, limits: &Limits) -> f64 {
+    let d: Vec<f64> = (0..6).map(|i| m.end[i] - m.start[i]).collect();
+    let xyz = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    let rot = (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]).sqrt();
+    let l = if xyz > 0.0 { xyz } else { rot };
+    let mut v = match m.feed {
+        Some(Feed::UnitsPerMin(f)) => f / 60.0,
+        _ => f64::INFINITY,
+    };
+    let mut a = f64::INFINITY;
+    for (i, &di) in d.iter().enumerate() {
+        if di == 0.0 || (m.tcp && i < 3) {
+            continue;
+        }
+        v = v.min(limits.axes[i].max_vel * l / di.abs());
+        a = a.min(limits.axes[i].max_acc * l / di.abs());
+    }
+    if m.tcp && xyz > 0.0 {
+        v = v.min(limits.tcp_max_vel * l / xyz);
+        a = a.min(limits.tcp_max_acc * l / xyz);
+    }
+    if l >= v * v / a {
+        l / v + v / a
+    } else {
+        2.0 * (l / a).sqrt()
+    }
+}
+
+fn rounded(t: f64, ts: f64) -> f64 {
+    (t / ts - 1e-9).ceil() * ts
+}
+
+fn check_limits(t: &Trajectory, limits: &Limits) -> Result<(), TestCaseError> {
+    let tol = 1.0 + 1e-9;
+    for k in 0..t.len() {
+        for (i, a) in t.axes.iter().enumerate() {
+            if t.tcp[k] && i < 3 {
+                continue;
+            }
+            let l = limits.axes[i];
+            prop_assert!(
+                a.vel[k].abs() <= l.max_vel * tol + 1e-9,
+                "{} vel {} > {} at k {k}",
+                a.name,
+                a.vel[k],
+                l.max_vel
+            );
+            prop_assert!(
+                a.acc[k].abs() <= l.max_acc * tol + 1e-9,
+                "{} acc {} > {} at k {k}",
+                a.name,
+                a.acc[k],
+                l.max_acc
+            );
+        }
+        if t.tcp[k] {
+            let v = (0..3).map(|i| t.axes[i].vel[k].powi(2)).sum::<f64>().sqrt();
+            let a = (0..3).map(|i| t.axes[i].acc[k].powi(2)).sum::<f64>().sqrt();
+            prop_assert!(
+                v <= limits.tcp_max_vel * tol + 1e-9,
+                "tip speed {v} at k {k}"
+            );
+            prop_assert!(a <= limits.tcp_max_acc * tol + 1e-9, "tip acc {a} at k {k}");
+        }
+    }
+    Ok(())
+}
+
+fn close(a: &Trajectory, b: &Trajectory) -> Result<(), TestCaseError> {
+    prop_assert_eq!(a.len(), b.len());
+    for (x, y) in a.axes.iter().zip(&b.axes) {
+        for k in 0..a.len() {
+            prop_assert!(
+                (x.pos[k] - y.pos[k]).abs() <= 1e-9 * (1.0 + x.pos[k].abs()),
+                "{} pos at {k}: {} vs {}",
+                x.name,
+                x.pos[k],
+                y.pos[k]
+            );
+            prop_assert!(
+                (x.vel[k] - y.vel[k]).abs() <= 1e-6 * (1.0 + x.vel[k].abs()),
+                "{} vel at {k}",
+                x.name
+            );
+            prop_assert!(
+                (x.acc[k] - y.acc[k]).abs() <= 1e-6 * (1.0 + x.acc[k].abs()),
+                "{} acc at {k}",
+                x.name
+            );
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn random_programs_respect_limits_points_and_durations(
+        ops in prop::collection::vec(op(), 1..10),
+        limits in limits(),
+    ) {
+        let src = render(&ops, Style::Absolute);
+        let run = load(&src, &InterpOptions::default(), &limits, &all_axes())
+            .map_err(|e| TestCaseError::fail(format!("{e}\n{src}")))?;
+        let t = &run.trajectory;
+        check_limits(t, &limits)?;
+        let moves = &run.toolpath.moves;
+        let ts = t.ts;
+        for (j, b) in t.blocks.iter().enumerate() {
+            let m = &moves[b.move_index];
+            let next = t.blocks.get(j + 1).map(|n| &moves[n.move_index]);
+            let rests = !continuous(m)
+                || m.stop_after
+                || next.is_none_or(|n| !continuous(n) || n.tcp != m.tcp || xyz_basis(n) != xyz_basis(m));
+            if rests {
+                // Ends exactly on a sample, at rest, on the programmed point.
+                let kf = b.t_end_s / ts;
+                let k = kf.round() as usize;
+                prop_assert!((kf - k as f64).abs() < 1e-6);
+                for (i, a) in t.axes.iter().enumerate() {
+                    prop_assert!((a.pos[k] - m.end[i]).abs() < 1e-9, "line {} axis {}: {} vs {}", m.line, a.name, a.pos[k], m.end[i]);
+                    prop_assert!(a.vel[k].abs() < 1e-9);
+                }
+            }
+            let dur = b.t_end_s - b.t_start_s;
+            let straight = matches!(m.kind, MoveKind::Linear | MoveKind::Rapid);
+            if straight && (m.exact_stop || m.kind == MoveKind::Rapid) {
+                let expected = match m.feed {
+                    Some(Feed::InverseTime(f)) => rounded((60.0 / f).max(t_star_line(m, &limits)), ts),
+                    _ => rounded(t_star_line(m, &limits), ts),
+                };
+                prop_assert!((dur - expected).abs() < 1e-9, "line {}: {dur} vs {expected}", m.line);
+            }
+            if let MoveKind::Dwell { seconds } = m.kind {
+                prop_assert!((dur - rounded(seconds, ts)).abs() < 1e-9);
+            }
+        }
+        // The last sample rests on the last programmed point.
+        let last = run.toolpath.points().last().copied().unwrap_or(run.toolpath.start);
+        for (i, a) in t.axes.iter().enumerate() {
+            prop_assert_eq!(a.pos.last().copied(), Some(last[i]));
+        }
+    }
+
+    #[test]
+    fn arcs_stay_on_their_circle(
+        ops in prop::collection::vec(op(), 1..8),
+        limits in limits(),
+    ) {
+        let src = render(&ops, Style::Absolute);
+        let run = load(&src, &InterpOptions::default(), &limits, &all_axes())
+            .map_err(|e| TestCaseError::fail(format!("{e}\n{src}")))?;
+        let t = &run.trajectory;
+        for b in &t.blocks {
+            let m = &run.toolpath.moves[b.move_index];
+            if let MoveKind::Arc(a) = m.kind {
+                let k0 = (b.t_start_s / t.ts).ceil() as usize;
+                let k1 = ((b.t_end_s / t.ts).floor() as usize).min(t.len() - 1);
+                for k in k0..=k1 {
+                    let r = (t.axes[0].pos[k] - a.centre[0]).hypot(t.axes[1].pos[k] - a.centre[1]);
+                    prop_assert!((r - a.radius_start_mm).abs() < 1e-9, "r = {r} vs {}", a.radius_start_mm);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn inch_and_incremental_twins_are_equal(
+        ops in prop::collection::vec(op(), 1..8),
+        limits in limits(),
+    ) {
+        let opts = all_axes();
+        let io = InterpOptions::default();
+        let abs = load(&render(&ops, Style::Absolute), &io, &limits, &opts)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let inch = load(&render(&ops, Style::Inch), &io, &limits, &opts)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let inc = load(&render(&ops, Style::Incremental), &io, &limits, &opts)
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
+        close(&abs.trajectory, &inch.trajectory)?;
+        close(&abs.trajectory, &inc.trajectory)?;
+    }
+}
+
+const TOKENS: &[&str] = &[
+    "G0", "G1", "G2", "G3", "G4", "G17", "G18", "G19", "G20", "G21", "G43.4", "G49", "G61", "G64",
+    "G90", "G91", "G93", "G94", "G28", "G54", "M0", "M2", "M3", "M6", "M30", "M428", "X", "Y", "Z",
+    "A", "B", "C", "I", "J", "K", "R", "P", "F", "S", "T", "H", "N", "Q", "E", "(", ")", ";", "%",
+    "/", "*", "\"", "\n", "\n", " ", " ", "-", ".", "#", "é", "\r\n",
+];
+
+fn token_soup() -> impl Strategy<Value = String> {
+    prop::collection::vec(
+        prop_oneof![
+            3 => prop::sample::select(TOKENS).prop_map(str::to_string),
+            2 => (-1000.0f64..1000.0).prop_map(|v| format!("{v}")),
+            1 => (0u32..20).prop_map(|v| v.to_string()),
+            1 => prop::sample::select(&["1e308", "99999999999999999999999999", "0.000000001", "-0", "5."][..]).prop_map(str::to_string),
+        ],
+        0..60,
+    )
+    .prop_map(|v| v.concat())
+}
+
+/// Parse, interpret and interpolate with a small sample budget; only panics fail.
+fn exercise(text: &str) {
+    let budget = InterpolateOptions {
+        max_samples: 200_000,
+        ..InterpolateOptions::default()
+    };
+    let limits = Limits::uniform(100.0, 1000.0);
+    for lenient in [false, true] {
+        let (program, _) = parse_with(
+            text,
+            &ParseOptions {
+                lenient,
+                ..ParseOptions::default()
+            },
+        );
+        let opts = InterpOptions {
+            lenient,
+            tcp_on_mcodes: vec![428],
+            ..InterpOptions::default()
+        };
+        if let Ok((tp, _)) = interpret(&program, &opts) {
+            let _ = interpolate(&tp, &limits, &budget);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..400)) {
+        let (program, _) = parse_bytes(&bytes, &ParseOptions::default());
+        let _ = interpret(&program, &InterpOptions { lenient: true, ..InterpOptions::default() });
+        exercise(&String::from_utf8_lossy(&bytes));
+    }
+
+    #[test]
+    fn token_soups_never_panic(text in token_soup()) {
+        exercise(&text);
+    }
+}
+
+#[test]
+fn junk_is_handled_in_linear_time_and_bounded_memory() {
+    // 8 MB of junk without line breaks, then 8 MB of short junk lines: rejected with a bounded
+    // diagnostic list. (Speed is benchmarked, not asserted; this only shows it completes and
+    // reports.)
+    let long = "X".repeat(8 << 20);
+    let (p, d) = parse_with(&long, &ParseOptions::default());
+    assert!(p.blocks.is_empty());
+    assert_eq!(d.len(), 1);
+    let lines = "@!\n".repeat((8 << 20) / 3);
+    let (_, d) = parse_with(&lines, &ParseOptions::default());
+    assert_eq!(d.len(), 1001);
+    assert!(d[1000].message.contains("suppressed"));
+}

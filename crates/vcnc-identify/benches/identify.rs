@@ -1,0 +1,61 @@
+//! One axis' identification (SPEC section 4, issue 4): N ≈ 30 000 samples of the Table 1 drive
+//! (20 kHz servo, 0.1 µm encoder), M = 200 particles, 100 iterations; split into the O(N)
+//! regressor pass, the swarm, and the output-error refinement. Targets on the 2-core machine:
+//! O(N) pass + PSO under 2 ms, everything under 100 ms.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::hint::black_box;
+use vcnc_drive::Poles;
+use vcnc_identify::{IdentifyOptions, Pso, Regressors, Trace, identify, refine};
+
+#[path = "../tests/support/mod.rs"]
+mod support;
+
+fn trace() -> Trace {
+    // 80 moves of the paper's program give about 30 000 samples at 1 ms.
+    let r = support::identification_program(7, 80, 50.0, 250.0, 2500.0, 1e-3);
+    support::drive_trace(&vcnc_drive::table1_drive(), &r)
+}
+
+fn bench(c: &mut Criterion) {
+    let tr = trace();
+    let opts = IdentifyOptions::default();
+    eprintln!("bench trace: N = {} samples", tr.len());
+    let mut g = c.benchmark_group("identify");
+    g.sample_size(20);
+    g.bench_function("regressors_O(N)", |b| {
+        b.iter(|| {
+            let regs = Regressors::build(black_box(&tr), &opts).expect("regressors");
+            regs.equation_error_cost().expect("cost")
+        })
+    });
+    let regs = Regressors::build(&tr, &opts).expect("regressors");
+    let cost = regs.equation_error_cost().expect("cost");
+    let pso = Pso::new(opts.bounds.lower().to_vec(), opts.bounds.upper().to_vec())
+        .and_then(|p| p.with_settings(opts.pso))
+        .expect("pso");
+    g.bench_function("pso_M200_100it", |b| {
+        b.iter(|| pso.run(black_box(&cost), &mut ChaCha8Rng::seed_from_u64(1)))
+    });
+    g.bench_function("regressors_plus_pso", |b| {
+        b.iter(|| {
+            let regs = Regressors::build(black_box(&tr), &opts).expect("regressors");
+            let cost = regs.equation_error_cost().expect("cost");
+            pso.run(&cost, &mut ChaCha8Rng::seed_from_u64(1))
+        })
+    });
+    let best = pso.run(&cost, &mut ChaCha8Rng::seed_from_u64(1)).best;
+    let poles = Poles::from_hz(best[0], best[1], best[2]);
+    let (theta, _) = cost.theta_hz(best[0], best[1], best[2]);
+    let start = theta.to_model();
+    g.bench_function("refinement", |b| {
+        b.iter(|| refine(black_box(&tr), &regs, &start, &poles, &opts.bounds, &opts.refine).expect("refine"))
+    });
+    g.bench_function("identify_total", |b| b.iter(|| identify(black_box(&tr), &opts).expect("identify")));
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,172 @@
+//! Identification of the 7-parameter closed-loop feed-drive model from an air-cutting run
+//! (reference and measured axis position sampled at $T_s$), after Altintas and co-authors'
+//! "Identification of 5-Axis Machine Tools Feed Drive Systems for Contouring Simulation"
+//! (the paper, section 3), with the corrections and the extra stage of SPEC section 4.
+//!
+//! Pipeline ([`identify`]):
+//!
+//! 1. [`Trace`]: validated samples $(x_{r,k}, x_k)$ at a uniform period; the initial position is
+//!    subtracted from both (zero initial conditions, SPEC section 4).
+//! 2. [`Regressors`]: the corrected time-domain model (paper eq. 7 with SPEC section 4's eq. 18)
+//!    $$ x = \alpha_3 E - \alpha_1 \dot x - \alpha_2 \ddot x + \beta_0 x_r + \beta_1 \dot x_r + \beta_2 \ddot x_r - \delta\,\mathrm{sgn}(\dot x), \qquad E = \int (x_r - x)\,dt, $$
+//!    built in one O(N) pass into an 8×8 Gram matrix, with a zero-phase prefilter, a sign
+//!    deadband and column scaling.
+//! 3. [`Pso`]: the paper's stability-constrained particle swarm over $\sigma = [p, \omega_n, \zeta]$
+//!    (paper section 3.3), each particle's cost being a least-squares subproblem
+//!    ([`EquationErrorCost`]).
+//! 4. [`refine`]: output-error refinement (SPEC section 4, beyond the paper): the free-run
+//!    simulation error minimised over all seven parameters within the same pole bounds.
+//! 5. [`unconstrained_ls`]: the unconstrained 7-parameter least-squares baseline, reported with its
+//!    poles and a stability flag.
+//! 6. [`fit_metrics`]: one-step and free-run prediction errors and fit %.
+//!
+//! Variables are named as in the paper (`a1`, `wn`, `zeta`, `dc`, `alpha3`, ...). Positions are in
+//! axis units (mm for linear axes, deg for rotary axes), times in seconds, pole frequencies in Hz
+//! where a name ends in `_hz` and rad/s otherwise.
+
+mod filter;
+mod identify;
+mod metrics;
+mod options;
+mod pso;
+mod refine;
+mod regress;
+mod trace;
+
+pub use filter::Butterworth2;
+pub use identify::{Identification, LsBaseline, identify, unconstrained_ls};
+pub use metrics::{FitMetrics, fit_metrics, free_run};
+pub use options::{IdentifyOptions, PoleBounds, Prefilter, PsoSettings, RefineOptions, StartCondition};
+pub use pso::{CostFunction, HistoryEntry, Pso, PsoResult};
+pub use refine::{OutputErrorProblem, RefineResult, RefineStage, SignSource, refine, refine_problem};
+pub use regress::{EquationErrorCost, Regressors, Theta};
+pub use trace::Trace;
+
+/// Errors of the identification crate. Every variant carries the values needed to act on it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// The time, reference and position columns differ in length.
+    #[error("column lengths differ: t has {t} rows, xr {xr}, x {x}")]
+    LengthMismatch {
+        /// Rows of the time column (0 when the trace was given by its period).
+        t: usize,
+        /// Rows of the reference column.
+        xr: usize,
+        /// Rows of the position column.
+        x: usize,
+    },
+    /// NaN or infinity in a column.
+    #[error("column {column} is not finite at row {row}: {value}")]
+    NonFinite {
+        /// Which column (`t`, `xr`, `x`, `vr` or `ar`).
+        column: &'static str,
+        /// Row (0-based) of the first bad value.
+        row: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// Time does not increase strictly.
+    #[error("time does not increase at row {row}: t = {t} s after {t_prev} s")]
+    TimeNotIncreasing {
+        /// Row (0-based) of the offending sample.
+        row: usize,
+        /// Previous time, s.
+        t_prev: f64,
+        /// Time at `row`, s.
+        t: f64,
+    },
+    /// Time steps are not uniform.
+    #[error(
+        "time is not uniformly sampled at row {row}: step {dt} s, nominal period {ts} s \
+         (relative tolerance {tolerance})"
+    )]
+    NonUniformTime {
+        /// Row (0-based) at the end of the offending step.
+        row: usize,
+        /// The step found, s.
+        dt: f64,
+        /// Nominal (median) sample period, s.
+        ts: f64,
+        /// Relative tolerance allowed.
+        tolerance: f64,
+    },
+    /// Sample period not positive and finite.
+    #[error("sample period must be positive and finite, got {ts} s")]
+    BadSamplePeriod {
+        /// The period, s.
+        ts: f64,
+    },
+    /// Not enough samples to identify seven parameters through the prefilter.
+    #[error("too few samples: {got}, at least {needed} are needed")]
+    TooFewSamples {
+        /// Samples given.
+        got: usize,
+        /// Samples needed.
+        needed: usize,
+    },
+    /// The reference hardly moves.
+    #[error("no motion: the reference spans {range} axis units, less than {threshold}")]
+    NoMotion {
+        /// Peak-to-peak reference range, axis units.
+        range: f64,
+        /// Smallest range accepted, axis units.
+        threshold: f64,
+    },
+    /// A regressor column is zero: its parameter cannot be identified.
+    #[error("regressor {column} is zero over the whole run: {hint}")]
+    ZeroRegressor {
+        /// The column (`E`, `xr`, `sgn(v)`, ...).
+        column: &'static str,
+        /// What to change.
+        hint: &'static str,
+    },
+    /// The scaled regressors are too ill-conditioned to identify the model.
+    #[error(
+        "the regressors cannot identify the model: condition number {condition:.3e} of the \
+         column-scaled regressor matrix exceeds {limit:.1e} (excite the axis with more varied moves)"
+    )]
+    IllConditioned {
+        /// 2-norm condition number of the column-scaled regressor matrix.
+        condition: f64,
+        /// Largest condition number accepted.
+        limit: f64,
+    },
+    /// An option is out of its valid range.
+    #[error("option {name} = {value} is invalid: {expected}")]
+    InvalidOption {
+        /// Option name as in the machine file.
+        name: &'static str,
+        /// Value given.
+        value: f64,
+        /// What is expected.
+        expected: &'static str,
+    },
+    /// Bounds with min above max (or otherwise invalid).
+    #[error("bounds {name} = [{min}, {max}] are invalid: {expected}")]
+    InvalidBounds {
+        /// Which bounds.
+        name: &'static str,
+        /// Lower bound.
+        min: f64,
+        /// Upper bound.
+        max: f64,
+        /// What is expected.
+        expected: &'static str,
+    },
+    /// PSO settings outside the convergence region of paper eq. 24.
+    #[error(
+        "PSO settings w = {w}, eta1 + eta2 = {eta} do not converge (paper eq. 24 needs \
+         0 < w < 1 and 0 < eta1 + eta2 < 2 (1 + w) = {limit})"
+    )]
+    PsoDivergent {
+        /// Inertia weight.
+        w: f64,
+        /// Sum of the learning gains.
+        eta: f64,
+        /// Upper limit $2(1+w)$ on the sum.
+        limit: f64,
+    },
+    /// The drive model could not be simulated.
+    #[error("model simulation failed: {0}")]
+    Drive(#[from] vcnc_drive::Error),
+}

@@ -1,0 +1,314 @@
+//! Options of [`crate::identify`]: plain data, serialisable, embedded by the machine file
+//! (unknown keys are errors). Every field states its unit and default.
+
+use serde::{Deserialize, Serialize};
+
+use crate::Error;
+
+/// Everything [`crate::identify`] can be told.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IdentifyOptions {
+    /// Particle swarm settings (paper section 3.3.3 defaults).
+    pub pso: PsoSettings,
+    /// Search region of the poles (paper eq. 12, Fig. 4).
+    pub bounds: PoleBounds,
+    /// Zero-phase low-pass applied to every regressor column and to Y.
+    pub prefilter: Prefilter,
+    /// Deadband of $\mathrm{sgn}(\dot x)$, axis units/s (mm/s or deg/s). Default 1.5: above the
+    /// velocity noise of a 1 µm encoder at 1 kHz after the prefilter, below any feed of interest
+    /// (SPEC section 4: 1–2 mm/s).
+    pub deadband: f64,
+    /// Output-error refinement (SPEC section 4, beyond the paper).
+    pub refine: RefineOptions,
+    /// Seed of the ChaCha8 generator driving the swarm. Default 1.
+    pub seed: u64,
+    /// Whether the trace starts at rest. Default [`StartCondition::Auto`].
+    pub start: StartCondition,
+    /// Largest accepted 2-norm condition number of the column-scaled regressor matrix; beyond it
+    /// the data cannot identify the model and [`crate::Error::IllConditioned`] is returned.
+    /// Default 1e8.
+    pub max_condition: f64,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            pso: PsoSettings::default(),
+            bounds: PoleBounds::default(),
+            prefilter: Prefilter::default(),
+            deadband: 1.5,
+            refine: RefineOptions::default(),
+            seed: 1,
+            start: StartCondition::Auto,
+            max_condition: 1e8,
+        }
+    }
+}
+
+impl IdentifyOptions {
+    /// Checks every setting; returns the first problem found.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.pso.validate()?;
+        self.bounds.validate()?;
+        if let Some(fc) = self.prefilter.cutoff_hz
+            && !(fc > 0.0 && fc.is_finite())
+        {
+            return Err(Error::InvalidOption {
+                name: "prefilter.cutoff_hz",
+                value: fc,
+                expected: "a positive cutoff frequency in Hz",
+            });
+        }
+        if !(self.deadband >= 0.0 && self.deadband.is_finite()) {
+            return Err(Error::InvalidOption {
+                name: "deadband",
+                value: self.deadband,
+                expected: "a speed >= 0 in axis units/s",
+            });
+        }
+        if !(self.max_condition > 1.0) {
+            return Err(Error::InvalidOption {
+                name: "max_condition",
+                value: self.max_condition,
+                expected: "a condition number above 1",
+            });
+        }
+        self.refine.validate()
+    }
+}
+
+/// Particle swarm settings (paper section 3.3; defaults are the paper's, section 4).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PsoSettings {
+    /// Number of particles $M$. Default 200.
+    pub particles: usize,
+    /// Number of iterations. Default 100.
+    pub iterations: usize,
+    /// Inertia weight $w$, in (0, 1). Default 0.6.
+    pub w: f64,
+    /// Cognitive (personal-best) gain $\eta_1$. Default 0.103.
+    pub eta1: f64,
+    /// Social (global-best) gain $\eta_2$. Default 2.897.
+    pub eta2: f64,
+    /// Velocity limit as a fraction of each search range,
+    /// $v_{max} = (\sigma_{max} - \sigma_{min})\cdot$ `vmax_fraction`; the paper advises 0.1–0.2.
+    /// Default 0.15.
+    pub vmax_fraction: f64,
+}
+
+impl Default for PsoSettings {
+    fn default() -> Self {
+        PsoSettings {
+            particles: 200,
+            iterations: 100,
+            w: 0.6,
+            eta1: 0.103,
+            eta2: 2.897,
+            vmax_fraction: 0.15,
+        }
+    }
+}
+
+impl PsoSettings {
+    /// Checks the settings, including the convergence condition of paper eq. 24: the eigenvalues
+    /// of $H = \begin{bmatrix} w & -\eta \\ w & 1-\eta \end{bmatrix}$, roots of
+    /// $\lambda^2 - (w + 1 - \eta)\lambda + w = 0$, lie inside the unit circle iff
+    /// $$ 0 < w < 1, \qquad 0 < \eta = \eta_1 + \eta_2 < 2(1 + w) $$
+    /// (Jury's test; the paper's $\eta = 3$ case needs $w > 0.5$).
+    pub fn validate(&self) -> Result<(), Error> {
+        if self.particles < 2 {
+            return Err(Error::InvalidOption {
+                name: "pso.particles",
+                value: self.particles as f64,
+                expected: "at least 2 particles",
+            });
+        }
+        if self.iterations < 1 {
+            return Err(Error::InvalidOption {
+                name: "pso.iterations",
+                value: self.iterations as f64,
+                expected: "at least 1 iteration",
+            });
+        }
+        for (name, v) in [("pso.eta1", self.eta1), ("pso.eta2", self.eta2)] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(Error::InvalidOption {
+                    name,
+                    value: v,
+                    expected: "a learning gain >= 0",
+                });
+            }
+        }
+        if !(self.vmax_fraction > 0.0 && self.vmax_fraction <= 1.0) {
+            return Err(Error::InvalidOption {
+                name: "pso.vmax_fraction",
+                value: self.vmax_fraction,
+                expected: "a fraction of the search range in (0, 1] (paper: 0.1-0.2)",
+            });
+        }
+        let eta = self.eta1 + self.eta2;
+        let limit = 2.0 * (1.0 + self.w);
+        if !(self.w > 0.0 && self.w < 1.0 && eta > 0.0 && eta < limit) {
+            return Err(Error::PsoDivergent {
+                w: self.w,
+                eta,
+                limit,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Bounds of the search region $\sigma_{min} \le \sigma \le \sigma_{max}$ (paper eq. 12, Fig. 4).
+///
+/// Every model inside them is stable: a pole at $-p \le 0$ and a pair with $\omega_n > 0$,
+/// $\zeta > 0$. The paper's bounds (the defaults) keep $p \ge 0.2$ Hz. A drive without integral
+/// action (the EMPS benchmark, a P–P cascade) has its third pole at the origin: set
+/// `p_hz = [0.0, ...]` so that $p$ can reach 0, where $a_3 = p\,\omega_n^2 = 0$ and the model is
+/// the marginally stable integrator-free one (its numerator constant is $a_3 = 0$ too, so the
+/// pole at the origin is cancelled in $G_{track}$ and the position stays bounded).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PoleBounds {
+    /// Real pole $p$, `[min, max]` in Hz, min >= 0. Default `[0.2, 500]`.
+    pub p_hz: [f64; 2],
+    /// Natural frequency $\omega_n$, `[min, max]` in Hz, min > 0. Default `[0.2, 500]`.
+    pub wn_hz: [f64; 2],
+    /// Damping ratio $\zeta$, `[min, max]`, min > 0. Default `[0.2, 2.0]`.
+    pub zeta: [f64; 2],
+}
+
+impl Default for PoleBounds {
+    fn default() -> Self {
+        PoleBounds {
+            p_hz: [0.2, 500.0],
+            wn_hz: [0.2, 500.0],
+            zeta: [0.2, 2.0],
+        }
+    }
+}
+
+impl PoleBounds {
+    /// Checks order, finiteness and the stability-preserving lower limits.
+    pub fn validate(&self) -> Result<(), Error> {
+        let check = |name: &'static str, [lo, hi]: [f64; 2], strict: bool| {
+            let lower_ok = if strict { lo > 0.0 } else { lo >= 0.0 };
+            if !(lo.is_finite() && hi.is_finite() && lower_ok && hi > lo) {
+                return Err(Error::InvalidBounds {
+                    name,
+                    min: lo,
+                    max: hi,
+                    expected: if strict {
+                        "finite bounds with 0 < min < max"
+                    } else {
+                        "finite bounds with 0 <= min < max"
+                    },
+                });
+            }
+            Ok(())
+        };
+        check("bounds.p_hz", self.p_hz, false)?;
+        check("bounds.wn_hz", self.wn_hz, true)?;
+        check("bounds.zeta", self.zeta, true)
+    }
+
+    /// Lower corner $\sigma_{min} = [p, \omega_n, \zeta]$ with frequencies in Hz.
+    pub fn lower(&self) -> [f64; 3] {
+        [self.p_hz[0], self.wn_hz[0], self.zeta[0]]
+    }
+
+    /// Upper corner $\sigma_{max}$ with frequencies in Hz.
+    pub fn upper(&self) -> [f64; 3] {
+        [self.p_hz[1], self.wn_hz[1], self.zeta[1]]
+    }
+}
+
+/// Zero-phase prefilter of the regressors (SPEC section 4).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Prefilter {
+    /// Apply the filter. Default true. Without it, a quantised encoder biases the second
+    /// differences badly (SPEC section 4: $\omega_n$ +17 % and worse at 1 µm).
+    pub enabled: bool,
+    /// Cutoff of the second-order Butterworth section, Hz (the forward-backward pair is −6 dB
+    /// there). Default: none given, which means $0.1/T_s$ (100 Hz at 1 kHz): above the
+    /// closed-loop bandwidth of CNC feed drives (≤ 75 Hz in SPEC Table 3), and a decade below the
+    /// sample rate, where the quantisation noise of second differences lives.
+    pub cutoff_hz: Option<f64>,
+}
+
+impl Default for Prefilter {
+    fn default() -> Self {
+        Prefilter {
+            enabled: true,
+            cutoff_hz: None,
+        }
+    }
+}
+
+impl Prefilter {
+    /// Default cutoff as a fraction of the sample rate.
+    pub const DEFAULT_CUTOFF_FRACTION: f64 = 0.1;
+
+    /// The cutoff used at sample period `ts`, Hz.
+    pub fn cutoff_for(&self, ts: f64) -> f64 {
+        self.cutoff_hz.unwrap_or(Self::DEFAULT_CUTOFF_FRACTION / ts)
+    }
+}
+
+/// Output-error refinement settings (SPEC section 4).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RefineOptions {
+    /// Run the refinement. Default true; when false, `identified` is the paper's PSO result.
+    pub enabled: bool,
+    /// Largest number of Levenberg–Marquardt iterations. Default 40.
+    pub max_iterations: usize,
+    /// Stop when an accepted step lowers the cost by less than this fraction. Default 1e-9.
+    pub tolerance: f64,
+    /// Stage-B passes with the friction sign of the previous model's own free run (0 keeps
+    /// the measured sign only). Default 2.
+    pub sign_iterations: usize,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        RefineOptions {
+            enabled: true,
+            max_iterations: 40,
+            tolerance: 1e-9,
+            sign_iterations: 2,
+        }
+    }
+}
+
+impl RefineOptions {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), Error> {
+        if !(self.tolerance >= 0.0 && self.tolerance < 1.0) {
+            return Err(Error::InvalidOption {
+                name: "refine.tolerance",
+                value: self.tolerance,
+                expected: "a relative cost decrease in [0, 1)",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Whether the trace starts at rest (SPEC section 4 assumes it does).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StartCondition {
+    /// Decide from the data ([`crate::Trace::starts_at_rest`] with the sign deadband).
+    #[default]
+    Auto,
+    /// At rest: zero initial conditions after subtracting the initial position.
+    Rest,
+    /// Moving (a cut-out of a longer log, such as the EMPS benchmark): the equation-error
+    /// regression gets a constant column for the unknown integration constant, and the
+    /// output-error fit estimates the initial state (three free-response columns).
+    Moving,
+}

@@ -1,0 +1,272 @@
+//! A validated identification trace: reference and measured axis position at a uniform period.
+
+use crate::Error;
+
+/// Fewest samples accepted: seven parameters, the prefilter's edge margins and the
+/// central-difference ends must leave a meaningful regression.
+pub const MIN_SAMPLES: usize = 100;
+
+/// Smallest peak-to-peak reference range accepted, axis units (1 µm or 1 mdeg): below it the run
+/// excites nothing.
+pub const MIN_MOTION: f64 = 1e-3;
+
+/// Relative tolerance on the time step of a trace given by its time column. Real loggers jitter:
+/// the EMPS benchmark's clock gives steps between 0.99998 ms and 1.00003 ms.
+pub const TIME_JITTER: f64 = 1e-3;
+
+/// Reference $x_r$ and measured position $x$ of one axis, sampled at the period `ts`.
+///
+/// Built by [`Trace::new`] or [`Trace::from_columns`], which validate the data; the fields are
+/// public for reading, and code that edits them should rebuild the trace through a constructor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    /// Sample period $T_s$, s.
+    pub ts: f64,
+    /// Reference position $x_{r,k}$, axis units (mm or deg).
+    pub xr: Vec<f64>,
+    /// Measured position $x_k$, axis units (mm or deg).
+    pub x: Vec<f64>,
+    /// Reference velocity $\dot x_{r,k}$ and acceleration $\ddot x_{r,k}$ (axis units/s, /s²)
+    /// when known exactly (a simulated machine's interpolator); `None` for measured data, where
+    /// central differences of $x_r$ stand in. Set by [`Trace::with_reference_derivatives`].
+    /// The free-run simulation uses them: a model with $b_0 \ne 0$ (sliding mode) feeds the
+    /// acceleration straight through, and central differences blur the steps of a trapezoidal
+    /// profile's acceleration.
+    pub reference_derivatives: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Trace {
+    /// A trace sampled at the period `ts` (s). Checks: `ts` positive and finite, equal lengths,
+    /// finite values, at least [`MIN_SAMPLES`] samples, reference range at least [`MIN_MOTION`].
+    pub fn new(ts: f64, xr: Vec<f64>, x: Vec<f64>) -> Result<Trace, Error> {
+        if !(ts > 0.0 && ts.is_finite()) {
+            return Err(Error::BadSamplePeriod { ts });
+        }
+        if xr.len() != x.len() {
+            return Err(Error::LengthMismatch {
+                t: 0,
+                xr: xr.len(),
+                x: x.len(),
+            });
+        }
+        check_finite("xr", &xr)?;
+        check_finite("x", &x)?;
+        if xr.len() < MIN_SAMPLES {
+            return Err(Error::TooFewSamples {
+                got: xr.len(),
+                needed: MIN_SAMPLES,
+            });
+        }
+        let (lo, hi) = xr
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+        let range = hi - lo;
+        if !(range >= MIN_MOTION) {
+            return Err(Error::NoMotion {
+                range,
+                threshold: MIN_MOTION,
+            });
+        }
+        Ok(Trace {
+            ts,
+            xr,
+            x,
+            reference_derivatives: None,
+        })
+    }
+
+    /// Attaches the exact reference velocity `vr` (axis units/s) and acceleration `ar`
+    /// (axis units/s²), checked for length and finiteness.
+    pub fn with_reference_derivatives(mut self, vr: Vec<f64>, ar: Vec<f64>) -> Result<Trace, Error> {
+        if vr.len() != self.xr.len() || ar.len() != self.xr.len() {
+            return Err(Error::LengthMismatch {
+                t: vr.len().max(ar.len()),
+                xr: self.xr.len(),
+                x: self.x.len(),
+            });
+        }
+        check_finite("vr", &vr)?;
+        check_finite("ar", &ar)?;
+        self.reference_derivatives = Some((vr, ar));
+        Ok(self)
+    }
+
+    /// The reference as the model simulation sees it, with one rest sample at the measured
+    /// $x_0$ prefixed (SPEC sections 3 and 7): positions $[x_0, x_{r,0}, x_{r,1}, ...]$ and their
+    /// velocity and acceleration (exact ones with a zero prefixed when attached, else central
+    /// differences of the prefixed positions). A trace at rest is unchanged up to the encoder
+    /// step; one that starts moving (EMPS) enters as a one-sample ramp from $x_0$ to $x_{r,0}$.
+    pub fn prefixed_reference(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let x0 = self.x.first().copied().unwrap_or(0.0);
+        let mut pos = Vec::with_capacity(self.xr.len() + 1);
+        pos.push(x0);
+        pos.extend_from_slice(&self.xr);
+        match &self.reference_derivatives {
+            Some((vr, ar)) => {
+                let mut vel = Vec::with_capacity(pos.len());
+                vel.push(0.0);
+                vel.extend_from_slice(vr);
+                let mut acc = Vec::with_capacity(pos.len());
+                acc.push(0.0);
+                acc.extend_from_slice(ar);
+                (pos, vel, acc)
+            }
+            None => {
+                let (vel, acc) = vcnc_drive::model::central_differences(&pos, self.ts);
+                (pos, vel, acc)
+            }
+        }
+    }
+
+    /// A trace from raw logged columns: time `t` (s), reference `xr` and measured position `x`
+    /// (axis units). The period is the median step; every step must lie within
+    /// [`TIME_JITTER`] (relative) of it, and time must increase strictly.
+    pub fn from_columns(t: &[f64], xr: &[f64], x: &[f64]) -> Result<Trace, Error> {
+        if t.len() != xr.len() || t.len() != x.len() {
+            return Err(Error::LengthMismatch {
+                t: t.len(),
+                xr: xr.len(),
+                x: x.len(),
+            });
+        }
+        check_finite("t", t)?;
+        check_finite("xr", xr)?;
+        check_finite("x", x)?;
+        if t.len() < MIN_SAMPLES {
+            return Err(Error::TooFewSamples {
+                got: t.len(),
+                needed: MIN_SAMPLES,
+            });
+        }
+        for (k, w) in t.windows(2).enumerate() {
+            if !(w[1] > w[0]) {
+                return Err(Error::TimeNotIncreasing {
+                    row: k + 1,
+                    t_prev: w[0],
+                    t: w[1],
+                });
+            }
+        }
+        // Nominal period: the median step (robust to one bad step, which is then the one
+        // reported).
+        let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        let mid = steps.len() / 2;
+        let ts = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+        for (k, w) in t.windows(2).enumerate() {
+            let dt = w[1] - w[0];
+            if (dt - ts).abs() > TIME_JITTER * ts {
+                return Err(Error::NonUniformTime {
+                    row: k + 1,
+                    dt,
+                    ts,
+                    tolerance: TIME_JITTER,
+                });
+            }
+        }
+        Trace::new(ts, xr.to_vec(), x.to_vec())
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Whether the trace has no samples (never true for a validated trace).
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Duration $(N-1) T_s$, s.
+    pub fn duration_s(&self) -> f64 {
+        self.len().saturating_sub(1) as f64 * self.ts
+    }
+
+    /// Whether the axis is at rest at the first samples: reference and measured speeds over the
+    /// first two steps are within `deadband` (axis units/s).
+    pub fn starts_at_rest(&self, deadband: f64) -> bool {
+        let speed = |s: &[f64]| match s {
+            [a, _, c, ..] => ((c - a) / (2.0 * self.ts)).abs(),
+            _ => 0.0,
+        };
+        speed(&self.xr) <= deadband && speed(&self.x) <= deadband
+    }
+
+    /// RMS of the tracking error $e = x_r - x$, axis units.
+    pub fn tracking_rms(&self) -> f64 {
+        let n = self.len().max(1) as f64;
+        (self.xr.iter().zip(&self.x).map(|(r, x)| (r - x) * (r - x)).sum::<f64>() / n).sqrt()
+    }
+
+    /// Peak $|x_r - x|$, axis units.
+    pub fn tracking_peak(&self) -> f64 {
+        self.xr.iter().zip(&self.x).map(|(r, x)| (r - x).abs()).fold(0.0, f64::max)
+    }
+}
+
+fn check_finite(column: &'static str, v: &[f64]) -> Result<(), Error> {
+    match v.iter().position(|v| !v.is_finite()) {
+        Some(row) => Err(Error::NonFinite {
+            column,
+            row,
+            value: v[row],
+        }),
+        None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(n: usize) -> Vec<f64> {
+        (0..n).map(|k| k as f64 * 0.01).collect()
+    }
+
+    #[test]
+    fn accepts_jittered_time_like_emps() {
+        // EMPS logs t = 0, 0.00100002406, 0.00200000802, ...: within 3e-5 of 1 ms.
+        let n = 200;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3 + if k % 3 == 1 { 2.4e-8 } else { 0.0 }).collect();
+        let tr = Trace::from_columns(&t, &ramp(n), &ramp(n)).unwrap();
+        assert!((tr.ts - 1e-3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn reports_each_bad_input_with_its_values() {
+        let n = 200;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let mut x = ramp(n);
+        x[17] = f64::NAN;
+        match Trace::from_columns(&t, &ramp(n), &x) {
+            Err(Error::NonFinite { column: "x", row: 17, .. }) => {}
+            other => panic!("{other:?}"),
+        }
+        let mut t2 = t.clone();
+        t2[50] = t2[49];
+        assert!(matches!(
+            Trace::from_columns(&t2, &ramp(n), &ramp(n)),
+            Err(Error::TimeNotIncreasing { row: 50, .. })
+        ));
+        let mut t3 = t.clone();
+        for v in t3.iter_mut().skip(100) {
+            *v += 0.5e-3;
+        }
+        assert!(matches!(
+            Trace::from_columns(&t3, &ramp(n), &ramp(n)),
+            Err(Error::NonUniformTime { row: 100, .. })
+        ));
+        assert!(matches!(
+            Trace::from_columns(&t[..10], &ramp(10), &ramp(10)),
+            Err(Error::TooFewSamples { got: 10, needed: MIN_SAMPLES })
+        ));
+        assert!(matches!(
+            Trace::new(1e-3, vec![5.0; n], vec![5.0; n]),
+            Err(Error::NoMotion { .. })
+        ));
+        assert!(matches!(
+            Trace::new(1e-3, ramp(n), ramp(n - 1)),
+            Err(Error::LengthMismatch { .. })
+        ));
+        assert!(matches!(Trace::new(0.0, ramp(n), ramp(n)), Err(Error::BadSamplePeriod { .. })));
+    }
+}

@@ -1,0 +1,139 @@
+//! Shared helpers of the integration tests: the paper's identification excitation (section 4:
+//! random rest-to-rest trapezoidal moves) and traces of the true drive simulator of
+//! `vcnc-drive` (plant with Coulomb friction and sticking, controller at the 20 kHz servo rate,
+//! quantised encoder).
+#![allow(dead_code)]
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use vcnc_drive::{ClosedLoopModel, DriveParams, Reference};
+use vcnc_identify::Trace;
+
+/// A sampled reference: position, velocity, acceleration (axis units, /s, /s²).
+pub struct RefSignal {
+    pub ts: f64,
+    pub pos: Vec<f64>,
+    pub vel: Vec<f64>,
+    pub acc: Vec<f64>,
+}
+
+impl RefSignal {
+    pub fn as_ref(&self) -> Reference<'_> {
+        Reference { pos: &self.pos, vel: &self.vel, acc: &self.acc }
+    }
+}
+
+/// One rest-to-rest trapezoidal move (unbounded jerk).
+struct Move {
+    t0: f64,
+    x0: f64,
+    dir: f64,
+    vp: f64,
+    a: f64,
+    ta: f64,
+    tc: f64,
+}
+
+impl Move {
+    fn end(&self) -> f64 {
+        self.t0 + 2.0 * self.ta + self.tc
+    }
+    /// (position, velocity, acceleration) at time t within or after the move.
+    fn eval(&self, t: f64) -> (f64, f64, f64) {
+        let (a, vp, ta, tc) = (self.a, self.vp, self.ta, self.tc);
+        let tau = (t - self.t0).max(0.0);
+        let d_acc = 0.5 * a * ta * ta;
+        let (s, v, acc) = if tau < ta {
+            (0.5 * a * tau * tau, a * tau, a)
+        } else if tau < ta + tc {
+            (d_acc + vp * (tau - ta), vp, 0.0)
+        } else if tau < 2.0 * ta + tc {
+            let u = tau - ta - tc;
+            (d_acc + vp * tc + vp * u - 0.5 * a * u * u, vp - a * u, -a)
+        } else {
+            (2.0 * d_acc + vp * tc, 0.0, 0.0)
+        };
+        (self.x0 + self.dir * s, self.dir * v, self.dir * acc)
+    }
+}
+
+/// The paper's identification excitation (section 4, Fig. 5): `moves` random rest-to-rest
+/// trapezoidal moves within ±`range`, feeds up to `vmax`, acceleration `amax`, short and long
+/// strokes mixed, frequent reversals, a short random dwell between moves; sampled at `ts`.
+pub fn identification_program(seed: u64, moves: usize, range: f64, vmax: f64, amax: f64, ts: f64) -> RefSignal {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut list = Vec::with_capacity(moves);
+    let mut t = 0.2;
+    let mut x = 0.0;
+    let mut dir = 1.0;
+    for _ in 0..moves {
+        let short = rng.random::<f64>() < 0.35;
+        let dist = if short { 0.3 + 4.7 * rng.random::<f64>() } else { 5.0 + 75.0 * rng.random::<f64>() };
+        if rng.random::<f64>() < 0.6 {
+            dir = -dir;
+        }
+        if (x + dir * dist).abs() > range {
+            dir = -dir;
+        }
+        let target = (x + dir * dist).clamp(-range, range);
+        let d = (target - x).abs();
+        if d < 1e-6 {
+            continue;
+        }
+        let feed = 10.0 + (vmax - 10.0) * rng.random::<f64>();
+        let vp = feed.min((d * amax).sqrt());
+        let ta = vp / amax;
+        let tc = (d - vp * vp / amax) / vp;
+        let m = Move { t0: t, x0: x, dir: (target - x).signum(), vp, a: amax, ta, tc: tc.max(0.0) };
+        t = m.end() + 0.01 + 0.09 * rng.random::<f64>();
+        x = target;
+        list.push(m);
+    }
+    let t_end = t + 0.3;
+    let n = (t_end / ts).ceil() as usize + 1;
+    let (mut pos, mut vel, mut acc) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut i = 0;
+    for k in 0..n {
+        let tk = k as f64 * ts;
+        while i + 1 < list.len() && tk >= list[i + 1].t0 {
+            i += 1;
+        }
+        let (p, v, a) = match list.get(i) {
+            Some(m) if tk >= m.t0 => m.eval(tk),
+            _ => (0.0, 0.0, 0.0),
+        };
+        pos[k] = p;
+        vel[k] = v;
+        acc[k] = a;
+    }
+    RefSignal { ts, pos, vel, acc }
+}
+
+/// The paper's program: 70 moves, ±50 mm, 250 mm/s, 2500 mm/s², 1 ms.
+pub fn paper_program(seed: u64) -> RefSignal {
+    identification_program(seed, 70, 50.0, 250.0, 2500.0, 1e-3)
+}
+
+/// Simulates the true drive and returns the identification trace (encoder reading).
+pub fn drive_trace(params: &DriveParams, r: &RefSignal) -> Trace {
+    let out = vcnc_drive::simulate_drive(params, r.as_ref(), r.ts).expect("drive simulates");
+    Trace::new(r.ts, r.pos.clone(), out.position)
+        .and_then(|t| t.with_reference_derivatives(r.vel.clone(), r.acc.clone()))
+        .expect("valid trace")
+}
+
+/// Relative error (signed) of `est` against `truth`.
+pub fn rel(est: f64, truth: f64) -> f64 {
+    (est - truth) / truth
+}
+
+/// Prints one comparison line (for the report) and returns the (p, wn, zeta, dc) relative errors.
+pub fn compare(name: &str, m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64; 4] {
+    let (pe, pt) = (m.poles().expect("poles"), truth.poles().expect("poles"));
+    let e = [rel(pe.p, pt.p), rel(pe.wn, pt.wn), rel(pe.zeta, pt.zeta), rel(m.dc, truth.dc)];
+    println!(
+        "{name:>22}: p {:8.4} Hz ({:+6.2} %)  wn {:8.4} Hz ({:+6.2} %)  zeta {:6.4} ({:+6.2} %)  dc {:9.3} ({:+6.2} %)",
+        pe.p_hz(), 100.0 * e[0], pe.wn_hz(), 100.0 * e[1], pe.zeta, 100.0 * e[2], m.dc, 100.0 * e[3]
+    );
+    e
+}

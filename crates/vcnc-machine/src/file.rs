@@ -1,0 +1,233 @@
+//! The machine file as written (raw, unchecked): serde structs that mirror the TOML document
+//! (SPEC section 8). Unknown keys are errors (`deny_unknown_fields` everywhere). The checked form
+//! is [`crate::Machine`].
+//!
+//! ```toml
+//! name = "NMV5000 (virtual)"
+//! sample_period_s = 0.001
+//!
+//! [kinematics]
+//! urdf = "nmv5000.urdf"          # relative to this file
+//!
+//! [trajectory]                  # tool-tip path limits in TCP mode (LinuxCNC [TRAJ])
+//! max_linear_velocity = 250.0
+//! max_linear_acceleration = 1500.0
+//!
+//! [axes.X]
+//! unit = "mm"
+//! travel = [-365.0, 365.0]
+//! max_velocity = 250.0
+//! max_acceleration = 2500.0
+//! plant = { j = 0.01, b = 0.0419, ka = 1.0, kt = 1.0, rg = 1.5915, coulomb_torque = 0.3 }
+//! controller = { kind = "p-pi", design = { p_hz = 19.3, wn_hz = 55.54, zeta = 0.39 }, vff = 0.5, bff = 0.1 }
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+use vcnc_drive::{ControllerSpec, Encoder, Plant};
+use vcnc_identify::IdentifyOptions;
+
+/// Axis unit: millimetres for linear axes, degrees for rotary axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Unit {
+    /// Millimetres (X, Y, Z).
+    Mm,
+    /// Degrees (A, B, C).
+    Deg,
+}
+
+impl Unit {
+    /// `"mm"` or `"deg"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Unit::Mm => "mm",
+            Unit::Deg => "deg",
+        }
+    }
+
+    /// Unit of reported errors: µm for mm axes, millidegrees for deg axes.
+    pub fn micro_label(self) -> &'static str {
+        match self {
+            Unit::Mm => "um",
+            Unit::Deg => "mdeg",
+        }
+    }
+
+    /// Factor from the axis unit to the reporting unit (µm or mdeg).
+    pub fn micro_factor(self) -> f64 {
+        match self {
+            Unit::Mm => 1000.0,
+            Unit::Deg => 1000.0,
+        }
+    }
+}
+
+/// The whole machine file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineFile {
+    /// Machine name, shown in tables and summaries.
+    pub name: String,
+    /// Free text: where the numbers come from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// Interpolation and logging period $T_s$, s. Default 0.001.
+    #[serde(default = "default_ts")]
+    pub sample_period_s: f64,
+    /// Kinematic chain (required for TCP programs and contour errors).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kinematics: Option<KinematicsFile>,
+    /// Tool-tip path limits.
+    #[serde(default)]
+    pub trajectory: TrajectoryFile,
+    /// G-code dialect settings.
+    #[serde(default)]
+    pub gcode: GcodeFile,
+    /// Identification program and identifier settings.
+    #[serde(default)]
+    pub identification: IdentificationFile,
+    /// Axes by letter (X Y Z A B C).
+    pub axes: BTreeMap<String, AxisFile>,
+}
+
+fn default_ts() -> f64 {
+    0.001
+}
+
+/// `[kinematics]`: the URDF chain, with optional offset overrides.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KinematicsFile {
+    /// URDF file, relative to the machine file.
+    pub urdf: PathBuf,
+    /// Override of the C-axis centre r (machine frame), mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c_centre_mm: Option<[f64; 3]>,
+    /// Override of the A-axis centre relative to the C-axis centre, d = (0, Ly, Lz), mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a_offset_mm: Option<[f64; 3]>,
+    /// Inverse-kinematics branch (sign of A) used when a pose must be turned into axes
+    /// (`vcnc kinematics inverse`, the spiral generator). Default −1.
+    #[serde(default = "default_branch")]
+    pub branch: i8,
+}
+
+fn default_branch() -> i8 {
+    -1
+}
+
+/// `[trajectory]`: limits of the tool-tip path in TCP mode (LinuxCNC `[TRAJ]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrajectoryFile {
+    /// Tool-tip path velocity limit, mm/s. Default 250.
+    pub max_linear_velocity: f64,
+    /// Tool-tip path acceleration limit, mm/s². Default 1500 (SPEC section 6).
+    pub max_linear_acceleration: f64,
+    /// Junction deviation of the G64 corner rule, mm. Default: the interpolator's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub junction_deviation: Option<f64>,
+}
+
+impl Default for TrajectoryFile {
+    fn default() -> Self {
+        TrajectoryFile {
+            max_linear_velocity: 250.0,
+            max_linear_acceleration: 1500.0,
+            junction_deviation: None,
+        }
+    }
+}
+
+/// `[gcode]`: dialect settings.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GcodeFile {
+    /// M-codes that switch tool-centre-point mode on (LinuxCNC configs use e.g. M428).
+    pub tcp_on_mcodes: Vec<u32>,
+    /// M-codes that switch tool-centre-point mode off (e.g. M429).
+    pub tcp_off_mcodes: Vec<u32>,
+}
+
+/// `[identification]`: the identification program and the identifier.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IdentificationFile {
+    /// The excitation program (paper section 4).
+    pub program: ProgramFile,
+    /// Identifier settings (PSO, bounds, prefilter, refinement, seed).
+    pub options: IdentifyOptions,
+}
+
+/// `[identification.program]`: the paper's excitation, per axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProgramFile {
+    /// Random moves per axis. Default 70.
+    pub moves: usize,
+    /// Moves stay within ±range, axis units. Default 50 (an axis may override it).
+    pub range: f64,
+    /// Highest feed, units/s. Default 250.
+    pub max_feed: f64,
+    /// Lowest feed, units/s. Default 25.
+    pub min_feed: f64,
+    /// Acceleration of the identification moves, units/s². Default: each axis' own
+    /// `max_acceleration` (the paper used 2500 mm/s²).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_acceleration: Option<f64>,
+    /// Seed of the estimation program. Default 1.
+    pub seed: u64,
+    /// Seed of the validation program (a different run of the same generator). Default 2.
+    pub validation_seed: u64,
+}
+
+impl Default for ProgramFile {
+    fn default() -> Self {
+        ProgramFile {
+            moves: 70,
+            range: 50.0,
+            max_feed: 250.0,
+            min_feed: 25.0,
+            max_acceleration: None,
+            seed: 1,
+            validation_seed: 2,
+        }
+    }
+}
+
+/// `[axes.<letter>]`: one feed drive and its limits.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisFile {
+    /// `"mm"` (X Y Z) or `"deg"` (A B C).
+    pub unit: Unit,
+    /// Travel `[lower, upper]`, axis units. A continuous rotary axis may use ±1e9.
+    pub travel: [f64; 2],
+    /// Velocity limit, units/s.
+    pub max_velocity: f64,
+    /// Acceleration limit, units/s².
+    pub max_acceleration: f64,
+    /// Mechanics and amplifier.
+    pub plant: Plant,
+    /// Controller gains, or desired poles to design them.
+    pub controller: ControllerSpec,
+    /// Position encoder (default 1e-4 units, no noise).
+    #[serde(default)]
+    pub encoder: Encoder,
+    /// Controller rate, Hz (default 20 000).
+    #[serde(default = "default_servo_rate")]
+    pub servo_rate_hz: f64,
+    /// Identification-program half-range for this axis (default: `[identification.program]`'s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identification_range: Option<f64>,
+    /// Centre of this axis' identification moves, axis units (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identification_centre: Option<f64>,
+}
+
+fn default_servo_rate() -> f64 {
+    vcnc_drive::params::DEFAULT_SERVO_RATE_HZ
+}
