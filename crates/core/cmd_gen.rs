@@ -21,7 +21,9 @@ pub fn generate(what: &GenCommand) -> Result<()> {
         } => {
             let mut chars = axis.chars();
             let (Some(letter), None) = (chars.next(), chars.next()) else {
-                return Err(bad_input(format!("--axis {axis}: expected one letter of X Y Z A B C")));
+                return Err(bad_input(format!(
+                    "--axis {axis}: expected one letter of X Y Z A B C"
+                )));
             };
             let opts = IdentificationOptions {
                 moves: *moves,

@@ -62,12 +62,20 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
 }
 
 /// Writes `summary.json`, `model.toml` and the plots of a machine identification.
-pub fn write_identification(out: &Path, machine: &str, results: &[AxisIdentification], ctx: &Ctx) -> Result<()> {
+pub fn write_identification(
+    out: &Path,
+    machine: &str,
+    results: &[AxisIdentification],
+    ctx: &Ctx,
+) -> Result<()> {
     let mut axes = serde_json::Map::new();
     let mut models = BTreeMap::new();
     for r in results {
         axes.insert(r.axis.to_string(), axis_summary(r));
-        models.insert(r.axis.to_string(), AxisModel::new(r.unit, &r.result.identified));
+        models.insert(
+            r.axis.to_string(),
+            AxisModel::new(r.unit, &r.result.identified),
+        );
         write_axis_plots(out, r)?;
     }
     let summary = json!({
@@ -93,10 +101,16 @@ fn axis_summary(r: &AxisIdentification) -> Value {
     let truth = model_json(&r.truth);
     let mut errors = serde_json::Map::new();
     if let (Some(t), Some(p)) = (r.truth.poles(), id.identified.poles()) {
-        errors.insert("identified".into(), pole_errors(&t, &p, r.truth.dc, id.identified.dc));
+        errors.insert(
+            "identified".into(),
+            pole_errors(&t, &p, r.truth.dc, id.identified.dc),
+        );
     }
     if let (Some(t), Some(p)) = (r.truth.poles(), id.paper_pso.poles()) {
-        errors.insert("paper_pso".into(), pole_errors(&t, &p, r.truth.dc, id.paper_pso.dc));
+        errors.insert(
+            "paper_pso".into(),
+            pole_errors(&t, &p, r.truth.dc, id.paper_pso.dc),
+        );
     }
     json!({
         "unit": r.unit.as_str(),
@@ -181,13 +195,28 @@ fn write_axis_plots(out: &Path, r: &AxisIdentification) -> Result<()> {
     )?;
     write_convergence(out, &a.to_string(), &r.result)?;
     let vtrace = r.validation_run.identification_trace()?;
-    write_validation(out, &a.to_string(), r.unit, &vtrace, &r.validation, Some(&r.validation_paper))
+    write_validation(
+        out,
+        &a.to_string(),
+        r.unit,
+        &vtrace,
+        &r.validation,
+        Some(&r.validation_paper),
+    )
 }
 
 fn write_convergence(out: &Path, name: &str, id: &Identification) -> Result<()> {
     let it: Vec<f64> = id.pso_history.iter().map(|h| h.iteration as f64).collect();
-    let best: Vec<f64> = id.pso_history.iter().map(|h| h.best_cost.max(1e-300).log10()).collect();
-    let mean: Vec<f64> = id.pso_history.iter().map(|h| h.mean_cost.max(1e-300).log10()).collect();
+    let best: Vec<f64> = id
+        .pso_history
+        .iter()
+        .map(|h| h.best_cost.max(1e-300).log10())
+        .collect();
+    let mean: Vec<f64> = id
+        .pso_history
+        .iter()
+        .map(|h| h.mean_cost.max(1e-300).log10())
+        .collect();
     let title = format!("axis {name}: PSO convergence (equation-error cost)");
     write_line_plot(
         &out.join(format!("pso_{name}.svg")),
@@ -223,11 +252,32 @@ fn write_validation(
     let k = unit.micro_factor();
     let label = unit.micro_label();
     let t: Vec<f64> = (0..trace.len()).map(|i| i as f64 * trace.ts).collect();
-    let measured: Vec<f64> = trace.xr.iter().zip(&trace.x).map(|(r, x)| (r - x) * k).collect();
-    let predicted: Vec<f64> = trace.xr.iter().zip(&fit.predicted_x).map(|(r, x)| (r - x) * k).collect();
-    let diff: Vec<f64> = trace.x.iter().zip(&fit.predicted_x).map(|(x, p)| (p - x) * k).collect();
-    let paper_diff: Option<Vec<f64>> =
-        paper.map(|f| trace.x.iter().zip(&f.predicted_x).map(|(x, p)| (p - x) * k).collect());
+    let measured: Vec<f64> = trace
+        .xr
+        .iter()
+        .zip(&trace.x)
+        .map(|(r, x)| (r - x) * k)
+        .collect();
+    let predicted: Vec<f64> = trace
+        .xr
+        .iter()
+        .zip(&fit.predicted_x)
+        .map(|(r, x)| (r - x) * k)
+        .collect();
+    let diff: Vec<f64> = trace
+        .x
+        .iter()
+        .zip(&fit.predicted_x)
+        .map(|(x, p)| (p - x) * k)
+        .collect();
+    let paper_diff: Option<Vec<f64>> = paper.map(|f| {
+        trace
+            .x
+            .iter()
+            .zip(&f.predicted_x)
+            .map(|(x, p)| (p - x) * k)
+            .collect()
+    });
     let t1 = format!("axis {name}: validation run, tracking error x_r - x [{label}]");
     let t2 = format!("axis {name}: prediction error x_model - x [{label}]");
     let mut s2 = vec![Series {
@@ -308,10 +358,16 @@ fn read_trace_csv(path: &Path, cols: [&str; 3]) -> Result<[Vec<f64>; 3]> {
         for (i, &c) in idx.iter().enumerate() {
             let s = rec.get(c).unwrap_or("");
             let v: f64 = s.parse().map_err(|_| {
-                bad_input(format!("{file}:{line}: column '{}': '{s}' is not a number", cols[i]))
+                bad_input(format!(
+                    "{file}:{line}: column '{}': '{s}' is not a number",
+                    cols[i]
+                ))
             })?;
             if !v.is_finite() {
-                return Err(bad_input(format!("{file}:{line}: column '{}' is {s}: not a finite number", cols[i])));
+                return Err(bad_input(format!(
+                    "{file}:{line}: column '{}' is {s}: not a finite number",
+                    cols[i]
+                )));
             }
             out[i].push(v);
         }
@@ -341,9 +397,15 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     }
     // Measured drives may lack integral action (a3 = 0): let the real pole approach 0.
     opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
-    let id = vcnc_identify::identify(&trace, &opts).map_err(|e| bad_input(format!("{file}: identification refused: {e}")))?;
+    let id = vcnc_identify::identify(&trace, &opts)
+        .map_err(|e| bad_input(format!("{file}: identification refused: {e}")))?;
     ensure_dir(&args.out)?;
-    let name = args.axes.first().cloned().unwrap_or_else(|| "X".to_string()).to_uppercase();
+    let name = args
+        .axes
+        .first()
+        .cloned()
+        .unwrap_or_else(|| "X".to_string())
+        .to_uppercase();
     let summary = json!({
         "trace": file,
         "samples": trace.len(),
@@ -373,7 +435,10 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         description: Some("identified by vcnc from a measured trace".into()),
         axes,
     };
-    write_atomic(&args.out.join("model.toml"), set.to_toml_string()?.as_bytes())?;
+    write_atomic(
+        &args.out.join("model.toml"),
+        set.to_toml_string()?.as_bytes(),
+    )?;
     cmd_sim::write_frf(
         &args.out,
         &format!("frf_{name}"),
@@ -381,8 +446,15 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         &[("identified", &id.identified), ("paper PSO", &id.paper_pso)],
     )?;
     write_convergence(&args.out, &name, &id)?;
-    write_validation(&args.out, &name, unit, &trace, &id.fit_estimation, Some(&id.fit_estimation_paper))
-        .context("writing the fit plot")?;
+    write_validation(
+        &args.out,
+        &name,
+        unit,
+        &trace,
+        &id.fit_estimation,
+        Some(&id.fit_estimation_paper),
+    )
+    .context("writing the fit plot")?;
     if !ctx.quiet {
         let k = unit.micro_factor();
         let l = unit.micro_label();
@@ -397,7 +469,13 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                 n.to_string(),
                 fmt_poles(m),
                 format!("{:.1}", m.dc),
-                if m.is_stable() { "yes".into() } else if m.is_marginally_stable() { "marginal".into() } else { "NO".into() },
+                if m.is_stable() {
+                    "yes".into()
+                } else if m.is_marginally_stable() {
+                    "marginal".into()
+                } else {
+                    "NO".into()
+                },
                 f.map_or("-".into(), |f| format!("{:.2} {l}", f.freerun_rms * k)),
             ]
         })
@@ -408,7 +486,13 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
             trace.ts,
             trace.tracking_rms() * k
         );
-        print!("{}", table(&["model", "wn/zeta/p [Hz]", "dc", "stable", "free-run RMS"], &rows));
+        print!(
+            "{}",
+            table(
+                &["model", "wn/zeta/p [Hz]", "dc", "stable", "free-run RMS"],
+                &rows
+            )
+        );
         println!("-> {}", args.out.display());
     }
     Ok(())

@@ -10,11 +10,11 @@ use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::pipeline::{self, AxisIdentification, Prediction, Run};
 use vcnc_machine::{Machine, ModelSet, embedded};
 
+use crate::Ctx;
 use crate::cmd_identify::{identification_table, write_identification};
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_coloured_path, write_panels};
 use crate::report::{ensure_dir, load_machine, print_warnings, read_program, rms, table};
-use crate::Ctx;
 
 /// Contour summary (SPEC section 9 keys) of a prediction.
 pub fn contour_summary(p: &Prediction) -> Value {
@@ -50,7 +50,7 @@ pub fn write_contour_csv(path: &Path, run: &Run, p: &Prediction) -> Result<()> {
     let t: Vec<f64> = (0..n).map(|k| run.time(k)).collect();
     let reference = run.poses.as_deref().unwrap_or(&[]);
     let pose_cols = |poses: &[vcnc_kinematics::Pose]| -> Vec<Vec<f64>> {
-        let mut cols = vec![Vec::with_capacity(n); 6];
+        let mut cols: Vec<Vec<f64>> = (0..6).map(|_| Vec::with_capacity(n)).collect();
         for q in poses {
             for i in 0..3 {
                 cols[i].push(q.p[i]);
@@ -85,22 +85,40 @@ pub fn write_contour_csv(path: &Path, run: &Run, p: &Prediction) -> Result<()> {
         }
     }
     header.extend(
-        ["true_contour_um", "pred_contour_um", "true_orientation_mrad", "pred_orientation_mrad"]
-            .iter()
-            .map(|s| s.to_string()),
+        [
+            "true_contour_um",
+            "pred_contour_um",
+            "true_orientation_mrad",
+            "pred_orientation_mrad",
+        ]
+        .iter()
+        .map(|s| s.to_string()),
     );
-    cols.extend([tip_t.as_slice(), tip_p.as_slice(), or_t.as_slice(), or_p.as_slice()]);
+    cols.extend([
+        tip_t.as_slice(),
+        tip_p.as_slice(),
+        or_t.as_slice(),
+        or_p.as_slice(),
+    ]);
     write_csv(path, &header, &cols)
 }
 
 /// Plots of a prediction: contour error over time, tool path coloured by contour error,
 /// per-axis tracking errors.
-pub fn write_prediction_plots(out: &Path, run: &Run, p: &Prediction, extra: Option<(&str, &Prediction)>) -> Result<()> {
+pub fn write_prediction_plots(
+    out: &Path,
+    run: &Run,
+    p: &Prediction,
+    extra: Option<(&str, &Prediction)>,
+) -> Result<()> {
     let n = run.len();
     let t: Vec<f64> = (0..n).map(|k| run.time(k)).collect();
     let um = |v: &[f64]| v.iter().map(|x| x * 1000.0).collect::<Vec<f64>>();
     let (tt, tp) = (um(&p.true_contour.tip_mm), um(&p.predicted_contour.tip_mm));
-    let (ot, op) = (um(&p.true_contour.orientation_rad), um(&p.predicted_contour.orientation_rad));
+    let (ot, op) = (
+        um(&p.true_contour.orientation_rad),
+        um(&p.predicted_contour.orientation_rad),
+    );
     let d_tip = um(&p.tip_discrepancy());
     let d_extra = extra.map(|(_, e)| {
         p.true_contour
@@ -131,8 +149,16 @@ pub fn write_prediction_plots(out: &Path, run: &Run, p: &Prediction, extra: Opti
                 y_label: "um",
                 x_scale: Scale::Linear,
                 series: vec![
-                    Series { name: "true drives".into(), x: &t, y: &tt },
-                    Series { name: "identified drives".into(), x: &t, y: &tp },
+                    Series {
+                        name: "true drives".into(),
+                        x: &t,
+                        y: &tt,
+                    },
+                    Series {
+                        name: "identified drives".into(),
+                        x: &t,
+                        y: &tp,
+                    },
                 ],
             },
             LinePlot {
@@ -148,8 +174,16 @@ pub fn write_prediction_plots(out: &Path, run: &Run, p: &Prediction, extra: Opti
                 y_label: "mrad",
                 x_scale: Scale::Linear,
                 series: vec![
-                    Series { name: "true drives".into(), x: &t, y: &ot },
-                    Series { name: "identified drives".into(), x: &t, y: &op },
+                    Series {
+                        name: "true drives".into(),
+                        x: &t,
+                        y: &ot,
+                    },
+                    Series {
+                        name: "identified drives".into(),
+                        x: &t,
+                        y: &op,
+                    },
                 ],
             },
         ],
@@ -174,9 +208,21 @@ pub fn write_prediction_plots(out: &Path, run: &Run, p: &Prediction, extra: Opti
         .map(|(i, a)| {
             let k = a.unit.micro_factor();
             (
-                format!("axis {}: tracking error x_r - x [{}]", a.name, a.unit.micro_label()),
-                a.pos.iter().zip(&p.true_traces[i].true_position).map(|(r, x)| (r - x) * k).collect(),
-                a.pos.iter().zip(&p.predicted[i]).map(|(r, x)| (r - x) * k).collect(),
+                format!(
+                    "axis {}: tracking error x_r - x [{}]",
+                    a.name,
+                    a.unit.micro_label()
+                ),
+                a.pos
+                    .iter()
+                    .zip(&p.true_traces[i].true_position)
+                    .map(|(r, x)| (r - x) * k)
+                    .collect(),
+                a.pos
+                    .iter()
+                    .zip(&p.predicted[i])
+                    .map(|(r, x)| (r - x) * k)
+                    .collect(),
             )
         })
         .collect();
@@ -189,8 +235,16 @@ pub fn write_prediction_plots(out: &Path, run: &Run, p: &Prediction, extra: Opti
             y_label: a.unit.micro_label(),
             x_scale: Scale::Linear,
             series: vec![
-                Series { name: "true drive".into(), x: &t, y: e },
-                Series { name: "identified model".into(), x: &t, y: m },
+                Series {
+                    name: "true drive".into(),
+                    x: &t,
+                    y: e,
+                },
+                Series {
+                    name: "identified model".into(),
+                    x: &t,
+                    y: m,
+                },
             ],
         })
         .collect();
@@ -202,17 +256,47 @@ fn prediction_rows(p: &Prediction) -> Vec<(String, f64, f64)> {
     let d_or = p.orientation_discrepancy();
     let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(*x));
     vec![
-        ("true max [um]".into(), p.true_contour.tip_max_mm * 1e3, p.true_contour.orientation_max_rad * 1e3),
-        ("true RMS [um]".into(), p.true_contour.tip_rms_mm * 1e3, p.true_contour.orientation_rms_rad * 1e3),
-        ("predicted max".into(), p.predicted_contour.tip_max_mm * 1e3, p.predicted_contour.orientation_max_rad * 1e3),
-        ("predicted RMS".into(), p.predicted_contour.tip_rms_mm * 1e3, p.predicted_contour.orientation_rms_rad * 1e3),
-        ("|pred - true| max".into(), max(&d_tip) * 1e3, max(&d_or) * 1e3),
-        ("|pred - true| RMS".into(), rms(&d_tip) * 1e3, rms(&d_or) * 1e3),
+        (
+            "true max".into(),
+            p.true_contour.tip_max_mm * 1e3,
+            p.true_contour.orientation_max_rad * 1e3,
+        ),
+        (
+            "true RMS".into(),
+            p.true_contour.tip_rms_mm * 1e3,
+            p.true_contour.orientation_rms_rad * 1e3,
+        ),
+        (
+            "predicted max".into(),
+            p.predicted_contour.tip_max_mm * 1e3,
+            p.predicted_contour.orientation_max_rad * 1e3,
+        ),
+        (
+            "predicted RMS".into(),
+            p.predicted_contour.tip_rms_mm * 1e3,
+            p.predicted_contour.orientation_rms_rad * 1e3,
+        ),
+        (
+            "|pred - true| max".into(),
+            max(&d_tip) * 1e3,
+            max(&d_or) * 1e3,
+        ),
+        (
+            "|pred - true| RMS".into(),
+            rms(&d_tip) * 1e3,
+            rms(&d_or) * 1e3,
+        ),
     ]
 }
 
 /// `vcnc predict MACHINE PROGRAM [--model MODEL] --out DIR`.
-pub fn predict(machine_path: &Path, program: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> Result<()> {
+pub fn predict(
+    machine_path: &Path,
+    program: &Path,
+    model: Option<&Path>,
+    out: &Path,
+    ctx: &Ctx,
+) -> Result<()> {
     let machine = load_machine(machine_path)?;
     let src = read_program(program)?;
     let file = program.display().to_string();
@@ -246,7 +330,13 @@ pub fn predict(machine_path: &Path, program: &Path, model: Option<&Path>, out: &
             .into_iter()
             .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
             .collect();
-        print!("{}", table(&["contour error", "tool tip [um]", "orientation [mrad]"], &rows));
+        print!(
+            "{}",
+            table(
+                &["contour error", "tool tip [um]", "orientation [mrad]"],
+                &rows
+            )
+        );
         println!("-> {}", out.display());
     }
     Ok(())
@@ -285,8 +375,15 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
     write_prediction_plots(out, &run, &p, Some(("paper PSO", &pp)))?;
     let elapsed = start.elapsed().as_secs_f64();
     if !ctx.quiet {
-        println!("vcnc demo: {} + spiral ({} samples, {:.2} s)\n", machine.name, run.len(), run.loaded.trajectory.duration_s());
-        println!("Identification (each axis: 70-move excitation through the true 20 kHz drive; poles as wn [Hz] / zeta / p [Hz]):");
+        println!(
+            "vcnc demo: {} + spiral ({} samples, {:.2} s)\n",
+            machine.name,
+            run.len(),
+            run.loaded.trajectory.duration_s()
+        );
+        println!(
+            "Identification (each axis: 70-move excitation through the true 20 kHz drive; poles as wn [Hz] / zeta / p [Hz]):"
+        );
         print!("{}", identification_table(&ids));
         println!("\nSpiral contour errors, true drives vs identified models:");
         let (a, b) = (prediction_rows(&p), prediction_rows(&pp));
@@ -294,17 +391,32 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
             .iter()
             .zip(&b)
             .map(|((n, t1, o1), (_, t2, o2))| {
-                vec![n.clone(), format!("{t1:.3}"), format!("{o1:.4}"), format!("{t2:.3}"), format!("{o2:.4}")]
+                vec![
+                    n.clone(),
+                    format!("{t1:.3}"),
+                    format!("{o1:.4}"),
+                    format!("{t2:.3}"),
+                    format!("{o2:.4}"),
+                ]
             })
             .collect();
         print!(
             "{}",
             table(
-                &["", "tip [um] refined", "orient. [mrad] refined", "tip [um] paper PSO", "orient. [mrad] paper PSO"],
+                &[
+                    "",
+                    "tip [um] refined",
+                    "orient. [mrad] refined",
+                    "tip [um] paper PSO",
+                    "orient. [mrad] paper PSO"
+                ],
                 &rows
             )
         );
-        println!("\n{elapsed:.2} s; summaries and SVG plots in {}", out.display());
+        println!(
+            "\n{elapsed:.2} s; summaries and SVG plots in {}",
+            out.display()
+        );
     }
     Ok(())
 }
@@ -313,15 +425,13 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
 fn axes_overview(ids: &[AxisIdentification]) -> Value {
     let mut m = serde_json::Map::new();
     for r in ids {
-        let pct = |a: Option<vcnc_drive::Poles>| {
-            match (r.truth.poles(), a) {
-                (Some(t), Some(p)) => json!({
-                    "p": crate::report::rel_pct(p.p, t.p),
-                    "wn": crate::report::rel_pct(p.wn, t.wn),
-                    "zeta": crate::report::rel_pct(p.zeta, t.zeta),
-                }),
-                _ => Value::Null,
-            }
+        let pct = |a: Option<vcnc_drive::Poles>| match (r.truth.poles(), a) {
+            (Some(t), Some(p)) => json!({
+                "p": crate::report::rel_pct(p.p, t.p),
+                "wn": crate::report::rel_pct(p.wn, t.wn),
+                "zeta": crate::report::rel_pct(p.zeta, t.zeta),
+            }),
+            _ => Value::Null,
         };
         m.insert(
             r.axis.to_string(),

@@ -30,8 +30,10 @@ pub fn interpolate(machine: &Path, program: &Path, out: &Path, ctx: &Ctx) -> Res
     let px: Vec<Vec<f64>>;
     if tcp {
         // Tool tip in the workpiece frame (the reference poses), then every machine axis.
-        let poses = run.poses.as_ref().map(|p| p.as_slice()).unwrap_or(&[]);
-        px = (0..3).map(|i| poses.iter().map(|p| p.p[i]).collect()).collect();
+        let poses = run.poses.as_deref().unwrap_or(&[]);
+        px = (0..3)
+            .map(|i| poses.iter().map(|p| p.p[i]).collect())
+            .collect();
         for (i, name) in ["px", "py", "pz"].iter().enumerate() {
             header.push(name.to_string());
             cols.push(&px[i]);
@@ -78,7 +80,13 @@ pub fn interpolate(machine: &Path, program: &Path, out: &Path, ctx: &Ctx) -> Res
 }
 
 /// `vcnc simulate MACHINE PROGRAM [--model MODEL] --out DIR`: `trace.csv` and `summary.json`.
-pub fn simulate(machine_path: &Path, program: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> Result<()> {
+pub fn simulate(
+    machine_path: &Path,
+    program: &Path,
+    model: Option<&Path>,
+    out: &Path,
+    ctx: &Ctx,
+) -> Result<()> {
     let machine = load_machine(machine_path)?;
     let src = read_program(program)?;
     let models = match model {
@@ -111,9 +119,19 @@ pub fn simulate(machine_path: &Path, program: &Path, model: Option<&Path>, out: 
     let mut axes = serde_json::Map::new();
     let mut rows = Vec::new();
     let mut panels_data = Vec::new();
-    for (i, (axis, (a, tr))) in machine.axes.iter().zip(run.axes.iter().zip(&traces)).enumerate() {
+    for (i, (axis, (a, tr))) in machine
+        .axes
+        .iter()
+        .zip(run.axes.iter().zip(&traces))
+        .enumerate()
+    {
         let (label, k) = (a.unit.micro_label(), a.unit.micro_factor());
-        let e: Vec<f64> = a.pos.iter().zip(&tr.position).map(|(r, x)| (r - x) * k).collect();
+        let e: Vec<f64> = a
+            .pos
+            .iter()
+            .zip(&tr.position)
+            .map(|(r, x)| (r - x) * k)
+            .collect();
         let mut obj = json!({
             "unit": a.unit.as_str(),
             format!("tracking_max_{label}"): max_abs(&e),
@@ -129,11 +147,22 @@ pub fn simulate(machine_path: &Path, program: &Path, model: Option<&Path>, out: 
         ];
         let mut em = None;
         if let Some(p) = &predicted {
-            let d: Vec<f64> = tr.position.iter().zip(&p[i]).map(|(x, m)| (m - x) * k).collect();
+            let d: Vec<f64> = tr
+                .position
+                .iter()
+                .zip(&p[i])
+                .map(|(x, m)| (m - x) * k)
+                .collect();
             obj[format!("model_vs_true_max_{label}")] = json!(max_abs(&d));
             obj[format!("model_vs_true_rms_{label}")] = json!(rms(&d));
             row.push(format!("{:.3} {label}", max_abs(&d)));
-            em = Some(a.pos.iter().zip(&p[i]).map(|(r, m)| (r - m) * k).collect::<Vec<f64>>());
+            em = Some(
+                a.pos
+                    .iter()
+                    .zip(&p[i])
+                    .map(|(r, m)| (r - m) * k)
+                    .collect::<Vec<f64>>(),
+            );
         }
         axes.insert(a.name.to_string(), obj);
         rows.push(row);
@@ -147,7 +176,10 @@ pub fn simulate(machine_path: &Path, program: &Path, model: Option<&Path>, out: 
         "axes": axes,
     });
     write_json(&out.join("summary.json"), &summary)?;
-    let titles: Vec<String> = panels_data.iter().map(|(n, l, _, _)| format!("axis {n}: tracking error x_r - x [{l}]")).collect();
+    let titles: Vec<String> = panels_data
+        .iter()
+        .map(|(n, l, _, _)| format!("axis {n}: tracking error x_r - x [{l}]"))
+        .collect();
     let panels: Vec<LinePlot> = panels_data
         .iter()
         .zip(&titles)
@@ -193,7 +225,10 @@ pub fn log_freqs(f0: f64, f1: f64, n: usize) -> Vec<f64> {
 }
 
 /// Magnitude (dB) and phase (deg, unwrapped) of a frequency response.
-pub fn bode(freqs: &[f64], h: impl Fn(f64) -> vcnc_kinematics::nalgebra::Complex<f64>) -> (Vec<f64>, Vec<f64>) {
+pub fn bode(
+    freqs: &[f64],
+    h: impl Fn(f64) -> vcnc_kinematics::nalgebra::Complex<f64>,
+) -> (Vec<f64>, Vec<f64>) {
     let mut mag = Vec::with_capacity(freqs.len());
     let mut phase = Vec::with_capacity(freqs.len());
     let mut prev: Option<f64> = None;
@@ -236,7 +271,12 @@ pub fn bode_data(m: &ClosedLoopModel, freqs: &[f64]) -> BodeData {
 
 /// Writes `<prefix>.csv` and `<prefix>.svg` for an axis: the true drive and, optionally, other
 /// named models (identified ...).
-pub fn write_frf(dir: &Path, prefix: &str, axis: char, models: &[(&str, &ClosedLoopModel)]) -> Result<()> {
+pub fn write_frf(
+    dir: &Path,
+    prefix: &str,
+    axis: char,
+    models: &[(&str, &ClosedLoopModel)],
+) -> Result<()> {
     let freqs = log_freqs(0.1, 500.0, 400);
     let data: Vec<BodeData> = models.iter().map(|(_, m)| bode_data(m, &freqs)).collect();
     let mut header = vec!["f_hz".to_string()];
@@ -326,9 +366,15 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
             bw.map_or("-".into(), |b| format!("{b:.2}")),
         ]);
     }
-    write_json(&out.join("summary.json"), &json!({"machine": machine.name, "axes": Value::Object(summary)}))?;
+    write_json(
+        &out.join("summary.json"),
+        &json!({"machine": machine.name, "axes": Value::Object(summary)}),
+    )?;
     if !ctx.quiet {
-        print!("{}", table(&["axis", "wn [Hz]", "zeta", "p [Hz]", "-3 dB [Hz]"], &rows));
+        print!(
+            "{}",
+            table(&["axis", "wn [Hz]", "zeta", "p [Hz]", "-3 dB [Hz]"], &rows)
+        );
         println!("-> {}", out.display());
     }
     Ok(())

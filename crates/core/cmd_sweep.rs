@@ -18,7 +18,9 @@ use rayon::prelude::*;
 use serde_json::json;
 use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::pipeline::{self, Run};
-use vcnc_machine::sweep::{SweepKey, configuration, parse_set, parse_shard, product_len, set_key, shard_indices};
+use vcnc_machine::sweep::{
+    SweepKey, configuration, parse_set, parse_shard, product_len, set_key, shard_indices,
+};
 use vcnc_machine::{Machine, ModelSet};
 
 use crate::cli::SweepArgs;
@@ -52,15 +54,24 @@ fn header(keys: &[SweepKey], axes: &[char], with_model: bool) -> Vec<String> {
         h.push(format!("{a}_tracking_rms"));
     }
     h.extend(
-        ["contour_max_um", "contour_rms_um", "orientation_max_mrad", "orientation_rms_mrad"]
-            .iter()
-            .map(|s| s.to_string()),
+        [
+            "contour_max_um",
+            "contour_rms_um",
+            "orientation_max_mrad",
+            "orientation_rms_mrad",
+        ]
+        .iter()
+        .map(|s| s.to_string()),
     );
     if with_model {
         h.extend(
-            ["predicted_contour_max_um", "predicted_contour_rms_um", "discrepancy_max_um"]
-                .iter()
-                .map(|s| s.to_string()),
+            [
+                "predicted_contour_max_um",
+                "predicted_contour_rms_um",
+                "discrepancy_max_um",
+            ]
+            .iter()
+            .map(|s| s.to_string()),
         );
     }
     h.push("status".into());
@@ -134,7 +145,12 @@ fn evaluate(s: &Setup, values: &[f64]) -> Result<(Vec<String>, f64)> {
     let mut cells = Vec::new();
     for (a, tr) in run.axes.iter().zip(&traces) {
         let k = a.unit.micro_factor();
-        let e: Vec<f64> = a.pos.iter().zip(&tr.position).map(|(r, x)| (r - x) * k).collect();
+        let e: Vec<f64> = a
+            .pos
+            .iter()
+            .zip(&tr.position)
+            .map(|(r, x)| (r - x) * k)
+            .collect();
         cells.push(format_num(max_abs(&e)));
         cells.push(format_num(rms(&e)));
     }
@@ -163,16 +179,33 @@ fn evaluate(s: &Setup, values: &[f64]) -> Result<(Vec<String>, f64)> {
 
 pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let source = args.machine.display().to_string();
-    let text = std::fs::read_to_string(&args.machine).map_err(|e| bad_input(format!("{source}: cannot read: {e}")))?;
+    let text = std::fs::read_to_string(&args.machine)
+        .map_err(|e| bad_input(format!("{source}: cannot read: {e}")))?;
     // The base machine must be valid: its errors carry line numbers.
-    let base_dir = args.machine.parent().map(Path::to_path_buf).unwrap_or_default();
+    let base_dir = args
+        .machine
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
     let base_machine = Machine::from_toml_str(&text, &source, &base_dir)?;
-    let base: toml::Table = toml::from_str(&text).map_err(|e| bad_input(format!("{source}: {e}")))?;
-    let keys: Vec<SweepKey> = args.sets.iter().map(|s| parse_set(s).map_err(bad_input)).collect::<Result<_>>()?;
-    let shard = args.shard.as_deref().map(parse_shard).transpose().map_err(bad_input)?;
+    let base: toml::Table =
+        toml::from_str(&text).map_err(|e| bad_input(format!("{source}: {e}")))?;
+    let keys: Vec<SweepKey> = args
+        .sets
+        .iter()
+        .map(|s| parse_set(s).map_err(bad_input))
+        .collect::<Result<_>>()?;
+    let shard = args
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()
+        .map_err(bad_input)?;
     let total = product_len(&keys);
     if total > 10_000_000 {
-        return Err(bad_input(format!("the sweep has {total} configurations; split it (at most 10 000 000)")));
+        return Err(bad_input(format!(
+            "the sweep has {total} configurations; split it (at most 10 000 000)"
+        )));
     }
     let indices = shard_indices(total, shard);
     let program = read_program(&args.program)?;
@@ -197,7 +230,8 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     };
     ensure_dir(&args.out)?;
     let csv_path = args.out.join("sweep.csv");
-    let mut file = File::create(&csv_path).with_context(|| format!("cannot create {}", csv_path.display()))?;
+    let mut file =
+        File::create(&csv_path).with_context(|| format!("cannot create {}", csv_path.display()))?;
     let head = header(&keys, &base_machine.axis_names(), models.is_some());
     writeln!(file, "{}", head.join(","))?;
     file.flush()?;
@@ -206,8 +240,10 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     } else {
         let b = ProgressBar::new(indices.len() as u64);
         b.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} configurations, {per_sec}, ETA {eta}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} configurations, {per_sec}, ETA {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         b
     };
@@ -261,7 +297,11 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
             args.out.display()
         );
         if let Some((c, i, v)) = &best {
-            let set: Vec<String> = keys.iter().zip(v).map(|(k, v)| format!("{}={}", k.key, v)).collect();
+            let set: Vec<String> = keys
+                .iter()
+                .zip(v)
+                .map(|(k, v)| format!("{}={}", k.key, v))
+                .collect();
             println!("best: #{i} {} with contour error {c:.3} um", set.join(" "));
         }
     }
@@ -278,8 +318,11 @@ fn write_sweep_summary(
     best: Option<&(f64, usize, Vec<f64>)>,
 ) -> Result<()> {
     let best = best.map(|(c, i, v)| {
-        let values: serde_json::Map<String, serde_json::Value> =
-            keys.iter().zip(v).map(|(k, v)| (k.key.clone(), json!(v))).collect();
+        let values: serde_json::Map<String, serde_json::Value> = keys
+            .iter()
+            .zip(v)
+            .map(|(k, v)| (k.key.clone(), json!(v)))
+            .collect();
         json!({"index": i, "values": values, "contour_max_um": c})
     });
     write_json(
@@ -326,7 +369,8 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
     let mut rows: Vec<(usize, String)> = Vec::new();
     for d in dirs {
         let path = d.join("sweep.csv");
-        let f = File::open(&path).map_err(|e| bad_input(format!("{}: cannot read: {e}", path.display())))?;
+        let f = File::open(&path)
+            .map_err(|e| bad_input(format!("{}: cannot read: {e}", path.display())))?;
         let mut lines = BufReader::new(f).lines();
         let h = lines
             .next()
@@ -335,7 +379,10 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
         match &header {
             None => header = Some(h),
             Some(prev) if *prev != h => {
-                return Err(bad_input(format!("{}: its columns differ from the first shard's", path.display())));
+                return Err(bad_input(format!(
+                    "{}: its columns differ from the first shard's",
+                    path.display()
+                )));
             }
             _ => {}
         }
@@ -348,13 +395,22 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
                 .split(',')
                 .next()
                 .and_then(|s| s.parse().ok())
-                .ok_or_else(|| bad_input(format!("{}:{}: no configuration index", path.display(), n + 2)))?;
+                .ok_or_else(|| {
+                    bad_input(format!(
+                        "{}:{}: no configuration index",
+                        path.display(),
+                        n + 2
+                    ))
+                })?;
             rows.push((idx, line));
         }
     }
     rows.sort_by_key(|r| r.0);
     if let Some(w) = rows.windows(2).find(|w| w[0].0 == w[1].0) {
-        return Err(bad_input(format!("configuration {} appears in more than one shard", w[0].0)));
+        return Err(bad_input(format!(
+            "configuration {} appears in more than one shard",
+            w[0].0
+        )));
     }
     let header = header.ok_or_else(|| bad_input("no shard folders given"))?;
     ensure_dir(out)?;
@@ -378,10 +434,12 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
             continue;
         }
         ok += 1;
-        if let Some(c) = ci.and_then(|c| cells.get(c)).and_then(|c| c.parse::<f64>().ok()) {
-            if best.is_none_or(|(b, _)| c < b) {
-                best = Some((c, *i));
-            }
+        if let Some(c) = ci
+            .and_then(|c| cells.get(c))
+            .and_then(|c| c.parse::<f64>().ok())
+            && best.is_none_or(|(b, _)| c < b)
+        {
+            best = Some((c, *i));
         }
     }
     write_json(
@@ -395,7 +453,12 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
         }),
     )?;
     if !ctx.quiet {
-        println!("merged {} rows from {} shards -> {}", rows.len(), dirs.len(), out.display());
+        println!(
+            "merged {} rows from {} shards -> {}",
+            rows.len(),
+            dirs.len(),
+            out.display()
+        );
     }
     Ok(())
 }

@@ -58,7 +58,10 @@ fn main() -> ExitCode {
             eprintln!("vcnc: --threads must be at least 1");
             return ExitCode::from(2);
         }
-        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
             eprintln!("vcnc: cannot start {n} threads: {e}");
             return ExitCode::from(1);
         }
@@ -93,7 +96,11 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             model,
             out,
         } => cmd_predict::predict(&machine, &program, model.as_deref(), &out, ctx),
-        Command::Interpolate { machine, program, out } => cmd_sim::interpolate(&machine, &program, &out, ctx),
+        Command::Interpolate {
+            machine,
+            program,
+            out,
+        } => cmd_sim::interpolate(&machine, &program, &out, ctx),
         Command::Kinematics {
             machine,
             direction,
@@ -101,7 +108,11 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             out,
             branch,
         } => cmd_kinematics::kinematics(&machine, direction, &input, out.as_deref(), branch),
-        Command::Frf { machine, model, out } => cmd_sim::frf(&machine, model.as_deref(), &out, ctx),
+        Command::Frf {
+            machine,
+            model,
+            out,
+        } => cmd_sim::frf(&machine, model.as_deref(), &out, ctx),
         Command::Sweep(args) => cmd_sweep::sweep(&args, ctx),
         Command::SweepMerge { dirs, out } => cmd_sweep::merge(&dirs, &out, ctx),
         Command::Gen { what } => cmd_gen::generate(&what),

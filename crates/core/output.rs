@@ -10,7 +10,8 @@ use anyhow::{Context, Result};
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = parent_dir(path);
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create folder {}", dir.display()))?;
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("cannot create folder {}", dir.display()))?;
     let mut builder = tempfile::Builder::new();
     builder.prefix(".vcnc-").suffix(".tmp");
     // Temporary files are private (0600) by default; results are ordinary files.
@@ -42,7 +43,8 @@ pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
 /// A CSV table, built in memory and written atomically.
 pub fn write_csv(path: &Path, header: &[String], columns: &[&[f64]]) -> Result<()> {
     let rows = columns.iter().map(|c| c.len()).max().unwrap_or(0);
-    let mut w = csv::WriterBuilder::new().from_writer(Vec::with_capacity(rows * columns.len() * 12));
+    let mut w =
+        csv::WriterBuilder::new().from_writer(Vec::with_capacity(rows * columns.len() * 12));
     w.write_record(header)?;
     let mut record: Vec<String> = Vec::with_capacity(columns.len());
     for k in 0..rows {
@@ -52,7 +54,9 @@ pub fn write_csv(path: &Path, header: &[String], columns: &[&[f64]]) -> Result<(
         }
         w.write_record(&record)?;
     }
-    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("csv buffer: {e}"))?;
+    let bytes = w
+        .into_inner()
+        .map_err(|e| anyhow::anyhow!("csv buffer: {e}"))?;
     write_atomic(path, &bytes)
 }
 
@@ -76,10 +80,15 @@ fn parent_dir(path: &Path) -> PathBuf {
 /// written and before the rename, as a crash or full disk would. Lets the end-to-end tests check
 /// that an interrupted run leaves the previous file intact.
 fn fail_point(path: &Path) -> Result<()> {
-    if let Ok(name) = std::env::var("VCNC_FAIL_WRITE") {
-        if path.file_name().is_some_and(|f| f.to_string_lossy() == name) {
-            anyhow::bail!("injected write failure for {} (VCNC_FAIL_WRITE)", path.display());
-        }
+    if let Ok(name) = std::env::var("VCNC_FAIL_WRITE")
+        && path
+            .file_name()
+            .is_some_and(|f| f.to_string_lossy() == name)
+    {
+        anyhow::bail!(
+            "injected write failure for {} (VCNC_FAIL_WRITE)",
+            path.display()
+        );
     }
     Ok(())
 }

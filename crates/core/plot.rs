@@ -41,7 +41,11 @@ pub fn write_scatter(path: &Path, plot: &LinePlot) -> Result<()> {
     {
         let root = SVGBackend::with_string(&mut svg, (900, 420)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
-        let all = || plot.series.iter().flat_map(|s| s.x.iter().copied().zip(s.y.iter().copied()));
+        let all = || {
+            plot.series
+                .iter()
+                .flat_map(|s| s.x.iter().copied().zip(s.y.iter().copied()))
+        };
         let (x0, x1) = finite_range(all().map(|p| p.0)).unwrap_or((0.0, 1.0));
         let (y0, y1) = finite_range(all().map(|p| p.1)).unwrap_or((0.0, 1.0));
         let mut chart = ChartBuilder::on(&root)
@@ -60,13 +64,12 @@ pub fn write_scatter(path: &Path, plot: &LinePlot) -> Result<()> {
             .map_err(plot_err)?;
         for (i, s) in plot.series.iter().enumerate() {
             let c = colour(i);
-            let pts: Vec<(f64, f64)> = s
-                .x
-                .iter()
-                .copied()
-                .zip(s.y.iter().copied())
-                .filter(|(x, y)| x.is_finite() && y.is_finite())
-                .collect();
+            let pts: Vec<(f64, f64)> =
+                s.x.iter()
+                    .copied()
+                    .zip(s.y.iter().copied())
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .collect();
             chart
                 .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, c.filled())))
                 .map_err(plot_err)?
@@ -133,10 +136,8 @@ pub fn decimate(x: &[f64], y: &[f64], max_points: usize) -> Vec<(f64, f64)> {
         }
         start = end;
     }
-    if let Some(&(lx, _)) = out.last() {
-        if lx != x[n - 1] {
-            out.push((x[n - 1], y[n - 1]));
-        }
+    if out.last().is_some_and(|&(lx, _)| lx != x[n - 1]) {
+        out.push((x[n - 1], y[n - 1]));
     }
     out
 }
@@ -181,7 +182,9 @@ fn draw_lines(area: &DrawingArea<SVGBackend, Shift>, plot: &LinePlot) -> Result<
         .y_label_area_size(70);
     match plot.x_scale {
         Scale::Linear => {
-            let mut chart = builder.build_cartesian_2d(x0..x1, y0..y1).map_err(plot_err)?;
+            let mut chart = builder
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(plot_err)?;
             chart
                 .configure_mesh()
                 .x_desc(plot.x_label)
@@ -195,7 +198,9 @@ fn draw_lines(area: &DrawingArea<SVGBackend, Shift>, plot: &LinePlot) -> Result<
                     .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(1)))
                     .map_err(plot_err)?
                     .label(s.name.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
             }
             chart
                 .configure_series_labels()
@@ -206,8 +211,9 @@ fn draw_lines(area: &DrawingArea<SVGBackend, Shift>, plot: &LinePlot) -> Result<
         }
         Scale::Log10 => {
             let lo = x0.max(1e-9);
-            let mut chart =
-                builder.build_cartesian_2d((lo..x1).log_scale(), y0..y1).map_err(plot_err)?;
+            let mut chart = builder
+                .build_cartesian_2d((lo..x1).log_scale(), y0..y1)
+                .map_err(plot_err)?;
             chart
                 .configure_mesh()
                 .x_desc(plot.x_label)
@@ -221,7 +227,9 @@ fn draw_lines(area: &DrawingArea<SVGBackend, Shift>, plot: &LinePlot) -> Result<
                     .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(1)))
                     .map_err(plot_err)?
                     .label(s.name.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
             }
             chart
                 .configure_series_labels()
@@ -280,7 +288,10 @@ pub fn write_coloured_path(
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d(cx - span / 2.0..cx + span / 2.0, cy - span / 2.0..cy + span / 2.0)
+            .build_cartesian_2d(
+                cx - span / 2.0..cx + span / 2.0,
+                cy - span / 2.0..cy + span / 2.0,
+            )
             .map_err(plot_err)?;
         chart
             .configure_mesh()
@@ -289,7 +300,11 @@ pub fn write_coloured_path(
             .light_line_style(WHITE)
             .draw()
             .map_err(plot_err)?;
-        let vmax = value.iter().copied().filter(|v| v.is_finite()).fold(0.0f64, f64::max);
+        let vmax = value
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, f64::max);
         let scale = if vmax > 0.0 { 1.0 / vmax } else { 0.0 };
         let stride = (xy.len() / 4000).max(1);
         let n = xy.len().min(value.len());
@@ -306,15 +321,18 @@ pub fn write_coloured_path(
             let f = i as f64 / (steps - 1) as f64;
             let y0p = (h as f64 * (1.0 - f)) as i32;
             bar.draw(&Rectangle::new(
-                [(0, y0p - (h as i32 / steps as i32) - 1), (24, y0p)],
+                [(0, y0p - (h as i32 / steps) - 1), (24, y0p)],
                 heat(f).filled(),
             ))
             .map_err(plot_err)?;
         }
         let style = ("sans-serif", 12).into_font();
-        bar.draw(&Text::new(format!("{vmax:.1}"), (0, -18), style.clone())).map_err(plot_err)?;
-        bar.draw(&Text::new("0", (0, h as i32 + 4), style.clone())).map_err(plot_err)?;
-        bar.draw(&Text::new(value_label.to_string(), (-20, -48), style)).map_err(plot_err)?;
+        bar.draw(&Text::new(format!("{vmax:.1}"), (0, -18), style.clone()))
+            .map_err(plot_err)?;
+        bar.draw(&Text::new("0", (0, h as i32 + 4), style.clone()))
+            .map_err(plot_err)?;
+        bar.draw(&Text::new(value_label.to_string(), (-20, -48), style))
+            .map_err(plot_err)?;
         root.present().map_err(plot_err)?;
     }
     write_atomic(path, svg.as_bytes())
@@ -322,8 +340,17 @@ pub fn write_coloured_path(
 
 /// Blue → green → yellow → red ramp for `f` in [0, 1].
 fn heat(f: f64) -> RGBColor {
-    let f = if f.is_finite() { f.clamp(0.0, 1.0) } else { 0.0 };
-    let stops = [(0.0, (49, 54, 149)), (0.35, (69, 170, 110)), (0.65, (240, 200, 40)), (1.0, (215, 25, 28))];
+    let f = if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let stops = [
+        (0.0, (49, 54, 149)),
+        (0.35, (69, 170, 110)),
+        (0.65, (240, 200, 40)),
+        (1.0, (215, 25, 28)),
+    ];
     for w in stops.windows(2) {
         let (f0, c0) = w[0];
         let (f1, c1) = w[1];

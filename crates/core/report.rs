@@ -21,7 +21,11 @@ pub fn model_json(m: &ClosedLoopModel) -> Value {
         "stable": m.is_stable(),
     });
     if !m.is_stable() {
-        let roots: Vec<Value> = m.roots().iter().map(|r| json!({"re": r.re, "im": r.im})).collect();
+        let roots: Vec<Value> = m
+            .roots()
+            .iter()
+            .map(|r| json!({"re": r.re, "im": r.im}))
+            .collect();
         v["roots_rad_s"] = Value::Array(roots);
         v["marginally_stable"] = json!(m.is_marginally_stable());
     }
@@ -103,7 +107,8 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
 
 /// Creates the output folder.
 pub fn ensure_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create output folder {}", dir.display()))
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create output folder {}", dir.display()))
 }
 
 /// RMS of a slice.

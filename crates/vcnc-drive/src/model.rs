@@ -563,7 +563,12 @@ impl Discretized {
     /// entry is $-L$, $L \approx d_c T_s$), the friction level $f \in [-1, 1]$ held over the step
     /// is $f = v^*/L$ if $|v^*| \le L$ (the axis ends the step at rest: sticking) and
     /// $f = \operatorname{sgn} v^*$ otherwise; $z_{k+1} = z^* + g_f f$.
-    pub fn simulate_into(&self, r: Reference<'_>, opts: &SimOptions, out: &mut [f64]) -> Result<(), Error> {
+    pub fn simulate_into(
+        &self,
+        r: Reference<'_>,
+        opts: &SimOptions,
+        out: &mut [f64],
+    ) -> Result<(), Error> {
         let n = r.check()?;
         if out.len() != n {
             return Err(Error::LengthMismatch {
@@ -745,14 +750,19 @@ mod tests {
             vel: &vel,
             acc: &acc,
         };
-        let exact = m.simulate(r, ts, &SimOptions::default()).unwrap();
+        // RK4 holds the explicit friction sign per sample; compare like with like.
+        let explicit = SimOptions {
+            sticking: false,
+            ..Default::default()
+        };
+        let exact = m.simulate(r, ts, &explicit).unwrap();
         let rk = m
             .simulate(
                 r,
                 ts,
                 &SimOptions {
                     integrator: Integrator::Rk4 { substeps: 20 },
-                    ..Default::default()
+                    ..explicit
                 },
             )
             .unwrap();

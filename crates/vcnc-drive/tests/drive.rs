@@ -689,3 +689,39 @@ fn saturation_limits_u_and_the_axis_still_settles() {
     );
     assert!(e_end < 1e-3, "{e_end} mm");
 }
+
+#[test]
+fn model_with_sticking_follows_the_true_drive_through_friction_events() {
+    // Truth: the 20 kHz drive simulation with true sticking (an independent integration of the
+    // plant and the sampled controller). The 7-parameter model simulated with the implicit
+    // (set-valued) Coulomb step must follow it through every start, stop and reversal of the
+    // identification-like program to well under a micrometre, and clearly better than the
+    // explicit sign-with-deadband model, which lets the axis creep or stick at the wrong time.
+    let mut params = vcnc_drive::table1_drive();
+    params.encoder = Encoder::ideal();
+    let drive = params.validate().unwrap();
+    let prog = common::standard_program();
+    let trace = drive.simulate(prog.reference(), 1e-3).unwrap();
+    let model = drive.closed_loop_model();
+    let sticking = model
+        .simulate(prog.reference(), 1e-3, &SimOptions::default())
+        .unwrap();
+    let explicit = model
+        .simulate(
+            prog.reference(),
+            1e-3,
+            &SimOptions {
+                sticking: false,
+                ..SimOptions::default()
+            },
+        )
+        .unwrap();
+    let e_stick = max_abs_diff(&sticking, &trace.true_position) * 1e3;
+    let e_explicit = max_abs_diff(&explicit, &trace.true_position) * 1e3;
+    eprintln!("model vs true drive: sticking {e_stick:.3} µm, explicit sign {e_explicit:.3} µm");
+    assert!(e_stick < 0.6, "{e_stick} µm");
+    assert!(
+        e_stick < 0.5 * e_explicit,
+        "sticking {e_stick} µm vs explicit {e_explicit} µm"
+    );
+}

@@ -51,9 +51,21 @@ fn bench(c: &mut Criterion) {
     let (theta, _) = cost.theta_hz(best[0], best[1], best[2]);
     let start = theta.to_model();
     g.bench_function("refinement", |b| {
-        b.iter(|| refine(black_box(&tr), &regs, &start, &poles, &opts.bounds, &opts.refine).expect("refine"))
+        b.iter(|| {
+            refine(
+                black_box(&tr),
+                &regs,
+                &start,
+                &poles,
+                &opts.bounds,
+                &opts.refine,
+            )
+            .expect("refine")
+        })
     });
-    g.bench_function("identify_total", |b| b.iter(|| identify(black_box(&tr), &opts).expect("identify")));
+    g.bench_function("identify_total", |b| {
+        b.iter(|| identify(black_box(&tr), &opts).expect("identify"))
+    });
     g.finish();
 }
 

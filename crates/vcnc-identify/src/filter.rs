@@ -66,7 +66,12 @@ impl Butterworth2 {
     /// interleaved so that their latency chains overlap (about `M` times the throughput of
     /// one at a time). Signals are truncated to the shortest input/output length.
     pub fn filtfilt_many<const M: usize>(&self, x: [&[f64]; M], out: [&mut [f64]; M]) {
-        let n = x.iter().map(|s| s.len()).chain(out.iter().map(|s| s.len())).min().unwrap_or(0);
+        let n = x
+            .iter()
+            .map(|s| s.len())
+            .chain(out.iter().map(|s| s.len()))
+            .min()
+            .unwrap_or(0);
         if n == 0 {
             return;
         }
@@ -96,7 +101,8 @@ impl Butterworth2 {
             }
         }
         // Backward pass from the end of the right pad.
-        let mut st: [[f64; 2]; M] = std::array::from_fn(|m| self.steady(tail.last().map_or(out[m][n - 1], |t| t[m])));
+        let mut st: [[f64; 2]; M] =
+            std::array::from_fn(|m| self.steady(tail.last().map_or(out[m][n - 1], |t| t[m])));
         for t in tail.iter().rev() {
             for m in 0..M {
                 self.step(&mut st[m], t[m]);
@@ -127,8 +133,14 @@ impl Butterworth2 {
     pub fn zero_phase_gain(&self, f_hz: f64, ts: f64) -> f64 {
         let w = std::f64::consts::TAU * f_hz * ts;
         let (c1, s1, c2, s2) = (w.cos(), -w.sin(), (2.0 * w).cos(), -(2.0 * w).sin());
-        let num = (self.b0 + self.b1 * c1 + self.b2 * c2, self.b1 * s1 + self.b2 * s2);
-        let den = (1.0 + self.a1 * c1 + self.a2 * c2, self.a1 * s1 + self.a2 * s2);
+        let num = (
+            self.b0 + self.b1 * c1 + self.b2 * c2,
+            self.b1 * s1 + self.b2 * s2,
+        );
+        let den = (
+            1.0 + self.a1 * c1 + self.a2 * c2,
+            self.a1 * s1 + self.a2 * s2,
+        );
         (num.0 * num.0 + num.1 * num.1) / (den.0 * den.0 + den.1 * den.1)
     }
 }
@@ -153,11 +165,15 @@ mod tests {
         let ts = 1e-3;
         let filt = Butterworth2::new(50.0, ts).unwrap();
         let fsig = 20.0;
-        let x: Vec<f64> = (0..4000).map(|k| (TAU * fsig * k as f64 * ts).sin()).collect();
+        let x: Vec<f64> = (0..4000)
+            .map(|k| (TAU * fsig * k as f64 * ts).sin())
+            .collect();
         let mut y = vec![0.0; x.len()];
         filt.filtfilt(&x, &mut y);
         let g = filt.zero_phase_gain(fsig, ts);
-        let err = (500..3500).map(|k| (y[k] - g * x[k]).abs()).fold(0.0, f64::max);
+        let err = (500..3500)
+            .map(|k| (y[k] - g * x[k]).abs())
+            .fold(0.0, f64::max);
         assert!(err < 1e-9, "max deviation {err}");
     }
 
@@ -169,7 +185,11 @@ mod tests {
         let x: Vec<f64> = (0..500).map(|k| 3.0 + 0.25 * k as f64).collect();
         let mut y = vec![0.0; x.len()];
         filt.filtfilt(&x, &mut y);
-        let err = x.iter().zip(&y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let err = x
+            .iter()
+            .zip(&y)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         assert!(err < 1e-8 * 125.0, "max deviation {err}");
     }
 

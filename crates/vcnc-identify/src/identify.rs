@@ -5,13 +5,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use vcnc_drive::{ClosedLoopModel, Poles};
 
+use crate::Error;
 use crate::metrics::{FitMetrics, fit_metrics_with};
 use crate::options::IdentifyOptions;
 use crate::pso::{HistoryEntry, Pso};
 use crate::refine::{RefineResult, refine};
 use crate::regress::{Regressors, Theta};
 use crate::trace::Trace;
-use crate::Error;
 
 /// The unconstrained 7-parameter least-squares fit of paper eq. 7 (the baseline of SPEC section
 /// 4): no stability constraint, so it may be unstable (sliding-mode drives, EMPS).
@@ -86,7 +86,8 @@ pub fn identify(trace: &Trace, opts: &IdentifyOptions) -> Result<Identification,
     let condition_phi2 = regs.condition_phi2();
     let baseline = unconstrained_ls(&regs)?;
     let cost = regs.equation_error_cost()?;
-    let pso = Pso::new(opts.bounds.lower().to_vec(), opts.bounds.upper().to_vec())?.with_settings(opts.pso)?;
+    let pso = Pso::new(opts.bounds.lower().to_vec(), opts.bounds.upper().to_vec())?
+        .with_settings(opts.pso)?;
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
     let swarm = pso.run(&cost, &mut rng);
     let [p_hz, wn_hz, zeta] = match swarm.best[..] {
@@ -97,7 +98,14 @@ pub fn identify(trace: &Trace, opts: &IdentifyOptions) -> Result<Identification,
     let (theta, _) = cost.theta_hz(p_hz, wn_hz, zeta);
     let paper_pso = from_poles_and_theta(&paper_pso_poles, &theta);
     let refinement = if opts.refine.enabled {
-        Some(refine(trace, &regs, &paper_pso, &paper_pso_poles, &opts.bounds, &opts.refine)?)
+        Some(refine(
+            trace,
+            &regs,
+            &paper_pso,
+            &paper_pso_poles,
+            &opts.bounds,
+            &opts.refine,
+        )?)
     } else {
         None
     };

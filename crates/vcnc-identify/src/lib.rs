@@ -3,22 +3,42 @@
 //! "Identification of 5-Axis Machine Tools Feed Drive Systems for Contouring Simulation"
 //! (the paper, section 3), with the corrections and the extra stage of SPEC section 4.
 //!
-//! Pipeline ([`identify`]):
+//! ```text
+//! Trace (t, xr, x) ──► Regressors (one O(N) pass: prefilter, E, central differences, sign,
+//!      │                 8×8 Gram matrix of [Φ1 Φ2 Y])
+//!      │                     │
+//!      │                     ├──► unconstrained_ls ........ baseline, may be unstable
+//!      │                     └──► EquationErrorCost ──► Pso (paper §3.3) ──► paper_pso
+//!      └──────────────────────────────────────────────────► refine (output error) ──► identified
+//! ```
 //!
-//! 1. [`Trace`]: validated samples $(x_{r,k}, x_k)$ at a uniform period; the initial position is
-//!    subtracted from both (zero initial conditions, SPEC section 4).
-//! 2. [`Regressors`]: the corrected time-domain model (paper eq. 7 with SPEC section 4's eq. 18)
+//! 1. [`Trace`]: validated samples $(x_{r,k}, x_k)$ at a uniform period (optionally with the exact
+//!    reference velocity and acceleration of a simulated machine). The initial measured position
+//!    is subtracted from both signals (zero initial conditions, SPEC section 4).
+//! 2. [`Regressors`]: the corrected time-domain model (paper eq. 7, SPEC section 4's eq. 18)
 //!    $$ x = \alpha_3 E - \alpha_1 \dot x - \alpha_2 \ddot x + \beta_0 x_r + \beta_1 \dot x_r + \beta_2 \ddot x_r - \delta\,\mathrm{sgn}(\dot x), \qquad E = \int (x_r - x)\,dt, $$
-//!    built in one O(N) pass into an 8×8 Gram matrix, with a zero-phase prefilter, a sign
-//!    deadband and column scaling.
-//! 3. [`Pso`]: the paper's stability-constrained particle swarm over $\sigma = [p, \omega_n, \zeta]$
-//!    (paper section 3.3), each particle's cost being a least-squares subproblem
-//!    ([`EquationErrorCost`]).
-//! 4. [`refine`]: output-error refinement (SPEC section 4, beyond the paper): the free-run
-//!    simulation error minimised over all seven parameters within the same pole bounds.
-//! 5. [`unconstrained_ls`]: the unconstrained 7-parameter least-squares baseline, reported with its
-//!    poles and a stability flag.
-//! 6. [`fit_metrics`]: one-step and free-run prediction errors and fit %.
+//!    reduced in one O(N) pass to its Gram matrix, with a zero-phase prefilter, a sign deadband
+//!    and column scaling.
+//! 3. [`Pso`] minimises a [`CostFunction`]: here [`EquationErrorCost`], the paper's objective over
+//!    $\sigma = [p, \omega_n, \zeta]$ with $\Theta_2$ from the least-squares subproblem. The bounds
+//!    keep every pole in the left half plane (paper eq. 12). Seeded, bit-identical for any thread
+//!    count, history kept.
+//! 4. [`refine`]: output-error refinement, the step beyond the paper (SPEC section 4): the
+//!    free-run simulation error of the model ([`free_run`], the same simulation the predictions
+//!    use) minimised over all seven parameters inside the same bounds, by variable projection and
+//!    a bounded Levenberg–Marquardt, with the model's own friction (sticking included) in a
+//!    fixed-point second stage.
+//! 5. [`unconstrained_ls`]: the 7-parameter least-squares baseline, reported with its poles and
+//!    a stability flag, whatever they are.
+//! 6. [`fit_metrics`]: one-step and free-run prediction errors and fit % on any trace
+//!    (estimation or validation run).
+//!
+//! [`identify`] runs 1–6 and returns an [`Identification`] with the refined model, the paper's
+//! result and the baseline side by side.
+//!
+//! Drives without integral action (the EMPS benchmark) have their third pole at the origin: set
+//! `bounds.p_hz = [0.0, ...]` ([`PoleBounds`]); the model found may then have $a_3 = 0$, which
+//! [`vcnc_drive::ClosedLoopModel::is_marginally_stable`] accepts.
 //!
 //! Variables are named as in the paper (`a1`, `wn`, `zeta`, `dc`, `alpha3`, ...). Positions are in
 //! axis units (mm for linear axes, deg for rotary axes), times in seconds, pole frequencies in Hz
@@ -36,11 +56,15 @@ mod trace;
 pub use filter::Butterworth2;
 pub use identify::{Identification, LsBaseline, identify, unconstrained_ls};
 pub use metrics::{FitMetrics, fit_metrics, free_run};
-pub use options::{IdentifyOptions, PoleBounds, Prefilter, PsoSettings, RefineOptions, StartCondition};
+pub use options::{
+    IdentifyOptions, PoleBounds, Prefilter, PsoSettings, RefineOptions, StartCondition,
+};
 pub use pso::{CostFunction, HistoryEntry, Pso, PsoResult};
-pub use refine::{OutputErrorProblem, RefineResult, RefineStage, SignSource, refine, refine_problem};
+pub use refine::{
+    OutputErrorProblem, RefineResult, RefineStage, SignSource, refine, refine_problem,
+};
 pub use regress::{EquationErrorCost, Regressors, Theta};
-pub use trace::Trace;
+pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Trace};
 
 /// Errors of the identification crate. Every variant carries the values needed to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

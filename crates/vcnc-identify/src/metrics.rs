@@ -4,10 +4,10 @@
 use serde::{Deserialize, Serialize};
 use vcnc_drive::{ClosedLoopModel, Reference, SimOptions};
 
+use crate::Error;
 use crate::options::IdentifyOptions;
 use crate::regress::Regressors;
 use crate::trace::Trace;
-use crate::Error;
 
 /// How well a model reproduces one trace. Positions in axis units (mm or deg).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -42,29 +42,39 @@ impl FitMetrics {
 }
 
 /// Free-run simulation of `model` driven by the trace's reference, starting at rest at the
-/// measured $x_0$ one sample before the first ([`Trace::prefixed_reference`], SPEC sections 3
-/// and 7): exact first-order-hold discretisation, friction sign of the simulated velocity
+/// first sample, or, for a trace that starts moving, at the measured $x_0$ one sample before the
+/// first ([`Trace::prefixed_reference`], SPEC sections 3 and 7): exact first-order-hold discretisation, friction sign of the simulated velocity
 /// ([`ClosedLoopModel::simulate`] with default options). Returns $\hat x_k$, axis units.
 pub fn free_run(model: &ClosedLoopModel, trace: &Trace) -> Result<Vec<f64>, Error> {
-    let (pos, vel, acc) = trace.prefixed_reference();
+    let (pos, vel, acc, prefixed) = trace.prefixed_reference();
     let r = Reference {
         pos: &pos,
         vel: &vel,
         acc: &acc,
     };
     let mut x = model.simulate(r, trace.ts, &SimOptions::default())?;
-    x.remove(0);
+    if prefixed {
+        x.remove(0);
+    }
     Ok(x)
 }
 
 /// Fit metrics of `model` on `trace`, with the prefilter and deadband of `opts` for the
 /// one-step prediction.
-pub fn fit_metrics(model: &ClosedLoopModel, trace: &Trace, opts: &IdentifyOptions) -> Result<FitMetrics, Error> {
+pub fn fit_metrics(
+    model: &ClosedLoopModel,
+    trace: &Trace,
+    opts: &IdentifyOptions,
+) -> Result<FitMetrics, Error> {
     let regs = Regressors::build(trace, opts)?;
     fit_metrics_with(model, trace, &regs)
 }
 
-pub(crate) fn fit_metrics_with(model: &ClosedLoopModel, trace: &Trace, regs: &Regressors) -> Result<FitMetrics, Error> {
+pub(crate) fn fit_metrics_with(
+    model: &ClosedLoopModel,
+    trace: &Trace,
+    regs: &Regressors,
+) -> Result<FitMetrics, Error> {
     let xhat = free_run(model, trace)?;
     let n = trace.len();
     let (mut s2, mut mx) = (0.0, 0.0f64);
@@ -73,8 +83,19 @@ pub(crate) fn fit_metrics_with(model: &ClosedLoopModel, trace: &Trace, regs: &Re
         s2 += d * d;
         mx = mx.max(d.abs());
     }
-    let mean_e = trace.xr.iter().zip(&trace.x).map(|(r, x)| r - x).sum::<f64>() / n as f64;
-    let var_e: f64 = trace.xr.iter().zip(&trace.x).map(|(r, x)| (r - x - mean_e).powi(2)).sum();
+    let mean_e = trace
+        .xr
+        .iter()
+        .zip(&trace.x)
+        .map(|(r, x)| r - x)
+        .sum::<f64>()
+        / n as f64;
+    let var_e: f64 = trace
+        .xr
+        .iter()
+        .zip(&trace.x)
+        .map(|(r, x)| (r - x - mean_e).powi(2))
+        .sum();
     let fit_percent = if var_e > 0.0 && s2.is_finite() {
         100.0 * (1.0 - (s2 / var_e).sqrt())
     } else {
@@ -82,7 +103,11 @@ pub(crate) fn fit_metrics_with(model: &ClosedLoopModel, trace: &Trace, regs: &Re
     };
     Ok(FitMetrics {
         onestep_rms: regs.one_step_rms(model),
-        freerun_rms: if s2.is_finite() { (s2 / n as f64).sqrt() } else { f64::INFINITY },
+        freerun_rms: if s2.is_finite() {
+            (s2 / n as f64).sqrt()
+        } else {
+            f64::INFINITY
+        },
         freerun_max: if mx.is_finite() { mx } else { f64::INFINITY },
         fit_percent,
         tracking_rms: trace.tracking_rms(),

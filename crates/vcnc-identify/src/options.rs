@@ -27,7 +27,8 @@ pub struct IdentifyOptions {
     pub start: StartCondition,
     /// Largest accepted 2-norm condition number of the column-scaled regressor matrix; beyond it
     /// the data cannot identify the model and [`crate::Error::IllConditioned`] is returned.
-    /// Default 1e8.
+    /// Default 1e6 (the Table 1 run gives about 1e3; a single sine, which cannot separate the
+    /// parameters, about 1e8).
     pub max_condition: f64,
 }
 
@@ -41,7 +42,7 @@ impl Default for IdentifyOptions {
             refine: RefineOptions::default(),
             seed: 1,
             start: StartCondition::Auto,
-            max_condition: 1e8,
+            max_condition: 1e6,
         }
     }
 }
@@ -67,7 +68,7 @@ impl IdentifyOptions {
                 expected: "a speed >= 0 in axis units/s",
             });
         }
-        if !(self.max_condition > 1.0) {
+        if self.max_condition.is_nan() || self.max_condition <= 1.0 {
             return Err(Error::InvalidOption {
                 name: "max_condition",
                 value: self.max_condition,
@@ -264,12 +265,12 @@ impl Prefilter {
 pub struct RefineOptions {
     /// Run the refinement. Default true; when false, `identified` is the paper's PSO result.
     pub enabled: bool,
-    /// Largest number of Levenberg–Marquardt iterations. Default 40.
+    /// Largest number of Levenberg–Marquardt iterations per stage. Default 40.
     pub max_iterations: usize,
     /// Stop when an accepted step lowers the cost by less than this fraction. Default 1e-9.
     pub tolerance: f64,
-    /// Stage-B passes with the friction sign of the previous model's own free run (0 keeps
-    /// the measured sign only). Default 2.
+    /// Stage-B passes with the friction input of the previous model's own free run (0 keeps
+    /// the measured sign only; see [`crate::refine`]). Default 2.
     pub sign_iterations: usize,
 }
 

@@ -10,11 +10,23 @@
 //! costs are pure functions of the particle, and ties are broken by the lowest particle index,
 //! so the result is bit-identical for any number of threads.
 
-use rand::{Rng, RngExt};
+use rand::Rng;
 use rayon::prelude::*;
 
-use crate::options::PsoSettings;
 use crate::Error;
+use crate::options::PsoSettings;
+
+/// Two independent uniform numbers in [0, 1) with 32 random bits each, from one 64-bit draw:
+/// ample resolution for the swarm's coefficients, at half the generator cost of two `f64`s.
+#[inline]
+fn uniform_pair<R: Rng + ?Sized>(rng: &mut R) -> (f64, f64) {
+    let bits = rng.next_u64();
+    let scale = 1.0 / 4_294_967_296.0;
+    (
+        (bits >> 32) as f64 * scale,
+        (bits & 0xffff_ffff) as f64 * scale,
+    )
+}
 
 /// Evaluation time of one iteration above which the swarm evaluates in parallel.
 const PARALLEL_ABOVE: std::time::Duration = std::time::Duration::from_micros(200);
@@ -148,7 +160,11 @@ impl Pso {
     /// Steps 2–4: evaluate, update personal bests ($f \le f_{pbest}$, paper Step 3) and the
     /// global best (lowest cost, lowest index on ties). Steps 5–6: move with eq. 14 and clamp to
     /// the box. Step 7: stop after the set number of iterations.
-    pub fn run<C: CostFunction + ?Sized, R: Rng + ?Sized>(&self, cost: &C, rng: &mut R) -> PsoResult {
+    pub fn run<C: CostFunction + ?Sized, R: Rng + ?Sized>(
+        &self,
+        cost: &C,
+        rng: &mut R,
+    ) -> PsoResult {
         let d = self.lower.len();
         let m = self.settings.particles;
         let (w, eta1, eta2) = (self.settings.w, self.settings.eta1, self.settings.eta2);
@@ -159,13 +175,13 @@ impl Pso {
         let mut vel = vec![0.0; m * d];
         for i in 0..m {
             for j in 0..d {
-                let r: f64 = rng.random();
+                let (r, _) = uniform_pair(rng);
                 pos[i * d + j] = self.lower[j] + r * (self.upper[j] - self.lower[j]);
             }
         }
         for i in 0..m {
             for j in 0..d {
-                let r: f64 = rng.random();
+                let (r, _) = uniform_pair(rng);
                 vel[i * d + j] = vmax[j] * (2.0 * r - 1.0);
             }
         }
@@ -188,7 +204,10 @@ impl Pso {
                 if c.is_nan() { f64::INFINITY } else { c }
             };
             if parallel {
-                pos.par_chunks(d).with_min_len(min_len).map(eval).collect_into_vec(&mut costs);
+                pos.par_chunks(d)
+                    .with_min_len(min_len)
+                    .map(eval)
+                    .collect_into_vec(&mut costs);
             } else {
                 let t0 = std::time::Instant::now();
                 costs.clear();
@@ -215,20 +234,32 @@ impl Pso {
                 iteration: it + 1,
                 best_cost: gbest_cost,
                 best: gbest.clone(),
-                mean_cost: if cnt > 0 { sum / cnt as f64 } else { f64::INFINITY },
+                mean_cost: if cnt > 0 {
+                    sum / cnt as f64
+                } else {
+                    f64::INFINITY
+                },
             });
             if it + 1 == self.settings.iterations {
                 break;
             }
-            for i in 0..m {
-                for j in 0..d {
-                    let k = i * d + j;
-                    let r1: f64 = rng.random();
-                    let r2: f64 = rng.random();
-                    let v = w * vel[k] + eta1 * r1 * (pbest[k] - pos[k]) + eta2 * r2 * (gbest[j] - pos[k]);
-                    let v = v.clamp(-vmax[j], vmax[j]);
-                    vel[k] = v;
-                    pos[k] = (pos[k] + v).clamp(self.lower[j], self.upper[j]);
+            let bounds = self.lower.iter().zip(&self.upper).zip(&vmax).zip(&gbest);
+            let bounds: Vec<(f64, f64, f64, f64)> = bounds
+                .map(|(((lo, hi), vm), g)| (*lo, *hi, *vm, *g))
+                .collect();
+            for ((p, v), pb) in pos
+                .chunks_exact_mut(d)
+                .zip(vel.chunks_exact_mut(d))
+                .zip(pbest.chunks_exact(d))
+            {
+                for ((pj, vj), (pbj, &(lo, hi, vm, g))) in
+                    p.iter_mut().zip(v.iter_mut()).zip(pb.iter().zip(&bounds))
+                {
+                    let (r1, r2) = uniform_pair(rng);
+                    let nv =
+                        (w * *vj + eta1 * r1 * (pbj - *pj) + eta2 * r2 * (g - *pj)).clamp(-vm, vm);
+                    *vj = nv;
+                    *pj = (*pj + nv).clamp(lo, hi);
                 }
             }
         }
@@ -250,12 +281,24 @@ mod tests {
     #[test]
     fn finds_the_minimum_of_a_shifted_bowl() {
         // Truth: the analytic minimiser (1.5, -2, 0.25) of a quadratic bowl.
-        let f = |x: &[f64]| (x[0] - 1.5).powi(2) + 3.0 * (x[1] + 2.0).powi(2) + 10.0 * (x[2] - 0.25).powi(2);
+        let f = |x: &[f64]| {
+            (x[0] - 1.5).powi(2) + 3.0 * (x[1] + 2.0).powi(2) + 10.0 * (x[2] - 0.25).powi(2)
+        };
         let pso = Pso::new(vec![-5.0, -5.0, -1.0], vec![5.0, 5.0, 1.0]).unwrap();
         let r = pso.run(&f, &mut ChaCha8Rng::seed_from_u64(3));
-        assert!((r.best[0] - 1.5).abs() < 1e-4 && (r.best[1] + 2.0).abs() < 1e-4 && (r.best[2] - 0.25).abs() < 1e-4, "{:?}", r.best);
+        assert!(
+            (r.best[0] - 1.5).abs() < 1e-4
+                && (r.best[1] + 2.0).abs() < 1e-4
+                && (r.best[2] - 0.25).abs() < 1e-4,
+            "{:?}",
+            r.best
+        );
         assert_eq!(r.history.len(), 100);
-        assert!(r.history.windows(2).all(|h| h[1].best_cost <= h[0].best_cost));
+        assert!(
+            r.history
+                .windows(2)
+                .all(|h| h[1].best_cost <= h[0].best_cost)
+        );
     }
 
     #[test]
@@ -271,7 +314,10 @@ mod tests {
     fn settings_outside_eq24_are_rejected() {
         let pso = Pso::new(vec![0.0], vec![1.0]).unwrap();
         // eta = 4 with w = 0.6 diverges (paper case 5); w = 1 is the border.
-        assert!(matches!(pso.clone().with_gains(0.6, 1.0, 3.0), Err(Error::PsoDivergent { .. })));
+        assert!(matches!(
+            pso.clone().with_gains(0.6, 1.0, 3.0),
+            Err(Error::PsoDivergent { .. })
+        ));
         assert!(pso.clone().with_gains(1.0, 0.1, 1.0).is_err());
         assert!(pso.clone().with_gains(0.6, 0.0, 0.0).is_err());
         assert!(pso.clone().with_gains(0.6, 0.103, 2.897).is_ok());
@@ -304,12 +350,20 @@ mod tests {
             .and_then(|p| p.with_iterations(15))
             .unwrap();
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
             pool.install(|| pso.run(&f, &mut ChaCha8Rng::seed_from_u64(42)))
         };
         let (a, b) = (run(1), run(2));
         assert_eq!(a, b);
-        let bits = |r: &PsoResult| r.history.iter().flat_map(|h| h.best.iter().map(|v| v.to_bits())).collect::<Vec<_>>();
+        let bits = |r: &PsoResult| {
+            r.history
+                .iter()
+                .flat_map(|h| h.best.iter().map(|v| v.to_bits()))
+                .collect::<Vec<_>>()
+        };
         assert_eq!(bits(&a), bits(&b));
         // A different seed explores differently.
         let c = pso.run(&f, &mut ChaCha8Rng::seed_from_u64(43));

@@ -14,6 +14,10 @@ pub const MIN_MOTION: f64 = 1e-3;
 /// the EMPS benchmark's clock gives steps between 0.99998 ms and 1.00003 ms.
 pub const TIME_JITTER: f64 = 1e-3;
 
+/// Speed (axis units/s) below which a trace counts as starting at rest for the free-run
+/// convention of [`Trace::prefixed_reference`] (the default sign deadband).
+pub const REST_SPEED: f64 = 1.5;
+
 /// Reference $x_r$ and measured position $x$ of one axis, sampled at the period `ts`.
 ///
 /// Built by [`Trace::new`] or [`Trace::from_columns`], which validate the data; the fields are
@@ -59,9 +63,11 @@ impl Trace {
         }
         let (lo, hi) = xr
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            });
         let range = hi - lo;
-        if !(range >= MIN_MOTION) {
+        if range.is_nan() || range < MIN_MOTION {
             return Err(Error::NoMotion {
                 range,
                 threshold: MIN_MOTION,
@@ -77,7 +83,11 @@ impl Trace {
 
     /// Attaches the exact reference velocity `vr` (axis units/s) and acceleration `ar`
     /// (axis units/s²), checked for length and finiteness.
-    pub fn with_reference_derivatives(mut self, vr: Vec<f64>, ar: Vec<f64>) -> Result<Trace, Error> {
+    pub fn with_reference_derivatives(
+        mut self,
+        vr: Vec<f64>,
+        ar: Vec<f64>,
+    ) -> Result<Trace, Error> {
         if vr.len() != self.xr.len() || ar.len() != self.xr.len() {
             return Err(Error::LengthMismatch {
                 t: vr.len().max(ar.len()),
@@ -91,29 +101,39 @@ impl Trace {
         Ok(self)
     }
 
-    /// The reference as the model simulation sees it, with one rest sample at the measured
-    /// $x_0$ prefixed (SPEC sections 3 and 7): positions $[x_0, x_{r,0}, x_{r,1}, ...]$ and their
-    /// velocity and acceleration (exact ones with a zero prefixed when attached, else central
-    /// differences of the prefixed positions). A trace at rest is unchanged up to the encoder
-    /// step; one that starts moving (EMPS) enters as a one-sample ramp from $x_0$ to $x_{r,0}$.
-    pub fn prefixed_reference(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    /// The reference as the model simulation sees it, and whether a rest sample was prefixed.
+    ///
+    /// A trace that starts at rest ([`Trace::starts_at_rest`] with [`REST_SPEED`]) is returned
+    /// as it is: the model starts at rest at $x_{r,0}$ at the first sample, exactly as the drive
+    /// did (a prefixed rest sample would turn an acceleration step at $t_0$ into a one-sample
+    /// ramp before it and make the model lead by half a sample). A trace that starts moving
+    /// (EMPS) gets one rest sample at the measured $x_0$ prefixed (SPEC sections 3 and 7):
+    /// positions $[x_0, x_{r,0}, x_{r,1}, ...]$, so it enters as a one-sample ramp from $x_0$ to
+    /// $x_{r,0}$. Velocity and acceleration are the exact ones when attached (with a zero
+    /// prefixed), else central differences.
+    pub fn prefixed_reference(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>, bool) {
+        let prefixed = !self.starts_at_rest(REST_SPEED);
         let x0 = self.x.first().copied().unwrap_or(0.0);
         let mut pos = Vec::with_capacity(self.xr.len() + 1);
-        pos.push(x0);
+        if prefixed {
+            pos.push(x0);
+        }
         pos.extend_from_slice(&self.xr);
         match &self.reference_derivatives {
             Some((vr, ar)) => {
                 let mut vel = Vec::with_capacity(pos.len());
-                vel.push(0.0);
-                vel.extend_from_slice(vr);
                 let mut acc = Vec::with_capacity(pos.len());
-                acc.push(0.0);
+                if prefixed {
+                    vel.push(0.0);
+                    acc.push(0.0);
+                }
+                vel.extend_from_slice(vr);
                 acc.extend_from_slice(ar);
-                (pos, vel, acc)
+                (pos, vel, acc, prefixed)
             }
             None => {
                 let (vel, acc) = vcnc_drive::model::central_differences(&pos, self.ts);
-                (pos, vel, acc)
+                (pos, vel, acc, prefixed)
             }
         }
     }
@@ -139,7 +159,7 @@ impl Trace {
             });
         }
         for (k, w) in t.windows(2).enumerate() {
-            if !(w[1] > w[0]) {
+            if w[1] <= w[0] {
                 return Err(Error::TimeNotIncreasing {
                     row: k + 1,
                     t_prev: w[0],
@@ -181,25 +201,43 @@ impl Trace {
         self.len().saturating_sub(1) as f64 * self.ts
     }
 
-    /// Whether the axis is at rest at the first samples: reference and measured speeds over the
-    /// first two steps are within `deadband` (axis units/s).
+    /// Whether the axis is at rest at the first sample: the reference speed (the attached exact
+    /// one, else the forward difference over the first step) and the measured forward-difference
+    /// speed are within `deadband` (axis units/s). A forward difference sees a trapezoid that
+    /// starts accelerating at $t_0$ as $a T_s / 2$ (1.25 mm/s at 2500 mm/s²), a drive that is
+    /// already moving (EMPS: 14 mm/s) as its speed.
     pub fn starts_at_rest(&self, deadband: f64) -> bool {
-        let speed = |s: &[f64]| match s {
-            [a, _, c, ..] => ((c - a) / (2.0 * self.ts)).abs(),
+        let forward = |s: &[f64]| match s {
+            [a, b, ..] => ((b - a) / self.ts).abs(),
             _ => 0.0,
         };
-        speed(&self.xr) <= deadband && speed(&self.x) <= deadband
+        let vr0 = match &self.reference_derivatives {
+            Some((vr, _)) => vr.first().copied().unwrap_or(0.0).abs(),
+            None => forward(&self.xr),
+        };
+        vr0 <= deadband && forward(&self.x) <= deadband
     }
 
     /// RMS of the tracking error $e = x_r - x$, axis units.
     pub fn tracking_rms(&self) -> f64 {
         let n = self.len().max(1) as f64;
-        (self.xr.iter().zip(&self.x).map(|(r, x)| (r - x) * (r - x)).sum::<f64>() / n).sqrt()
+        (self
+            .xr
+            .iter()
+            .zip(&self.x)
+            .map(|(r, x)| (r - x) * (r - x))
+            .sum::<f64>()
+            / n)
+            .sqrt()
     }
 
     /// Peak $|x_r - x|$, axis units.
     pub fn tracking_peak(&self) -> f64 {
-        self.xr.iter().zip(&self.x).map(|(r, x)| (r - x).abs()).fold(0.0, f64::max)
+        self.xr
+            .iter()
+            .zip(&self.x)
+            .map(|(r, x)| (r - x).abs())
+            .fold(0.0, f64::max)
     }
 }
 
@@ -226,7 +264,9 @@ mod tests {
     fn accepts_jittered_time_like_emps() {
         // EMPS logs t = 0, 0.00100002406, 0.00200000802, ...: within 3e-5 of 1 ms.
         let n = 200;
-        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3 + if k % 3 == 1 { 2.4e-8 } else { 0.0 }).collect();
+        let t: Vec<f64> = (0..n)
+            .map(|k| k as f64 * 1e-3 + if k % 3 == 1 { 2.4e-8 } else { 0.0 })
+            .collect();
         let tr = Trace::from_columns(&t, &ramp(n), &ramp(n)).unwrap();
         assert!((tr.ts - 1e-3).abs() < 1e-9);
     }
@@ -238,7 +278,11 @@ mod tests {
         let mut x = ramp(n);
         x[17] = f64::NAN;
         match Trace::from_columns(&t, &ramp(n), &x) {
-            Err(Error::NonFinite { column: "x", row: 17, .. }) => {}
+            Err(Error::NonFinite {
+                column: "x",
+                row: 17,
+                ..
+            }) => {}
             other => panic!("{other:?}"),
         }
         let mut t2 = t.clone();
@@ -257,7 +301,10 @@ mod tests {
         ));
         assert!(matches!(
             Trace::from_columns(&t[..10], &ramp(10), &ramp(10)),
-            Err(Error::TooFewSamples { got: 10, needed: MIN_SAMPLES })
+            Err(Error::TooFewSamples {
+                got: 10,
+                needed: MIN_SAMPLES
+            })
         ));
         assert!(matches!(
             Trace::new(1e-3, vec![5.0; n], vec![5.0; n]),
@@ -267,6 +314,9 @@ mod tests {
             Trace::new(1e-3, ramp(n), ramp(n - 1)),
             Err(Error::LengthMismatch { .. })
         ));
-        assert!(matches!(Trace::new(0.0, ramp(n), ramp(n)), Err(Error::BadSamplePeriod { .. })));
+        assert!(matches!(
+            Trace::new(0.0, ramp(n), ramp(n)),
+            Err(Error::BadSamplePeriod { .. })
+        ));
     }
 }

@@ -91,7 +91,8 @@ pub enum Error {
     },
     /// An axis leaves its travel.
     #[error(
-        "{file}:{line}: axis {axis} reaches {value:.4} {unit}, beyond its travel {lower} ..= {upper} {unit} (at t = {t_s:.3} s)"
+        "{file}:{line}: axis {axis} reaches {value:.4} {unit}, beyond its travel {lower} ..= {upper} {unit} (at t = {t_s:.3} s){}",
+        target.map(|t| format!("; the block moves it to {t} {unit}")).unwrap_or_default()
     )]
     Travel {
         /// The program's path.
@@ -110,6 +111,8 @@ pub enum Error {
         unit: &'static str,
         /// Time of the first sample beyond travel, s.
         t_s: f64,
+        /// The block's programmed end position of the axis (axis-coordinate programs).
+        target: Option<f64>,
     },
     /// Kinematics: the chain is unusable, a pose unreachable.
     #[error("{context}: {message}")]

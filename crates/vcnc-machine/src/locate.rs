@@ -43,8 +43,19 @@ pub fn locate_key(src: &str, path: &[&str]) -> Option<LineCol> {
         let Some((k, v)) = table.iter().find(|(k, _)| k.get_ref().as_ref() == *key) else {
             return found;
         };
-        let span = if v.span().start < v.span().end { v.span() } else { k.span() };
-        found = Some(line_col(src, if i + 1 == path.len() { span.start } else { k.span().start }));
+        let span = if v.span().start < v.span().end {
+            v.span()
+        } else {
+            k.span()
+        };
+        found = Some(line_col(
+            src,
+            if i + 1 == path.len() {
+                span.start
+            } else {
+                k.span().start
+            },
+        ));
         match v.get_ref() {
             DeValue::Table(t) => table = t,
             _ => break,
@@ -62,8 +73,8 @@ mod tests {
         let src = "a = 1\nbé = 2\n";
         assert_eq!(line_col(src, 0), LineCol { line: 1, col: 1 });
         assert_eq!(line_col(src, 6), LineCol { line: 2, col: 1 });
-        // 'é' is two bytes but one column.
-        assert_eq!(line_col(src, 9), LineCol { line: 2, col: 4 });
+        // 'é' is two bytes but one column: the '=' at byte 10 is column 4.
+        assert_eq!(line_col(src, 10), LineCol { line: 2, col: 4 });
         assert_eq!(line_col(src, 1000).line, 3);
     }
 
@@ -76,6 +87,9 @@ mod tests {
         // A missing key falls back to its deepest existing parent.
         assert_eq!(locate_key(src, &["axes", "Y"]).map(|p| p.line), Some(3));
         assert_eq!(locate_key(src, &["nothing"]), None);
-        assert_eq!(locate_key(src, &["axes", "X", "unit"]).map(|p| p.line), Some(4));
+        assert_eq!(
+            locate_key(src, &["axes", "X", "unit"]).map(|p| p.line),
+            Some(4)
+        );
     }
 }

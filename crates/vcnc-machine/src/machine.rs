@@ -106,14 +106,15 @@ impl Machine {
         source: &str,
         base_dir: Option<&Path>,
     ) -> Result<Machine, Error> {
-        let file: MachineFile = toml::Value::Table(table).try_into().map_err(|e: toml::de::Error| {
-            Error::Invalid {
-                file: source.to_string(),
-                at: None,
-                key: String::new(),
-                message: e.message().to_string(),
-            }
-        })?;
+        let file: MachineFile =
+            toml::Value::Table(table)
+                .try_into()
+                .map_err(|e: toml::de::Error| Error::Invalid {
+                    file: source.to_string(),
+                    at: None,
+                    key: String::new(),
+                    message: e.message().to_string(),
+                })?;
         let src = match base_dir {
             Some(d) => Source::Dir(d.to_path_buf()),
             None => Source::Embedded,
@@ -179,9 +180,15 @@ impl Machine {
                     format!("travel must be [lower, upper] with lower < upper, got [{lo}, {hi}]"),
                 ));
             }
-            for (field, v) in [("max_velocity", a.max_velocity), ("max_acceleration", a.max_acceleration)] {
+            for (field, v) in [
+                ("max_velocity", a.max_velocity),
+                ("max_acceleration", a.max_acceleration),
+            ] {
                 if !(v.is_finite() && v > 0.0) {
-                    return Err(invalid(&k(field), format!("{field} must be positive, got {v}")));
+                    return Err(invalid(
+                        &k(field),
+                        format!("{field} must be positive, got {v}"),
+                    ));
                 }
             }
             let params = DriveParams {
@@ -205,9 +212,11 @@ impl Machine {
                     ),
                 ));
             }
-            let range = a.identification_range.unwrap_or(file.identification.program.range);
+            let range = a
+                .identification_range
+                .unwrap_or(file.identification.program.range);
             let centre = a.identification_centre.unwrap_or(0.0);
-            if !(range.is_finite() && range > 0.0) || !centre.is_finite() {
+            if !positive(range) || !centre.is_finite() {
                 return Err(invalid(
                     &k("identification_range"),
                     format!("identification range must be positive, got {range}"),
@@ -241,31 +250,28 @@ impl Machine {
             ("max_linear_velocity", t.max_linear_velocity),
             ("max_linear_acceleration", t.max_linear_acceleration),
         ] {
-            if !(v.is_finite() && v > 0.0) {
+            if !positive(v) {
                 return Err(invalid(
                     &format!("trajectory.{field}"),
                     format!("{field} must be positive, got {v}"),
                 ));
             }
         }
-        if let Some(j) = t.junction_deviation {
-            if !(j.is_finite() && j > 0.0) {
-                return Err(invalid(
-                    "trajectory.junction_deviation",
-                    format!("junction deviation must be positive, got {j}"),
-                ));
-            }
+        if let Some(j) = t.junction_deviation.filter(|j| !positive(*j)) {
+            return Err(invalid(
+                "trajectory.junction_deviation",
+                format!("junction deviation must be positive, got {j}"),
+            ));
         }
         let p = &file.identification.program;
-        if let Some(acc) = p.max_acceleration {
-            if !(acc.is_finite() && acc > 0.0) {
-                return Err(invalid(
-                    "identification.program.max_acceleration",
-                    format!("max_acceleration must be positive, got {acc}"),
-                ));
-            }
+        if let Some(acc) = p.max_acceleration.filter(|a| !positive(*a)) {
+            return Err(invalid(
+                "identification.program.max_acceleration",
+                format!("max_acceleration must be positive, got {acc}"),
+            ));
         }
-        if p.moves < 10 || !(p.max_feed > 0.0) || !(p.min_feed > 0.0) || p.min_feed > p.max_feed {
+        if p.moves < 10 || !positive(p.max_feed) || !positive(p.min_feed) || p.min_feed > p.max_feed
+        {
             return Err(invalid(
                 "identification.program",
                 format!(
@@ -284,12 +290,18 @@ impl Machine {
             Some(k) => {
                 let (chain, urdf_name) = match &base {
                     Source::Embedded => (
-                        KinematicChain::from_urdf_str(embedded::NMV5000_URDF, "<embedded>/machines/nmv5000.urdf"),
+                        KinematicChain::from_urdf_str(
+                            embedded::NMV5000_URDF,
+                            "<embedded>/machines/nmv5000.urdf",
+                        ),
                         "<embedded>/machines/nmv5000.urdf".to_string(),
                     ),
                     Source::Dir(dir) => {
                         let path = dir.join(&k.urdf);
-                        (KinematicChain::from_urdf_file(&path), path.display().to_string())
+                        (
+                            KinematicChain::from_urdf_file(&path),
+                            path.display().to_string(),
+                        )
                     }
                 };
                 let chain = chain.map_err(|e| Error::Kinematics {
@@ -305,9 +317,14 @@ impl Machine {
                 // The machine file's travels govern (the URDF's are nominal).
                 let mut travels = Travels::default();
                 for axis in &axes {
-                    let scale = if axis.unit == Unit::Deg { std::f64::consts::PI / 180.0 } else { 1.0 };
-                    let tr = Travel::new(axis.travel[0] * scale, axis.travel[1] * scale)
-                        .map_err(|e| invalid(&format!("axes.{}.travel", axis.name), e.to_string()))?;
+                    let scale = if axis.unit == Unit::Deg {
+                        std::f64::consts::PI / 180.0
+                    } else {
+                        1.0
+                    };
+                    let tr = Travel::new(axis.travel[0] * scale, axis.travel[1] * scale).map_err(
+                        |e| invalid(&format!("axes.{}.travel", axis.name), e.to_string()),
+                    )?;
                     match axis.name {
                         'X' => travels.x = tr,
                         'Y' => travels.y = tr,
@@ -348,7 +365,10 @@ impl Machine {
             tcp_max_vel: t.max_linear_velocity,
             tcp_max_acc: t.max_linear_acceleration,
             junction_deviation: t.junction_deviation,
-            tcp_mcodes: (file.gcode.tcp_on_mcodes.clone(), file.gcode.tcp_off_mcodes.clone()),
+            tcp_mcodes: (
+                file.gcode.tcp_on_mcodes.clone(),
+                file.gcode.tcp_off_mcodes.clone(),
+            ),
             program: file.identification.program.clone(),
             identify: file.identification.options.clone(),
             file,
@@ -357,7 +377,9 @@ impl Machine {
 
     /// The axis with this letter.
     pub fn axis(&self, name: char) -> Option<&Axis> {
-        self.axes.iter().find(|a| a.name == name.to_ascii_uppercase())
+        self.axes
+            .iter()
+            .find(|a| a.name == name.to_ascii_uppercase())
     }
 
     /// Axis letters in order.
@@ -367,7 +389,10 @@ impl Machine {
 
     /// Interpolator limits from the axes and the `[trajectory]` section.
     pub fn limits(&self) -> Limits {
-        let mut axes = [GcodeAxisLimits { max_vel: 0.0, max_acc: 0.0 }; 6];
+        let mut axes = [GcodeAxisLimits {
+            max_vel: 0.0,
+            max_acc: 0.0,
+        }; 6];
         for a in &self.axes {
             if let Some(i) = AXIS_ORDER.iter().position(|c| *c == a.name) {
                 axes[i] = GcodeAxisLimits {
@@ -413,6 +438,11 @@ impl Machine {
             message: "the machine file has no [kinematics] section (needed for TCP programs, poses and contour errors)".into(),
         })
     }
+}
+
+/// Finite and strictly positive.
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
 }
 
 /// Where relative paths of a machine file resolve.

@@ -131,15 +131,25 @@ impl ModelSet {
 
     /// The model of each machine axis, in the machine's order; errors if one is missing or has
     /// the wrong unit.
-    pub fn for_machine(&self, machine: &Machine, file: &str) -> Result<Vec<ClosedLoopModel>, Error> {
+    pub fn for_machine(
+        &self,
+        machine: &Machine,
+        file: &str,
+    ) -> Result<Vec<ClosedLoopModel>, Error> {
         machine
             .axes
             .iter()
             .map(|a| {
-                let m = self.axes.get(&a.name.to_string()).ok_or_else(|| Error::ModelMismatch {
-                    file: file.to_string(),
-                    message: format!("no model for axis {} of machine \"{}\"", a.name, machine.name),
-                })?;
+                let m = self
+                    .axes
+                    .get(&a.name.to_string())
+                    .ok_or_else(|| Error::ModelMismatch {
+                        file: file.to_string(),
+                        message: format!(
+                            "no model for axis {} of machine \"{}\"",
+                            a.name, machine.name
+                        ),
+                    })?;
                 if m.unit != a.unit {
                     return Err(Error::ModelMismatch {
                         file: file.to_string(),
@@ -158,6 +168,7 @@ impl ModelSet {
 
     /// TOML text of this model set.
     pub fn to_toml_string(&self) -> Result<String, Error> {
-        toml::to_string_pretty(self).map_err(|e| Error::Runtime(format!("cannot write the model file: {e}")))
+        toml::to_string_pretty(self)
+            .map_err(|e| Error::Runtime(format!("cannot write the model file: {e}")))
     }
 }

@@ -135,17 +135,22 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
             }
         }
     }
-    let loaded = vcnc_gcode::load(src, &interp, &machine.limits(), &machine.interpolate_options())
-        .map_err(|e| match e {
-            vcnc_gcode::Error::Program { diagnostics } => Error::Program {
-                file: file.to_string(),
-                diagnostics,
-            },
-            other => Error::Interpolation {
-                file: file.to_string(),
-                message: other.to_string(),
-            },
-        })?;
+    let loaded = vcnc_gcode::load(
+        src,
+        &interp,
+        &machine.limits(),
+        &machine.interpolate_options(),
+    )
+    .map_err(|e| match e {
+        vcnc_gcode::Error::Program { diagnostics } => Error::Program {
+            file: file.to_string(),
+            diagnostics,
+        },
+        other => Error::Interpolation {
+            file: file.to_string(),
+            message: other.to_string(),
+        },
+    })?;
     let mut warnings: Vec<String> = loaded
         .warnings
         .iter()
@@ -210,6 +215,11 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
     for (a, s) in machine.axes.iter().zip(&axes) {
         let [lo, hi] = a.travel;
         if let Some(k) = s.pos.iter().position(|v| !(*v >= lo && *v <= hi)) {
+            let block = traj.block_at(k);
+            let target = block.filter(|b| !b.tcp).and_then(|b| {
+                let i = vcnc_gcode::AXIS_NAMES.iter().position(|c| *c == a.name)?;
+                run_moves_end(&loaded, b.move_index, i)
+            });
             return Err(Error::Travel {
                 file: file.to_string(),
                 line: traj.block_at(k).map_or(0, |b| b.line),
@@ -219,6 +229,7 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
                 upper: hi,
                 unit: a.unit.as_str(),
                 t_s: k as f64 * traj.ts,
+                target,
             });
         }
         if any_tcp {
@@ -245,7 +256,10 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         }
     }
     let poses = match machine.kinematics.as_ref() {
-        Some(_) => Some(forward_poses(machine, &axes.iter().map(|a| a.pos.as_slice()).collect::<Vec<_>>())?),
+        Some(_) => Some(forward_poses(
+            machine,
+            &axes.iter().map(|a| a.pos.as_slice()).collect::<Vec<_>>(),
+        )?),
         None => None,
     };
     Ok(Run {
@@ -256,6 +270,11 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         poses,
         warnings,
     })
+}
+
+/// Programmed end of axis `i` of move `index`.
+fn run_moves_end(loaded: &Loaded, index: usize, i: usize) -> Option<f64> {
+    loaded.toolpath.moves.get(index).map(|m| m.end[i])
 }
 
 /// Tool poses in the workpiece frame (mm, unit tool axis) of axis positions given per machine
@@ -292,9 +311,9 @@ pub fn simulate_true(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Er
         .par_iter()
         .zip(run.axes.par_iter())
         .map(|(axis, s)| {
-            axis.drive
-                .simulate(s.reference(), run.ts)
-                .map_err(|e| Error::Runtime(format!("axis {}: drive simulation failed: {e}", axis.name)))
+            axis.drive.simulate(s.reference(), run.ts).map_err(|e| {
+                Error::Runtime(format!("axis {}: drive simulation failed: {e}", axis.name))
+            })
         })
         .collect()
 }
@@ -313,13 +332,19 @@ pub fn simulate_models(models: &[ClosedLoopModel], run: &Run) -> Result<Vec<Vec<
         .zip(run.axes.par_iter())
         .map(|(m, s)| {
             m.simulate(s.reference(), run.ts, &SimOptions::default())
-                .map_err(|e| Error::Runtime(format!("axis {}: model simulation failed: {e}", s.name)))
+                .map_err(|e| {
+                    Error::Runtime(format!("axis {}: model simulation failed: {e}", s.name))
+                })
         })
         .collect()
 }
 
 /// Contour errors of actual axis positions against the run's reference poses.
-pub fn contour(machine: &Machine, run: &Run, actual: &[&[f64]]) -> Result<(Vec<Pose>, ContourReport), Error> {
+pub fn contour(
+    machine: &Machine,
+    run: &Run,
+    actual: &[&[f64]],
+) -> Result<(Vec<Pose>, ContourReport), Error> {
     let reference = run.poses.as_ref().ok_or_else(|| Error::Kinematics {
         context: machine.source.clone(),
         message: "contour errors need the machine's kinematics".into(),
@@ -370,13 +395,26 @@ impl Prediction {
 }
 
 /// Runs `run` through the true drives and through `models`, and evaluates both contour errors.
-pub fn predict(machine: &Machine, run: &Run, models: &[ClosedLoopModel]) -> Result<Prediction, Error> {
-    let (true_traces, predicted) = rayon::join(|| simulate_true(machine, run), || simulate_models(models, run));
+pub fn predict(
+    machine: &Machine,
+    run: &Run,
+    models: &[ClosedLoopModel],
+) -> Result<Prediction, Error> {
+    let (true_traces, predicted) = rayon::join(
+        || simulate_true(machine, run),
+        || simulate_models(models, run),
+    );
     let (true_traces, predicted) = (true_traces?, predicted?);
-    let true_pos: Vec<&[f64]> = true_traces.iter().map(|t| t.true_position.as_slice()).collect();
+    let true_pos: Vec<&[f64]> = true_traces
+        .iter()
+        .map(|t| t.true_position.as_slice())
+        .collect();
     let pred_pos: Vec<&[f64]> = predicted.iter().map(Vec::as_slice).collect();
     let ((true_poses, true_contour), (predicted_poses, predicted_contour)) = {
-        let (a, b) = rayon::join(|| contour(machine, run, &true_pos), || contour(machine, run, &pred_pos));
+        let (a, b) = rayon::join(
+            || contour(machine, run, &true_pos),
+            || contour(machine, run, &pred_pos),
+        );
         (a?, b?)
     };
     Ok(Prediction {
@@ -401,15 +439,25 @@ pub struct ExcitationRun {
 }
 
 impl ExcitationRun {
-    /// The identification trace (reference and encoder position).
+    /// The identification trace: reference and encoder position, with the interpolator's exact
+    /// reference velocity and acceleration attached (a simulated machine knows them; a measured
+    /// trace falls back to central differences, which smear the acceleration steps of the
+    /// trapezoids and cost accuracy when $b_0 \ne 0$).
     pub fn identification_trace(&self) -> Result<Trace, Error> {
-        Trace::new(self.trace.ts, self.reference.pos.clone(), self.trace.position.clone()).map_err(|e| {
-            Error::Identify {
-                axis: self.reference.name.to_string(),
-                message: e.to_string(),
-                bad_input: true,
-            }
+        let err = |e: vcnc_identify::Error| Error::Identify {
+            axis: self.reference.name.to_string(),
+            message: e.to_string(),
+            bad_input: true,
+        };
+        Trace::new(
+            self.trace.ts,
+            self.reference.pos.clone(),
+            self.trace.position.clone(),
+        )
+        .and_then(|t| {
+            t.with_reference_derivatives(self.reference.vel.clone(), self.reference.acc.clone())
         })
+        .map_err(err)
     }
 }
 
@@ -451,11 +499,18 @@ pub fn excitation_run(machine: &Machine, axis: char, seed: u64) -> Result<Excita
             file: name.clone(),
             message: e.to_string(),
         })?;
-    let track = loaded.trajectory.axis(a.name).ok_or_else(|| Error::Runtime(format!("{name}: no track")))?;
+    let track = loaded
+        .trajectory
+        .axis(a.name)
+        .ok_or_else(|| Error::Runtime(format!("{name}: no track")))?;
     let reference = AxisSignals {
         name: a.name,
         unit: a.unit,
-        pos: track.pos.iter().map(|v| v + a.identification_centre).collect(),
+        pos: track
+            .pos
+            .iter()
+            .map(|v| v + a.identification_centre)
+            .collect(),
         vel: track.vel.clone(),
         acc: track.acc.clone(),
     };
@@ -493,7 +548,11 @@ pub struct AxisIdentification {
 
 /// Identifies one axis: estimation run (program seed), identification, validation run
 /// (validation seed).
-pub fn identify_axis(machine: &Machine, axis: char, seed: Option<u64>) -> Result<AxisIdentification, Error> {
+pub fn identify_axis(
+    machine: &Machine,
+    axis: char,
+    seed: Option<u64>,
+) -> Result<AxisIdentification, Error> {
     let a = machine.axis(axis).ok_or_else(|| Error::Invalid {
         file: machine.source.clone(),
         at: None,
@@ -502,7 +561,13 @@ pub fn identify_axis(machine: &Machine, axis: char, seed: Option<u64>) -> Result
     })?;
     let program_seed = seed.unwrap_or(machine.program.seed);
     let validation_seed = match seed {
-        Some(s) => s.wrapping_add(machine.program.validation_seed.wrapping_sub(machine.program.seed).max(1)),
+        Some(s) => s.wrapping_add(
+            machine
+                .program
+                .validation_seed
+                .wrapping_sub(machine.program.seed)
+                .max(1),
+        ),
         None => machine.program.validation_seed,
     };
     let mut opts = machine.identify.clone();
@@ -517,8 +582,10 @@ pub fn identify_axis(machine: &Machine, axis: char, seed: Option<u64>) -> Result
     let trace = est.identification_trace()?;
     let result = vcnc_identify::identify(&trace, &opts).map_err(|e| identify_error(a.name, e))?;
     let vtrace = val.identification_trace()?;
-    let validation = fit_metrics(&result.identified, &vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
-    let validation_paper = fit_metrics(&result.paper_pso, &vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
+    let validation =
+        fit_metrics(&result.identified, &vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
+    let validation_paper =
+        fit_metrics(&result.paper_pso, &vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
     Ok(AxisIdentification {
         axis: a.name,
         unit: a.unit,
@@ -532,8 +599,14 @@ pub fn identify_axis(machine: &Machine, axis: char, seed: Option<u64>) -> Result
 }
 
 /// Identifies several axes in parallel (results in the order given).
-pub fn identify_axes(machine: &Machine, axes: &[char], seed: Option<u64>) -> Result<Vec<AxisIdentification>, Error> {
-    axes.par_iter().map(|a| identify_axis(machine, *a, seed)).collect()
+pub fn identify_axes(
+    machine: &Machine,
+    axes: &[char],
+    seed: Option<u64>,
+) -> Result<Vec<AxisIdentification>, Error> {
+    axes.par_iter()
+        .map(|a| identify_axis(machine, *a, seed))
+        .collect()
 }
 
 /// Maps an identification error, telling bad data from numerical failure.

@@ -21,7 +21,9 @@ pub fn parse_set(arg: &str) -> Result<SweepKey, String> {
         .ok_or_else(|| format!("--set {arg}: expected KEY=V1,V2,... or KEY=start:stop:count"))?;
     let key = key.trim();
     if key.is_empty() || key.split('.').any(str::is_empty) {
-        return Err(format!("--set {arg}: the key must be a dotted path such as axes.X.controller.kv"));
+        return Err(format!(
+            "--set {arg}: the key must be a dotted path such as axes.X.controller.kv"
+        ));
     }
     let num = |s: &str| -> Result<f64, String> {
         let v: f64 = s
@@ -40,12 +42,16 @@ pub fn parse_set(arg: &str) -> Result<SweepKey, String> {
             return Err(format!("--set {arg}: a range is start:stop:count"));
         }
         let (a, b) = (num(parts[0])?, num(parts[1])?);
-        let count: usize = parts[2]
-            .trim()
-            .parse()
-            .map_err(|_| format!("--set {arg}: count '{}' is not a whole number", parts[2].trim()))?;
+        let count: usize = parts[2].trim().parse().map_err(|_| {
+            format!(
+                "--set {arg}: count '{}' is not a whole number",
+                parts[2].trim()
+            )
+        })?;
         if count == 0 || count > 1_000_000 {
-            return Err(format!("--set {arg}: count must be 1 ..= 1000000, got {count}"));
+            return Err(format!(
+                "--set {arg}: count must be 1 ..= 1000000, got {count}"
+            ));
         }
         if count == 1 {
             vec![a]
@@ -74,7 +80,8 @@ pub fn parse_set(arg: &str) -> Result<SweepKey, String> {
 
 /// Number of configurations of the product (saturating).
 pub fn product_len(keys: &[SweepKey]) -> usize {
-    keys.iter().fold(1usize, |n, k| n.saturating_mul(k.values.len()))
+    keys.iter()
+        .fold(1usize, |n, k| n.saturating_mul(k.values.len()))
 }
 
 /// The values of configuration `index` of the product (the last key varies fastest).
@@ -93,8 +100,14 @@ pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
     let (i, n) = s
         .split_once('/')
         .ok_or_else(|| format!("--shard {s}: expected i/n, e.g. 2/8"))?;
-    let i: usize = i.trim().parse().map_err(|_| format!("--shard {s}: '{i}' is not a whole number"))?;
-    let n: usize = n.trim().parse().map_err(|_| format!("--shard {s}: '{n}' is not a whole number"))?;
+    let i: usize = i
+        .trim()
+        .parse()
+        .map_err(|_| format!("--shard {s}: '{i}' is not a whole number"))?;
+    let n: usize = n
+        .trim()
+        .parse()
+        .map_err(|_| format!("--shard {s}: '{n}' is not a whole number"))?;
     if n == 0 || i == 0 || i > n {
         return Err(format!("--shard {s}: need 1 <= i <= n"));
     }
@@ -178,8 +191,14 @@ mod tests {
     #[test]
     fn product_enumerates_every_combination_once() {
         let keys = vec![
-            SweepKey { key: "a".into(), values: vec![1.0, 2.0] },
-            SweepKey { key: "b".into(), values: vec![10.0, 20.0, 30.0] },
+            SweepKey {
+                key: "a".into(),
+                values: vec![1.0, 2.0],
+            },
+            SweepKey {
+                key: "b".into(),
+                values: vec![10.0, 20.0, 30.0],
+            },
         ];
         assert_eq!(product_len(&keys), 6);
         let all: Vec<Vec<f64>> = (0..6).map(|i| configuration(&keys, i)).collect();
@@ -207,7 +226,8 @@ mod tests {
 
     #[test]
     fn keys_are_set_by_dotted_path() {
-        let mut t: toml::Table = toml::from_str("[axes.X.plant]\nj = 0.01\n[axes.X]\nunit = \"mm\"\n").unwrap();
+        let mut t: toml::Table =
+            toml::from_str("[axes.X.plant]\nj = 0.01\n[axes.X]\nunit = \"mm\"\n").unwrap();
         set_key(&mut t, "axes.X.plant.j", 0.02).unwrap();
         assert_eq!(t["axes"]["X"]["plant"]["j"].as_float(), Some(0.02));
         assert!(set_key(&mut t, "axes.Q.plant.j", 1.0).is_err());

@@ -19,7 +19,11 @@ pub struct RefSignal {
 
 impl RefSignal {
     pub fn as_ref(&self) -> Reference<'_> {
-        Reference { pos: &self.pos, vel: &self.vel, acc: &self.acc }
+        Reference {
+            pos: &self.pos,
+            vel: &self.vel,
+            acc: &self.acc,
+        }
     }
 }
 
@@ -60,7 +64,14 @@ impl Move {
 /// The paper's identification excitation (section 4, Fig. 5): `moves` random rest-to-rest
 /// trapezoidal moves within ±`range`, feeds up to `vmax`, acceleration `amax`, short and long
 /// strokes mixed, frequent reversals, a short random dwell between moves; sampled at `ts`.
-pub fn identification_program(seed: u64, moves: usize, range: f64, vmax: f64, amax: f64, ts: f64) -> RefSignal {
+pub fn identification_program(
+    seed: u64,
+    moves: usize,
+    range: f64,
+    vmax: f64,
+    amax: f64,
+    ts: f64,
+) -> RefSignal {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut list = Vec::with_capacity(moves);
     let mut t = 0.2;
@@ -68,7 +79,11 @@ pub fn identification_program(seed: u64, moves: usize, range: f64, vmax: f64, am
     let mut dir = 1.0;
     for _ in 0..moves {
         let short = rng.random::<f64>() < 0.35;
-        let dist = if short { 0.3 + 4.7 * rng.random::<f64>() } else { 5.0 + 75.0 * rng.random::<f64>() };
+        let dist = if short {
+            0.3 + 4.7 * rng.random::<f64>()
+        } else {
+            5.0 + 75.0 * rng.random::<f64>()
+        };
         if rng.random::<f64>() < 0.6 {
             dir = -dir;
         }
@@ -84,7 +99,15 @@ pub fn identification_program(seed: u64, moves: usize, range: f64, vmax: f64, am
         let vp = feed.min((d * amax).sqrt());
         let ta = vp / amax;
         let tc = (d - vp * vp / amax) / vp;
-        let m = Move { t0: t, x0: x, dir: (target - x).signum(), vp, a: amax, ta, tc: tc.max(0.0) };
+        let m = Move {
+            t0: t,
+            x0: x,
+            dir: (target - x).signum(),
+            vp,
+            a: amax,
+            ta,
+            tc: tc.max(0.0),
+        };
         t = m.end() + 0.01 + 0.09 * rng.random::<f64>();
         x = target;
         list.push(m);
@@ -114,6 +137,36 @@ pub fn paper_program(seed: u64) -> RefSignal {
     identification_program(seed, 70, 50.0, 250.0, 2500.0, 1e-3)
 }
 
+/// The identification program of SPEC section 2 as `vcnc-gcode` generates it (paper section 4:
+/// 70 random moves within ±50, feeds up to 250/s), interpolated at 1 ms with acceleration
+/// `amax` (2500 mm/s² in the paper): G-code text → parse → interpret → trapezoidal profiles.
+pub fn gcode_program(axis: char, seed: u64, amax: f64) -> RefSignal {
+    let opts = vcnc_gcode::IdentificationOptions {
+        seed,
+        ..Default::default()
+    };
+    let text = vcnc_gcode::identification(axis, &opts).expect("program");
+    let (program, diags) = vcnc_gcode::parse(&text);
+    assert!(
+        diags
+            .iter()
+            .all(|d| d.severity != vcnc_gcode::Severity::Error),
+        "{diags:?}"
+    );
+    let (tp, _) =
+        vcnc_gcode::interpret(&program, &vcnc_gcode::InterpOptions::default()).expect("interprets");
+    let limits = vcnc_gcode::Limits::uniform(opts.max_feed, amax);
+    let traj = vcnc_gcode::interpolate(&tp, &limits, &vcnc_gcode::InterpolateOptions::default())
+        .expect("interpolates");
+    let track = traj.axis(axis).expect("axis track");
+    RefSignal {
+        ts: traj.ts,
+        pos: track.pos.clone(),
+        vel: track.vel.clone(),
+        acc: track.acc.clone(),
+    }
+}
+
 /// Simulates the true drive and returns the identification trace (encoder reading).
 pub fn drive_trace(params: &DriveParams, r: &RefSignal) -> Trace {
     let out = vcnc_drive::simulate_drive(params, r.as_ref(), r.ts).expect("drive simulates");
@@ -130,10 +183,22 @@ pub fn rel(est: f64, truth: f64) -> f64 {
 /// Prints one comparison line (for the report) and returns the (p, wn, zeta, dc) relative errors.
 pub fn compare(name: &str, m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64; 4] {
     let (pe, pt) = (m.poles().expect("poles"), truth.poles().expect("poles"));
-    let e = [rel(pe.p, pt.p), rel(pe.wn, pt.wn), rel(pe.zeta, pt.zeta), rel(m.dc, truth.dc)];
+    let e = [
+        rel(pe.p, pt.p),
+        rel(pe.wn, pt.wn),
+        rel(pe.zeta, pt.zeta),
+        rel(m.dc, truth.dc),
+    ];
     println!(
         "{name:>22}: p {:8.4} Hz ({:+6.2} %)  wn {:8.4} Hz ({:+6.2} %)  zeta {:6.4} ({:+6.2} %)  dc {:9.3} ({:+6.2} %)",
-        pe.p_hz(), 100.0 * e[0], pe.wn_hz(), 100.0 * e[1], pe.zeta, 100.0 * e[2], m.dc, 100.0 * e[3]
+        pe.p_hz(),
+        100.0 * e[0],
+        pe.wn_hz(),
+        100.0 * e[1],
+        pe.zeta,
+        100.0 * e[2],
+        m.dc,
+        100.0 * e[3]
     );
     e
 }

@@ -1,0 +1,416 @@
+//! Shared code of the vcnc fuzz targets: the machine-file check and a structured mutator of
+//! TOML text (numbers, strings, keys, whole lines), driven by the fuzzer's bytes.
+
+use std::path::Path;
+
+use vcnc_machine::Machine;
+
+/// Source name given to the loader; every error's `Display` must contain it.
+pub const SOURCE: &str = "fuzz.toml";
+
+/// Loads `src` as a machine file named [`SOURCE`] (URDF paths resolve in `base_dir`, or in a
+/// folder that does not exist) and checks the outcome:
+/// - an error's `Display` names the file;
+/// - an accepted machine has every axis' closed-loop model finite and (marginally) stable, as
+///   [`Machine`] promises, and its derived options and discretised models build without panic.
+pub fn check_load(src: &str, base_dir: Option<&Path>) {
+    let base = base_dir.unwrap_or(Path::new("/nonexistent"));
+    match Machine::from_toml_str(src, SOURCE, base) {
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(
+                msg.contains(SOURCE),
+                "the error does not name the file: {msg:?} ({e:?})"
+            );
+        }
+        Ok(m) => {
+            for a in &m.axes {
+                let model = a.true_model();
+                assert!(
+                    model.is_finite() && model.is_marginally_stable(),
+                    "axis {} accepted with an unstable or non-finite model {model:?}",
+                    a.name
+                );
+                let _ = model.discretize(m.ts);
+            }
+            let _ = m.limits();
+            let _ = m.interp_options(true);
+            let _ = m.interpolate_options();
+            let _ = m.kinematics_model();
+        }
+    }
+}
+
+/// The shipped machine files the mutator starts from, with whether they need the real
+/// `machines/` folder (for the URDF).
+pub const BASES: [(&str, bool); 4] = [
+    (include_str!("../../machines/ballscrew-ppi.toml"), false),
+    (include_str!("../../machines/ballscrew-pid.toml"), false),
+    (include_str!("../../machines/ballscrew-smc.toml"), false),
+    (include_str!("../../machines/nmv5000.toml"), true),
+];
+
+/// The real `machines/` folder (for `nmv5000.toml`'s URDF).
+pub fn machines_dir() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../machines"))
+}
+
+/// Reads the fuzzer's bytes as small numbers; yields zeros when exhausted.
+pub struct Bytes<'a> {
+    data: &'a [u8],
+}
+
+impl<'a> Bytes<'a> {
+    /// Wraps the input.
+    pub fn new(data: &'a [u8]) -> Self {
+        Bytes { data }
+    }
+
+    /// True when every byte was consumed.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// Next byte (0 when exhausted).
+    pub fn u8(&mut self) -> u8 {
+        match self.data.split_first() {
+            Some((b, rest)) => {
+                self.data = rest;
+                *b
+            }
+            None => 0,
+        }
+    }
+
+    /// Next little-endian u16.
+    pub fn u16(&mut self) -> u16 {
+        u16::from(self.u8()) | (u16::from(self.u8()) << 8)
+    }
+
+    /// Next little-endian u64.
+    pub fn u64(&mut self) -> u64 {
+        (0..8).fold(0u64, |acc, i| acc | (u64::from(self.u8()) << (8 * i)))
+    }
+
+    /// An index in `0..n` (`0` when `n == 0`).
+    pub fn index(&mut self, n: usize) -> usize {
+        if n == 0 { 0 } else { usize::from(self.u16()) % n }
+    }
+
+    /// Up to `max` raw bytes as lossy UTF-8.
+    pub fn text(&mut self, max: usize) -> String {
+        let n = self.index(max + 1).min(self.data.len());
+        let (head, rest) = self.data.split_at(n);
+        self.data = rest;
+        String::from_utf8_lossy(head).into_owned()
+    }
+}
+
+/// Numbers a user might write by mistake, as TOML literals.
+pub const SPECIAL_NUMBERS: [&str; 26] = [
+    "nan", "+nan", "-nan", "inf", "-inf", "0", "0.0", "-0.0", "-1", "-1.0", "1", "2", "3", "1e308",
+    "-1e308", "1e-308", "5e-324", "1e9", "-1e9", "1e-9", "9223372036854775807",
+    "-9223372036854775808", "18446744073709551615", "0.001", "20000.0", "1.7976931348623157e308",
+];
+
+/// Values of the wrong type or shape.
+pub const OTHER_VALUES: [&str; 12] = [
+    "\"\"", "\"x\"", "true", "[]", "[1.0]", "[1.0, 2.0, 3.0]", "{}", "{ j = 1 }", "\"p-pi\"",
+    "\"deg\"", "1979-05-27", "[[]]",
+];
+
+/// String values that select something in a machine file.
+pub const STRINGS: [&str; 11] = [
+    "p-pi", "pid", "smc", "mm", "deg", "", "PPI", "X", "nmv5000.urdf", "../nmv5000.urdf", "/",
+];
+
+/// Every key of the machine-file schema, plus near misses.
+pub const KEYS: [&str; 64] = [
+    "name", "description", "sample_period_s", "kinematics", "urdf", "c_centre_mm", "a_offset_mm",
+    "branch", "trajectory", "max_linear_velocity", "max_linear_acceleration",
+    "junction_deviation", "gcode", "tcp_on_mcodes", "tcp_off_mcodes", "identification", "program",
+    "options", "moves", "range", "max_feed", "min_feed", "max_acceleration", "seed",
+    "validation_seed", "axes", "unit", "travel", "max_velocity", "plant", "controller", "encoder",
+    "servo_rate_hz", "identification_range", "identification_centre", "j", "b", "ka", "kt", "rg",
+    "coulomb_torque", "kind", "kv", "kp", "ki", "kd", "design", "p_hz", "wn_hz", "zeta", "vff",
+    "bff", "jff", "lambda", "ks", "rho", "je_hat", "be_hat", "resolution", "noise_std", "pso",
+    "bounds", "Y", "unknown_key",
+];
+
+/// Whole lines to insert: table headers, valid and invalid entries, junk.
+pub const LINES: [&str; 20] = [
+    "[axes.Y]",
+    "[axes.A]",
+    "[axes.Q]",
+    "[axes.X.controller]",
+    "[kinematics]",
+    "urdf = \"nmv5000.urdf\"",
+    "[trajectory]",
+    "junction_deviation = 0.0",
+    "[gcode]",
+    "tcp_on_mcodes = [-1]",
+    "[identification.options.pso]",
+    "particles = 0",
+    "[identification.options]",
+    "unit = \"deg\"",
+    "controller = { kind = \"p-pi\", design = { p_hz = 1e300, wn_hz = 1e-300, zeta = 0.0 } }",
+    "plant = { j = 1e-300, b = 1e300, ka = 1.0, kt = 1.0, rg = 1.0, coulomb_torque = 0.0 }",
+    "encoder = { resolution = 0.0, noise_std = -1.0 }",
+    "[[axes]]",
+    "= 1",
+    "[",
+];
+
+/// Byte ranges of numeric literals (outside comments and strings) in `src`.
+pub fn numbers(src: &str) -> Vec<(usize, usize)> {
+    literals(src, |c| c.is_ascii_digit() || matches!(c, '-' | '+'), |c| {
+        c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '+' | '_' | ':')
+    })
+}
+
+/// Byte ranges of bare keys (a word followed by `=`) and table-header segments in `src`.
+pub fn keys(src: &str) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    for (start, end) in literals(src, |c| c.is_ascii_alphabetic() || c == '_', |c| {
+        c.is_ascii_alphanumeric() || matches!(c, '_' | '-')
+    }) {
+        let rest = src[end..].trim_start_matches([' ', '\t']);
+        let before = src[..start].trim_end_matches([' ', '\t']);
+        if rest.starts_with('=') && !rest.starts_with("==")
+            || rest.starts_with(['.', ']']) && before.ends_with(['[', '.'])
+        {
+            out.push((start, end));
+        }
+    }
+    out
+}
+
+/// Byte ranges of the insides of basic strings `"…"` in `src` (outside comments).
+pub fn strings(src: &str) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut open: Option<usize> = None;
+    let mut comment = false;
+    for (i, c) in src.char_indices() {
+        match (c, open, comment) {
+            ('\n', _, _) => {
+                comment = false;
+                open = None;
+            }
+            (_, _, true) => {}
+            ('#', None, false) => comment = true,
+            ('"', None, false) => open = Some(i + 1),
+            ('"', Some(s), false) => {
+                out.push((s, i));
+                open = None;
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+/// Maximal runs that start with a character accepted by `first` (not preceded by a run
+/// character) and continue with `rest`, outside comments and strings.
+fn literals(
+    src: &str,
+    first: impl Fn(char) -> bool,
+    rest: impl Fn(char) -> bool,
+) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut in_string = false;
+    let mut comment = false;
+    let mut run: Option<usize> = None;
+    let mut prev_run_char = false;
+    for (i, c) in src.char_indices() {
+        if let Some(s) = run {
+            if rest(c) && !in_string && !comment {
+                continue;
+            }
+            out.push((s, i));
+            run = None;
+        }
+        match c {
+            '\n' => {
+                comment = false;
+                in_string = false;
+            }
+            '#' if !in_string => comment = true,
+            '"' if !comment => in_string = !in_string,
+            _ => {}
+        }
+        if !in_string && !comment && !prev_run_char && first(c) && c != '"' {
+            run = Some(i);
+        }
+        prev_run_char = rest(c);
+    }
+    if let Some(s) = run {
+        out.push((s, src.len()));
+    }
+    out
+}
+
+/// Line start offsets of `src` (each line's first byte).
+fn line_starts(src: &str) -> Vec<usize> {
+    std::iter::once(0)
+        .chain(src.match_indices('\n').map(|(i, _)| i + 1))
+        .filter(|&i| i < src.len())
+        .collect()
+}
+
+/// The byte range of line `k` (without its line break).
+fn line_range(src: &str, starts: &[usize], k: usize) -> (usize, usize) {
+    let s = starts[k];
+    let e = src[s..].find('\n').map_or(src.len(), |i| s + i);
+    (s, e)
+}
+
+/// A number made from fuzzer bytes: special literals, the original scaled, or a random one.
+fn number(b: &mut Bytes<'_>, original: &str) -> String {
+    match b.u8() % 4 {
+        0 => SPECIAL_NUMBERS[b.index(SPECIAL_NUMBERS.len())].to_string(),
+        1 => {
+            let x: f64 = original.replace('_', "").parse().unwrap_or(1.0);
+            let factor = [
+                -1.0, 0.5, 2.0, 0.1, 10.0, 1e-3, 1e3, 1e-6, 1e6, 1e-12, 1e12, 1.0001, 0.9999,
+            ][b.index(13)];
+            let y = x * factor;
+            if y.is_finite() {
+                format!("{y:?}")
+            } else {
+                "inf".to_string()
+            }
+        }
+        2 => {
+            let v = f64::from_bits(b.u64());
+            if v.is_finite() {
+                format!("{v:?}")
+            } else {
+                "nan".to_string()
+            }
+        }
+        _ => format!("{}", i64::from(b.u16() as i16)),
+    }
+}
+
+/// Applies up to 16 mutations chosen by `data` to `base` and returns the new text.
+///
+/// Mutations: replace a numeric literal (special values, the original scaled, random bits,
+/// small integers); replace a value with one of the wrong type; replace a string; rename a key;
+/// delete, duplicate or swap lines; insert a schema line or raw junk.
+pub fn mutate(base: &str, data: &[u8]) -> String {
+    let mut b = Bytes::new(data);
+    let mut src = base.to_string();
+    let count = 1 + b.u8() % 16;
+    for _ in 0..count {
+        if b.is_empty() {
+            break;
+        }
+        let op = b.u8() % 10;
+        match op {
+            0..=2 => {
+                let spans = numbers(&src);
+                if spans.is_empty() {
+                    continue;
+                }
+                let (s, e) = spans[b.index(spans.len())];
+                let v = number(&mut b, &src[s..e]);
+                src.replace_range(s..e, &v);
+            }
+            3 => {
+                let spans = numbers(&src);
+                if spans.is_empty() {
+                    continue;
+                }
+                let (s, e) = spans[b.index(spans.len())];
+                src.replace_range(s..e, OTHER_VALUES[b.index(OTHER_VALUES.len())]);
+            }
+            4 => {
+                let spans = strings(&src);
+                if spans.is_empty() {
+                    continue;
+                }
+                let (s, e) = spans[b.index(spans.len())];
+                src.replace_range(s..e, STRINGS[b.index(STRINGS.len())]);
+            }
+            5 => {
+                let spans = keys(&src);
+                if spans.is_empty() {
+                    continue;
+                }
+                let (s, e) = spans[b.index(spans.len())];
+                src.replace_range(s..e, KEYS[b.index(KEYS.len())]);
+            }
+            6 | 7 => {
+                let starts = line_starts(&src);
+                if starts.is_empty() {
+                    continue;
+                }
+                let k = b.index(starts.len());
+                let (s, e) = line_range(&src, &starts, k);
+                match (op, b.u8() % 3) {
+                    (6, _) => {
+                        let end = (e + 1).min(src.len());
+                        src.replace_range(s..end, "");
+                    }
+                    (_, 0) => {
+                        let line = format!("{}\n", &src[s..e]);
+                        src.insert_str(s, &line);
+                    }
+                    _ => {
+                        let j = b.index(starts.len());
+                        let (s2, e2) = line_range(&src, &starts, j);
+                        let (a, bb) = if s2 < s { ((s2, e2), (s, e)) } else { ((s, e), (s2, e2)) };
+                        if a.1 <= bb.0 {
+                            let first = src[a.0..a.1].to_string();
+                            let second = src[bb.0..bb.1].to_string();
+                            src.replace_range(bb.0..bb.1, &first);
+                            src.replace_range(a.0..a.1, &second);
+                        }
+                    }
+                }
+            }
+            _ => {
+                let starts = line_starts(&src);
+                let at = if starts.is_empty() { 0 } else { starts[b.index(starts.len())] };
+                let line = if b.u8() % 4 == 0 {
+                    b.text(40)
+                } else {
+                    LINES[b.index(LINES.len())].to_string()
+                };
+                src.insert_str(at, &format!("{line}\n"));
+            }
+        }
+    }
+    src
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scanners_find_numbers_keys_and_strings() {
+        let src = "# c = 1\n[axes.X]\nunit = \"mm\" # 2\ntravel = [-100.0, 1e3]\nplant = { j = 0.01 }\n";
+        let nums: Vec<&str> = numbers(src).iter().map(|&(s, e)| &src[s..e]).collect();
+        assert_eq!(nums, ["-100.0", "1e3", "0.01"]);
+        let ks: Vec<&str> = keys(src).iter().map(|&(s, e)| &src[s..e]).collect();
+        assert_eq!(ks, ["axes", "X", "unit", "travel", "plant", "j"]);
+        let ss: Vec<&str> = strings(src).iter().map(|&(s, e)| &src[s..e]).collect();
+        assert_eq!(ss, ["mm"]);
+    }
+
+    #[test]
+    fn mutations_keep_the_text_valid_utf8_and_change_it() {
+        let (base, _) = BASES[0];
+        let mut changed = 0;
+        for seed in 0u8..=255 {
+            let data: Vec<u8> = (0..64u8).map(|i| i.wrapping_mul(seed).wrapping_add(seed)).collect();
+            let out = mutate(base, &data);
+            if out != base {
+                changed += 1;
+            }
+            check_load(&out, None);
+        }
+        assert!(changed > 200, "only {changed} of 256 inputs changed the file");
+    }
+}

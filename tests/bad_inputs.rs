@@ -1,0 +1,577 @@
+//! Bad input, table-driven (issue 7): every case must exit with code 2 (bad input), print a
+//! message that names the file (and line:column where there is one) and the offending value,
+//! never panic, and never leave a partial output file.
+
+use crate::util::{repo, tempdir, text, vcnc_in};
+
+/// One bad-input case: files written into a fresh folder, the command, and fragments that must
+/// all appear on stderr.
+struct Case {
+    name: &'static str,
+    files: &'static [(&'static str, &'static str)],
+    args: &'static [&'static str],
+    expect: &'static [&'static str],
+}
+
+const PPI: &str = "MACHINE_PPI";
+const NMV: &str = "MACHINE_NMV";
+
+/// A valid single-axis machine file to derive broken ones from (kept in sync with
+/// machines/ballscrew-ppi.toml by `base_machine_is_valid`).
+const BASE: &str = r#"name = "t"
+sample_period_s = 0.001
+[axes.X]
+unit = "mm"
+travel = [-100.0, 100.0]
+max_velocity = 250.0
+max_acceleration = 2500.0
+plant = { j = 0.01, b = 0.0418572, ka = 1.0, kt = 1.0, rg = 1.5915, coulomb_torque = 0.3 }
+controller = { kind = "p-pi", kv = 70.0, kp = 2.342478, ki = 223.252126, vff = 0.5, bff = 0.1 }
+"#;
+
+const PROG: &str = "G21 G90\nG0 X0\nG1 X10 F600\nM2\n";
+
+fn cases() -> Vec<Case> {
+    let g = |name, prog: &'static str, expect: &'static [&'static str]| Case {
+        name,
+        files: Box::leak(Box::new([("p.ngc", prog)])),
+        args: &["interpolate", PPI, "p.ngc", "--out", "out"],
+        expect,
+    };
+    let m = |name, machine: &'static str, expect: &'static [&'static str]| Case {
+        name,
+        files: Box::leak(Box::new([("m.toml", machine), ("p.ngc", PROG)])),
+        args: &["interpolate", "m.toml", "p.ngc", "--out", "out"],
+        expect,
+    };
+    let t = |name, trace: &'static str, expect: &'static [&'static str]| Case {
+        name,
+        files: Box::leak(Box::new([("t.csv", trace)])),
+        args: &["identify", "--trace", "t.csv", "--out", "out"],
+        expect,
+    };
+    let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
+    let with = |from: &str, to: &str| -> &'static str {
+        let s = BASE.replace(from, to);
+        assert_ne!(s, BASE, "replacement {from:?} not found");
+        leak(s)
+    };
+    vec![
+        // --- G-code -------------------------------------------------------------------------
+        g(
+            "unknown word",
+            "G21\nG0 X0\nG1 X1 Q5 F600\n",
+            &["p.ngc:3:", "Q"],
+        ),
+        g(
+            "unknown G-code",
+            "G21\nG0 X0\nG38.2 X1\n",
+            &["p.ngc:3:", "G38.2"],
+        ),
+        g(
+            "unknown M-code",
+            "G21\nG0 X0\nM700\n",
+            &["p.ngc:3:", "M700"],
+        ),
+        g(
+            "malformed number",
+            "G21\nG0 X0\nG1 X1.2.3 F600\n",
+            &["p.ngc:3:"],
+        ),
+        g(
+            "word without value",
+            "G21\nG0 X0\nG1 X F600\n",
+            &["p.ngc:3:", "X"],
+        ),
+        g(
+            "modal conflict G0 G1",
+            "G21\nG0 X0\nG0 G1 X1 F600\n",
+            &["p.ngc:3:", "G0", "G1"],
+        ),
+        g(
+            "modal conflict G90 G91",
+            "G21\nG0 X0\nG90 G91 X1\n",
+            &["p.ngc:3:", "G90", "G91"],
+        ),
+        g(
+            "arc radius does not fit",
+            "G21 G17\nG0 X0 Y0\nG2 X10 Y0 R2 F600\n",
+            &["p.ngc:3:", "R"],
+        ),
+        g(
+            "arc centre radii differ",
+            "G21 G17\nG0 X0 Y0\nG2 X10 Y0 I3 J0 F600\n",
+            &["p.ngc:3:", "radi"],
+        ),
+        g(
+            "arc without centre",
+            "G21 G17\nG0 X0 Y0\nG2 X10 Y0 F600\n",
+            &["p.ngc:3:"],
+        ),
+        g(
+            "G93 without F",
+            "G21\nG0 X0\nG93 G1 X10\n",
+            &["p.ngc:3:", "F"],
+        ),
+        g(
+            "feed move without feed",
+            "G21\nG0 X0\nG1 X10\n",
+            &["p.ngc:3:", "feed"],
+        ),
+        g("dwell without P", "G21\nG0 X0\nG4\n", &["p.ngc:3:", "P"]),
+        g(
+            "axis word twice",
+            "G21\nG0 X0\nG1 X1 X2 F600\n",
+            &["p.ngc:3:", "X"],
+        ),
+        g(
+            "move beyond travel",
+            "G21\nG0 X0\nG1 X500 F6000\n",
+            &["p.ngc:3:", "travel", "500"],
+        ),
+        g(
+            "axis the machine lacks",
+            "G21\nG0 X0\nG1 B10 F600\n",
+            &["p.ngc:3:", "B"],
+        ),
+        g(
+            "TCP without kinematics",
+            "G21\nG43.4\nG0 X0\nG1 X10 F600\n",
+            &["kinematics"],
+        ),
+        g(
+            "errors on several lines are all reported",
+            "G21\nG0 X0\nG1 X1 Q1 F600\nG1 X2 Q2\n",
+            &["p.ngc:3:", "p.ngc:4:"],
+        ),
+        Case {
+            name: "invalid UTF-8",
+            files: &[("p.ngc", "G21\nG0 X0\nG1 X1 F600 \u{FFFD}\n")],
+            args: &["interpolate", PPI, "p.ngc", "--out", "out"],
+            expect: &["p.ngc:3:"],
+        },
+        Case {
+            name: "program file missing",
+            files: &[],
+            args: &["interpolate", PPI, "nope.ngc", "--out", "out"],
+            expect: &["nope.ngc", "cannot read"],
+        },
+        // --- machine files ------------------------------------------------------------------
+        m(
+            "TOML syntax",
+            leak(format!("{BASE}[axes.Y\n")),
+            &["m.toml:10:", "unclosed"],
+        ),
+        m(
+            "unknown top-level key",
+            leak(format!("colour = 1\n{BASE}")),
+            &["m.toml:1:", "colour"],
+        ),
+        m(
+            "unknown axis key",
+            with("unit = \"mm\"", "unit = \"mm\"\nbogus = 3"),
+            &["m.toml:5:", "bogus"],
+        ),
+        m(
+            "unknown plant key",
+            with("coulomb_torque = 0.3", "coulomb_torque = 0.3, stiction = 2"),
+            &["m.toml:", "stiction"],
+        ),
+        m(
+            "missing key",
+            with("max_velocity = 250.0\n", ""),
+            &["m.toml:", "max_velocity"],
+        ),
+        m(
+            "missing plant",
+            with(
+                "plant = { j = 0.01, b = 0.0418572, ka = 1.0, kt = 1.0, rg = 1.5915, coulomb_torque = 0.3 }\n",
+                "",
+            ),
+            &["m.toml:", "plant"],
+        ),
+        m(
+            "wrong type",
+            with("max_velocity = 250.0", "max_velocity = \"fast\""),
+            &["m.toml:6:", "string"],
+        ),
+        m(
+            "negative inertia",
+            with("j = 0.01", "j = -0.01"),
+            &["m.toml:8:", "plant.j", "-0.01"],
+        ),
+        m(
+            "NaN gain",
+            with("kv = 70.0", "kv = nan"),
+            &["m.toml:", "kv"],
+        ),
+        m(
+            "unstable gains",
+            with("kp = 2.342478", "kp = 0.001"),
+            &["m.toml:9:", "unstable", "axis X"],
+        ),
+        m(
+            "unknown controller kind",
+            with("kind = \"p-pi\"", "kind = \"lqr\""),
+            &["m.toml:9:", "lqr"],
+        ),
+        m(
+            "gains and design together",
+            with(
+                "vff = 0.5",
+                "design = { p_hz = 10.0, wn_hz = 30.0, zeta = 0.5 }, vff = 0.5",
+            ),
+            &["m.toml:9:", "design"],
+        ),
+        m(
+            "unreachable design",
+            with(
+                "kv = 70.0, kp = 2.342478, ki = 223.252126",
+                "design = { p_hz = 100.0, wn_hz = 1.0, zeta = 0.2 }",
+            ),
+            &["m.toml:9:", "axis X"],
+        ),
+        m(
+            "wrong unit for a linear axis",
+            with("unit = \"mm\"", "unit = \"deg\""),
+            &["m.toml:4:", "mm"],
+        ),
+        m(
+            "inverted travel",
+            with("travel = [-100.0, 100.0]", "travel = [100.0, -100.0]"),
+            &["m.toml:5:", "travel"],
+        ),
+        m(
+            "servo rate not a multiple",
+            with(
+                "max_acceleration = 2500.0",
+                "max_acceleration = 2500.0\nservo_rate_hz = 1500.0",
+            ),
+            &["m.toml:", "servo"],
+        ),
+        m(
+            "zero sample period",
+            with("sample_period_s = 0.001", "sample_period_s = 0.0"),
+            &["m.toml:2:", "sample"],
+        ),
+        m(
+            "unknown axis letter",
+            with("[axes.X]", "[axes.Q]"),
+            &["m.toml:3:", "Q"],
+        ),
+        Case {
+            name: "URDF file missing",
+            files: &[("m.toml", "")],
+            args: &[
+                "interpolate",
+                "m_urdf_missing.toml",
+                "p.ngc",
+                "--out",
+                "out",
+            ],
+            expect: &["nope.urdf"],
+        },
+        Case {
+            name: "URDF not a table-tilting A/C chain",
+            files: &[("m.toml", "")],
+            args: &["interpolate", "m_urdf_bad.toml", "p.ngc", "--out", "out"],
+            expect: &["bad.urdf", "table-tilting"],
+        },
+        Case {
+            name: "machine file missing",
+            files: &[("p.ngc", PROG)],
+            args: &["interpolate", "none.toml", "p.ngc", "--out", "out"],
+            expect: &["none.toml", "cannot read"],
+        },
+        // --- traces -------------------------------------------------------------------------
+        t(
+            "NaN in a trace",
+            "t,xr,x\n0,0,0\n0.001,NaN,0\n",
+            &["t.csv:3:", "xr"],
+        ),
+        t(
+            "missing column",
+            "t,ref,x\n0,0,0\n",
+            &["t.csv", "missing column 'xr'"],
+        ),
+        t(
+            "not a number",
+            "t,xr,x\n0,0,0\n0.001,abc,0\n",
+            &["t.csv:3:", "abc"],
+        ),
+        t("ragged row", "t,xr,x\n0,0,0\n0.001,1\n", &["t.csv:3:"]),
+        t("empty trace", "t,xr,x\n", &["t.csv", "too few samples"]),
+        Case {
+            name: "non-monotonic time",
+            files: &[("t.csv", "GEN_NONMONOTONIC")],
+            args: &["identify", "--trace", "t.csv", "--out", "out"],
+            expect: &["t.csv", "time does not increase", "row"],
+        },
+        Case {
+            name: "non-uniform time",
+            files: &[("t.csv", "GEN_NONUNIFORM")],
+            args: &["identify", "--trace", "t.csv", "--out", "out"],
+            expect: &["t.csv", "not uniformly sampled"],
+        },
+        Case {
+            name: "too few samples",
+            files: &[("t.csv", "GEN_SHORT")],
+            args: &["identify", "--trace", "t.csv", "--out", "out"],
+            expect: &["t.csv", "too few samples"],
+        },
+        Case {
+            name: "no motion",
+            files: &[("t.csv", "GEN_STILL")],
+            args: &["identify", "--trace", "t.csv", "--out", "out"],
+            expect: &["t.csv", "no motion"],
+        },
+        Case {
+            name: "data that cannot identify the model",
+            files: &[("t.csv", "GEN_RAMP")],
+            args: &["identify", "--trace", "t.csv", "--out", "out"],
+            expect: &["t.csv", "identification refused"],
+        },
+        // --- options and other files ---------------------------------------------------------
+        Case {
+            name: "zero threads",
+            files: &[],
+            args: &["--threads", "0", "gen", "spiral"],
+            expect: &["--threads"],
+        },
+        Case {
+            name: "unknown generator axis",
+            files: &[],
+            args: &["gen", "identification", "--axis", "Q"],
+            expect: &["Q"],
+        },
+        Case {
+            name: "malformed --set",
+            files: &[("p.ngc", PROG)],
+            args: &[
+                "sweep",
+                PPI,
+                "p.ngc",
+                "--set",
+                "axes.X.plant.j",
+                "--out",
+                "out",
+            ],
+            expect: &["--set", "KEY="],
+        },
+        Case {
+            name: "shard out of range",
+            files: &[("p.ngc", PROG)],
+            args: &[
+                "sweep",
+                PPI,
+                "p.ngc",
+                "--set",
+                "axes.X.plant.j=0.01",
+                "--shard",
+                "4/3",
+                "--out",
+                "out",
+            ],
+            expect: &["--shard", "4/3"],
+        },
+        Case {
+            name: "unstable model file",
+            files: &[
+                ("p.ngc", PROG),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = 1.0\na2 = 1.0\na3 = 100.0\nb0 = 0.0\nb1 = 0.0\nb2 = 1.0\ndc = 0.0\n",
+                ),
+            ],
+            args: &[
+                "simulate",
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml:1:", "axis X", "not stable"],
+        },
+        Case {
+            name: "model file without the machine's axis",
+            files: &[
+                ("p.ngc", PROG),
+                (
+                    "model.toml",
+                    "[axes.Y]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\n",
+                ),
+            ],
+            args: &[
+                "simulate",
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml", "no model for axis X"],
+        },
+        Case {
+            name: "unknown axis for identify",
+            files: &[],
+            args: &["identify", NMV, "--axis", "B", "--out", "out"],
+            expect: &["--axis B", "no axis B"],
+        },
+    ]
+}
+
+/// Generated trace files (too long to write inline).
+fn generated(marker: &str) -> Option<String> {
+    let mut s = String::from("t,xr,x\n");
+    let row = |s: &mut String, t: f64, xr: f64, x: f64| s.push_str(&format!("{t},{xr},{x}\n"));
+    match marker {
+        "GEN_NONMONOTONIC" => {
+            for k in 0..2000 {
+                let t = if k == 1000 { 0.5 } else { k as f64 * 1e-3 };
+                row(&mut s, t, (k as f64 * 0.01).sin(), 0.0);
+            }
+        }
+        "GEN_NONUNIFORM" => {
+            for k in 0..2000 {
+                let t = k as f64 * 1e-3 + if k >= 1000 { 0.0005 } else { 0.0 };
+                row(&mut s, t, (k as f64 * 0.01).sin(), 0.0);
+            }
+        }
+        "GEN_SHORT" => {
+            for k in 0..20 {
+                row(&mut s, k as f64 * 1e-3, k as f64, k as f64);
+            }
+        }
+        "GEN_STILL" => {
+            for k in 0..5000 {
+                row(&mut s, k as f64 * 1e-3, 1.0, 1.0);
+            }
+        }
+        "GEN_RAMP" => {
+            // A constant-velocity ramp followed exactly: no acceleration, no tracking error.
+            for k in 0..5000 {
+                let x = k as f64 * 0.05;
+                row(&mut s, k as f64 * 1e-3, x, x);
+            }
+        }
+        _ => return None,
+    }
+    Some(s)
+}
+
+fn machine_variants(dir: &std::path::Path) {
+    std::fs::write(
+        dir.join("m_urdf_missing.toml"),
+        BASE.replacen(
+            "sample_period_s = 0.001\n",
+            "sample_period_s = 0.001\n[kinematics]\nurdf = \"nope.urdf\"\n",
+            1,
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("m_urdf_bad.toml"),
+        BASE.replacen(
+            "sample_period_s = 0.001\n",
+            "sample_period_s = 0.001\n[kinematics]\nurdf = \"bad.urdf\"\n",
+            1,
+        ),
+    )
+    .unwrap();
+    let urdf = std::fs::read_to_string(repo("machines/nmv5000.urdf")).unwrap();
+    let bad = urdf.replacen(
+        "<axis xyz=\"1 0 0\"/>\n    <limit lower=\"-2.0943951023931953\"",
+        "<axis xyz=\"0 1 0\"/>\n    <limit lower=\"-2.0943951023931953\"",
+        1,
+    );
+    assert_ne!(bad, urdf, "the URDF changed: update this test");
+    std::fs::write(dir.join("bad.urdf"), bad).unwrap();
+    if !dir.join("p.ngc").exists() {
+        std::fs::write(dir.join("p.ngc"), PROG).unwrap();
+    }
+}
+
+#[test]
+fn base_machine_is_valid() {
+    let dir = tempdir();
+    std::fs::write(dir.path().join("m.toml"), BASE).unwrap();
+    std::fs::write(dir.path().join("p.ngc"), PROG).unwrap();
+    let o = vcnc_in(
+        dir.path(),
+        &["interpolate", "m.toml", "p.ngc", "--out", "out"],
+        &[],
+    );
+    assert!(o.status.success(), "{:?}", text(&o));
+}
+
+#[test]
+fn every_bad_input_exits_2_with_a_message_that_names_it() {
+    let all = cases();
+    assert!(
+        all.len() >= 40,
+        "issue 7 asks for at least 40 cases, have {}",
+        all.len()
+    );
+    let mut failures = Vec::new();
+    for c in &all {
+        let dir = tempdir();
+        for (name, content) in c.files {
+            let content = generated(content).unwrap_or_else(|| content.to_string());
+            if !content.is_empty() {
+                std::fs::write(dir.path().join(name), content).unwrap();
+            }
+        }
+        machine_variants(dir.path());
+        let ppi = repo("machines/ballscrew-ppi.toml");
+        let nmv = repo("machines/nmv5000.toml");
+        let args: Vec<&str> = c
+            .args
+            .iter()
+            .map(|a| match *a {
+                PPI => ppi.to_str().unwrap(),
+                NMV => nmv.to_str().unwrap(),
+                other => other,
+            })
+            .collect();
+        let o = vcnc_in(dir.path(), &args, &[]);
+        let (_, err) = text(&o);
+        let mut problems = Vec::new();
+        if o.status.code() != Some(2) {
+            problems.push(format!("exit code {:?}, expected 2", o.status.code()));
+        }
+        if err.contains("panicked") {
+            problems.push("panicked".into());
+        }
+        for f in c.expect {
+            if !err.contains(f) {
+                problems.push(format!("stderr lacks {f:?}"));
+            }
+        }
+        // Nothing half-written: no temporary files anywhere in the output folder.
+        if let Ok(rd) = std::fs::read_dir(dir.path().join("out")) {
+            for e in rd.flatten() {
+                if e.file_name().to_string_lossy().ends_with(".tmp") {
+                    problems.push(format!("temporary file left: {:?}", e.file_name()));
+                }
+            }
+        }
+        if !problems.is_empty() {
+            failures.push(format!(
+                "{}: {}\n    stderr: {}",
+                c.name,
+                problems.join("; "),
+                err.trim()
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        all.len(),
+        failures.join("\n")
+    );
+}

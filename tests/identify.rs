@@ -1,0 +1,219 @@
+//! Identification end to end (issue 4): simulated drives against the analytic truth of their
+//! physical parameters (`DriveParams` → closed-loop model, SPEC section 3), and the real EMPS
+//! trace against SPEC section 7's published figures.
+
+use std::path::Path;
+
+use serde_json::Value;
+
+use crate::util::{json, num, ok, repo, tempdir, text, vcnc};
+
+fn identify(machine: &Path, out: &Path, extra: &[&str]) -> Value {
+    let mut args = vec![
+        "identify",
+        machine.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let stdout = ok(&vcnc(&args));
+    eprintln!("{stdout}");
+    json(&out.join("summary.json"))
+}
+
+/// |identified − true| / true for `key` of axis `axis`.
+fn rel(s: &Value, axis: &str, key: &str) -> f64 {
+    let a = num(s, &format!("axes.{axis}.identified.{key}"));
+    let t = num(s, &format!("axes.{axis}.true.{key}"));
+    (a - t).abs() / t.abs()
+}
+
+#[test]
+fn table1_drive_with_0_1um_encoder() {
+    // Issue 4: ωn and p within 1 %, ζ within 3 %, dc within 5 % (the paper: 2.4 %, 12 %, 6 %,
+    // dc 220× off).
+    let dir = tempdir();
+    let s = identify(&repo("machines/ballscrew-ppi.toml"), dir.path(), &[]);
+    let (wn, p, z, dc) = (
+        rel(&s, "X", "wn_hz"),
+        rel(&s, "X", "p_hz"),
+        rel(&s, "X", "zeta"),
+        rel(&s, "X", "dc"),
+    );
+    eprintln!("0.1 µm: wn {wn:.4}, p {p:.4}, zeta {z:.4}, dc {dc:.4}");
+    assert!(
+        wn < 0.01 && p < 0.01 && z < 0.03 && dc < 0.05,
+        "wn {wn} p {p} zeta {z} dc {dc}"
+    );
+    assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
+    // The model file is readable by --model and predicts the true drive on another program.
+    let out = dir.path().join("sim");
+    ok(&vcnc(&[
+        "simulate",
+        "machines/ballscrew-ppi.toml",
+        "gcode/identification-X.ngc",
+        "--model",
+        dir.path().join("model.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let sim = json(&out.join("summary.json"));
+    let err = num(&sim, "axes.X.model_vs_true_max_um");
+    let peak = num(&sim, "axes.X.tracking_max_um");
+    assert!(err < 0.02 * peak, "model vs true {err} µm of {peak} µm");
+}
+
+#[test]
+fn table1_drive_with_1um_encoder() {
+    // Issue 4: with a 1 µm encoder: ωn and p within 2 %, ζ within 5 %, dc within 10 %.
+    let dir = tempdir();
+    let src = std::fs::read_to_string(repo("machines/ballscrew-ppi.toml")).unwrap();
+    let coarse = src.replace(
+        "encoder = { resolution = 0.0001 }",
+        "encoder = { resolution = 0.001 }",
+    );
+    assert_ne!(src, coarse, "the machine file changed: update this test");
+    let path = dir.path().join("coarse.toml");
+    std::fs::write(&path, coarse).unwrap();
+    let s = identify(&path, &dir.path().join("out"), &[]);
+    let (wn, p, z, dc) = (
+        rel(&s, "X", "wn_hz"),
+        rel(&s, "X", "p_hz"),
+        rel(&s, "X", "zeta"),
+        rel(&s, "X", "dc"),
+    );
+    eprintln!("1 µm: wn {wn:.4}, p {p:.4}, zeta {z:.4}, dc {dc:.4}");
+    assert!(
+        wn < 0.02 && p < 0.02 && z < 0.05 && dc < 0.10,
+        "wn {wn} p {p} zeta {z} dc {dc}"
+    );
+}
+
+fn validation_within_two_percent(s: &Value) {
+    let err = num(s, "axes.X.fit.validation.freerun_max_um");
+    let peak = num(s, "axes.X.fit.validation.tracking_peak_um");
+    eprintln!("validation: free-run max error {err:.3} µm of {peak:.3} µm peak tracking error");
+    assert!(err <= 0.02 * peak, "{err} µm of {peak} µm");
+    assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
+}
+
+#[test]
+fn pid_drive_identified_stable_and_predictive() {
+    let dir = tempdir();
+    let s = identify(&repo("machines/ballscrew-pid.toml"), dir.path(), &[]);
+    validation_within_two_percent(&s);
+}
+
+/// Routh–Hurwitz on a model object of a summary: every pole strictly in the left half plane.
+fn routh_hurwitz(m: &Value) -> bool {
+    let (a1, a2, a3) = (num(m, "a1"), num(m, "a2"), num(m, "a3"));
+    a1 > 0.0 && a3 > 0.0 && a1 * a2 > a3
+}
+
+#[test]
+fn smc_drive_identified_stable_and_predictive() {
+    // ballscrew-smc.toml: sliding mode with realistic (half) inertia estimate.
+    let dir = tempdir();
+    let s = identify(&repo("machines/ballscrew-smc.toml"), dir.path(), &[]);
+    validation_within_two_percent(&s);
+    // The unconstrained LS baseline is reported beside it with its poles and a stability flag
+    // that agrees with Routh–Hurwitz on its own coefficients (shown, whatever it is).
+    let ls = &s["axes"]["X"]["unconstrained_ls"];
+    assert_eq!(ls["stable"], Value::Bool(routh_hurwitz(ls)), "{ls}");
+}
+
+#[test]
+fn smc_with_exact_estimates_stays_stable() {
+    // Exact estimates: every pole is cancelled by a zero (G_track = 1, SPEC section 3), the
+    // tracking error is Coulomb friction only (≈ 6 µm peak) and the poles are seen only through
+    // the friction response. The identified model must still be stable, and predict the
+    // validation run within 0.6 µm: the analytic model of the true drive itself misses the 20 kHz
+    // drive by 0.44 µm there (sampled control and friction events; measured with `vcnc simulate
+    // --model` on the true coefficients).
+    let dir = tempdir();
+    let src = std::fs::read_to_string(repo("machines/ballscrew-smc.toml")).unwrap();
+    let exact = src.replace(
+        "je_hat = 0.00314169, be_hat = 0.0",
+        "je_hat = 0.00628338, be_hat = 0.0263005",
+    );
+    assert_ne!(src, exact, "the machine file changed: update this test");
+    let path = dir.path().join("smc-exact.toml");
+    std::fs::write(&path, exact).unwrap();
+    let s = identify(&path, &dir.path().join("out"), &[]);
+    assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
+    assert_eq!(s["axes"]["X"]["paper_pso"]["stable"], Value::Bool(true));
+    let err = num(&s, "axes.X.fit.validation.freerun_max_um");
+    assert!(err <= 0.6, "{err} µm");
+    let ls = &s["axes"]["X"]["unconstrained_ls"];
+    assert_eq!(ls["stable"], Value::Bool(routh_hurwitz(ls)), "{ls}");
+}
+
+#[test]
+fn emps_real_trace() {
+    // SPEC section 7: the EMPS benchmark (Janot, Gautier, Brunot 2019), a real ball-screw drive:
+    // raw tracking error 578 µm RMS; the benchmark's physical model gives 4.0 µm RMS free-run;
+    // we need a stable model at ≤ 3 µm. Unconstrained LS gives an unstable pole.
+    let dir = tempdir();
+    let o = vcnc(&[
+        "identify",
+        "--trace",
+        "tests/data/emps/DATA_EMPS.csv",
+        "--units",
+        "m",
+        "--t-col",
+        "t",
+        "--xr-col",
+        "qg",
+        "--x-col",
+        "qm",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    eprintln!("{}", ok(&o));
+    let s = json(&dir.path().join("summary.json"));
+    let rms = num(&s, "axes.X.fit.estimation.freerun_rms_um");
+    let tracking = num(&s, "axes.X.fit.estimation.tracking_rms_um");
+    assert!(
+        (tracking - 578.0).abs() < 5.0,
+        "raw tracking error {tracking} µm RMS"
+    );
+    assert!(rms <= 3.0, "free-run RMS {rms} µm");
+    assert_eq!(
+        s["axes"]["X"]["identified"]["stable"],
+        Value::Bool(true),
+        "{}",
+        s["axes"]["X"]["identified"]
+    );
+    assert_eq!(
+        s["axes"]["X"]["unconstrained_ls"]["stable"],
+        Value::Bool(false)
+    );
+}
+
+#[test]
+fn same_seed_same_bits_for_any_thread_count() {
+    let dir = tempdir();
+    let (a, b) = (dir.path().join("t1"), dir.path().join("t2"));
+    for (out, threads) in [(&a, "1"), (&b, "2")] {
+        let o = vcnc(&[
+            "--threads",
+            threads,
+            "identify",
+            "machines/nmv5000.toml",
+            "--axis",
+            "X",
+            "--axis",
+            "C",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{:?}", text(&o));
+    }
+    for f in ["summary.json", "model.toml"] {
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+}

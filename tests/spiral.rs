@@ -1,0 +1,185 @@
+//! The 5-axis spiral (SPEC section 6) on the NMV5000 with the true drives and with the
+//! identified models: the regression test of the whole pipeline (issue 5).
+
+use std::sync::OnceLock;
+
+use vcnc_drive::ClosedLoopModel;
+use vcnc_machine::pipeline::{self, AxisIdentification, Prediction, Run};
+use vcnc_machine::{Machine, embedded};
+
+struct Fixture {
+    machine: Machine,
+    run: Run,
+    ids: Vec<AxisIdentification>,
+    refined: Prediction,
+    paper: Prediction,
+}
+
+/// Identify the five axes and predict the spiral once for every test in this file.
+fn fixture() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let machine = Machine::embedded_nmv5000().expect("embedded machine");
+        let run =
+            pipeline::prepare(&machine, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
+        let ids =
+            pipeline::identify_axes(&machine, &machine.axis_names(), None).expect("identification");
+        let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
+        let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
+        let refined = pipeline::predict(&machine, &run, &refined).expect("prediction");
+        let paper = pipeline::predict(&machine, &run, &paper).expect("prediction");
+        Fixture {
+            machine,
+            run,
+            ids,
+            refined,
+            paper,
+        }
+    })
+}
+
+fn max(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(*x))
+}
+
+#[test]
+fn spiral_matches_spec_geometry_and_duration() {
+    // Truth: SPEC section 6 (≈ 755 mm at 75 mm/s and 1500 mm/s² ≈ 10.1 s; axis spans X −36…36,
+    // Y −25…58, Z 22…61 mm, A −36.9…−11.5°, peak rates 127, 110, 28 mm/s, 4.6 and 212 °/s).
+    let f = fixture();
+    let d = f.run.loaded.trajectory.duration_s();
+    assert!((d - 10.12).abs() < 0.02, "duration {d} s");
+    let span = |c: char| {
+        let a = f.run.axes.iter().find(|a| a.name == c).unwrap();
+        let lo = a.pos.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = a.pos.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let v = a.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        (lo, hi, v)
+    };
+    let (xl, xh, xv) = span('X');
+    let (yl, yh, yv) = span('Y');
+    let (zl, zh, zv) = span('Z');
+    let (al, ah, av) = span('A');
+    let (_, _, cv) = span('C');
+    for (got, want, tol) in [
+        (xl, -36.0, 0.5),
+        (xh, 36.0, 0.5),
+        (yl, -25.0, 0.5),
+        (yh, 58.0, 0.6),
+        (zl, 22.0, 0.5),
+        (zh, 61.0, 0.5),
+        (al, -36.9, 0.1),
+        (ah, -11.5, 0.1),
+        (xv, 127.0, 1.0),
+        (yv, 110.0, 1.0),
+        (zv, 28.0, 0.5),
+        (av, 4.6, 0.1),
+        (cv, 212.0, 1.0),
+    ] {
+        assert!((got - want).abs() <= tol, "got {got}, SPEC says {want}");
+    }
+    let c = f.run.axes.iter().find(|a| a.name == 'C').unwrap();
+    let turns = (c.pos[c.pos.len() - 1] - c.pos[0]).abs() / 360.0;
+    assert!((turns - 3.0).abs() < 1e-6, "C turns {turns}");
+}
+
+#[test]
+fn true_contour_error_is_the_published_scale() {
+    // SPEC section 6 / issue 5: with Table 3 drives the true contour error peaks near 450 µm
+    // and 3.9 mrad.
+    let f = fixture();
+    let tip = f.refined.true_contour.tip_max_mm * 1e3;
+    let ori = f.refined.true_contour.orientation_max_rad * 1e3;
+    assert!((tip - 450.0).abs() < 10.0, "true contour max {tip} µm");
+    assert!((ori - 3.9).abs() < 0.1, "true orientation max {ori} mrad");
+}
+
+#[test]
+fn identified_drives_predict_the_contour_error_within_a_micrometre() {
+    // Issue 5: max |contour(identified) − contour(true)| ≤ 1 µm and orientation ≤ 0.01 mrad.
+    let f = fixture();
+    let d_tip = max(&f.refined.tip_discrepancy()) * 1e3;
+    let d_ori = max(&f.refined.orientation_discrepancy()) * 1e3;
+    eprintln!("refined: tip discrepancy {d_tip:.4} µm, orientation {d_ori:.5} mrad");
+    let p_tip = max(&f.paper.tip_discrepancy()) * 1e3;
+    let p_ori = max(&f.paper.orientation_discrepancy()) * 1e3;
+    eprintln!("paper PSO: tip discrepancy {p_tip:.4} µm, orientation {p_ori:.5} mrad");
+    assert!(d_tip <= 1.0, "tool-tip discrepancy {d_tip} µm");
+    assert!(d_ori <= 0.01, "orientation discrepancy {d_ori} mrad");
+}
+
+#[test]
+fn identified_nmv5000_poles_are_within_tolerance() {
+    // Issue 4: every NMV5000 axis' ωn and p within 2 %, ζ within 5 % of the analytic model of
+    // the true drive (truth: `DriveParams` → closed-loop model, SPEC section 3).
+    let f = fixture();
+    for r in &f.ids {
+        let t = r.truth.poles().unwrap();
+        let p = r.result.identified.poles().expect("identified poles");
+        let e = |a: f64, b: f64| (a - b).abs() / b;
+        eprintln!(
+            "{}: p {:+.2} %, wn {:+.2} %, zeta {:+.2} %, dc {:+.2} %",
+            r.axis,
+            100.0 * (p.p - t.p) / t.p,
+            100.0 * (p.wn - t.wn) / t.wn,
+            100.0 * (p.zeta - t.zeta) / t.zeta,
+            100.0 * (r.result.identified.dc - r.truth.dc) / r.truth.dc
+        );
+        assert!(r.result.identified.is_stable(), "{}", r.axis);
+        assert!(e(p.wn, t.wn) < 0.02, "{} wn {} vs {}", r.axis, p.wn, t.wn);
+        assert!(e(p.p, t.p) < 0.02, "{} p {} vs {}", r.axis, p.p, t.p);
+        assert!(
+            e(p.zeta, t.zeta) < 0.05,
+            "{} zeta {} vs {}",
+            r.axis,
+            p.zeta,
+            t.zeta
+        );
+    }
+}
+
+#[test]
+fn windowed_contour_error_equals_brute_force_on_every_spiral_sample() {
+    // Truth: the O(N·M) brute-force foot-point search (issue 5).
+    let f = fixture();
+    let reference = f.run.poses.as_ref().unwrap();
+    let brute = vcnc_contour::contour_errors_brute_force(reference, &f.refined.true_poses).unwrap();
+    assert_eq!(brute.tip_mm.len(), f.refined.true_contour.tip_mm.len());
+    for (k, (a, b)) in brute
+        .tip_mm
+        .iter()
+        .zip(&f.refined.true_contour.tip_mm)
+        .enumerate()
+    {
+        assert_eq!(a, b, "tip error differs at sample {k}");
+    }
+    for (k, (a, b)) in brute
+        .orientation_rad
+        .iter()
+        .zip(&f.refined.true_contour.orientation_rad)
+        .enumerate()
+    {
+        assert_eq!(a, b, "orientation error differs at sample {k}");
+    }
+}
+
+#[test]
+fn reference_poses_round_trip_the_programmed_tool_tip() {
+    // FK(IK(programmed tip pose)) = programmed pose within 1e-9 mm at every TCP sample.
+    let f = fixture();
+    let traj = &f.run.loaded.trajectory;
+    let poses = f.run.poses.as_ref().unwrap();
+    let (x, y, z) = (
+        traj.axis('X').unwrap(),
+        traj.axis('Y').unwrap(),
+        traj.axis('Z').unwrap(),
+    );
+    for (k, pose) in poses.iter().enumerate().take(traj.len()) {
+        let d = ((pose.p.x - x.pos[k]).powi(2)
+            + (pose.p.y - y.pos[k]).powi(2)
+            + (pose.p.z - z.pos[k]).powi(2))
+        .sqrt();
+        assert!(d < 1e-9, "sample {k}: {d} mm");
+    }
+    assert!(f.machine.kinematics.is_some());
+}
