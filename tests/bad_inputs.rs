@@ -495,6 +495,36 @@ fn machine_variants(dir: &std::path::Path) {
 }
 
 #[test]
+fn a_100_mb_program_of_junk_is_rejected_up_front() {
+    // Issue 7: a huge junk program is rejected, not slurped into the parser.
+    let dir = tempdir();
+    let path = dir.path().join("junk.ngc");
+    {
+        use std::io::Write;
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let line = b"G1 X1.5 Y-2 Z3 (junk junk junk junk junk junk junk junk junk junk junk)\n";
+        for _ in 0..(100 << 20) / line.len() {
+            f.write_all(line).unwrap();
+        }
+    }
+    let ppi = repo("machines/ballscrew-ppi.toml");
+    let o = vcnc_in(
+        dir.path(),
+        &[
+            "interpolate",
+            ppi.to_str().unwrap(),
+            "junk.ngc",
+            "--out",
+            "out",
+        ],
+        &[],
+    );
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("junk.ngc") && err.contains("MiB"), "{err}");
+}
+
+#[test]
 fn base_machine_is_valid() {
     let dir = tempdir();
     std::fs::write(dir.path().join("m.toml"), BASE).unwrap();

@@ -90,8 +90,8 @@ fn table1_drive_with_1um_encoder() {
 }
 
 fn validation_within_two_percent(s: &Value) {
-    let err = num(s, "axes.X.fit.validation.freerun_max_um");
-    let peak = num(s, "axes.X.fit.validation.tracking_peak_um");
+    let err = num(s, "axes.X.fit.freerun_max_um");
+    let peak = num(s, "axes.X.fit.tracking_peak_um");
     eprintln!("validation: free-run max error {err:.3} µm of {peak:.3} µm peak tracking error");
     assert!(err <= 0.02 * peak, "{err} µm of {peak} µm");
     assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
@@ -142,7 +142,7 @@ fn smc_with_exact_estimates_stays_stable() {
     let s = identify(&path, &dir.path().join("out"), &[]);
     assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
     assert_eq!(s["axes"]["X"]["paper_pso"]["stable"], Value::Bool(true));
-    let err = num(&s, "axes.X.fit.validation.freerun_max_um");
+    let err = num(&s, "axes.X.fit.freerun_max_um");
     assert!(err <= 0.6, "{err} µm");
     let ls = &s["axes"]["X"]["unconstrained_ls"];
     assert_eq!(ls["stable"], Value::Bool(routh_hurwitz(ls)), "{ls}");
@@ -171,8 +171,8 @@ fn emps_real_trace() {
     ]);
     eprintln!("{}", ok(&o));
     let s = json(&dir.path().join("summary.json"));
-    let rms = num(&s, "axes.X.fit.estimation.freerun_rms_um");
-    let tracking = num(&s, "axes.X.fit.estimation.tracking_rms_um");
+    let rms = num(&s, "axes.X.fit.freerun_rms_um");
+    let tracking = num(&s, "axes.X.fit.tracking_rms_um");
     assert!(
         (tracking - 578.0).abs() < 5.0,
         "raw tracking error {tracking} µm RMS"
@@ -215,5 +215,23 @@ fn same_seed_same_bits_for_any_thread_count() {
             std::fs::read(b.join(f)).unwrap(),
             "{f} differs"
         );
+    }
+    // SPEC section 9 keys: model objects and fit, µm on linear axes, millidegrees on rotary.
+    let s = json(&a.join("summary.json"));
+    for (axis, unit) in [("X", "um"), ("C", "mdeg")] {
+        for model in ["identified", "paper_pso", "unconstrained_ls", "true"] {
+            for key in [
+                "a1", "a2", "a3", "b0", "b1", "b2", "dc", "p_hz", "wn_hz", "zeta", "stable",
+            ] {
+                assert!(
+                    !s["axes"][axis][model][key].is_null(),
+                    "axes.{axis}.{model}.{key} missing"
+                );
+            }
+        }
+        for key in ["freerun_rms", "freerun_max", "onestep_rms"] {
+            num(&s, &format!("axes.{axis}.fit.{key}_{unit}"));
+        }
+        num(&s, &format!("axes.{axis}.fit.fit_percent"));
     }
 }

@@ -56,10 +56,24 @@ pub fn load_machine(path: &Path) -> Result<Machine> {
     Ok(Machine::load(path)?)
 }
 
+/// Largest program file accepted, bytes. A toolpath this long already asks for more samples
+/// than the interpolator's cap; refusing it up front keeps a huge junk file from costing
+/// seconds and gigabytes in the parser.
+pub const MAX_PROGRAM_BYTES: u64 = 64 << 20;
+
 /// Reads a program file (lossy UTF-8: the parser reports the replacement characters).
 pub fn read_program(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| crate::bad_input(format!("{}: cannot read: {e}", path.display())))?;
+    let cannot =
+        |e: std::io::Error| crate::bad_input(format!("{}: cannot read: {e}", path.display()));
+    let size = std::fs::metadata(path).map_err(cannot)?.len();
+    if size > MAX_PROGRAM_BYTES {
+        return Err(crate::bad_input(format!(
+            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts; split it",
+            path.display(),
+            MAX_PROGRAM_BYTES >> 20
+        )));
+    }
+    let bytes = std::fs::read(path).map_err(cannot)?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
