@@ -14,7 +14,7 @@ use vcnc_machine::{AxisModel, ModelSet, Unit};
 use crate::cli::{IdentifyArgs, TraceUnits};
 use crate::output::{write_atomic, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_line_plot, write_panels};
-use crate::report::{ensure_dir, fit_json, load_machine, model_json, rel_pct, table};
+use crate::report::{ensure_dir, fit_json, load_machine, model_json, rel_pct, scaled_diff, table};
 use crate::{Ctx, bad_input, cmd_sim};
 
 pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
@@ -252,32 +252,10 @@ fn write_validation(
     let k = unit.micro_factor();
     let label = unit.micro_label();
     let t: Vec<f64> = (0..trace.len()).map(|i| i as f64 * trace.ts).collect();
-    let measured: Vec<f64> = trace
-        .xr
-        .iter()
-        .zip(&trace.x)
-        .map(|(r, x)| (r - x) * k)
-        .collect();
-    let predicted: Vec<f64> = trace
-        .xr
-        .iter()
-        .zip(&fit.predicted_x)
-        .map(|(r, x)| (r - x) * k)
-        .collect();
-    let diff: Vec<f64> = trace
-        .x
-        .iter()
-        .zip(&fit.predicted_x)
-        .map(|(x, p)| (p - x) * k)
-        .collect();
-    let paper_diff: Option<Vec<f64>> = paper.map(|f| {
-        trace
-            .x
-            .iter()
-            .zip(&f.predicted_x)
-            .map(|(x, p)| (p - x) * k)
-            .collect()
-    });
+    let measured = scaled_diff(&trace.xr, &trace.x, k);
+    let predicted = scaled_diff(&trace.xr, &fit.predicted_x, k);
+    let diff = scaled_diff(&fit.predicted_x, &trace.x, k);
+    let paper_diff = paper.map(|f| scaled_diff(&f.predicted_x, &trace.x, k));
     let t1 = format!("axis {name}: validation run, tracking error x_r - x [{label}]");
     let t2 = format!("axis {name}: prediction error x_model - x [{label}]");
     let mut s2 = vec![Series {

@@ -14,7 +14,9 @@ use crate::Ctx;
 use crate::cmd_identify::{identification_table, write_identification};
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_coloured_path, write_panels};
-use crate::report::{ensure_dir, load_machine, print_warnings, read_program, rms, table};
+use crate::report::{
+    ensure_dir, load_machine, print_warnings, read_program, rms, scaled_diff, table,
+};
 
 /// Contour summary (SPEC section 9 keys) of a prediction.
 pub fn contour_summary(p: &Prediction) -> Value {
@@ -213,16 +215,8 @@ pub fn write_prediction_plots(
                     a.name,
                     a.unit.micro_label()
                 ),
-                a.pos
-                    .iter()
-                    .zip(&p.true_traces[i].true_position)
-                    .map(|(r, x)| (r - x) * k)
-                    .collect(),
-                a.pos
-                    .iter()
-                    .zip(&p.predicted[i])
-                    .map(|(r, x)| (r - x) * k)
-                    .collect(),
+                scaled_diff(&a.pos, &p.true_traces[i].true_position, k),
+                scaled_diff(&a.pos, &p.predicted[i], k),
             )
         })
         .collect();

@@ -11,7 +11,8 @@ use crate::Ctx;
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_panels};
 use crate::report::{
-    ensure_dir, load_machine, max_abs, model_json, print_warnings, read_program, rms, table,
+    ensure_dir, load_machine, max_abs, model_json, print_warnings, read_program, rms, scaled_diff,
+    table,
 };
 
 /// `vcnc interpolate MACHINE PROGRAM --out DIR`: `reference.csv` and `summary.json`.
@@ -126,12 +127,7 @@ pub fn simulate(
         .enumerate()
     {
         let (label, k) = (a.unit.micro_label(), a.unit.micro_factor());
-        let e: Vec<f64> = a
-            .pos
-            .iter()
-            .zip(&tr.position)
-            .map(|(r, x)| (r - x) * k)
-            .collect();
+        let e = scaled_diff(&a.pos, &tr.position, k);
         let mut obj = json!({
             "unit": a.unit.as_str(),
             format!("tracking_max_{label}"): max_abs(&e),
@@ -147,22 +143,11 @@ pub fn simulate(
         ];
         let mut em = None;
         if let Some(p) = &predicted {
-            let d: Vec<f64> = tr
-                .position
-                .iter()
-                .zip(&p[i])
-                .map(|(x, m)| (m - x) * k)
-                .collect();
+            let d = scaled_diff(&p[i], &tr.position, k);
             obj[format!("model_vs_true_max_{label}")] = json!(max_abs(&d));
             obj[format!("model_vs_true_rms_{label}")] = json!(rms(&d));
             row.push(format!("{:.3} {label}", max_abs(&d)));
-            em = Some(
-                a.pos
-                    .iter()
-                    .zip(&p[i])
-                    .map(|(r, m)| (r - m) * k)
-                    .collect::<Vec<f64>>(),
-            );
+            em = Some(scaled_diff(&a.pos, &p[i], k));
         }
         axes.insert(a.name.to_string(), obj);
         rows.push(row);

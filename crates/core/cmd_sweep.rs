@@ -26,7 +26,7 @@ use vcnc_machine::{Machine, ModelSet};
 use crate::cli::SweepArgs;
 use crate::output::{format_num, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_scatter};
-use crate::report::{ensure_dir, max_abs, read_program, rms};
+use crate::report::{ensure_dir, max_abs, read_program, rms, scaled_diff};
 use crate::{Ctx, bad_input};
 
 /// Keys whose change alters the reference run (interpolation limits, kinematics, dialect).
@@ -145,12 +145,7 @@ fn evaluate(s: &Setup, values: &[f64]) -> Result<(Vec<String>, f64)> {
     let mut cells = Vec::new();
     for (a, tr) in run.axes.iter().zip(&traces) {
         let k = a.unit.micro_factor();
-        let e: Vec<f64> = a
-            .pos
-            .iter()
-            .zip(&tr.position)
-            .map(|(r, x)| (r - x) * k)
-            .collect();
+        let e = scaled_diff(&a.pos, &tr.position, k);
         cells.push(format_num(max_abs(&e)));
         cells.push(format_num(rms(&e)));
     }

@@ -125,6 +125,11 @@ pub fn ensure_dir(dir: &Path) -> Result<()> {
         .with_context(|| format!("cannot create output folder {}", dir.display()))
 }
 
+/// `(a - b) * k` sample by sample: tracking errors `x_r - x` and prediction errors in µm/mdeg.
+pub fn scaled_diff(a: &[f64], b: &[f64], k: f64) -> Vec<f64> {
+    a.iter().zip(b).map(|(a, b)| (a - b) * k).collect()
+}
+
 /// RMS of a slice.
 pub fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {

@@ -542,6 +542,22 @@ impl ClosedLoopModel {
     }
 }
 
+/// The implicit (set-valued) Coulomb friction level over one step, in $[-1, 1]$: given the
+/// friction-free end-of-step velocity `v_free` and the velocity drop `l` that full friction
+/// causes over the step, the axis sticks ($v/l$: the level that stops it exactly) when
+/// $|v_{free}| \le l$, else slides against full friction ($\operatorname{sgn} v_{free}$).
+/// Kikuuwe et al. (2005); 0 when there is no friction ($l \le 0$).
+#[inline]
+pub fn implicit_friction_level(v_free: f64, l: f64) -> f64 {
+    if l <= 0.0 {
+        0.0
+    } else if v_free.abs() <= l {
+        v_free / l
+    } else {
+        v_free.signum()
+    }
+}
+
 /// $\operatorname{sgn}(v)$ with a deadband: 0 when $|v| \le$ `deadband`.
 #[inline]
 pub fn friction_sign(v: f64, deadband: f64) -> f64 {
@@ -599,14 +615,7 @@ impl Discretized {
                     + g1[(i, 2)] * u1[2];
             }
             let f = if opts.sticking {
-                let v_free = next[2];
-                if l <= 0.0 {
-                    0.0
-                } else if v_free.abs() <= l {
-                    v_free / l
-                } else {
-                    v_free.signum()
-                }
+                implicit_friction_level(next[2], l)
             } else {
                 friction_sign(v, opts.friction_deadband)
             };

@@ -210,14 +210,7 @@ impl OutputErrorProblem {
                 yf[i] = pf[i];
             }
             let fk = if sticking {
-                let v_free = vel(&yu, &yv, &ya, &yf);
-                if l <= 0.0 {
-                    0.0
-                } else if v_free.abs() <= l {
-                    v_free / l
-                } else {
-                    v_free.signum()
-                }
+                vcnc_drive::model::implicit_friction_level(vel(&yu, &yv, &ya, &yf), l)
             } else {
                 vcnc_drive::model::friction_sign(v_now, sim.friction_deadband)
             };
