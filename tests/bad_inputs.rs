@@ -605,3 +605,45 @@ fn every_bad_input_exits_2_with_a_message_that_names_it() {
         failures.join("\n")
     );
 }
+
+/// Every machine file the fuzzer found (fuzz/regressions/, see fuzz/README.md) is rejected as
+/// bad input within seconds: absurd magnitudes that made a matrix exponential loop ~2^64 times,
+/// a loop stable in continuous time but unstable at the servo rate, a subnormal encoder step, an
+/// unbounded servo rate, travel and identification sizes that overflow.
+#[test]
+fn fuzz_findings_are_rejected_quickly() {
+    let dir = repo("fuzz/regressions");
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 8, "{files:?}");
+    for f in files {
+        let out = tempdir();
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_vcnc"))
+            .args(["identify", f.to_str().unwrap(), "--quiet", "--out"])
+            .arg(out.path())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if start.elapsed() > std::time::Duration::from_secs(30) {
+                child.kill().ok();
+                panic!("{}: still running after 30 s", f.display());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        };
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        assert_eq!(status.code(), Some(2), "{}: {err}", f.display());
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        assert!(err.contains(&name) && !err.contains("panicked"), "{err}");
+    }
+}

@@ -3,16 +3,25 @@
 
 use std::path::Path;
 
-use vcnc_machine::Machine;
+use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::model::Reference;
+use vcnc_machine::{Axis, Machine};
 
 /// Source name given to the loader; every error's `Display` must contain it.
 pub const SOURCE: &str = "fuzz.toml";
 
 /// Loads `src` as a machine file named [`SOURCE`] (URDF paths resolve in `base_dir`, or in a
 /// folder that does not exist) and checks the outcome:
-/// - an error's `Display` names the file;
-/// - an accepted machine has every axis' closed-loop model finite and (marginally) stable, as
-///   [`Machine`] promises, and its derived options and discretised models build without panic.
+/// - an error's `Display` names the file, and the error is bad input (exit code 2);
+/// - an accepted machine keeps the loader's promises: every axis' closed-loop model is finite
+///   and (marginally) stable;
+/// - an accepted machine is usable: each model discretises at $T_s$ and each drive simulates a
+///   short ramp without panicking or hanging, and when the sampled servo loop is stable the
+///   simulated positions are finite.
+///
+/// The `known_*` guards skip the downstream calls for the findings recorded in `README.md` that
+/// live in crates this harness may not fix, so that fuzzing can go on past them; remove a guard
+/// when its finding is fixed.
 pub fn check_load(src: &str, base_dir: Option<&Path>) {
     let base = base_dir.unwrap_or(Path::new("/nonexistent"));
     match Machine::from_toml_str(src, SOURCE, base) {
@@ -22,6 +31,7 @@ pub fn check_load(src: &str, base_dir: Option<&Path>) {
                 msg.contains(SOURCE),
                 "the error does not name the file: {msg:?} ({e:?})"
             );
+            assert!(e.is_bad_input(), "a loader error must be bad input: {e:?}");
         }
         Ok(m) => {
             for a in &m.axes {
@@ -31,7 +41,10 @@ pub fn check_load(src: &str, base_dir: Option<&Path>) {
                     "axis {} accepted with an unstable or non-finite model {model:?}",
                     a.name
                 );
-                let _ = model.discretize(m.ts);
+                if !known_exp_hang_model(&model, m.ts) {
+                    let _ = model.discretize(m.ts);
+                }
+                simulate_briefly(a, m.ts);
             }
             let _ = m.limits();
             let _ = m.interp_options(true);
@@ -39,6 +52,114 @@ pub fn check_load(src: &str, base_dir: Option<&Path>) {
             let _ = m.kinematics_model();
         }
     }
+}
+
+/// Largest 1-norm of a matrix handed to nalgebra's `Matrix::exp` that this harness lets through.
+/// nalgebra 0.35's `exp` loops for ~2^64 squarings when $\|A\|^{8}$ overflows (1-norm above
+/// about 1.9e38: `(eta_5 / theta_13).log2().ceil() as u64` saturates to `u64::MAX`); finding 1
+/// of `README.md`.
+pub const EXP_NORM_GUARD: f64 = 1e30;
+
+/// Finding 1 (vcnc-drive `ClosedLoopModel::discretize`): the augmented matrix holds
+/// $a_i T_s$, $b_i T_s$, $d_c T_s$.
+fn known_exp_hang_model(model: &ClosedLoopModel, ts: f64) -> bool {
+    let ClosedLoopModel {
+        a1,
+        a2,
+        a3,
+        b0,
+        b1,
+        b2,
+        dc,
+    } = *model;
+    [a1, a2, a3, b0, b1, b2, dc]
+        .iter()
+        .any(|v| v.abs() * ts > EXP_NORM_GUARD / 8.0)
+}
+
+/// Most servo ticks the brief simulation may take (finding 3: the servo rate has no upper
+/// bound, so a simulation's cost has none either).
+const TICK_BUDGET: f64 = 200_000.0;
+
+/// Simulates `a`'s drive through a 20-sample ramp at 10 units/s.
+fn simulate_briefly(a: &Axis, ts: f64) {
+    let drive = &a.drive;
+    let plant = drive.plant();
+    let h = 1.0 / drive.servo_rate_hz();
+    let samples = 20usize;
+    // Finding 1 again (vcnc-drive `PlantStep::new`: exp of a matrix holding B/J·h).
+    if plant.b_over_j().abs() * h > EXP_NORM_GUARD / 8.0 || !(h > 0.0) {
+        return;
+    }
+    // Finding 3.
+    if drive.servo_rate_hz() * ts * samples as f64 > TICK_BUDGET {
+        return;
+    }
+    let pos: Vec<f64> = (0..samples)
+        .map(|k| a.identification_centre + 10.0 * ts * k as f64)
+        .collect();
+    let vel = vec![10.0; samples];
+    let acc = vec![0.0; samples];
+    let reference = Reference {
+        pos: &pos,
+        vel: &vel,
+        acc: &acc,
+    };
+    let Ok(trace) = drive.simulate(reference, ts) else {
+        return;
+    };
+    // Finding 2: a loop that is stable in continuous time but unstable as sampled at the servo
+    // rate is accepted and simulates to inf/NaN. Only sampled-stable loops must stay finite.
+    let sampled_stable = matches!(
+        drive.effective_poles(),
+        Ok((poles, _)) if poles.iter().all(|p| p.re < 0.0)
+    ) && drive.sampled_transition_matrix().is_ok_and(|m| {
+        // Every entry of M^4096 bounded: a cheap stand-in for "spectral radius ≤ 1" that also
+        // covers the two parasitic modes `effective_poles` leaves out.
+        let mut p = m;
+        (0..12).all(|_| {
+            p = p * p;
+            p.iter().all(|v| v.is_finite() && v.abs() <= 1e6)
+        })
+    });
+    // Finding 2 (continued): absurd but finite parameters (a subnormal encoder resolution, whose
+    // 1/q is infinite; feed-forward or friction near f64::MAX) are accepted and overflow to
+    // inf/NaN. Only drives whose every parameter is of sane magnitude must stay finite.
+    if sampled_stable && sane_magnitudes(drive) {
+        assert!(
+            trace.position.iter().all(|v| v.is_finite()),
+            "axis {}: sampled-stable drive simulated to non-finite positions {:?}",
+            a.name,
+            trace.position
+        );
+    }
+}
+
+/// Every number of the drive (plant, resolved gains, encoder, servo rate) is 0 or has a
+/// magnitude in [1e-100, 1e100].
+fn sane_magnitudes(drive: &vcnc_drive::Drive) -> bool {
+    use vcnc_drive::Controller;
+    let p = drive.plant();
+    let e = drive.encoder();
+    let mut v = vec![
+        p.j,
+        p.b,
+        p.ka,
+        p.kt,
+        p.rg,
+        p.coulomb_torque,
+        p.u_max.unwrap_or(1.0),
+        e.resolution,
+        e.noise_std,
+        drive.servo_rate_hz(),
+    ];
+    match drive.controller() {
+        Controller::PPi(g) => v.extend([g.kv, g.kp, g.ki, g.vff, g.bff, g.jff]),
+        Controller::Pid(g) => v.extend([g.kp, g.ki, g.kd, g.jff, g.bff]),
+        Controller::Smc(g) => v.extend([g.lambda, g.ks, g.rho, g.je_hat, g.be_hat]),
+    }
+    v.iter()
+        .all(|x| *x == 0.0 || (1e-100..=1e100).contains(&x.abs()))
 }
 
 /// The shipped machine files the mutator starts from, with whether they need the real
@@ -397,6 +518,31 @@ mod tests {
         assert_eq!(ks, ["axes", "X", "unit", "travel", "plant", "j"]);
         let ss: Vec<&str> = strings(src).iter().map(|&(s, e)| &src[s..e]).collect();
         assert_eq!(ss, ["mm"]);
+    }
+
+    /// Replays the readable repro files of `regressions/` (see `README.md`, findings): no panic
+    /// and no hang (the harness guards skip what is still unfixed in other crates), and the two
+    /// fixed generator findings now give errors instead of a panic or an unbounded allocation.
+    #[test]
+    fn regressions_replay() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/regressions");
+        let mut seen = 0;
+        for entry in std::fs::read_dir(dir).expect("fuzz/regressions exists") {
+            let path = entry.expect("readable entry").path();
+            let src = std::fs::read_to_string(&path).expect("readable file");
+            check_load(&src, None);
+            seen += 1;
+            let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+            if name.as_deref().is_some_and(|n| n.starts_with("4-") || n.starts_with("5-")) {
+                if let Ok(m) = Machine::from_toml_str(&src, SOURCE, Path::new("/nonexistent")) {
+                    let e = vcnc_machine::pipeline::excitation_run(&m, 'X', 1)
+                        .expect_err("the generator refuses these settings");
+                    let msg = e.to_string();
+                    assert!(msg.contains("identification.program"), "{msg}");
+                }
+            }
+        }
+        assert_eq!(seen, 8, "regression files");
     }
 
     #[test]

@@ -178,6 +178,31 @@ pub enum Error {
         /// Logging period, s.
         ts: f64,
     },
+    /// A matrix exponential would be asked for an absurdly stiff system (nalgebra's scaling and
+    /// squaring loops practically forever above a 1-norm of about 1e38).
+    #[error(
+        "the dynamics are too stiff to discretise: |A·T|₁ = {norm:e} exceeds {limit:e}; check the \
+         magnitudes of the plant, gains and model coefficients"
+    )]
+    TooStiff {
+        /// 1-norm of the matrix whose exponential was needed.
+        norm: f64,
+        /// The largest accepted.
+        limit: f64,
+    },
+    /// The continuous closed loop is stable but the sampled one (controller at the servo rate)
+    /// is not.
+    #[error(
+        "the closed loop is stable in continuous time but unstable when the controller runs at \
+         {servo_rate_hz} Hz: sampled spectral radius {radius:.6} > 1; raise servo_rate_hz or \
+         lower the gains"
+    )]
+    SampledUnstable {
+        /// Servo rate, Hz.
+        servo_rate_hz: f64,
+        /// Largest |eigenvalue| of the sampled loop's transition matrix.
+        radius: f64,
+    },
     /// No preset for this axis name.
     #[error("no NMV5000 design for axis {axis:?}: expected one of X, Y, Z, A, C")]
     UnknownAxis {

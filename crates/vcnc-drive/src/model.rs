@@ -447,6 +447,7 @@ impl ClosedLoopModel {
         for i in 0..3 {
             m[(3 + i, 7 + i)] = ts;
         }
+        check_exp_norm(&m)?;
         let e = m.exp();
         let phi = e.fixed_view::<3, 3>(0, 0).into_owned();
         let gamma0 = e.fixed_view::<3, 4>(0, 3).into_owned();
@@ -540,6 +541,26 @@ impl ClosedLoopModel {
             out[k + 1] = z[1] + x0;
         }
     }
+}
+
+/// Largest 1-norm of a matrix whose exponential vcnc computes. Physical models at their sample
+/// periods stay far below (the NMV5000's $a_3 T_s$ is 3e4); nalgebra 0.35's `Matrix::exp` spends
+/// about $\log_2$ of the norm in squarings and saturates to ~2^64 of them above ~1e38.
+pub const MAX_EXP_NORM: f64 = 1e15;
+
+/// Refuses ([`Error::TooStiff`]) a matrix whose exponential must not be computed: $\|M\|_1$
+/// not finite or above [`MAX_EXP_NORM`]. Call it before every `Matrix::exp`.
+pub fn check_exp_norm<const N: usize>(m: &SMatrix<f64, N, N>) -> Result<(), Error> {
+    let norm = (0..N)
+        .map(|j| m.column(j).iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max);
+    if !(norm.is_finite() && norm <= MAX_EXP_NORM) {
+        return Err(Error::TooStiff {
+            norm,
+            limit: MAX_EXP_NORM,
+        });
+    }
+    Ok(())
 }
 
 /// The implicit (set-valued) Coulomb friction level over one step, in $[-1, 1]$: given the

@@ -54,6 +54,16 @@ impl Plant {
         positive("plant.kt", self.kt)?;
         positive("plant.rg", self.rg)?;
         non_negative("plant.coulomb_torque", self.coulomb_torque)?;
+        for (name, v) in [
+            ("plant.j", self.j),
+            ("plant.b", self.b),
+            ("plant.ka", self.ka),
+            ("plant.kt", self.kt),
+            ("plant.rg", self.rg),
+            ("plant.coulomb_torque", self.coulomb_torque),
+        ] {
+            sane(name, v)?;
+        }
         if let Some(u) = self.u_max {
             positive("plant.u_max", u)?;
         }
@@ -285,6 +295,34 @@ impl Controller {
     /// Every gain finite, and the P-PI position gain positive (with $K_v \le 0$ nothing closes
     /// the position loop, whatever the velocity loop does).
     pub fn validate_gains(&self) -> Result<(), Error> {
+        let gains: &[(&'static str, f64)] = match self {
+            Controller::PPi(g) => &[
+                ("controller.kv", g.kv),
+                ("controller.kp", g.kp),
+                ("controller.ki", g.ki),
+                ("controller.vff", g.vff),
+                ("controller.bff", g.bff),
+                ("controller.jff", g.jff),
+            ],
+            Controller::Pid(g) => &[
+                ("controller.kp", g.kp),
+                ("controller.ki", g.ki),
+                ("controller.kd", g.kd),
+                ("controller.jff", g.jff),
+                ("controller.bff", g.bff),
+            ],
+            Controller::Smc(g) => &[
+                ("controller.lambda", g.lambda),
+                ("controller.ks", g.ks),
+                ("controller.rho", g.rho),
+                ("controller.je_hat", g.je_hat),
+                ("controller.be_hat", g.be_hat),
+            ],
+        };
+        for (name, v) in gains {
+            finite(name, *v)?;
+            sane(name, *v)?;
+        }
         match self {
             Controller::PPi(g) => {
                 positive("controller.kv", g.kv)?;
@@ -581,7 +619,9 @@ impl Encoder {
     /// Resolution and noise non-negative and finite.
     pub fn validate(&self) -> Result<(), Error> {
         non_negative("encoder.resolution", self.resolution)?;
-        non_negative("encoder.noise_std", self.noise_std)
+        non_negative("encoder.noise_std", self.noise_std)?;
+        sane("encoder.resolution", self.resolution)?;
+        sane("encoder.noise_std", self.noise_std)
     }
 }
 
@@ -658,6 +698,13 @@ impl Drive {
         encoder.validate()?;
         positive("servo_rate_hz", servo_rate_hz)?;
         controller.validate_gains()?;
+        if servo_rate_hz > MAX_SERVO_RATE_HZ {
+            return Err(Error::BadParameter {
+                name: "servo_rate_hz",
+                value: servo_rate_hz,
+                expected: "at most 1 MHz",
+            });
+        }
         let model = controller.closed_loop_model(&plant);
         if !model.is_finite() {
             return Err(Error::NonFiniteModel);
@@ -668,13 +715,39 @@ impl Drive {
                 poles: model.poles(),
             });
         }
-        Ok(Drive {
+        let drive = Drive {
             plant,
             controller,
             encoder,
             servo_rate_hz,
             model,
-        })
+        };
+        drive.check_sampled_stability()?;
+        Ok(drive)
+    }
+
+    /// Rejects a loop that is stable in continuous time but not as sampled at the servo rate
+    /// (too much gain for the servo period): the spectral radius of
+    /// [`Drive::sampled_transition_matrix`] must not exceed 1 (a drive without integral action
+    /// keeps its pole at $z = 1$).
+    fn check_sampled_stability(&self) -> Result<(), Error> {
+        let m = self.sampled_transition_matrix()?;
+        if !m.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteModel);
+        }
+        let radius = m
+            .try_schur(1e-15, 10_000)
+            .ok_or(Error::NonFiniteModel)?
+            .complex_eigenvalues()
+            .iter()
+            .fold(0.0f64, |r, z| r.max(z.norm()));
+        if radius > 1.0 + 1e-9 {
+            return Err(Error::SampledUnstable {
+                servo_rate_hz: self.servo_rate_hz,
+                radius,
+            });
+        }
+        Ok(())
     }
 
     /// The plant.
@@ -724,9 +797,31 @@ impl Drive {
     /// The same drive at another servo rate, Hz.
     pub fn with_servo_rate_hz(&self, servo_rate_hz: f64) -> Result<Drive, Error> {
         positive("servo_rate_hz", servo_rate_hz)?;
-        Ok(Drive {
+        Drive::new(
+            self.plant.clone(),
+            self.controller,
+            self.encoder.clone(),
             servo_rate_hz,
-            ..self.clone()
+        )
+    }
+}
+
+/// Highest servo rate accepted, Hz (the simulation's cost grows with it).
+pub const MAX_SERVO_RATE_HZ: f64 = 1.0e6;
+
+/// Magnitudes outside this range are typos, not machines (and overflow the simulation: a
+/// subnormal encoder step has an infinite reciprocal).
+const SANE: std::ops::RangeInclusive<f64> = 1e-12..=1e12;
+
+/// 0, or a magnitude in [`SANE`].
+fn sane(name: &'static str, v: f64) -> Result<(), Error> {
+    if v == 0.0 || SANE.contains(&v.abs()) {
+        Ok(())
+    } else {
+        Err(Error::BadParameter {
+            name,
+            value: v,
+            expected: "0 or of magnitude between 1e-12 and 1e12",
         })
     }
 }

@@ -264,6 +264,7 @@ impl PlantStep {
             0.0, -beta * h, h,
             0.0, 0.0, 0.0,
         );
+        crate::model::check_exp_norm(&m)?;
         let e = m.exp();
         let (decay, phi1, phi2) = (e[(1, 1)], e[(0, 1)], e[(0, 2)]);
         let c = plant.ka_kt() * plant.rg / plant.j;

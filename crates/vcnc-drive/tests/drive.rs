@@ -725,3 +725,70 @@ fn model_with_sticking_follows_the_true_drive_through_friction_events() {
         "sticking {e_stick} µm vs explicit {e_explicit} µm"
     );
 }
+
+#[test]
+fn loop_stable_only_in_continuous_time_is_rejected() {
+    // Fuzz finding (fuzz/regressions/2-sampled-unstable-kp.toml): a velocity-loop gain so high
+    // that the continuous closed loop is stable but the loop sampled at 20 kHz is not. Truth:
+    // the spectral radius of the sampled loop's transition matrix, computed at 200 kHz too,
+    // where the same gains are stable again.
+    let mut params = vcnc_drive::table1_drive();
+    params.controller = ControllerSpec::PPi {
+        kv: Some(70.0),
+        kp: Some(2.342478e3),
+        ki: Some(223.252126),
+        design: None,
+        vff: 0.5,
+        bff: 0.1,
+        jff: 0.0,
+    };
+    assert!(
+        params
+            .controller
+            .resolve(&params.plant)
+            .unwrap()
+            .closed_loop_model(&params.plant)
+            .is_stable()
+    );
+    match params.validate() {
+        Err(vcnc_drive::Error::SampledUnstable {
+            servo_rate_hz,
+            radius,
+        }) => {
+            assert_eq!(servo_rate_hz, 20_000.0);
+            assert!(radius > 1.0);
+        }
+        other => panic!("expected SampledUnstable, got {other:?}"),
+    }
+    params.servo_rate_hz = 200_000.0;
+    assert!(params.validate().is_ok());
+}
+
+#[test]
+fn absurdly_stiff_models_are_refused_instead_of_hanging() {
+    // Fuzz finding 1: nalgebra's Matrix::exp loops ~2^64 times above a 1-norm of ~1.9e38.
+    let mut m = vcnc_drive::table1_drive().closed_loop_model().unwrap();
+    m.a1 = 1.3e68;
+    assert!(matches!(
+        m.discretize(1e-3),
+        Err(vcnc_drive::Error::TooStiff { .. })
+    ));
+    let mut p = vcnc_drive::table1_drive();
+    p.plant.b = 1.3e69;
+    assert!(matches!(
+        p.validate(),
+        Err(vcnc_drive::Error::BadParameter {
+            name: "plant.b",
+            ..
+        })
+    ));
+    p.plant.b = 0.0418572;
+    p.encoder.resolution = 1e-310;
+    assert!(matches!(
+        p.validate(),
+        Err(vcnc_drive::Error::BadParameter {
+            name: "encoder.resolution",
+            ..
+        })
+    ));
+}

@@ -63,6 +63,11 @@ impl Default for IdentificationOptions {
     }
 }
 
+/// Most moves [`identification`] writes. The paper uses 70; a million moves is already about
+/// 40 MB of G-code and hours of motion, so a larger count is a typo, and refusing it keeps the
+/// generator's memory bounded (issue 7).
+pub const MAX_IDENTIFICATION_MOVES: usize = 1_000_000;
+
 fn check(ok: bool, name: &'static str, value: f64, expected: &'static str) -> Result<(), Error> {
     if ok {
         Ok(())
@@ -100,12 +105,18 @@ pub fn identification(axis: char, opts: &IdentificationOptions) -> Result<String
         return Err(Error::UnknownAxis { name: axis });
     }
     let o = opts;
-    check(o.moves >= 1, "moves", o.moves as f64, "at least 1")?;
     check(
-        o.range.is_finite() && o.range > 0.0,
+        (1..=MAX_IDENTIFICATION_MOVES).contains(&o.moves),
+        "moves",
+        o.moves as f64,
+        "1 to 1 000 000 moves",
+    )?;
+    // Long strokes are drawn from [long_min, 2R]: 2R must be finite too.
+    check(
+        o.range > 0.0 && (2.0 * o.range).is_finite(),
         "range",
         o.range,
-        "a positive length",
+        "a positive length ≤ f64::MAX / 2",
     )?;
     check(
         o.max_feed.is_finite() && o.max_feed > 0.0,

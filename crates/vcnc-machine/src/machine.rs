@@ -174,20 +174,27 @@ impl Machine {
                 ));
             }
             let [lo, hi] = a.travel;
-            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            if !(lo.is_finite()
+                && hi.is_finite()
+                && lo < hi
+                && lo.abs() <= LIMIT
+                && hi.abs() <= LIMIT)
+            {
                 return Err(invalid(
                     &k("travel"),
-                    format!("travel must be [lower, upper] with lower < upper, got [{lo}, {hi}]"),
+                    format!(
+                        "travel must be [lower, upper] with lower < upper, both within ±{LIMIT:e}, got [{lo:e}, {hi:e}]"
+                    ),
                 ));
             }
             for (field, v) in [
                 ("max_velocity", a.max_velocity),
                 ("max_acceleration", a.max_acceleration),
             ] {
-                if !(v.is_finite() && v > 0.0) {
+                if !positive(v) || v > LIMIT {
                     return Err(invalid(
                         &k(field),
-                        format!("{field} must be positive, got {v}"),
+                        format!("{field} must be positive and at most {LIMIT:e}, got {v:e}"),
                     ));
                 }
             }
@@ -216,7 +223,7 @@ impl Machine {
                 .identification_range
                 .unwrap_or(file.identification.program.range);
             let centre = a.identification_centre.unwrap_or(0.0);
-            if !positive(range) || !centre.is_finite() {
+            if !positive(range) || range > LIMIT || !centre.is_finite() {
                 return Err(invalid(
                     &k("identification_range"),
                     format!("identification range must be positive, got {range}"),
@@ -270,12 +277,15 @@ impl Machine {
                 format!("max_acceleration must be positive, got {acc}"),
             ));
         }
-        if p.moves < 10 || !positive(p.max_feed) || !positive(p.min_feed) || p.min_feed > p.max_feed
+        if !(10..=100_000).contains(&p.moves)
+            || !positive(p.max_feed)
+            || !positive(p.min_feed)
+            || p.min_feed > p.max_feed
         {
             return Err(invalid(
                 "identification.program",
                 format!(
-                    "the identification program needs at least 10 moves and 0 < min_feed <= max_feed (got {} moves, feeds {} ..= {})",
+                    "the identification program needs 10 to 100 000 moves and 0 < min_feed <= max_feed (got {} moves, feeds {} ..= {})",
                     p.moves, p.min_feed, p.max_feed
                 ),
             ));
@@ -439,6 +449,9 @@ impl Machine {
         })
     }
 }
+
+/// Largest magnitude accepted for travels and limits, axis units (C turns a million degrees).
+const LIMIT: f64 = 1e9;
 
 /// Finite and strictly positive.
 fn positive(v: f64) -> bool {
