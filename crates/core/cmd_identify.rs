@@ -258,11 +258,8 @@ fn write_validation(
     let paper_diff = paper.map(|f| scaled_diff(&f.predicted_x, &trace.x, k));
     let t1 = format!("axis {name}: validation run, tracking error x_r - x [{label}]");
     let t2 = format!("axis {name}: prediction error x_model - x [{label}]");
-    let mut s2 = vec![Series {
-        name: "identified (refined)".into(),
-        x: &t,
-        y: &diff,
-    }];
+    // The paper's model first, so the refined one is drawn on top of it.
+    let mut s2 = Vec::new();
     if let Some(p) = &paper_diff {
         s2.push(Series {
             name: "paper PSO".into(),
@@ -270,6 +267,11 @@ fn write_validation(
             y: p,
         });
     }
+    s2.push(Series {
+        name: "identified (refined)".into(),
+        x: &t,
+        y: &diff,
+    });
     write_panels(
         &out.join(format!("validation_{name}.svg")),
         &[

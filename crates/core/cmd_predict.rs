@@ -130,11 +130,8 @@ pub fn write_prediction_plots(
             .map(|(a, b)| (b - a).abs() * 1000.0)
             .collect::<Vec<f64>>()
     });
-    let mut disc = vec![Series {
-        name: "identified (refined)".into(),
-        x: &t,
-        y: &d_tip,
-    }];
+    // The comparison model first, so the refined one is drawn on top of it.
+    let mut disc = Vec::new();
     if let (Some((name, _)), Some(d)) = (extra, &d_extra) {
         disc.push(Series {
             name: name.to_string(),
@@ -142,6 +139,11 @@ pub fn write_prediction_plots(
             y: d,
         });
     }
+    disc.push(Series {
+        name: "identified (refined)".into(),
+        x: &t,
+        y: &d_tip,
+    });
     write_panels(
         &out.join("contour_error.svg"),
         &[

@@ -210,9 +210,23 @@ fn draw_lines(area: &DrawingArea<SVGBackend, Shift>, plot: &LinePlot) -> Result<
                 .map_err(plot_err)?;
         }
         Scale::Log10 => {
-            let lo = x0.max(1e-9);
+            // No linear padding on a log axis: the data's own positive extent.
+            let xs = || {
+                curves
+                    .iter()
+                    .flatten()
+                    .map(|p| p.0)
+                    .filter(|x| *x > 0.0 && x.is_finite())
+            };
+            let lo = xs().fold(f64::INFINITY, f64::min);
+            let hi = xs().fold(0.0f64, f64::max);
+            let (lo, hi) = if lo < hi {
+                (lo, hi)
+            } else {
+                (x0.max(1e-9), x1.max(1e-9) * 10.0)
+            };
             let mut chart = builder
-                .build_cartesian_2d((lo..x1).log_scale(), y0..y1)
+                .build_cartesian_2d((lo..hi).log_scale(), y0..y1)
                 .map_err(plot_err)?;
             chart
                 .configure_mesh()
