@@ -25,7 +25,10 @@ fn main() {
     let (base, needs_dir) = BASES[usize::from(pick) % BASES.len()];
     let src = mutate(base, rest);
     println!("{src}");
-    eprintln!("--- base file #{}; loading as {SOURCE} ...", usize::from(pick) % BASES.len());
+    eprintln!(
+        "--- base file #{}; loading as {SOURCE} ...",
+        usize::from(pick) % BASES.len()
+    );
     let dir = if needs_dir {
         machines_dir().to_path_buf()
     } else {

@@ -55,7 +55,10 @@ fn machine_limits() -> Limits {
 
 fn check_trajectory(t: &Trajectory) {
     let n = t.len();
-    assert!(n <= MAX_SAMPLES, "{n} samples exceed the budget {MAX_SAMPLES}");
+    assert!(
+        n <= MAX_SAMPLES,
+        "{n} samples exceed the budget {MAX_SAMPLES}"
+    );
     assert_eq!(t.tcp.len(), n, "TCP flags vs samples");
     for a in &t.axes {
         assert_eq!(a.pos.len(), n, "axis {} positions", a.name);
