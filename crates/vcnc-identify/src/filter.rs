@@ -72,37 +72,48 @@ impl Butterworth2 {
             .chain(out.iter().map(|s| s.len()))
             .min()
             .unwrap_or(0);
-        if n == 0 {
-            return;
+        for m in 0..M {
+            out[m][..n].copy_from_slice(&x[m][..n]);
         }
+        self.filtfilt_many_in_place(out.map(|o| &mut o[..n]));
+    }
+
+    /// [`Butterworth2::filtfilt_many`] overwriting its inputs (no output buffers to allocate,
+    /// which for long traces saves the page faults of fresh memory). Signals are truncated to
+    /// the shortest length.
+    #[allow(clippy::needless_range_loop)] // sample k of every signal m, interleaved
+    pub fn filtfilt_many_in_place<const M: usize>(&self, sig: [&mut [f64]; M]) {
+        let n = sig.iter().map(|s| s.len()).min().unwrap_or(0);
         if n < 2 {
-            for m in 0..M {
-                out[m][0] = x[m][0];
-            }
             return;
         }
         let pad = self.pad.min(n - 1);
+        // The right padding reflects the last `pad + 1` inputs, which the forward pass
+        // overwrites: keep them (reversed, so that `right[m][i]` is the input `n - 1 - i`).
+        let right: [Vec<f64>; M] =
+            std::array::from_fn(|m| sig[m][n - 1 - pad..n].iter().rev().copied().collect());
         // Forward pass over [left pad, signal, right pad].
-        let mut st: [[f64; 2]; M] = std::array::from_fn(|m| self.steady(2.0 * x[m][0] - x[m][pad]));
+        let mut st: [[f64; 4]; M] =
+            std::array::from_fn(|m| self.steady(2.0 * sig[m][0] - sig[m][pad]));
         for i in (1..=pad).rev() {
             for m in 0..M {
-                self.step(&mut st[m], 2.0 * x[m][0] - x[m][i]);
+                self.step(&mut st[m], 2.0 * sig[m][0] - sig[m][i]);
             }
         }
         for k in 0..n {
             for m in 0..M {
-                out[m][k] = self.step(&mut st[m], x[m][k]);
+                sig[m][k] = self.step(&mut st[m], sig[m][k]);
             }
         }
         let mut tail = vec![[0.0; M]; pad];
         for (i, t) in tail.iter_mut().enumerate() {
             for m in 0..M {
-                t[m] = self.step(&mut st[m], 2.0 * x[m][n - 1] - x[m][n - 2 - i]);
+                t[m] = self.step(&mut st[m], 2.0 * right[m][0] - right[m][i + 1]);
             }
         }
         // Backward pass from the end of the right pad.
-        let mut st: [[f64; 2]; M] =
-            std::array::from_fn(|m| self.steady(tail.last().map_or(out[m][n - 1], |t| t[m])));
+        let mut st: [[f64; 4]; M] =
+            std::array::from_fn(|m| self.steady(tail.last().map_or(sig[m][n - 1], |t| t[m])));
         for t in tail.iter().rev() {
             for m in 0..M {
                 self.step(&mut st[m], t[m]);
@@ -110,23 +121,27 @@ impl Butterworth2 {
         }
         for k in (0..n).rev() {
             for m in 0..M {
-                out[m][k] = self.step(&mut st[m], out[m][k]);
+                sig[m][k] = self.step(&mut st[m], sig[m][k]);
             }
         }
     }
 
-    /// Direct form II transposed step; returns the output.
+    /// Direct form I step (state: the last two inputs, then the last two outputs); returns
+    /// the output. Everything but $-a_1 y_{k-1}$ is known a step early, so the recursion's
+    /// critical path is one multiply and one subtraction (two thirds of direct form II
+    /// transposed, whose chain also runs through the state update).
     #[inline(always)]
-    fn step(&self, st: &mut [f64; 2], u: f64) -> f64 {
-        let y = self.b0 * u + st[0];
-        st[0] = self.b1 * u - self.a1 * y + st[1];
-        st[1] = self.b2 * u - self.a2 * y;
+    fn step(&self, st: &mut [f64; 4], u: f64) -> f64 {
+        let [u1, u2, y1, y2] = *st;
+        let early = self.b0 * u + self.b1 * u1 + self.b2 * u2 - self.a2 * y2;
+        let y = early - self.a1 * y1;
+        *st = [u, u1, y, y1];
         y
     }
 
-    /// State for a constant input `c` held forever (unit DC gain).
-    fn steady(&self, c: f64) -> [f64; 2] {
-        [(1.0 - self.b0) * c, (self.b2 - self.a2) * c]
+    /// State for a constant input `c` held forever (unit DC gain: the output is `c` too).
+    fn steady(&self, c: f64) -> [f64; 4] {
+        [c; 4]
     }
 
     /// Power gain $|H(e^{j\omega T_s})|^2$ of the zero-phase (forward-backward) filter at `f_hz`.

@@ -191,20 +191,32 @@ impl Default for PoleBounds {
     }
 }
 
+/// Largest pole-frequency bound accepted (Hz): a million times the bandwidth of a feed drive.
+pub const MAX_POLE_HZ: f64 = 1e6;
+/// Largest damping-ratio bound accepted.
+pub const MAX_ZETA: f64 = 100.0;
+
 impl PoleBounds {
-    /// Checks order, finiteness and the stability-preserving lower limits.
+    /// Checks order, finiteness, the stability-preserving lower limits and the upper limits
+    /// ([`MAX_POLE_HZ`], [`MAX_ZETA`]) beyond which a servo loop sampled at a few kHz means
+    /// nothing and the discretisation would overflow.
     pub fn validate(&self) -> Result<(), Error> {
         let check = |name: &'static str, [lo, hi]: [f64; 2], strict: bool| {
             let lower_ok = if strict { lo > 0.0 } else { lo >= 0.0 };
-            if !(lo.is_finite() && hi.is_finite() && lower_ok && hi > lo) {
+            let cap = if name == "bounds.zeta" {
+                MAX_ZETA
+            } else {
+                MAX_POLE_HZ
+            };
+            if !(lo.is_finite() && hi.is_finite() && lower_ok && hi > lo && hi <= cap) {
                 return Err(Error::InvalidBounds {
                     name,
                     min: lo,
                     max: hi,
-                    expected: if strict {
-                        "finite bounds with 0 < min < max"
-                    } else {
-                        "finite bounds with 0 <= min < max"
+                    expected: match (strict, name == "bounds.zeta") {
+                        (true, true) => "finite bounds with 0 < min < max <= 100",
+                        (true, false) => "finite bounds with 0 < min < max <= 1e6 Hz",
+                        _ => "finite bounds with 0 <= min < max <= 1e6 Hz",
                     },
                 });
             }

@@ -298,6 +298,9 @@ fn discretize(poles: &Poles, ts: f64) -> Option<Disc> {
     m[(2, 2)] = -a1 * ts;
     m[(2, 3)] = ts / (om * om);
     m[(3, 4)] = ts;
+    // nalgebra's `exp` does not return for a huge norm (see `check_exp_norm`); a candidate
+    // that stiff is simply not a usable model.
+    vcnc_drive::model::check_exp_norm(&m).ok()?;
     let e = m.exp();
     let phi = e.fixed_view::<3, 3>(0, 0).into_owned();
     let g0 = e.fixed_view::<3, 1>(0, 3).into_owned();

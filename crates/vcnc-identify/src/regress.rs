@@ -136,8 +136,6 @@ pub struct Regressors {
     pub(crate) xrf: Vec<f64>,
     /// Filtered sign $L\,\mathrm{sgn}(\dot x)$.
     pub(crate) sf: Vec<f64>,
-    /// $E_k$: trapezoidal integral of the filtered $x_r - x$ from the first sample, axis units·s.
-    pub(crate) ei: Vec<f64>,
     /// Rows used: `first..last`.
     pub(crate) first: usize,
     pub(crate) last: usize,
@@ -181,28 +179,16 @@ impl Regressors {
                 *sg = vcnc_drive::model::friction_sign((xp - trace.x[km]) * inv, opts.deadband);
             }
         }
-        let (xf, xrf, sf) = match &filter {
-            Some(f) => {
-                let (mut a, mut b, mut c) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-                f.filtfilt_many([&xf, &xrf, &sgn], [&mut a, &mut b, &mut c]);
-                (a, b, c)
-            }
-            None => (xf, xrf, sgn),
-        };
+        let (mut xf, mut xrf, mut sf) = (xf, xrf, sgn);
+        if let Some(f) = &filter {
+            f.filtfilt_many_in_place([&mut xf, &mut xrf, &mut sf]);
+        }
         let margin = filter.map_or(2, |f| f.pad / 2 + 2);
         if n < 2 * margin + crate::trace::MIN_SAMPLES / 2 {
             return Err(Error::TooFewSamples {
                 got: n,
                 needed: 2 * margin + crate::trace::MIN_SAMPLES / 2,
             });
-        }
-        // E by the trapezoidal rule (SPEC section 4; the paper's rectangle sum biases p by +4 %).
-        let mut ei = vec![0.0; n];
-        let h2 = 0.5 * ts;
-        let mut acc = 0.0;
-        for k in 1..n {
-            acc += h2 * ((xrf[k - 1] - xf[k - 1]) + (xrf[k] - xf[k]));
-            ei[k] = acc;
         }
         let r = Regressors {
             ts,
@@ -213,7 +199,6 @@ impl Regressors {
             xf,
             xrf,
             sf,
-            ei,
             first: margin,
             last: n - margin,
             gram: [[0.0; NC]; NC],
@@ -253,16 +238,27 @@ impl Regressors {
 
     /// [`Regressors::for_each_row`] over the rows `lo..hi` (clamped to the used rows).
     fn for_each_row_in(&self, lo: usize, hi: usize, mut f: impl FnMut(&[f64; NC])) {
-        let (xf, xrf, sf, ei) = (&self.xf[..], &self.xrf[..], &self.sf[..], &self.ei[..]);
-        let n = xf.len().min(xrf.len()).min(sf.len()).min(ei.len());
+        let (xf, xrf, sf) = (&self.xf[..], &self.xrf[..], &self.sf[..]);
+        let n = xf.len().min(xrf.len()).min(sf.len());
         let (inv2, inv_sq) = (0.5 / self.ts, 1.0 / (self.ts * self.ts));
         let lo = lo.max(self.first).max(1);
         let hi = hi.min(self.last).min(n.saturating_sub(1));
+        // E_k, the trapezoidal integral of the filtered x_r - x from the first sample (SPEC
+        // section 4; the paper's rectangle sum biases p by +4 %), accumulated as the rows go
+        // (not stored: one array less to allocate and fill); the same additions in the same
+        // order for any `lo`.
+        let h2 = 0.5 * self.ts;
+        let step = |k: usize| h2 * ((xrf[k - 1] - xf[k - 1]) + (xrf[k] - xf[k]));
+        let mut e = 0.0;
+        for k in 1..lo.min(n) {
+            e += step(k);
+        }
         for k in lo..hi {
+            e += step(k);
             let (xm, xk, xp) = (xf[k - 1], xf[k], xf[k + 1]);
             let (rm, rk, rp) = (xrf[k - 1], xrf[k], xrf[k + 1]);
             f(&[
-                ei[k],
+                e,
                 -(xp - xm) * inv2,
                 -(xp - 2.0 * xk + xm) * inv_sq,
                 rk,
@@ -276,49 +272,88 @@ impl Regressors {
     }
 
     /// Upper triangle of the Gram matrix of the rows `lo..hi`. Rows are gathered into blocks
-    /// (column-major) and each pair of columns is reduced over a block with independent partial
-    /// sums, so the accumulators stay in registers instead of going through memory once per
-    /// sample (about five times faster than updating the triangle row by row). The constant
-    /// column is only summed when it is used (a trace that starts moving).
-    #[allow(clippy::needless_range_loop)] // the kernel indexes columns by number
+    /// (column-major) and the used columns are taken two by two: each 2×2 tile of column pairs
+    /// is reduced over a block with independent partial sums, so that every value loaded serves
+    /// two products and the accumulators stay in registers (about five times faster than
+    /// updating the triangle row by row). The constant column is only summed when it is used
+    /// (a trace that starts moving).
     fn gram_of(&self, lo: usize, hi: usize) -> [[f64; NC]; NC] {
-        const BLOCK: usize = 16;
-        let skip = if self.intercept { NC } else { IC };
-        let flush = |blk: &[[f64; BLOCK]; NC], g: &mut [[f64; NC]; NC]| {
-            for i in (0..NC).filter(|&i| i != skip) {
-                for j in (i..NC).filter(|&j| j != skip) {
-                    let (a, b) = (&blk[i], &blk[j]);
-                    let mut s = [0.0; 4];
-                    for q in 0..BLOCK / 4 {
-                        for l in 0..4 {
-                            s[l] += a[4 * q + l] * b[4 * q + l];
+        // Used columns, padded to an even count with the all-zero row `NC` of the block.
+        let mut cols = [NC; NC + 1];
+        let mut used = 0;
+        for c in (0..NC).filter(|&c| self.intercept || c != IC) {
+            cols[used] = c;
+            used += 1;
+        }
+        let groups = used.div_ceil(2);
+        let flush = |blk: &[[f64; BLOCK]; NC + 1], g: &mut [[f64; NC]; NC]| {
+            for gi in 0..groups {
+                let (i0, i1) = (cols[2 * gi], cols[2 * gi + 1]);
+                for gj in gi..groups {
+                    let (j0, j1) = (cols[2 * gj], cols[2 * gj + 1]);
+                    let s = tile_sums(&blk[i0], &blk[i1], &blk[j0], &blk[j1]);
+                    // On the diagonal tile (i1, j0) repeats (i0, j1) below the diagonal.
+                    let pairs = [(i0, j0, 0), (i0, j1, 1), (i1, j0, 2), (i1, j1, 3)];
+                    for (i, j, t) in pairs {
+                        if i < NC && j < NC && (gi != gj || i <= j) {
+                            g[i][j] += s[t];
                         }
                     }
-                    g[i][j] += (s[0] + s[1]) + (s[2] + s[3]);
                 }
             }
         };
         let mut g = [[0.0; NC]; NC];
-        let mut blk = [[0.0; BLOCK]; NC];
-        let mut fill = 0;
-        self.for_each_row_in(lo, hi, |z| {
-            for c in 0..NC {
-                blk[c][fill] = z[c];
+        let mut blk = [[0.0; BLOCK]; NC + 1];
+        // The block is filled column by column straight from the filtered signals (the rows of
+        // `for_each_row_in`; the test `fused_gram_equals_materialised_product` checks the sums
+        // against an independent materialisation): each column is a short loop over contiguous
+        // slices that the compiler vectorises.
+        let (xf, xrf, sf) = (&self.xf[..], &self.xrf[..], &self.sf[..]);
+        let n = xf.len().min(xrf.len()).min(sf.len());
+        let (inv2, inv_sq) = (0.5 / self.ts, 1.0 / (self.ts * self.ts));
+        let lo = lo.max(self.first).max(1);
+        let hi = hi.min(self.last).min(n.saturating_sub(1)).max(lo);
+        let h2 = 0.5 * self.ts;
+        let mut e = 0.0;
+        for k in 1..lo {
+            e += h2 * ((xrf[k - 1] - xf[k - 1]) + (xrf[k] - xf[k]));
+        }
+        let mut k0 = lo;
+        while k0 < hi {
+            let len = (hi - k0).min(BLOCK);
+            let (x, r) = (&xf[k0 - 1..k0 + len + 1], &xrf[k0 - 1..k0 + len + 1]);
+            for q in 0..len {
+                e += h2 * ((r[q] - x[q]) + (r[q + 1] - x[q + 1]));
+                blk[0][q] = e;
             }
-            fill += 1;
-            if fill == BLOCK {
-                flush(&blk, &mut g);
-                fill = 0;
+            for (q, v) in blk[1][..len].iter_mut().enumerate() {
+                *v = -(x[q + 2] - x[q]) * inv2;
             }
-        });
-        if fill > 0 {
-            // Zero the unused tail so that the partial block adds nothing for it.
-            for col in blk.iter_mut() {
-                for v in col.iter_mut().skip(fill) {
-                    *v = 0.0;
+            for (q, v) in blk[2][..len].iter_mut().enumerate() {
+                *v = -(x[q + 2] - 2.0 * x[q + 1] + x[q]) * inv_sq;
+            }
+            blk[3][..len].copy_from_slice(&r[1..len + 1]);
+            for (q, v) in blk[4][..len].iter_mut().enumerate() {
+                *v = (r[q + 2] - r[q]) * inv2;
+            }
+            for (q, v) in blk[5][..len].iter_mut().enumerate() {
+                *v = (r[q + 2] - 2.0 * r[q + 1] + r[q]) * inv_sq;
+            }
+            for (v, s) in blk[6][..len].iter_mut().zip(&sf[k0..k0 + len]) {
+                *v = -s;
+            }
+            blk[IC][..len].fill(1.0);
+            for (q, v) in blk[IY][..len].iter_mut().enumerate() {
+                *v = x[q + 1] - r[q + 1];
+            }
+            if len < BLOCK {
+                // Zero the unused tail so that the partial block adds nothing for it.
+                for col in blk.iter_mut() {
+                    col[len..].fill(0.0);
                 }
             }
             flush(&blk, &mut g);
+            k0 += len;
         }
         g
     }
@@ -519,6 +554,33 @@ impl Regressors {
     }
 }
 
+/// Rows per block of the Gram pass.
+const BLOCK: usize = 64;
+
+/// The four sums $a_0\cdot b_0$, $a_0\cdot b_1$, $a_1\cdot b_0$, $a_1\cdot b_1$ over a block,
+/// with four partial sums each (fixed lengths, so no bounds checks; kept out of line so that
+/// its sixteen accumulators do not compete for registers with the caller's loop).
+#[inline(never)]
+#[allow(clippy::needless_range_loop)] // lane l of four products at once
+fn tile_sums(
+    a0: &[f64; BLOCK],
+    a1: &[f64; BLOCK],
+    b0: &[f64; BLOCK],
+    b1: &[f64; BLOCK],
+) -> [f64; 4] {
+    let mut s = [[0.0; 4]; 4];
+    for q in 0..BLOCK / 4 {
+        for l in 0..4 {
+            let i = 4 * q + l;
+            s[0][l] += a0[i] * b0[i];
+            s[1][l] += a0[i] * b1[i];
+            s[2][l] += a1[i] * b0[i];
+            s[3][l] += a1[i] * b1[i];
+        }
+    }
+    s.map(|v| (v[0] + v[1]) + (v[2] + v[3]))
+}
+
 fn condition(g: &DMatrix<f64>) -> f64 {
     let ev = g.clone().symmetric_eigenvalues();
     let (lo, hi) = ev.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
@@ -703,20 +765,39 @@ mod tests {
     #[test]
     fn fused_gram_equals_materialised_product() {
         let tr = model_trace(&table1(), 2600);
-        let r = Regressors::build(&tr, &IdentifyOptions::default()).unwrap();
-        let phi = materialise(&r);
-        let g = phi.transpose() * &phi;
-        assert!(!r.intercept, "the trace starts at rest");
-        // The constant column is only summed for a moving start.
-        let used: Vec<usize> = (0..NC).filter(|&j| j != IC).collect();
-        for &i in &used {
-            for &j in &used {
-                let scale = (g[(i, i)] * g[(j, j)]).sqrt();
-                assert!(
-                    (r.gram()[i][j] - g[(i, j)]).abs() <= 1e-11 * scale,
-                    "G[{i}][{j}]"
-                );
+        // At rest: 8 columns (the constant is only summed for a moving start); moving start:
+        // all 9, an odd count that exercises the padding of the 2×2 tiles.
+        for (start, intercept) in [
+            (StartCondition::Rest, false),
+            (StartCondition::Moving, true),
+        ] {
+            let opts = IdentifyOptions {
+                start,
+                ..Default::default()
+            };
+            let r = Regressors::build(&tr, &opts).unwrap();
+            assert_eq!(r.intercept, intercept);
+            let phi = materialise(&r);
+            let g = phi.transpose() * &phi;
+            let used: Vec<usize> = (0..NC).filter(|&j| intercept || j != IC).collect();
+            for &i in &used {
+                for &j in &used {
+                    let scale = (g[(i, i)] * g[(j, j)]).sqrt();
+                    assert!(
+                        (r.gram()[i][j] - g[(i, j)]).abs() <= 1e-11 * scale,
+                        "G[{i}][{j}] with {start:?}"
+                    );
+                }
             }
+            // The rows streamed by `for_each_row` are the materialised rows.
+            let mut k = 0;
+            r.for_each_row(|z| {
+                for (j, v) in z.iter().enumerate() {
+                    assert!((v - phi[(k, j)]).abs() <= 1e-12 * (1.0 + phi[(k, j)].abs()));
+                }
+                k += 1;
+            });
+            assert_eq!(k, phi.nrows());
         }
     }
 

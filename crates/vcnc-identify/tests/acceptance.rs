@@ -398,6 +398,22 @@ fn invalid_options_are_rejected_before_any_work() {
             ..
         })
     ));
+    // An upper bound far beyond any servo loop would overflow the discretisation (fuzz
+    // finding 1 in fuzz/README.md): refused up front.
+    let opts = IdentifyOptions {
+        bounds: PoleBounds {
+            wn_hz: [1.0, 1e300],
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    assert!(matches!(
+        identify(&tr, &opts),
+        Err(Error::InvalidBounds {
+            name: "bounds.wn_hz",
+            ..
+        })
+    ));
     let opts = IdentifyOptions {
         prefilter: Prefilter {
             enabled: true,
