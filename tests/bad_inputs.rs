@@ -50,6 +50,24 @@ fn cases() -> Vec<Case> {
         args: &["identify", "--trace", "t.csv", "--out", "out"],
         expect,
     };
+    // A bad options file is reported before the trace is read (this trace is valid CSV).
+    let opts = |name, options: &'static str, expect: &'static [&'static str]| Case {
+        name,
+        files: Box::leak(Box::new([
+            ("o.toml", options),
+            ("t.csv", "t,xr,x\n0,0,0\n"),
+        ])),
+        args: &[
+            "identify",
+            "--trace",
+            "t.csv",
+            "--options",
+            "o.toml",
+            "--out",
+            "out",
+        ],
+        expect,
+    };
     let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
     let with = |from: &str, to: &str| -> &'static str {
         let s = BASE.replace(from, to);
@@ -301,6 +319,50 @@ fn cases() -> Vec<Case> {
         ),
         t("ragged row", "t,xr,x\n0,0,0\n0.001,1\n", &["t.csv:3:"]),
         t("empty trace", "t,xr,x\n", &["t.csv", "too few samples"]),
+        // --- identifier options file (identify --trace --options) -----------------------------
+        opts(
+            "options: unknown key",
+            "deadband = 2.0\nparticels = 50\n",
+            &["o.toml:2:1", "particels"],
+        ),
+        opts(
+            "options: bounds in the wrong order",
+            "[bounds]\nwn_hz = [200.0, 5.0]\n",
+            &["o.toml:2:", "bounds.wn_hz", "min < max"],
+        ),
+        opts(
+            "options: wrong type",
+            "seed = \"seven\"\n",
+            &["o.toml:1:", "invalid type"],
+        ),
+        opts(
+            "options: negative deadband",
+            "deadband = -1.0\n",
+            &["o.toml:1:", "deadband", "-1"],
+        ),
+        Case {
+            name: "options: with a machine file",
+            files: &[("o.toml", "deadband = 2.0\n")],
+            args: &["identify", PPI, "--options", "o.toml", "--out", "out"],
+            expect: &[
+                "--options apply to --trace only",
+                "[identification.options]",
+            ],
+        },
+        Case {
+            name: "options: file missing",
+            files: &[("t.csv", "t,xr,x\n0,0,0\n")],
+            args: &[
+                "identify",
+                "--trace",
+                "t.csv",
+                "--options",
+                "none.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["none.toml", "cannot read"],
+        },
         Case {
             name: "non-monotonic time",
             files: &[("t.csv", "GEN_NONMONOTONIC")],

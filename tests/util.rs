@@ -62,7 +62,11 @@ pub fn tempdir() -> tempfile::TempDir {
 pub fn num(v: &serde_json::Value, path: &str) -> f64 {
     let mut cur = v;
     for k in path.split('.') {
-        cur = &cur[k];
+        // A numeric part indexes an array (`bounds.p_hz.0`).
+        cur = match (cur.as_array(), k.parse::<usize>()) {
+            (Some(_), Ok(i)) => &cur[i],
+            _ => &cur[k],
+        };
     }
     cur.as_f64()
         .unwrap_or_else(|| panic!("{path} is not a number in {v}"))

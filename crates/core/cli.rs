@@ -147,6 +147,10 @@ pub struct IdentifyArgs {
     /// Name of the actual-position column.
     #[arg(long, default_value = "x", requires = "trace")]
     pub x_col: String,
+    /// Identifier options for the trace: a TOML file with the keys of a machine file's
+    /// `[identification.options]` table (deadband, bounds, prefilter, pso, refine, seed, ...).
+    #[arg(long, value_name = "OPTIONS.toml", requires = "trace")]
+    pub options: Option<PathBuf>,
     #[arg(long, default_value = "vcnc-identify")]
     pub out: PathBuf,
 }

@@ -19,6 +19,12 @@ use crate::{Ctx, bad_input, cmd_sim};
 
 pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     match (&args.machine, &args.trace) {
+        // clap's `requires = "trace"` on these does not fire next to the positional MACHINE
+        // (which conflicts with --trace), so say it here rather than ignore them silently.
+        (Some(_), None) if args.ts.is_some() || args.options.is_some() => Err(bad_input(
+            "--ts and --options apply to --trace only; a machine file sets its identifier \
+             options in [identification.options]",
+        )),
         (Some(m), None) => identify_machine(m, args, ctx),
         (None, Some(t)) => identify_trace(t, args, ctx),
         _ => Err(bad_input("give either MACHINE.toml or --trace TRACE.csv")),
@@ -357,6 +363,12 @@ fn read_trace_csv(path: &Path, cols: [&str; 3]) -> Result<[Vec<f64>; 3]> {
 
 fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let file = path.display().to_string();
+    // The options first: a mistake in them is reported before the trace is read.
+    let options_file = args
+        .options
+        .as_deref()
+        .map(vcnc_machine::OptionsFile::load)
+        .transpose()?;
     let [t, mut xr, mut x] = read_trace_csv(path, [&args.t_col, &args.xr_col, &args.x_col])?;
     let (unit, scale) = match args.units {
         TraceUnits::M => (Unit::Mm, 1000.0),
@@ -371,12 +383,18 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         None => Trace::from_columns(&t, &xr, &x),
     }
     .map_err(|e| bad_input(format!("{file}: {e}")))?;
-    let mut opts = IdentifyOptions::default();
+    let (mut opts, sets_p_bounds) = match options_file {
+        Some(f) => (f.options, f.sets_p_bounds),
+        None => (IdentifyOptions::default(), false),
+    };
     if let Some(s) = args.seed {
         opts.seed = s;
     }
-    // Measured drives may lack integral action (a3 = 0): let the real pole approach 0.
-    opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    // Measured drives may lack integral action (a3 = 0): let the real pole approach 0, unless
+    // the options file sets its own bounds.
+    if !sets_p_bounds {
+        opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    }
     let id = vcnc_identify::identify(&trace, &opts)
         .map_err(|e| bad_input(format!("{file}: identification refused: {e}")))?;
     ensure_dir(&args.out)?;
@@ -404,7 +422,9 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                 "regressor_condition": id.condition_number,
                 "moving_start": id.moving_start,
             }
-        }
+        },
+        // What the identifier was told (defaults included), so the run can be repeated.
+        "identify_options": opts,
     });
     write_json(&args.out.join("summary.json"), &summary)?;
     let mut axes = BTreeMap::new();

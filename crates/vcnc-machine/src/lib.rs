@@ -15,6 +15,7 @@ mod file;
 mod locate;
 mod machine;
 mod models;
+mod options_file;
 pub mod pipeline;
 pub mod sweep;
 
@@ -25,6 +26,7 @@ pub use file::{
 pub use locate::{LineCol, line_col, locate_key};
 pub use machine::{Axis, Machine};
 pub use models::{AxisModel, ModelSet};
+pub use options_file::OptionsFile;
 
 use vcnc_gcode::Diagnostic;
 
