@@ -129,6 +129,17 @@ fn hundred_configurations_equal_predict_and_shards_merge_back() {
         std::fs::read_to_string(merged.join("sweep.csv")).unwrap(),
         std::fs::read_to_string(full.join("sweep.csv")).unwrap()
     );
+    // The merged summary names the same best configuration, with its key values.
+    let (m, f) = (
+        json(&merged.join("summary.json")),
+        json(&full.join("summary.json")),
+    );
+    assert_eq!(
+        m["best"], f["best"],
+        "merged {} vs full {}",
+        m["best"], f["best"]
+    );
+    assert!(m["best"]["values"]["axes.X.controller.vff"].is_f64());
 }
 
 #[test]

@@ -420,7 +420,13 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
     let cols: Vec<&str> = header.split(',').collect();
     let ci = cols.iter().position(|c| *c == "contour_max_um");
     let si = cols.iter().position(|c| *c == "status");
-    let mut best: Option<(f64, usize)> = None;
+    // The swept keys are the columns between `index` and the first per-axis column.
+    let nkeys = cols
+        .iter()
+        .skip(1)
+        .position(|c| c.ends_with("_tracking_max"))
+        .unwrap_or(0);
+    let mut best: Option<(f64, usize, serde_json::Map<String, serde_json::Value>)> = None;
     let mut ok = 0;
     for (i, r) in &rows {
         let cells: Vec<&str> = r.split(',').collect();
@@ -432,9 +438,17 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
         if let Some(c) = ci
             .and_then(|c| cells.get(c))
             .and_then(|c| c.parse::<f64>().ok())
-            && best.is_none_or(|(b, _)| c < b)
+            && best.as_ref().is_none_or(|(b, _, _)| c < *b)
         {
-            best = Some((c, *i));
+            let values = cols[1..=nkeys]
+                .iter()
+                .zip(&cells[1..])
+                .map(|(k, v)| {
+                    let v = v.parse::<f64>().map_or_else(|_| json!(v), |x| json!(x));
+                    (k.to_string(), v)
+                })
+                .collect();
+            best = Some((c, *i, values));
         }
     }
     write_json(
@@ -444,7 +458,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
             "configurations": rows.len(),
             "ok": ok,
             "failed": rows.len() - ok,
-            "best": best.map(|(c, i)| json!({"index": i, "contour_max_um": c})),
+            "best": best.map(|(c, i, v)| json!({"index": i, "values": v, "contour_max_um": c})),
         }),
     )?;
     if !ctx.quiet {
