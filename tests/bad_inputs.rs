@@ -602,6 +602,7 @@ fn base_machine_is_valid() {
 #[test]
 fn every_bad_input_exits_2_with_a_message_that_names_it() {
     let all = cases();
+    eprintln!("{} bad-input cases", all.len());
     assert!(
         all.len() >= 40,
         "issue 7 asks for at least 40 cases, have {}",
