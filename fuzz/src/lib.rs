@@ -6,6 +6,11 @@ use std::path::Path;
 use vcnc_drive::model::Reference;
 use vcnc_machine::{Axis, Machine};
 
+/// The schema vocabulary shared with the loader's proptest (`KEYS`, `STRINGS`, `LINES`).
+#[path = "../../crates/vcnc-machine/tests/support/words.rs"]
+mod words;
+pub use words::{KEYS, LINES, STRINGS};
+
 /// Source name given to the loader; every error's `Display` must contain it.
 pub const SOURCE: &str = "fuzz.toml";
 
@@ -189,113 +194,6 @@ pub const OTHER_VALUES: [&str; 12] = [
     "\"deg\"",
     "1979-05-27",
     "[[]]",
-];
-
-/// String values that select something in a machine file.
-pub const STRINGS: [&str; 11] = [
-    "p-pi",
-    "pid",
-    "smc",
-    "mm",
-    "deg",
-    "",
-    "PPI",
-    "X",
-    "nmv5000.urdf",
-    "../nmv5000.urdf",
-    "/",
-];
-
-/// Every key of the machine-file schema, plus near misses.
-pub const KEYS: [&str; 64] = [
-    "name",
-    "description",
-    "sample_period_s",
-    "kinematics",
-    "urdf",
-    "c_centre_mm",
-    "a_offset_mm",
-    "branch",
-    "trajectory",
-    "max_linear_velocity",
-    "max_linear_acceleration",
-    "junction_deviation",
-    "gcode",
-    "tcp_on_mcodes",
-    "tcp_off_mcodes",
-    "identification",
-    "program",
-    "options",
-    "moves",
-    "range",
-    "max_feed",
-    "min_feed",
-    "max_acceleration",
-    "seed",
-    "validation_seed",
-    "axes",
-    "unit",
-    "travel",
-    "max_velocity",
-    "plant",
-    "controller",
-    "encoder",
-    "servo_rate_hz",
-    "identification_range",
-    "identification_centre",
-    "j",
-    "b",
-    "ka",
-    "kt",
-    "rg",
-    "coulomb_torque",
-    "kind",
-    "kv",
-    "kp",
-    "ki",
-    "kd",
-    "design",
-    "p_hz",
-    "wn_hz",
-    "zeta",
-    "vff",
-    "bff",
-    "jff",
-    "lambda",
-    "ks",
-    "rho",
-    "je_hat",
-    "be_hat",
-    "resolution",
-    "noise_std",
-    "pso",
-    "bounds",
-    "Y",
-    "unknown_key",
-];
-
-/// Whole lines to insert: table headers, valid and invalid entries, junk.
-pub const LINES: [&str; 20] = [
-    "[axes.Y]",
-    "[axes.A]",
-    "[axes.Q]",
-    "[axes.X.controller]",
-    "[kinematics]",
-    "urdf = \"nmv5000.urdf\"",
-    "[trajectory]",
-    "junction_deviation = 0.0",
-    "[gcode]",
-    "tcp_on_mcodes = [-1]",
-    "[identification.options.pso]",
-    "particles = 0",
-    "[identification.options]",
-    "unit = \"deg\"",
-    "controller = { kind = \"p-pi\", design = { p_hz = 1e300, wn_hz = 1e-300, zeta = 0.0 } }",
-    "plant = { j = 1e-300, b = 1e300, ka = 1.0, kt = 1.0, rg = 1.0, coulomb_torque = 0.0 }",
-    "encoder = { resolution = 0.0, noise_std = -1.0 }",
-    "[[axes]]",
-    "= 1",
-    "[",
 ];
 
 /// Byte ranges of numeric literals (outside comments and strings) in `src`.
