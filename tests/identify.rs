@@ -154,22 +154,27 @@ fn emps_real_trace() {
     // raw tracking error 578 µm RMS; the benchmark's physical model gives 4.0 µm RMS free-run;
     // we need a stable model at ≤ 3 µm. Unconstrained LS gives an unstable pole.
     let dir = tempdir();
-    let o = vcnc(&[
-        "identify",
-        "--trace",
-        "tests/data/emps/DATA_EMPS.csv",
-        "--units",
-        "m",
-        "--t-col",
-        "t",
-        "--xr-col",
-        "qg",
-        "--x-col",
-        "qm",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    eprintln!("{}", ok(&o));
+    // EMPS columns: t, reference qg and measured qm, in metres.
+    let emps = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "identify",
+            "--trace",
+            "tests/data/emps/DATA_EMPS.csv",
+            "--units",
+            "m",
+            "--t-col",
+            "t",
+            "--xr-col",
+            "qg",
+            "--x-col",
+            "qm",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        ok(&vcnc(&args))
+    };
+    eprintln!("{}", emps(dir.path(), &[]));
     let s = json(&dir.path().join("summary.json"));
     let rms = num(&s, "axes.X.fit.freerun_rms_um");
     let tracking = num(&s, "axes.X.fit.tracking_rms_um");
@@ -203,22 +208,7 @@ fn emps_real_trace() {
     )
     .unwrap();
     let out2 = dir.path().join("with-options");
-    let o = vcnc(&[
-        "identify",
-        "--trace",
-        "tests/data/emps/DATA_EMPS.csv",
-        "--units",
-        "m",
-        "--xr-col",
-        "qg",
-        "--x-col",
-        "qm",
-        "--options",
-        options.to_str().unwrap(),
-        "--out",
-        out2.to_str().unwrap(),
-    ]);
-    ok(&o);
+    emps(&out2, &["--options", options.to_str().unwrap()]);
     let s2 = json(&out2.join("summary.json"));
     assert_eq!(num(&s2, "identify_options.deadband"), 3.0);
     assert_eq!(num(&s2, "identify_options.seed"), 5.0);

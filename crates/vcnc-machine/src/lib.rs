@@ -169,3 +169,15 @@ fn format_diagnostics(file: &str, diagnostics: &[Diagnostic]) -> String {
     }
     lines.join("\n")
 }
+
+/// Reads a text file: its display name (for messages) and contents, or [`Error::Io`] naming it.
+pub(crate) fn read_text(path: &std::path::Path) -> Result<(String, String), Error> {
+    let file = path.display().to_string();
+    match std::fs::read_to_string(path) {
+        Ok(src) => Ok((file, src)),
+        Err(e) => Err(Error::Io {
+            file,
+            message: e.to_string(),
+        }),
+    }
+}

@@ -77,12 +77,9 @@ const AXIS_ORDER: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 impl Machine {
     /// Reads and checks a machine file.
     pub fn load(path: &Path) -> Result<Machine, Error> {
-        let src = std::fs::read_to_string(path).map_err(|e| Error::Io {
-            file: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+        let (file, src) = crate::read_text(path)?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Machine::from_toml_str(&src, &path.display().to_string(), &base)
+        Machine::from_toml_str(&src, &file, &base)
     }
 
     /// The embedded default: the NMV5000 with the SPEC Table 3 drives (URDF embedded too).

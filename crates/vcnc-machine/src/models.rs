@@ -94,11 +94,7 @@ impl ModelSet {
     /// Reads a model file; every model must be finite and stable (a pole at the origin is allowed
     /// for drives without integral action).
     pub fn load(path: &Path) -> Result<ModelSet, Error> {
-        let file = path.display().to_string();
-        let src = std::fs::read_to_string(path).map_err(|e| Error::Io {
-            file: file.clone(),
-            message: e.to_string(),
-        })?;
+        let (file, src) = crate::read_text(path)?;
         ModelSet::from_toml_str(&src, &file)
     }
 

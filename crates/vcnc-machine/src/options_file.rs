@@ -33,11 +33,7 @@ pub struct OptionsFile {
 impl OptionsFile {
     /// Reads and checks an options file.
     pub fn load(path: &Path) -> Result<OptionsFile, Error> {
-        let file = path.display().to_string();
-        let src = std::fs::read_to_string(path).map_err(|e| Error::Io {
-            file: file.clone(),
-            message: e.to_string(),
-        })?;
+        let (file, src) = crate::read_text(path)?;
         OptionsFile::from_toml_str(&src, &file)
     }
 
