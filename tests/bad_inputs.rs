@@ -193,7 +193,14 @@ fn cases() -> Vec<Case> {
         m(
             "unknown plant key",
             with("coulomb_torque = 0.3", "coulomb_torque = 0.3, stiction = 2"),
-            &["m.toml:", "stiction"],
+            &["m.toml:8:91", "stiction"],
+        ),
+        m(
+            // The controller is an internally tagged enum: serde loses the key's span, the
+            // loader finds the key in the inline table again.
+            "unknown controller key",
+            with("kv = 70.0", "kvv = 70.0"),
+            &["m.toml:9:31", "unknown field `kvv`", "expected one of `kv`"],
         ),
         m(
             "missing key",

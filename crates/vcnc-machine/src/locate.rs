@@ -64,9 +64,56 @@ pub fn locate_key(src: &str, path: &[&str]) -> Option<LineCol> {
     found
 }
 
+/// Where a TOML deserialisation error points: its span's start, except for an unknown field
+/// reported on a whole table (serde's internally tagged enums, such as `controller = { kind =
+/// ... }`, buffer their content and lose the key's own span), where it is the first `name =`
+/// of that field inside the span.
+pub fn error_offset(src: &str, span: Option<std::ops::Range<usize>>, message: &str) -> usize {
+    let Some(span) = span else { return 0 };
+    let start = span.start.min(src.len());
+    let name = message
+        .strip_prefix("unknown field `")
+        .and_then(|rest| rest.split('`').next())
+        .filter(|n| !n.is_empty());
+    let (Some(name), Some(text)) = (name, src.get(start..span.end.min(src.len()))) else {
+        return start;
+    };
+    let is_word = |c: char| c.is_alphanumeric() || c == '_' || c == '-';
+    let mut from = 0;
+    while let Some(i) = text[from..].find(name) {
+        let at = from + i;
+        let before_ok = !text[..at].chars().next_back().is_some_and(is_word);
+        let after = &text[at + name.len()..];
+        if before_ok && after.trim_start_matches([' ', '\t']).starts_with('=') {
+            return start + at;
+        }
+        from = at + name.len();
+    }
+    start
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unknown_fields_in_inline_tables_point_at_the_key() {
+        let src = "[axes.X]\ncontroller = { kind = \"p-pi\", kvv = 70.0, kv = 1.0 }\n";
+        let span = src.find('{').unwrap()..src.len() - 1;
+        let msg = "unknown field `kvv`, expected one of `kv`, `kp`";
+        let at = line_col(src, error_offset(src, Some(span.clone()), msg));
+        assert_eq!(at, LineCol { line: 2, col: 31 });
+        // `kv` is a prefix of `kvv` and appears later: only a whole key followed by `=` counts.
+        let msg = "unknown field `kv`, expected `kp`";
+        let at = line_col(src, error_offset(src, Some(span.clone()), msg));
+        assert_eq!(at, LineCol { line: 2, col: 43 });
+        // Other errors keep the span's start.
+        assert_eq!(
+            error_offset(src, Some(span.clone()), "invalid type"),
+            span.start
+        );
+        assert_eq!(error_offset(src, None, "unknown field `x`"), 0);
+    }
 
     #[test]
     fn byte_offsets_become_line_and_column() {

@@ -9,7 +9,7 @@ use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{AxisLimits as Travels, KinematicChain, TableTiltingAc, Travel};
 
 use crate::file::{MachineFile, ProgramFile, Unit};
-use crate::locate::{line_col, locate_key};
+use crate::locate::{error_offset, line_col, locate_key};
 use crate::{Error, embedded};
 
 /// One checked axis.
@@ -467,7 +467,7 @@ enum Source {
 fn parse_file(src: &str, source: &str) -> Result<MachineFile, Error> {
     toml::from_str::<MachineFile>(src).map_err(|e| Error::Toml {
         file: source.to_string(),
-        at: line_col(src, e.span().map_or(0, |s| s.start)),
+        at: line_col(src, error_offset(src, e.span(), e.message())),
         message: e.message().trim().to_string(),
     })
 }

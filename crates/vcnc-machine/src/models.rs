@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use vcnc_drive::ClosedLoopModel;
 
 use crate::file::Unit;
-use crate::locate::{line_col, locate_key};
+use crate::locate::{error_offset, line_col, locate_key};
 use crate::{Error, Machine};
 
 /// One axis of a model file.
@@ -102,7 +102,7 @@ impl ModelSet {
     pub fn from_toml_str(src: &str, file: &str) -> Result<ModelSet, Error> {
         let set: ModelSet = toml::from_str(src).map_err(|e| Error::Toml {
             file: file.to_string(),
-            at: line_col(src, e.span().map_or(0, |s| s.start)),
+            at: line_col(src, error_offset(src, e.span(), e.message())),
             message: e.message().trim().to_string(),
         })?;
         for (name, m) in &set.axes {

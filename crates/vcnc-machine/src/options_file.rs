@@ -17,7 +17,7 @@ use std::path::Path;
 use vcnc_identify::IdentifyOptions;
 
 use crate::Error;
-use crate::locate::{line_col, locate_key};
+use crate::locate::{error_offset, line_col, locate_key};
 
 /// Identifier options read from a file, with whether the file sets the lower pole bound
 /// `bounds.p_hz` itself (callers relax its default for drives without integral action only
@@ -41,7 +41,7 @@ impl OptionsFile {
     pub fn from_toml_str(src: &str, file: &str) -> Result<OptionsFile, Error> {
         let options: IdentifyOptions = toml::from_str(src).map_err(|e| Error::Toml {
             file: file.to_string(),
-            at: line_col(src, e.span().map_or(0, |s| s.start)),
+            at: line_col(src, error_offset(src, e.span(), e.message())),
             message: e.message().trim().to_string(),
         })?;
         if let Err(e) = options.validate() {
