@@ -357,6 +357,12 @@ fn cases() -> Vec<Case> {
             ],
         },
         Case {
+            name: "trace column name with a machine file",
+            files: &[],
+            args: &["identify", PPI, "--xr-col", "qg", "--out", "out"],
+            expect: &["--xr-col", "apply to --trace only"],
+        },
+        Case {
             name: "options: file missing",
             files: &[("t.csv", "t,xr,x\n0,0,0\n")],
             args: &[

@@ -135,18 +135,21 @@ pub struct IdentifyArgs {
     /// Sample period of the trace in seconds (default: from its time column).
     #[arg(long, requires = "trace")]
     pub ts: Option<f64>,
-    /// Units of the trace's positions.
-    #[arg(long, value_enum, default_value = "mm", requires = "trace")]
-    pub units: TraceUnits,
-    /// Name of the time column.
-    #[arg(long, default_value = "t", requires = "trace")]
-    pub t_col: String,
-    /// Name of the reference-position column.
-    #[arg(long, default_value = "xr", requires = "trace")]
-    pub xr_col: String,
-    /// Name of the actual-position column.
-    #[arg(long, default_value = "x", requires = "trace")]
-    pub x_col: String,
+    // The trace options below have no clap defaults (the defaults are applied in
+    // `cmd_identify`), so that giving one next to a machine file can be refused instead of
+    // ignored.
+    /// Units of the trace's positions [default: mm].
+    #[arg(long, value_enum, requires = "trace")]
+    pub units: Option<TraceUnits>,
+    /// Name of the time column [default: t].
+    #[arg(long, requires = "trace")]
+    pub t_col: Option<String>,
+    /// Name of the reference-position column [default: xr].
+    #[arg(long, requires = "trace")]
+    pub xr_col: Option<String>,
+    /// Name of the actual-position column [default: x].
+    #[arg(long, requires = "trace")]
+    pub x_col: Option<String>,
     /// Identifier options for the trace: a TOML file with the keys of a machine file's
     /// `[identification.options]` table (deadband, bounds, prefilter, pso, refine, seed, ...).
     #[arg(long, value_name = "OPTIONS.toml", requires = "trace")]

@@ -21,10 +21,19 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     match (&args.machine, &args.trace) {
         // clap's `requires = "trace"` on these does not fire next to the positional MACHINE
         // (which conflicts with --trace), so say it here rather than ignore them silently.
-        (Some(_), None) if args.ts.is_some() || args.options.is_some() => Err(bad_input(
-            "--ts and --options apply to --trace only; a machine file sets its identifier \
-             options in [identification.options]",
-        )),
+        (Some(_), None)
+            if args.ts.is_some()
+                || args.options.is_some()
+                || args.units.is_some()
+                || args.t_col.is_some()
+                || args.xr_col.is_some()
+                || args.x_col.is_some() =>
+        {
+            Err(bad_input(
+                "--ts, --units, --t-col, --xr-col, --x-col and --options apply to --trace only; \
+                 a machine file sets its identifier options in [identification.options]",
+            ))
+        }
         (Some(m), None) => identify_machine(m, args, ctx),
         (None, Some(t)) => identify_trace(t, args, ctx),
         _ => Err(bad_input("give either MACHINE.toml or --trace TRACE.csv")),
@@ -369,8 +378,13 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         .as_deref()
         .map(vcnc_machine::OptionsFile::load)
         .transpose()?;
-    let [t, mut xr, mut x] = read_trace_csv(path, [&args.t_col, &args.xr_col, &args.x_col])?;
-    let (unit, scale) = match args.units {
+    let cols = [
+        args.t_col.as_deref().unwrap_or("t"),
+        args.xr_col.as_deref().unwrap_or("xr"),
+        args.x_col.as_deref().unwrap_or("x"),
+    ];
+    let [t, mut xr, mut x] = read_trace_csv(path, cols)?;
+    let (unit, scale) = match args.units.unwrap_or(TraceUnits::Mm) {
         TraceUnits::M => (Unit::Mm, 1000.0),
         TraceUnits::Mm => (Unit::Mm, 1.0),
         TraceUnits::Deg => (Unit::Deg, 1.0),
