@@ -280,6 +280,20 @@ fn cases() -> Vec<Case> {
             &["m.toml:2:", "sample"],
         ),
         m(
+            // Absurd values are printed compactly (1e-30, not thirty zeros).
+            "sample period of 1e-30 s",
+            with("sample_period_s = 0.001", "sample_period_s = 1e-30"),
+            &[
+                "m.toml:2:",
+                "sample period must be in [1e-6, 0.1] s, got 1e-30",
+            ],
+        ),
+        m(
+            "absurd viscous damping",
+            with("b = 0.0418572", "b = 1.3e69"),
+            &["m.toml:8:", "plant.b = 1.3e69 is invalid"],
+        ),
+        m(
             "unknown axis letter",
             with("[axes.X]", "[axes.Q]"),
             &["m.toml:3:", "Q"],

@@ -52,7 +52,7 @@ pub enum Error {
     },
 
     /// A [`SearchWindow`](crate::SearchWindow) setting is unusable.
-    #[error("bad search window: {name} = {value}: {reason}")]
+    #[error("bad search window: {name} = {value:?}: {reason}")]
     BadWindow {
         /// Field name.
         name: &'static str,

@@ -83,7 +83,7 @@ pub enum Error {
     NonFiniteModel,
     /// A physical parameter, gain or setting outside its valid range. `name` is the key path
     /// below the axis (`plant.j`, `controller.kv`, `servo_rate_hz`, ...).
-    #[error("{name} = {value} is invalid: it must be {expected}")]
+    #[error("{name} = {value:?} is invalid: it must be {expected}")]
     BadParameter {
         /// Key path of the parameter, e.g. `plant.j`.
         name: &'static str,

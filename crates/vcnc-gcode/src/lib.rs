@@ -55,7 +55,7 @@ pub enum Error {
         diagnostics: Vec<Diagnostic>,
     },
     /// A limit is negative or not finite.
-    #[error("limit {name} of axis {axis} is {value}; it must be a finite number ≥ 0")]
+    #[error("limit {name} of axis {axis} is {value:?}; it must be a finite number ≥ 0")]
     InvalidLimit {
         /// Axis letter (`-` for the tool-tip path limits).
         axis: char,
@@ -65,7 +65,7 @@ pub enum Error {
         value: f64,
     },
     /// An option is out of its range.
-    #[error("option {name} = {value} is invalid: expected {expected}")]
+    #[error("option {name} = {value:?} is invalid: expected {expected}")]
     InvalidOption {
         /// Option name.
         name: &'static str,
@@ -123,7 +123,7 @@ pub enum Error {
         name: char,
     },
     /// A generator option is out of range.
-    #[error("generator option {name} = {value} is invalid: expected {expected}")]
+    #[error("generator option {name} = {value:?} is invalid: expected {expected}")]
     InvalidGenerator {
         /// Option name.
         name: &'static str,

@@ -156,7 +156,7 @@ pub enum Error {
         limit: f64,
     },
     /// An option is out of its valid range.
-    #[error("option {name} = {value} is invalid: {expected}")]
+    #[error("option {name} = {value:?} is invalid: {expected}")]
     InvalidOption {
         /// Option name as in the machine file.
         name: &'static str,
@@ -166,7 +166,7 @@ pub enum Error {
         expected: &'static str,
     },
     /// Bounds with min above max (or otherwise invalid).
-    #[error("bounds {name} = [{min}, {max}] are invalid: {expected}")]
+    #[error("bounds {name} = [{min:?}, {max:?}] are invalid: {expected}")]
     InvalidBounds {
         /// Which bounds.
         name: &'static str,

@@ -135,10 +135,12 @@ impl Machine {
             }
         };
         let ts = file.sample_period_s;
-        if !(ts.is_finite() && ts > 0.0 && ts <= 0.1) {
+        // 1 µs: the servo loop runs at most at 1 MHz (vcnc-drive), and a trace is never
+        // sampled faster than its servo.
+        if !(ts.is_finite() && (1e-6..=0.1).contains(&ts)) {
             return Err(invalid(
                 "sample_period_s",
-                format!("sample period must be in (0, 0.1] s, got {ts}"),
+                format!("sample period must be in [1e-6, 0.1] s, got {ts:?}"),
             ));
         }
         if file.axes.is_empty() {
@@ -210,7 +212,7 @@ impl Machine {
                 return Err(invalid(
                     &k("servo_rate_hz"),
                     format!(
-                        "servo rate {} Hz must be a whole multiple of the sample rate {} Hz",
+                        "servo rate {:?} Hz must be a whole multiple of the sample rate {:?} Hz",
                         drive.servo_rate_hz(),
                         1.0 / ts
                     ),
@@ -223,7 +225,7 @@ impl Machine {
             if !positive(range) || range > LIMIT || !centre.is_finite() {
                 return Err(invalid(
                     &k("identification_range"),
-                    format!("identification range must be positive, got {range}"),
+                    format!("identification range must be positive, got {range:?}"),
                 ));
             }
             if centre - range < lo || centre + range > hi {
@@ -257,21 +259,21 @@ impl Machine {
             if !positive(v) {
                 return Err(invalid(
                     &format!("trajectory.{field}"),
-                    format!("{field} must be positive, got {v}"),
+                    format!("{field} must be positive, got {v:?}"),
                 ));
             }
         }
         if let Some(j) = t.junction_deviation.filter(|j| !positive(*j)) {
             return Err(invalid(
                 "trajectory.junction_deviation",
-                format!("junction deviation must be positive, got {j}"),
+                format!("junction deviation must be positive, got {j:?}"),
             ));
         }
         let p = &file.identification.program;
         if let Some(acc) = p.max_acceleration.filter(|a| !positive(*a)) {
             return Err(invalid(
                 "identification.program.max_acceleration",
-                format!("max_acceleration must be positive, got {acc}"),
+                format!("max_acceleration must be positive, got {acc:?}"),
             ));
         }
         if !(10..=100_000).contains(&p.moves)
