@@ -26,8 +26,11 @@ fn fixture() -> &'static Fixture {
             pipeline::identify_axes(&machine, &machine.axis_names(), None).expect("identification");
         let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
         let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
-        let refined = pipeline::predict(&machine, &run, &refined).expect("prediction");
-        let paper = pipeline::predict(&machine, &run, &paper).expect("prediction");
+        let [refined, paper]: [pipeline::Prediction; 2] =
+            pipeline::predict_many(&machine, &run, &[&refined, &paper])
+                .expect("prediction")
+                .try_into()
+                .expect("two predictions");
         Fixture {
             machine,
             run,

@@ -188,9 +188,8 @@ fn bad_configurations_are_reported_per_row() {
     ]));
     let t = rows(&out.join("sweep.csv"));
     assert_eq!(t.len(), 3);
-    let status = t[0].iter().position(|c| c == "status").unwrap();
     for r in &t[1..] {
-        let s = r[status..].join(",");
+        let s = r[status_col(&t)..].join(",");
         assert!(
             s.starts_with("\"error:") && s.contains("no_such_key"),
             "{s}"

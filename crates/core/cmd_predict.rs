@@ -8,14 +8,14 @@ use anyhow::Result;
 use serde_json::{Value, json};
 use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::pipeline::{self, AxisIdentification, Prediction, Run};
-use vcnc_machine::{Machine, ModelSet, embedded};
+use vcnc_machine::{Machine, embedded};
 
 use crate::Ctx;
 use crate::cmd_identify::{identification_table, write_identification};
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_coloured_path, write_panels};
 use crate::report::{
-    ensure_dir, load_machine, print_warnings, read_program, rms, scaled_diff, table,
+    ensure_dir, load_machine, load_models, print_warnings, read_program, rms, scaled_diff, table,
 };
 
 /// Contour summary (SPEC section 9 keys) of a prediction.
@@ -298,12 +298,9 @@ pub fn predict(
     let file = program.display().to_string();
     let run = pipeline::prepare(&machine, &src, &file, ctx.lenient)?;
     print_warnings(&run.warnings);
-    let (models, source) = match model {
-        Some(p) => (
-            ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?,
-            p.display().to_string(),
-        ),
-        None => {
+    let (models, source) = match (load_models(model, &machine)?, model) {
+        (Some(m), Some(p)) => (m, p.display().to_string()),
+        _ => {
             let ids = pipeline::identify_axes(&machine, &machine.axis_names(), None)?;
             (
                 ids.iter().map(|r| r.result.identified).collect(),
@@ -351,11 +348,10 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
     print_warnings(&run.warnings);
     let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
     let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
-    let (p, pp) = rayon::join(
-        || pipeline::predict(&machine, &run, &refined),
-        || pipeline::predict(&machine, &run, &paper),
-    );
-    let (p, pp) = (p?, pp?);
+    let [p, pp]: [pipeline::Prediction; 2] =
+        pipeline::predict_many(&machine, &run, &[&refined, &paper])?
+            .try_into()
+            .map_err(|_| anyhow::anyhow!("predict_many returns one prediction per model set"))?;
     ensure_dir(out)?;
     let id_dir = out.join("identify");
     ensure_dir(&id_dir)?;

@@ -5,14 +5,14 @@ use std::path::Path;
 use anyhow::Result;
 use serde_json::{Value, json};
 use vcnc_drive::ClosedLoopModel;
-use vcnc_machine::{Machine, ModelSet, pipeline};
+use vcnc_machine::{Machine, pipeline};
 
 use crate::Ctx;
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_panels};
 use crate::report::{
-    ensure_dir, load_machine, max_abs, model_json, print_warnings, read_program, rms, scaled_diff,
-    table,
+    ensure_dir, load_machine, load_models, max_abs, model_json, print_warnings, read_program, rms,
+    scaled_diff, table,
 };
 
 /// `vcnc interpolate MACHINE PROGRAM --out DIR`: `reference.csv` and `summary.json`.
@@ -90,10 +90,7 @@ pub fn simulate(
 ) -> Result<()> {
     let machine = load_machine(machine_path)?;
     let src = read_program(program)?;
-    let models = match model {
-        Some(p) => Some(ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?),
-        None => None,
-    };
+    let models = load_models(model, &machine)?;
     let run = pipeline::prepare(&machine, &src, &program.display().to_string(), ctx.lenient)?;
     print_warnings(&run.warnings);
     let traces = pipeline::simulate_true(&machine, &run)?;
@@ -322,10 +319,7 @@ pub fn write_frf(
 /// `vcnc frf MACHINE [--model MODEL] --out DIR`.
 pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> Result<()> {
     let machine: Machine = load_machine(machine_path)?;
-    let models = match model {
-        Some(p) => Some(ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?),
-        None => None,
-    };
+    let models = load_models(model, &machine)?;
     ensure_dir(out)?;
     let mut summary = serde_json::Map::new();
     let mut rows = Vec::new();

@@ -17,16 +17,16 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde_json::json;
 use vcnc_drive::ClosedLoopModel;
+use vcnc_machine::Machine;
 use vcnc_machine::pipeline::{self, Run};
 use vcnc_machine::sweep::{
     SweepKey, configuration, parse_set, parse_shard, product_len, set_key, shard_indices,
 };
-use vcnc_machine::{Machine, ModelSet};
 
 use crate::cli::SweepArgs;
 use crate::output::{format_num, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_scatter};
-use crate::report::{ensure_dir, max_abs, read_program, rms, scaled_diff};
+use crate::report::{ensure_dir, load_models, max_abs, read_program, rms, scaled_diff};
 use crate::{Ctx, bad_input};
 
 /// Keys whose change alters the reference run (interpolation limits, kinematics, dialect).
@@ -206,10 +206,7 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let program = read_program(&args.program)?;
     let program_name = args.program.display().to_string();
     let base_run = pipeline::prepare(&base_machine, &program, &program_name, ctx.lenient)?;
-    let models = match &args.model {
-        Some(p) => Some(ModelSet::load(p)?.for_machine(&base_machine, &p.display().to_string())?),
-        None => None,
-    };
+    let models = load_models(args.model.as_deref(), &base_machine)?;
     let reuse = !keys.iter().any(|k| changes_reference(&k.key));
     let setup = Setup {
         base: &base,

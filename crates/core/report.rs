@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use vcnc_drive::ClosedLoopModel;
 use vcnc_identify::FitMetrics;
-use vcnc_machine::{Machine, Unit};
+use vcnc_machine::{Machine, ModelSet, Unit};
 
 /// A model object: `a1 a2 a3 b0 b1 b2 dc p_hz wn_hz zeta stable` (and the roots when the model
 /// cannot be written as (p, ωn, ζ)).
@@ -54,6 +54,15 @@ pub fn rel_pct(est: f64, truth: f64) -> f64 {
 /// Loads a machine file; errors are bad input with file:line:col.
 pub fn load_machine(path: &Path) -> Result<Machine> {
     Ok(Machine::load(path)?)
+}
+
+/// Reads an identified-model file (`--model`) and orders its models like the machine's axes;
+/// `None` when no file is given.
+pub fn load_models(path: Option<&Path>, machine: &Machine) -> Result<Option<Vec<ClosedLoopModel>>> {
+    let Some(p) = path else { return Ok(None) };
+    Ok(Some(
+        ModelSet::load(p)?.for_machine(machine, &p.display().to_string())?,
+    ))
 }
 
 /// Largest program file accepted, bytes. A toolpath this long already asks for more samples

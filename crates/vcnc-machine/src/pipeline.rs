@@ -400,31 +400,50 @@ pub fn predict(
     run: &Run,
     models: &[ClosedLoopModel],
 ) -> Result<Prediction, Error> {
-    let (true_traces, predicted) = rayon::join(
-        || simulate_true(machine, run),
-        || simulate_models(models, run),
-    );
-    let (true_traces, predicted) = (true_traces?, predicted?);
-    let true_pos: Vec<&[f64]> = true_traces
-        .iter()
-        .map(|t| t.true_position.as_slice())
-        .collect();
-    let pred_pos: Vec<&[f64]> = predicted.iter().map(Vec::as_slice).collect();
-    let ((true_poses, true_contour), (predicted_poses, predicted_contour)) = {
-        let (a, b) = rayon::join(
-            || contour(machine, run, &true_pos),
-            || contour(machine, run, &pred_pos),
-        );
-        (a?, b?)
+    let mut all = predict_many(machine, run, &[models])?;
+    Ok(all.remove(0))
+}
+
+/// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
+/// one run: the true drives, the costly half, are simulated and evaluated once and shared.
+pub fn predict_many(
+    machine: &Machine,
+    run: &Run,
+    model_sets: &[&[ClosedLoopModel]],
+) -> Result<Vec<Prediction>, Error> {
+    let truth = || -> Result<_, Error> {
+        let traces = simulate_true(machine, run)?;
+        let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
+        let (poses, report) = contour(machine, run, &pos)?;
+        Ok((traces, poses, report))
     };
-    Ok(Prediction {
-        true_traces,
-        predicted,
-        true_poses,
-        predicted_poses,
-        true_contour,
-        predicted_contour,
-    })
+    let model_half = |models: &[ClosedLoopModel]| -> Result<_, Error> {
+        let predicted = simulate_models(models, run)?;
+        let pos: Vec<&[f64]> = predicted.iter().map(Vec::as_slice).collect();
+        let (poses, report) = contour(machine, run, &pos)?;
+        Ok((predicted, poses, report))
+    };
+    let (truth, halves) = rayon::join(truth, || {
+        model_sets
+            .par_iter()
+            .map(|m| model_half(m))
+            .collect::<Vec<_>>()
+    });
+    let (true_traces, true_poses, true_contour) = truth?;
+    halves
+        .into_iter()
+        .map(|h| {
+            let (predicted, predicted_poses, predicted_contour) = h?;
+            Ok(Prediction {
+                true_traces: true_traces.clone(),
+                predicted,
+                true_poses: true_poses.clone(),
+                predicted_poses,
+                true_contour: true_contour.clone(),
+                predicted_contour,
+            })
+        })
+        .collect()
 }
 
 /// The excitation run of one axis: program text, reference and true-drive trace.
