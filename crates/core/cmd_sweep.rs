@@ -16,6 +16,7 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde_json::json;
+use vcnc_contour::ContourReport;
 use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::Machine;
 use vcnc_machine::pipeline::{self, Run};
@@ -95,6 +96,9 @@ struct Setup<'a> {
     keys: &'a [SweepKey],
     base_run: Option<&'a Run>,
     models: Option<&'a [ClosedLoopModel]>,
+    /// Contour errors of `models` on the shared run: the same for every configuration when the
+    /// run is shared (no swept key changes the reference or the kinematics), so computed once.
+    base_predicted: Option<&'a ContourReport>,
     n_axes: usize,
     lenient: bool,
 }
@@ -127,6 +131,17 @@ fn run_config(s: &Setup, index: usize) -> Row {
     }
 }
 
+/// Contour errors of the identified `models` on `run`.
+fn predicted_contour(
+    machine: &Machine,
+    run: &Run,
+    models: &[ClosedLoopModel],
+) -> Result<ContourReport> {
+    let pred = pipeline::simulate_models(models, run)?;
+    let ppos: Vec<&[f64]> = pred.iter().map(Vec::as_slice).collect();
+    Ok(pipeline::contour(machine, run, &ppos)?.1)
+}
+
 fn evaluate(s: &Setup, values: &[f64]) -> Result<(Vec<String>, f64)> {
     let mut table = s.base.clone();
     for (k, v) in s.keys.iter().zip(values) {
@@ -157,9 +172,14 @@ fn evaluate(s: &Setup, values: &[f64]) -> Result<(Vec<String>, f64)> {
     cells.push(format_num(c.orientation_max_rad * 1e3));
     cells.push(format_num(c.orientation_rms_rad * 1e3));
     if let Some(models) = s.models {
-        let pred = pipeline::simulate_models(models, run)?;
-        let ppos: Vec<&[f64]> = pred.iter().map(Vec::as_slice).collect();
-        let (_, pc) = pipeline::contour(&machine, run, &ppos)?;
+        let owned_pc;
+        let pc = match s.base_predicted {
+            Some(pc) => pc,
+            None => {
+                owned_pc = predicted_contour(&machine, run, models)?;
+                &owned_pc
+            }
+        };
         let disc = c
             .tip_mm
             .iter()
@@ -208,6 +228,10 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let base_run = pipeline::prepare(&base_machine, &program, &program_name, ctx.lenient)?;
     let models = load_models(args.model.as_deref(), &base_machine)?;
     let reuse = !keys.iter().any(|k| changes_reference(&k.key));
+    let base_predicted = match (&models, reuse) {
+        (Some(m), true) => Some(predicted_contour(&base_machine, &base_run, m)?),
+        _ => None,
+    };
     let setup = Setup {
         base: &base,
         base_dir: &base_dir,
@@ -217,6 +241,7 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
         keys: &keys,
         base_run: reuse.then_some(&base_run),
         models: models.as_deref(),
+        base_predicted: base_predicted.as_ref(),
         n_axes: base_machine.axes.len(),
         lenient: ctx.lenient,
     };
