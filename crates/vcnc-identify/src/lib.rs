@@ -55,7 +55,7 @@ mod trace;
 
 pub use filter::Butterworth2;
 pub use identify::{Identification, LsBaseline, identify, unconstrained_ls};
-pub use metrics::{FitMetrics, fit_metrics, free_run};
+pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run};
 pub use options::{
     IdentifyOptions, PoleBounds, Prefilter, PsoSettings, RefineOptions, StartCondition,
 };

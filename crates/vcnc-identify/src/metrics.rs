@@ -70,7 +70,9 @@ pub fn fit_metrics(
     fit_metrics_with(model, trace, &regs)
 }
 
-pub(crate) fn fit_metrics_with(
+/// [`fit_metrics`] with the trace's regressors already built (several models on one trace
+/// share the filter and Gram pass).
+pub fn fit_metrics_with(
     model: &ClosedLoopModel,
     trace: &Trace,
     regs: &Regressors,

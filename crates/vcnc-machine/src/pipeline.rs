@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use vcnc_contour::{ContourReport, contour_errors};
 use vcnc_drive::{ClosedLoopModel, DriveTrace, Reference, SimOptions};
 use vcnc_gcode::{Diagnostic, IdentificationOptions, Loaded, Severity};
-use vcnc_identify::{FitMetrics, Identification, Trace, fit_metrics};
+use vcnc_identify::{FitMetrics, Identification, Regressors, Trace, fit_metrics_with};
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{Axes, Pose, TcpMotion};
 
@@ -601,10 +601,12 @@ pub fn identify_axis(
     let trace = est.identification_trace()?;
     let result = vcnc_identify::identify(&trace, &opts).map_err(|e| identify_error(a.name, e))?;
     let vtrace = val.identification_trace()?;
-    let validation =
-        fit_metrics(&result.identified, &vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
-    let validation_paper =
-        fit_metrics(&result.paper_pso, &vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
+    // One regressor pass over the validation run serves both models.
+    let regs = Regressors::build(&vtrace, &opts).map_err(|e| identify_error(a.name, e))?;
+    let validation = fit_metrics_with(&result.identified, &vtrace, &regs)
+        .map_err(|e| identify_error(a.name, e))?;
+    let validation_paper = fit_metrics_with(&result.paper_pso, &vtrace, &regs)
+        .map_err(|e| identify_error(a.name, e))?;
     Ok(AxisIdentification {
         axis: a.name,
         unit: a.unit,
