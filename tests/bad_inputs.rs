@@ -164,7 +164,8 @@ fn cases() -> Vec<Case> {
         ),
         Case {
             name: "invalid UTF-8",
-            files: &[("p.ngc", "G21\nG0 X0\nG1 X1 F600 \u{FFFD}\n")],
+            // Raw byte 0xFF on line 3 (written by `generated`): not UTF-8 at all.
+            files: &[("p.ngc", "GEN_INVALID_UTF8")],
             args: &["interpolate", PPI, "p.ngc", "--out", "out"],
             expect: &["p.ngc:3:"],
         },
@@ -300,7 +301,7 @@ fn cases() -> Vec<Case> {
         ),
         Case {
             name: "URDF file missing",
-            files: &[("m.toml", "")],
+            files: &[],
             args: &[
                 "interpolate",
                 "m_urdf_missing.toml",
@@ -312,7 +313,7 @@ fn cases() -> Vec<Case> {
         },
         Case {
             name: "URDF not a table-tilting A/C chain",
-            files: &[("m.toml", "")],
+            files: &[],
             args: &["interpolate", "m_urdf_bad.toml", "p.ngc", "--out", "out"],
             expect: &["bad.urdf", "table-tilting"],
         },
@@ -513,7 +514,10 @@ fn cases() -> Vec<Case> {
 }
 
 /// Generated trace files (too long to write inline).
-fn generated(marker: &str) -> Option<String> {
+fn generated(marker: &str) -> Option<Vec<u8>> {
+    if marker == "GEN_INVALID_UTF8" {
+        return Some(b"G21\nG0 X0\nG1 X1 F600 \xff\n".to_vec());
+    }
     let mut s = String::from("t,xr,x\n");
     let row = |s: &mut String, t: f64, xr: f64, x: f64| s.push_str(&format!("{t},{xr},{x}\n"));
     match marker {
@@ -548,7 +552,7 @@ fn generated(marker: &str) -> Option<String> {
         }
         _ => return None,
     }
-    Some(s)
+    Some(s.into_bytes())
 }
 
 fn machine_variants(dir: &std::path::Path) {
@@ -639,10 +643,8 @@ fn every_bad_input_exits_2_with_a_message_that_names_it() {
     for c in &all {
         let dir = tempdir();
         for (name, content) in c.files {
-            let content = generated(content).unwrap_or_else(|| content.to_string());
-            if !content.is_empty() {
-                std::fs::write(dir.path().join(name), content).unwrap();
-            }
+            let content = generated(content).unwrap_or_else(|| content.as_bytes().to_vec());
+            std::fs::write(dir.path().join(name), content).unwrap();
         }
         machine_variants(dir.path());
         let ppi = repo("machines/ballscrew-ppi.toml");

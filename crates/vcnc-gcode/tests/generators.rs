@@ -1,8 +1,8 @@
 //! The generators checked through this crate's own parser, interpreter and interpolator.
 
 use vcnc_gcode::{
-    IdentificationOptions, InterpOptions, InterpolateOptions, Limits, MoveKind, SpiralOptions,
-    TcpProgramOptions, TipPose, identification, load, spiral_points, tcp_program,
+    Feed, IdentificationOptions, InterpOptions, InterpolateOptions, Limits, MoveKind,
+    SpiralOptions, TcpProgramOptions, TipPose, identification, load, spiral_points, tcp_program,
 };
 
 /// Direction reversals between consecutive moves of axis `i`.
@@ -43,7 +43,20 @@ fn identification_takes_20_to_60_s_and_reverses_30_times() {
         assert_eq!(run.toolpath.start, [0.0; 6]);
         assert!(pts.iter().all(|p| p[0].abs() <= 50.0));
         assert!(run.toolpath.moves.iter().all(|m| m.exact_stop));
-        // Feeds up to 250 mm/s (F15000).
+        // Feeds up to 250 mm/s (F15000), read from the program's F words (the interpolator
+        // would cap any faster feed at the 250 mm/s limit, so the trajectory alone cannot
+        // show it), and the trajectory within the limit.
+        let feeds: Vec<f64> = run
+            .toolpath
+            .moves
+            .iter()
+            .filter_map(|m| match m.feed {
+                Some(Feed::UnitsPerMin(f)) => Some(f),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(feeds.len(), 70, "every move has a per-minute feed");
+        assert!(feeds.iter().all(|&f| f > 0.0 && f <= 15000.0), "{feeds:?}");
         let x = run.trajectory.axis('X').unwrap();
         let vmax = x.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(vmax <= 250.0 * (1.0 + 1e-12), "{vmax}");

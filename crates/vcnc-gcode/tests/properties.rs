@@ -353,10 +353,21 @@ proptest! {
                 prop_assert!((dur - rounded(seconds, ts)).abs() < 1e-9);
             }
         }
-        // The last sample rests on the last programmed point.
+        // The last sample rests on the last programmed point (the interpolator writes that
+        // sample from the program), and the profile arrives there: coming to rest within the
+        // acceleration limit, the last step is at most a·Ts²/2, so a trajectory that fell
+        // short and jumped onto the point would fail here.
         let last = run.toolpath.points().last().copied().unwrap_or(run.toolpath.start);
         for (i, a) in t.axes.iter().enumerate() {
             prop_assert_eq!(a.pos.last().copied(), Some(last[i]));
+            if let [.., before, end] = a.pos[..] {
+                let acc = limits.axes[i].max_acc.max(limits.tcp_max_acc);
+                let step = (end - before).abs();
+                prop_assert!(
+                    step <= 0.5 * acc * ts * ts * (1.0 + 1e-6) + 1e-12,
+                    "axis {}: last step {step} jumps onto the end point", a.name
+                );
+            }
         }
     }
 

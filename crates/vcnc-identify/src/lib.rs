@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! Trace (t, xr, x) ──► Regressors (one O(N) pass: prefilter, E, central differences, sign,
-//!      │                 8×8 Gram matrix of [Φ1 Φ2 Y])
+//!      │                 9×9 Gram matrix of [Φ1 Φ2 1 Y])
 //!      │                     │
 //!      │                     ├──► unconstrained_ls ........ baseline, may be unstable
 //!      │                     └──► EquationErrorCost ──► Pso (paper §3.3) ──► paper_pso

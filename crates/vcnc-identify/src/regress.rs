@@ -867,7 +867,12 @@ mod tests {
             ((pe.zeta - pt.zeta) / pt.zeta).abs() < 0.03,
             "{pe:?} vs {pt:?}"
         );
-        assert!(r.condition_phi2() < r.condition_number());
+        // Column scaling keeps the per-particle subproblem well conditioned (SPEC section 4:
+        // cond(Phi2) 3.4e3 unscaled, 3.2 scaled on its Table 1 run; 3.6 on this run) and the
+        // whole regressor identifiable (about 8e2 here, the refusal limit is 1e6).
+        let (c2, c) = (r.condition_phi2(), r.condition_number());
+        assert!(c2 < 10.0, "cond(Phi2 S) = {c2}");
+        assert!(c < 1e4, "cond(Phi S) = {c}");
     }
 
     #[test]
