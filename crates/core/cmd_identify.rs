@@ -68,7 +68,7 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     };
     let results = pipeline::identify_axes(&machine, &axes, args.seed)?;
     ensure_dir(&args.out)?;
-    write_identification(&args.out, &machine.name, &results, ctx)?;
+    write_identification(&args.out, &machine.name, &results)?;
     if !ctx.quiet {
         print!("{}", identification_table(&results));
         println!("-> {}", args.out.display());
@@ -81,7 +81,6 @@ pub fn write_identification(
     out: &Path,
     machine: &str,
     results: &[AxisIdentification],
-    ctx: &Ctx,
 ) -> Result<()> {
     let mut axes = serde_json::Map::new();
     let mut models = BTreeMap::new();
@@ -107,7 +106,6 @@ pub fn write_identification(
         axes: models,
     };
     write_atomic(&out.join("model.toml"), set.to_toml_string()?.as_bytes())?;
-    let _ = ctx;
     Ok(())
 }
 

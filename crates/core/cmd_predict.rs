@@ -355,7 +355,7 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
     ensure_dir(out)?;
     let id_dir = out.join("identify");
     ensure_dir(&id_dir)?;
-    write_identification(&id_dir, &machine.name, &ids, ctx)?;
+    write_identification(&id_dir, &machine.name, &ids)?;
     let mut summary = contour_summary(&p);
     summary["machine"] = json!(machine.name);
     summary["program"] = json!(spiral);

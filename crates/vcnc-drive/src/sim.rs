@@ -632,6 +632,13 @@ fn ticks_per_sample(servo_rate_hz: f64, ts: f64) -> Result<usize, Error> {
 }
 
 impl Drive {
+    /// Servo ticks per logged sample of period `ts`: the servo rate must be a whole multiple
+    /// (≥ 1) of the logging rate. The machine-file loader checks this with the same rule the
+    /// simulation uses.
+    pub fn ticks_per_sample(&self, ts: f64) -> Result<usize, Error> {
+        ticks_per_sample(self.servo_rate_hz(), ts)
+    }
+
     /// Simulates the drive through `reference` (samples at period `ts`, s), with the controller
     /// at the servo rate, which must be an integer multiple of $1/T_s$. The drive starts at rest
     /// at `reference.pos[0]` with every controller state zero. See the module documentation for
@@ -654,7 +661,7 @@ impl Drive {
         trace: &mut DriveTrace,
     ) -> Result<(), Error> {
         let n = reference.check()?;
-        let n_sub = ticks_per_sample(self.servo_rate_hz(), ts)?;
+        let n_sub = self.ticks_per_sample(ts)?;
         let h = ts / n_sub as f64;
         trace.ts = ts;
         for v in [

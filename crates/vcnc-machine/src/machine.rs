@@ -207,17 +207,9 @@ impl Machine {
                 let field = drive_error_key(&e);
                 invalid(&k(field), format!("axis {name}: {e}"))
             })?;
-            let servo_ratio = drive.servo_rate_hz() * ts;
-            if (servo_ratio - servo_ratio.round()).abs() > 1e-9 || servo_ratio.round() < 1.0 {
-                return Err(invalid(
-                    &k("servo_rate_hz"),
-                    format!(
-                        "servo rate {:?} Hz must be a whole multiple of the sample rate {:?} Hz",
-                        drive.servo_rate_hz(),
-                        1.0 / ts
-                    ),
-                ));
-            }
+            drive
+                .ticks_per_sample(ts)
+                .map_err(|e| invalid(&k("servo_rate_hz"), format!("axis {name}: {e}")))?;
             let range = a
                 .identification_range
                 .unwrap_or(file.identification.program.range);

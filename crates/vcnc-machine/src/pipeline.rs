@@ -77,11 +77,6 @@ impl Run {
     pub fn time(&self, k: usize) -> f64 {
         k as f64 * self.ts
     }
-
-    /// Source line of the block that sample k belongs to.
-    pub fn line_at(&self, k: usize) -> u32 {
-        self.loaded.trajectory.block_at(k).map_or(0, |b| b.line)
-    }
 }
 
 /// Interpolates `src` (the program at `file`) on `machine` and prepares the axis references.
