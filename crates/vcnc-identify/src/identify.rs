@@ -135,14 +135,12 @@ pub fn identify(trace: &Trace, opts: &IdentifyOptions) -> Result<Identification,
 /// The model of the swarm's poles: $a_i$ exactly from the poles (not via $\alpha_i a_2$, which
 /// would round), $b_i$ and $d_c$ de-normalised by $a_2$ (paper eq. 8).
 fn from_poles_and_theta(poles: &Poles, theta: &Theta) -> ClosedLoopModel {
-    let (a1, a2, a3) = poles.denominator();
-    ClosedLoopModel {
-        a1,
-        a2,
-        a3,
-        b0: theta.beta2 * a2,
-        b1: theta.beta1 * a2,
-        b2: theta.beta0 * a2,
-        dc: theta.delta * a2,
-    }
+    let a2 = poles.denominator().1;
+    ClosedLoopModel::from_poles(
+        poles,
+        theta.beta2 * a2,
+        theta.beta1 * a2,
+        theta.beta0 * a2,
+        theta.delta * a2,
+    )
 }

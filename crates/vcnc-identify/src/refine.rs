@@ -508,19 +508,8 @@ impl OutputErrorProblem {
     /// The model of poles `sigma` (Hz) and separable coefficients `theta`.
     fn model(sigma: [f64; 3], theta: &[f64; 7]) -> (ClosedLoopModel, Poles) {
         let poles = Poles::from_hz(sigma[0], sigma[1], sigma[2]);
-        let (a1, a2, a3) = poles.denominator();
-        (
-            ClosedLoopModel {
-                a1,
-                a2,
-                a3,
-                b0: theta[2],
-                b1: theta[1],
-                b2: theta[0],
-                dc: theta[3],
-            },
-            poles,
-        )
+        let model = ClosedLoopModel::from_poles(&poles, theta[2], theta[1], theta[0], theta[3]);
+        (model, poles)
     }
 
     /// Output-error cost $\tfrac12\sum (x_k - \hat x_k)^2$ (axis units²) and the best
