@@ -167,6 +167,17 @@ pub fn load(
     limits: &Limits,
     opts: &InterpolateOptions,
 ) -> Result<Loaded, Error> {
+    let (program, toolpath, diags) = parse_and_interpret(src, interp_opts)?;
+    load_toolpath(program, toolpath, diags, limits, opts)
+}
+
+/// The first two stages of [`load`]: parse and interpret, returning the program, the toolpath
+/// and the warnings so far. Callers that check the toolpath (for example against a machine's
+/// axes) before interpolating use this and then [`load_toolpath`], instead of parsing twice.
+pub fn parse_and_interpret(
+    src: &str,
+    interp_opts: &InterpOptions,
+) -> Result<(Program, Toolpath, Vec<Diagnostic>), Error> {
     let parse_opts = ParseOptions {
         lenient: interp_opts.lenient,
         ..ParseOptions::default()
@@ -175,14 +186,26 @@ pub fn load(
     if diags.iter().any(Diagnostic::is_error) {
         return Err(Error::Program { diagnostics: diags });
     }
-    let (toolpath, warnings) = match interpret(&program, interp_opts) {
-        Ok(r) => r,
+    match interpret(&program, interp_opts) {
+        Ok((toolpath, warnings)) => {
+            diags.extend(warnings);
+            Ok((program, toolpath, diags))
+        }
         Err(more) => {
             diags.extend(more);
-            return Err(Error::Program { diagnostics: diags });
+            Err(Error::Program { diagnostics: diags })
         }
-    };
-    diags.extend(warnings);
+    }
+}
+
+/// The last stage of [`load`]: interpolates `toolpath` and gathers every warning.
+pub fn load_toolpath(
+    program: Program,
+    toolpath: Toolpath,
+    mut diags: Vec<Diagnostic>,
+    limits: &Limits,
+    opts: &InterpolateOptions,
+) -> Result<Loaded, Error> {
     let trajectory = interpolate(&toolpath, limits, opts)?;
     diags.extend(trajectory.warnings.iter().cloned());
     Ok(Loaded {

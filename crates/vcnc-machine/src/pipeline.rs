@@ -87,56 +87,7 @@ impl Run {
 /// sample is checked against the axis travels.
 pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Result<Run, Error> {
     let interp = machine.interp_options(lenient);
-    // Axes the program moves but the machine lacks: a clear error before interpolation.
-    let parse_opts = vcnc_gcode::ParseOptions {
-        lenient,
-        ..vcnc_gcode::ParseOptions::default()
-    };
-    let (program, diags) = vcnc_gcode::parse_with(src, &parse_opts);
-    if diags.iter().any(Diagnostic::is_error) {
-        return Err(Error::Program {
-            file: file.to_string(),
-            diagnostics: diags,
-        });
-    }
-    match vcnc_gcode::interpret(&program, &interp) {
-        Err(d) => {
-            let mut all = diags;
-            all.extend(d);
-            return Err(Error::Program {
-                file: file.to_string(),
-                diagnostics: all,
-            });
-        }
-        Ok((toolpath, _)) => {
-            for m in &toolpath.moves {
-                for (i, name) in vcnc_gcode::AXIS_NAMES.iter().enumerate() {
-                    if m.end[i] != m.start[i] && machine.axis(*name).is_none() {
-                        return Err(Error::Program {
-                            file: file.to_string(),
-                            diagnostics: vec![Diagnostic {
-                                line: m.line,
-                                col: m.col,
-                                severity: Severity::Error,
-                                message: format!(
-                                    "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
-                                    machine.name,
-                                    machine.axis_names().iter().collect::<String>()
-                                ),
-                            }],
-                        });
-                    }
-                }
-            }
-        }
-    }
-    let loaded = vcnc_gcode::load(
-        src,
-        &interp,
-        &machine.limits(),
-        &machine.interpolate_options(),
-    )
-    .map_err(|e| match e {
+    let gcode_error = |e: vcnc_gcode::Error| match e {
         vcnc_gcode::Error::Program { diagnostics } => Error::Program {
             file: file.to_string(),
             diagnostics,
@@ -145,7 +96,37 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
             file: file.to_string(),
             message: other.to_string(),
         },
-    })?;
+    };
+    let (program, toolpath, diags) =
+        vcnc_gcode::parse_and_interpret(src, &interp).map_err(gcode_error)?;
+    // Axes the program moves but the machine lacks: a clear error before interpolation.
+    for m in &toolpath.moves {
+        for (i, name) in vcnc_gcode::AXIS_NAMES.iter().enumerate() {
+            if m.end[i] != m.start[i] && machine.axis(*name).is_none() {
+                return Err(Error::Program {
+                    file: file.to_string(),
+                    diagnostics: vec![Diagnostic {
+                        line: m.line,
+                        col: m.col,
+                        severity: Severity::Error,
+                        message: format!(
+                            "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
+                            machine.name,
+                            machine.axis_names().iter().collect::<String>()
+                        ),
+                    }],
+                });
+            }
+        }
+    }
+    let loaded = vcnc_gcode::load_toolpath(
+        program,
+        toolpath,
+        diags,
+        &machine.limits(),
+        &machine.interpolate_options(),
+    )
+    .map_err(gcode_error)?;
     let mut warnings: Vec<String> = loaded
         .warnings
         .iter()
