@@ -15,32 +15,58 @@ use crate::cmd_identify::{identification_table, write_identification};
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_coloured_path, write_panels};
 use crate::report::{
-    ensure_dir, load_machine, load_models, print_warnings, read_program, rms, scaled_diff, table,
+    ensure_dir, load_machine, load_models, max_abs, print_warnings, read_program, rms, scaled_diff,
+    table,
 };
+
+/// The twelve contour figures of a prediction, one row per statistic: table label, SPEC
+/// section 9 key, tool tip (µm), orientation (mrad).
+fn contour_figures(p: &Prediction) -> [(&'static str, &'static str, f64, f64); 6] {
+    let (t, q) = (&p.true_contour, &p.predicted_contour);
+    let (d_tip, d_or) = (p.tip_discrepancy(), p.orientation_discrepancy());
+    [
+        ("true max", "true_max", t.tip_max_mm, t.orientation_max_rad),
+        ("true RMS", "true_rms", t.tip_rms_mm, t.orientation_rms_rad),
+        (
+            "predicted max",
+            "predicted_max",
+            q.tip_max_mm,
+            q.orientation_max_rad,
+        ),
+        (
+            "predicted RMS",
+            "predicted_rms",
+            q.tip_rms_mm,
+            q.orientation_rms_rad,
+        ),
+        (
+            "|pred - true| max",
+            "discrepancy_max",
+            max_abs(&d_tip),
+            max_abs(&d_or),
+        ),
+        (
+            "|pred - true| RMS",
+            "discrepancy_rms",
+            rms(&d_tip),
+            rms(&d_or),
+        ),
+    ]
+    .map(|(label, key, tip_mm, or_rad)| (label, key, tip_mm * 1e3, or_rad * 1e3))
+}
 
 /// Contour summary (SPEC section 9 keys) of a prediction.
 pub fn contour_summary(p: &Prediction) -> Value {
-    let um = 1000.0;
-    let d_tip = p.tip_discrepancy();
-    let d_or = p.orientation_discrepancy();
-    let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(*x));
+    let figures = contour_figures(p);
+    let section = |pick: fn(&(&str, &str, f64, f64)) -> f64| {
+        figures
+            .iter()
+            .map(|f| (f.1.to_string(), json!(pick(f))))
+            .collect::<serde_json::Map<_, _>>()
+    };
     json!({
-        "contour_um": {
-            "true_max": p.true_contour.tip_max_mm * um,
-            "true_rms": p.true_contour.tip_rms_mm * um,
-            "predicted_max": p.predicted_contour.tip_max_mm * um,
-            "predicted_rms": p.predicted_contour.tip_rms_mm * um,
-            "discrepancy_max": max(&d_tip) * um,
-            "discrepancy_rms": rms(&d_tip) * um,
-        },
-        "orientation_mrad": {
-            "true_max": p.true_contour.orientation_max_rad * 1000.0,
-            "true_rms": p.true_contour.orientation_rms_rad * 1000.0,
-            "predicted_max": p.predicted_contour.orientation_max_rad * 1000.0,
-            "predicted_rms": p.predicted_contour.orientation_rms_rad * 1000.0,
-            "discrepancy_max": max(&d_or) * 1000.0,
-            "discrepancy_rms": rms(&d_or) * 1000.0,
-        },
+        "contour_um": section(|f| f.2),
+        "orientation_mrad": section(|f| f.3),
         "samples": p.true_contour.tip_mm.len(),
     })
 }
@@ -122,14 +148,8 @@ pub fn write_prediction_plots(
         um(&p.predicted_contour.orientation_rad),
     );
     let d_tip = um(&p.tip_discrepancy());
-    let d_extra = extra.map(|(_, e)| {
-        p.true_contour
-            .tip_mm
-            .iter()
-            .zip(&e.predicted_contour.tip_mm)
-            .map(|(a, b)| (b - a).abs() * 1000.0)
-            .collect::<Vec<f64>>()
-    });
+    // `e` shares `p`'s true drives (`pipeline::predict_many`).
+    let d_extra = extra.map(|(_, e)| um(&e.tip_discrepancy()));
     // The comparison model first, so the refined one is drawn on top of it.
     let mut disc = Vec::new();
     if let (Some((name, _)), Some(d)) = (extra, &d_extra) {
@@ -248,41 +268,10 @@ pub fn write_prediction_plots(
 }
 
 fn prediction_rows(p: &Prediction) -> Vec<(String, f64, f64)> {
-    let d_tip = p.tip_discrepancy();
-    let d_or = p.orientation_discrepancy();
-    let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(*x));
-    vec![
-        (
-            "true max".into(),
-            p.true_contour.tip_max_mm * 1e3,
-            p.true_contour.orientation_max_rad * 1e3,
-        ),
-        (
-            "true RMS".into(),
-            p.true_contour.tip_rms_mm * 1e3,
-            p.true_contour.orientation_rms_rad * 1e3,
-        ),
-        (
-            "predicted max".into(),
-            p.predicted_contour.tip_max_mm * 1e3,
-            p.predicted_contour.orientation_max_rad * 1e3,
-        ),
-        (
-            "predicted RMS".into(),
-            p.predicted_contour.tip_rms_mm * 1e3,
-            p.predicted_contour.orientation_rms_rad * 1e3,
-        ),
-        (
-            "|pred - true| max".into(),
-            max(&d_tip) * 1e3,
-            max(&d_or) * 1e3,
-        ),
-        (
-            "|pred - true| RMS".into(),
-            rms(&d_tip) * 1e3,
-            rms(&d_or) * 1e3,
-        ),
-    ]
+    contour_figures(p)
+        .iter()
+        .map(|(label, _, tip, or)| (label.to_string(), *tip, *or))
+        .collect()
 }
 
 /// `vcnc predict MACHINE PROGRAM [--model MODEL] --out DIR`.
