@@ -15,8 +15,7 @@ use crate::cmd_identify::{identification_table, write_identification};
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_coloured_path, write_panels};
 use crate::report::{
-    ensure_dir, load_machine, load_models, max_abs, print_warnings, read_program, rms, scaled_diff,
-    table,
+    ensure_dir, load_models, max_abs, prepare_run, print_warnings, rms, scaled_diff, table,
 };
 
 /// The twelve contour figures of a prediction, one row per statistic: table label, SPEC
@@ -282,11 +281,8 @@ pub fn predict(
     out: &Path,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = load_machine(machine_path)?;
-    let src = read_program(program)?;
+    let (machine, run) = prepare_run(machine_path, program, ctx.lenient)?;
     let file = program.display().to_string();
-    let run = pipeline::prepare(&machine, &src, &file, ctx.lenient)?;
-    print_warnings(&run.warnings);
     let (models, source) = match (load_models(model, &machine)?, model) {
         (Some(m), Some(p)) => (m, p.display().to_string()),
         _ => {

@@ -11,16 +11,13 @@ use crate::Ctx;
 use crate::output::{write_csv, write_json};
 use crate::plot::{LinePlot, Scale, Series, write_panels};
 use crate::report::{
-    ensure_dir, load_machine, load_models, max_abs, model_json, print_warnings, read_program, rms,
-    scaled_diff, table,
+    ensure_dir, load_machine, load_models, max_abs, model_json, prepare_run, rms, scaled_diff,
+    table,
 };
 
 /// `vcnc interpolate MACHINE PROGRAM --out DIR`: `reference.csv` and `summary.json`.
 pub fn interpolate(machine: &Path, program: &Path, out: &Path, ctx: &Ctx) -> Result<()> {
-    let machine = load_machine(machine)?;
-    let src = read_program(program)?;
-    let run = pipeline::prepare(&machine, &src, &program.display().to_string(), ctx.lenient)?;
-    print_warnings(&run.warnings);
+    let (machine, run) = prepare_run(machine, program, ctx.lenient)?;
     ensure_dir(out)?;
     let traj = &run.loaded.trajectory;
     let n = run.len();
@@ -88,11 +85,8 @@ pub fn simulate(
     out: &Path,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = load_machine(machine_path)?;
-    let src = read_program(program)?;
+    let (machine, run) = prepare_run(machine_path, program, ctx.lenient)?;
     let models = load_models(model, &machine)?;
-    let run = pipeline::prepare(&machine, &src, &program.display().to_string(), ctx.lenient)?;
-    print_warnings(&run.warnings);
     let traces = pipeline::simulate_true(&machine, &run)?;
     let predicted = match &models {
         Some(m) => Some(pipeline::simulate_models(m, &run)?),

@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use vcnc_drive::ClosedLoopModel;
 use vcnc_identify::FitMetrics;
+use vcnc_machine::pipeline::{self, Run};
 use vcnc_machine::{Machine, ModelSet, Unit};
 
 /// A model object: `a1 a2 a3 b0 b1 b2 dc p_hz wn_hz zeta stable` (and the roots when the model
@@ -91,6 +92,16 @@ pub fn print_warnings(warnings: &[String]) {
     for w in warnings {
         eprintln!("{w}");
     }
+}
+
+/// The opening of every command that runs a program on a machine file: load the machine, read
+/// and interpolate the program, print its warnings.
+pub fn prepare_run(machine_path: &Path, program: &Path, lenient: bool) -> Result<(Machine, Run)> {
+    let machine = load_machine(machine_path)?;
+    let src = read_program(program)?;
+    let run = pipeline::prepare(&machine, &src, &program.display().to_string(), lenient)?;
+    print_warnings(&run.warnings);
+    Ok((machine, run))
 }
 
 /// A plain-text table with right-aligned columns after the first.
