@@ -3,7 +3,7 @@
 
 use std::sync::OnceLock;
 
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::{AxisName, ClosedLoopModel};
 use vcnc_machine::pipeline::{self, AxisIdentification, Prediction, Run};
 use vcnc_machine::{Machine, embedded};
 
@@ -52,18 +52,18 @@ fn spiral_matches_spec_geometry_and_duration() {
     let f = fixture();
     let d = f.run.loaded.trajectory.duration_s();
     assert!((d - 10.12).abs() < 0.02, "duration {d} s");
-    let span = |c: char| {
+    let span = |c: AxisName| {
         let a = f.run.axes.iter().find(|a| a.name == c).unwrap();
         let lo = a.pos.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = a.pos.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let v = a.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         (lo, hi, v)
     };
-    let (xl, xh, xv) = span('X');
-    let (yl, yh, yv) = span('Y');
-    let (zl, zh, zv) = span('Z');
-    let (al, ah, av) = span('A');
-    let (_, _, cv) = span('C');
+    let (xl, xh, xv) = span(AxisName::X);
+    let (yl, yh, yv) = span(AxisName::Y);
+    let (zl, zh, zv) = span(AxisName::Z);
+    let (al, ah, av) = span(AxisName::A);
+    let (_, _, cv) = span(AxisName::C);
     for (got, want, tol) in [
         (xl, -36.0, 0.5),
         (xh, 36.0, 0.5),
@@ -81,7 +81,7 @@ fn spiral_matches_spec_geometry_and_duration() {
     ] {
         assert!((got - want).abs() <= tol, "got {got}, SPEC says {want}");
     }
-    let c = f.run.axes.iter().find(|a| a.name == 'C').unwrap();
+    let c = f.run.axes.iter().find(|a| a.name == AxisName::C).unwrap();
     let turns = (c.pos[c.pos.len() - 1] - c.pos[0]).abs() / 360.0;
     assert!((turns - 3.0).abs() < 1e-6, "C turns {turns}");
 }
@@ -173,9 +173,9 @@ fn reference_poses_round_trip_the_programmed_tool_tip() {
     let traj = &f.run.loaded.trajectory;
     let poses = f.run.poses.as_ref().unwrap();
     let (x, y, z) = (
-        traj.axis('X').unwrap(),
-        traj.axis('Y').unwrap(),
-        traj.axis('Z').unwrap(),
+        traj.axis(AxisName::X).unwrap(),
+        traj.axis(AxisName::Y).unwrap(),
+        traj.axis(AxisName::Z).unwrap(),
     );
     for (k, pose) in poses.iter().enumerate().take(traj.len()) {
         let d = ((pose.p.x - x.pos[k]).powi(2)

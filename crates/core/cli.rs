@@ -125,7 +125,7 @@ pub struct IdentifyArgs {
     pub machine: Option<PathBuf>,
     /// Axes to identify (default: all).
     #[arg(long = "axis", value_name = "A")]
-    pub axes: Vec<String>,
+    pub axes: Vec<vcnc_gcode::AxisName>,
     /// Seed of the identification program and the PSO (default: the machine file's).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -180,9 +180,9 @@ pub struct SweepArgs {
 pub enum GenCommand {
     /// The paper's identification excitation for one axis.
     Identification {
-        /// Axis letter.
+        /// Axis letter (X Y Z A B C).
         #[arg(long, default_value = "X")]
-        axis: String,
+        axis: vcnc_gcode::AxisName,
         /// Number of random moves.
         #[arg(long, default_value_t = 70)]
         moves: usize,

@@ -19,12 +19,6 @@ pub fn generate(what: &GenCommand) -> Result<()> {
             max_feed,
             seed,
         } => {
-            let mut chars = axis.chars();
-            let (Some(letter), None) = (chars.next(), chars.next()) else {
-                return Err(bad_input(format!(
-                    "--axis {axis}: expected one letter of X Y Z A B C"
-                )));
-            };
             let opts = IdentificationOptions {
                 moves: *moves,
                 range: *range,
@@ -33,7 +27,7 @@ pub fn generate(what: &GenCommand) -> Result<()> {
                 seed: *seed,
                 ..IdentificationOptions::default()
             };
-            vcnc_gcode::identification(letter, &opts).map_err(|e| bad_input(e.to_string()))?
+            vcnc_gcode::identification(*axis, &opts).map_err(|e| bad_input(e.to_string()))?
         }
         GenCommand::Spiral { feed, segment } => spiral_program(*feed, *segment)?,
     };

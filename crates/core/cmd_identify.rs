@@ -42,22 +42,21 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
 
 fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let machine = load_machine(path)?;
-    let axes: Vec<char> = if args.axes.is_empty() {
+    let axes: Vec<vcnc_gcode::AxisName> = if args.axes.is_empty() {
         machine.axis_names()
     } else {
         let mut v = Vec::new();
-        for a in &args.axes {
-            let mut chars = a.trim().chars();
-            let (Some(c), None) = (chars.next(), chars.next()) else {
-                return Err(bad_input(format!("--axis {a}: expected one axis letter")));
-            };
-            let c = c.to_ascii_uppercase();
+        for &c in &args.axes {
             if machine.axis(c).is_none() {
                 return Err(bad_input(format!(
-                    "--axis {a}: machine \"{}\" ({}) has no axis {c}; it has {}",
+                    "--axis {c}: machine \"{}\" ({}) has no axis {c}; it has {}",
                     machine.name,
                     path.display(),
-                    machine.axis_names().iter().collect::<String>()
+                    machine
+                        .axis_names()
+                        .iter()
+                        .map(|a| a.as_str())
+                        .collect::<String>()
                 )));
             }
             if !v.contains(&c) {
@@ -413,9 +412,9 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let name = args
         .axes
         .first()
-        .cloned()
-        .unwrap_or_else(|| "X".to_string())
-        .to_uppercase();
+        .copied()
+        .unwrap_or(vcnc_gcode::AxisName::X)
+        .to_string();
     let summary = json!({
         "trace": file,
         "samples": trace.len(),

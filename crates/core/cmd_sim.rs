@@ -250,7 +250,7 @@ pub fn bode_data(m: &ClosedLoopModel, freqs: &[f64]) -> BodeData {
 pub fn write_frf(
     dir: &Path,
     prefix: &str,
-    axis: char,
+    axis: impl std::fmt::Display,
     models: &[(&str, &ClosedLoopModel)],
 ) -> Result<()> {
     let freqs = log_freqs(0.1, 500.0, 400);

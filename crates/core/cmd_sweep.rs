@@ -47,7 +47,7 @@ struct Row {
     contour_max_um: Option<f64>,
 }
 
-fn header(keys: &[SweepKey], axes: &[char], with_model: bool) -> Vec<String> {
+fn header(keys: &[SweepKey], axes: &[vcnc_gcode::AxisName], with_model: bool) -> Vec<String> {
     let mut h = vec!["index".to_string()];
     h.extend(keys.iter().map(|k| k.key.clone()));
     for a in axes {

@@ -47,6 +47,7 @@ pub use params::{
 };
 pub use presets::{NMV5000_TABLE3, nmv5000_axis_design, table1_drive};
 pub use sim::{DriveTrace, simulate_drive};
+pub use vcnc_axis::AxisName;
 
 /// Errors of the drive crate. Each variant carries the values needed to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -204,10 +205,10 @@ pub enum Error {
         radius: f64,
     },
     /// No preset for this axis name.
-    #[error("no NMV5000 design for axis {axis:?}: expected one of X, Y, Z, A, C")]
+    #[error("no NMV5000 design for axis {axis}: expected one of X, Y, Z, A, C")]
     UnknownAxis {
         /// The axis asked for.
-        axis: char,
+        axis: AxisName,
     },
 }
 

@@ -1018,7 +1018,7 @@ mod tests {
 
     #[test]
     fn resolved_params_round_trip() {
-        let d = crate::presets::nmv5000_axis_design('y').unwrap();
+        let d = crate::presets::nmv5000_axis_design(crate::AxisName::Y).unwrap();
         let drive = d.validate().unwrap();
         let again = drive.params().validate().unwrap();
         assert_eq!(drive, again);

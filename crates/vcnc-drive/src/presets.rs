@@ -2,10 +2,10 @@
 
 use std::f64::consts::PI;
 
-use crate::Error;
 use crate::params::{
     ControllerSpec, DEFAULT_SERVO_RATE_HZ, DriveParams, Encoder, Plant, PoleDesign,
 };
+use crate::{AxisName, Error};
 
 /// The paper's Table 1 virtual P-PI ball-screw drive (SPEC section 7): $r_g = 1.5915$ mm/rad,
 /// $J = 0.01$ kg·m², $B = 0.0418572$ N·m·s/rad, $K_a = K_t = 1$, $K_v = 70$ (rad/s)/mm,
@@ -41,9 +41,9 @@ pub fn table1_drive() -> DriveParams {
 
 /// The NMV5000's five P-PI axes, "Actual" columns of the paper's Table 3 (SPEC section 7):
 /// `(axis, poles)`.
-pub const NMV5000_TABLE3: [(char, PoleDesign); 5] = [
+pub const NMV5000_TABLE3: [(AxisName, PoleDesign); 5] = [
     (
-        'X',
+        AxisName::X,
         PoleDesign {
             p_hz: 19.30,
             wn_hz: 55.54,
@@ -51,7 +51,7 @@ pub const NMV5000_TABLE3: [(char, PoleDesign); 5] = [
         },
     ),
     (
-        'Y',
+        AxisName::Y,
         PoleDesign {
             p_hz: 22.12,
             wn_hz: 73.50,
@@ -59,7 +59,7 @@ pub const NMV5000_TABLE3: [(char, PoleDesign); 5] = [
         },
     ),
     (
-        'Z',
+        AxisName::Z,
         PoleDesign {
             p_hz: 22.20,
             wn_hz: 73.60,
@@ -67,7 +67,7 @@ pub const NMV5000_TABLE3: [(char, PoleDesign); 5] = [
         },
     ),
     (
-        'A',
+        AxisName::A,
         PoleDesign {
             p_hz: 9.29,
             wn_hz: 31.90,
@@ -75,7 +75,7 @@ pub const NMV5000_TABLE3: [(char, PoleDesign); 5] = [
         },
     ),
     (
-        'C',
+        AxisName::C,
         PoleDesign {
             p_hz: 8.45,
             wn_hz: 27.30,
@@ -104,8 +104,7 @@ pub const NMV5000_B_OVER_J: f64 = 4.19;
 ///
 /// Feed-forward as Table 1: $V_{ff} = 0.5$, $B_{ff} = 0.1$, $J_{ff} = 0$. Default encoder
 /// (0.1 µm / 0.0001°) and servo rate (20 kHz).
-pub fn nmv5000_axis_design(axis: char) -> Result<DriveParams, Error> {
-    let axis = axis.to_ascii_uppercase();
+pub fn nmv5000_axis_design(axis: AxisName) -> Result<DriveParams, Error> {
     let (_, design) = NMV5000_TABLE3
         .iter()
         .find(|(a, _)| *a == axis)
@@ -113,10 +112,10 @@ pub fn nmv5000_axis_design(axis: char) -> Result<DriveParams, Error> {
     let screw = 10.0 / (2.0 * PI);
     let direct = 180.0 / PI;
     let (rg, j, tc) = match axis {
-        'X' => (screw, 0.012, 0.3),
-        'Y' => (screw, 0.010, 0.3),
-        'Z' => (screw, 0.008, 0.3),
-        'A' => (direct, 0.5, 1.5),
+        AxisName::X => (screw, 0.012, 0.3),
+        AxisName::Y => (screw, 0.010, 0.3),
+        AxisName::Z => (screw, 0.008, 0.3),
+        AxisName::A => (direct, 0.5, 1.5),
         _ => (direct, 0.2, 0.8),
     };
     Ok(DriveParams {

@@ -7,7 +7,7 @@ use std::f64::consts::TAU;
 
 use approx::assert_relative_eq;
 use vcnc_drive::{
-    ClosedLoopModel, Controller, ControllerSpec, Drive, DriveParams, Encoder, Error,
+    AxisName, ClosedLoopModel, Controller, ControllerSpec, Drive, DriveParams, Encoder, Error,
     NMV5000_TABLE3, PoleDesign, Reference, SimOptions, SmcGains, nmv5000_axis_design, table1_drive,
 };
 
@@ -490,11 +490,11 @@ fn velocity_reversals_show_the_friction_quadrant_glitch() {
 fn nmv5000_axes_reproduce_their_table3_poles() {
     // Truth: SPEC section 7, Table 3 poles (ωn, ζ, p) and the coefficients printed beside them.
     let printed = [
-        ('X', 393.461, 154786.6, 1.47676e7),
-        ('Y', 388.364, 247932.1, 2.96414e7),
-        ('Z', 398.454, 249975.6, 2.98297e7),
-        ('A', 246.778, 51171.1, 2.34497e6),
-        ('C', 248.638, 39804.9, 1.56215e6),
+        (AxisName::X, 393.461, 154786.6, 1.47676e7),
+        (AxisName::Y, 388.364, 247932.1, 2.96414e7),
+        (AxisName::Z, 398.454, 249975.6, 2.98297e7),
+        (AxisName::A, 246.778, 51171.1, 2.34497e6),
+        (AxisName::C, 248.638, 39804.9, 1.56215e6),
     ];
     for ((axis, design), (axis2, a1, a2, a3)) in NMV5000_TABLE3.into_iter().zip(printed) {
         assert_eq!(axis, axis2);
@@ -519,8 +519,8 @@ fn nmv5000_axes_reproduce_their_table3_poles() {
         );
     }
     assert_eq!(
-        nmv5000_axis_design('B').unwrap_err(),
-        Error::UnknownAxis { axis: 'B' }
+        nmv5000_axis_design(AxisName::B).unwrap_err(),
+        Error::UnknownAxis { axis: AxisName::B }
     );
 }
 
@@ -529,7 +529,11 @@ fn rotary_axis_in_degrees_converges_too() {
     // Truth: as the convergence test, for the NMV5000 C axis (direct drive, rg = 180/pi deg/rad)
     // on a program in degrees (±90 deg, 100 deg/s, 1000 deg/s^2).
     let prog = common::identification_program(3, 10.0, TS, 30.0, 90.0, 100.0, 1000.0);
-    let (peak, diffs) = convergence(&nmv5000_axis_design('C').unwrap(), &prog, &[20e3, 40e3]);
+    let (peak, diffs) = convergence(
+        &nmv5000_axis_design(AxisName::C).unwrap(),
+        &prog,
+        &[20e3, 40e3],
+    );
     eprintln!(
         "NMV5000 C: peak tracking error {:.4} deg, |drive - model| {:.5} / {:.5} deg at 20/40 kHz",
         peak, diffs[0], diffs[1]

@@ -6,7 +6,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use vcnc_gcode::{
-    IdentificationOptions, InterpOptions, InterpolateOptions, Limits, SpiralOptions,
+    AxisName, IdentificationOptions, InterpOptions, InterpolateOptions, Limits, SpiralOptions,
     TcpProgramOptions, identification, load, spiral_points, tcp_program,
 };
 
@@ -42,7 +42,8 @@ fn bench(c: &mut Criterion) {
     c.bench_function("spiral: parse + interpret + interpolate (1 ms)", |b| {
         b.iter(|| load(black_box(&spiral), &io, &limits, &opts).map(|r| r.trajectory.len()))
     });
-    let ident = identification('X', &IdentificationOptions::default()).expect("defaults are valid");
+    let ident =
+        identification(AxisName::X, &IdentificationOptions::default()).expect("defaults are valid");
     let limits = Limits::uniform(250.0, 2500.0);
     c.bench_function(
         "identification X: parse + interpret + interpolate (1 ms)",

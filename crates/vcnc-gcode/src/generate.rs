@@ -1,7 +1,7 @@
 //! Program generators: the identification excitation (paper section 4, SPEC section 2) and the
 //! 5-axis spiral test path (SPEC section 6).
 
-use crate::{AXIS_NAMES, Error};
+use crate::{AxisName, Error};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::TAU;
@@ -99,11 +99,7 @@ fn num(v: f64, decimals: usize) -> String {
 /// it is shortened to the room in the roomier direction. Every block is exact stop (`G61`), so
 /// the axis rests between moves. The program opens with `G0 <axis>0`, so the machine starts at
 /// rest at 0. Same options (seed included) → the same text, byte for byte.
-pub fn identification(axis: char, opts: &IdentificationOptions) -> Result<String, Error> {
-    let axis = axis.to_ascii_uppercase();
-    if !AXIS_NAMES.contains(&axis) {
-        return Err(Error::UnknownAxis { name: axis });
-    }
+pub fn identification(axis: AxisName, opts: &IdentificationOptions) -> Result<String, Error> {
     let o = opts;
     check(
         (1..=MAX_IDENTIFICATION_MOVES).contains(&o.moves),
@@ -168,8 +164,7 @@ pub fn identification(axis: char, opts: &IdentificationOptions) -> Result<String
     )?;
     check(o.decimals <= 9, "decimals", o.decimals as f64, "0 to 9")?;
 
-    let rotary = matches!(axis, 'A' | 'B' | 'C');
-    let unit = if rotary { "deg" } else { "mm" };
+    let unit = axis.unit().as_str();
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
     let mut out = String::new();
     let r = o.range;

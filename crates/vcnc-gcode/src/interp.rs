@@ -41,7 +41,7 @@
 //! a code that uses them, arcs that do not fit, feed moves without a feed, and `G93` feed blocks
 //! without `F` are always errors.
 
-use crate::AXIS_NAMES;
+use crate::AxisName;
 use crate::diag::{Diagnostic, Message, Severity, Sink, Span};
 use crate::syntax::Program;
 use std::f64::consts::TAU;
@@ -217,8 +217,8 @@ impl Toolpath {
     }
 
     /// Names of the used axes, in X Y Z A B C order.
-    pub fn axis_names(&self) -> Vec<char> {
-        AXIS_NAMES
+    pub fn axis_names(&self) -> Vec<AxisName> {
+        AxisName::ALL
             .iter()
             .zip(self.axes_used)
             .filter_map(|(&n, u)| u.then_some(n))
@@ -538,10 +538,10 @@ impl Interp<'_> {
             };
             (m, s)
         });
-        let axis_words: Vec<(usize, f64, Span)> = AXIS_NAMES
+        let axis_words: Vec<(usize, f64, Span)> = AxisName::ALL
             .iter()
             .enumerate()
-            .filter_map(|(i, &n)| get(n).map(|(v, s)| (i, v, s)))
+            .filter_map(|(i, n)| get(n.letter()).map(|(v, s)| (i, v, s)))
             .collect();
         let motion = block_motion.map(|(m, _)| m).or(self.st.motion);
         let moving = !axis_words.is_empty();
@@ -714,7 +714,7 @@ impl Interp<'_> {
                     s,
                     format!(
                         "{} target is out of range after unit conversion",
-                        AXIS_NAMES[i]
+                        AxisName::ALL[i]
                     ),
                 );
                 return false;

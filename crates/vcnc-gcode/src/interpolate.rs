@@ -63,7 +63,7 @@
 
 use crate::diag::{Diagnostic, Span};
 use crate::interp::{Feed, Move, MoveKind, Toolpath};
-use crate::{AXIS_NAMES, Error};
+use crate::{AxisName, Error};
 
 /// Velocity and acceleration limit of one axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,8 +118,8 @@ pub struct InterpolateOptions {
     /// Junction deviation $\delta$ for `G64` corners, mm (deg for pure rotary chains), used when
     /// the move has no `G64 P`. Default 0.01.
     pub junction_deviation: f64,
-    /// Axes to output (letters from `XYZABC`); `None` (default): the axes the program uses.
-    pub axes: Option<Vec<char>>,
+    /// Axes to output; `None` (default): the axes the program uses.
+    pub axes: Option<Vec<AxisName>>,
     /// Infeasible `G93` blocks: error (default) or stretch with a warning.
     pub inverse_time: InverseTimePolicy,
     /// Fraction $\beta$ of the acceleration limit given to the centripetal acceleration on arcs
@@ -141,10 +141,10 @@ impl Default for InterpolateOptions {
 }
 
 /// Samples of one axis.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AxisTrack {
-    /// Axis letter, one of `XYZABC`.
-    pub name: char,
+    /// The axis.
+    pub name: AxisName,
     /// Position at $t_k = k T_s$: mm (X Y Z; the tool tip in TCP spans) or deg (A B C).
     pub pos: Vec<f64>,
     /// Velocity, mm/s or deg/s.
@@ -199,9 +199,8 @@ impl Trajectory {
         self.len().saturating_sub(1) as f64 * self.ts
     }
 
-    /// The track of axis `name` (`'X'` … `'C'`, case-insensitive), if output.
-    pub fn axis(&self, name: char) -> Option<&AxisTrack> {
-        let name = name.to_ascii_uppercase();
+    /// The track of axis `name`, if output.
+    pub fn axis(&self, name: AxisName) -> Option<&AxisTrack> {
         self.axes.iter().find(|a| a.name == name)
     }
 
@@ -399,7 +398,7 @@ fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result<(), Error>
         for (name, value) in [("max_vel", l.max_vel), ("max_acc", l.max_acc)] {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(Error::InvalidLimit {
-                    axis: AXIS_NAMES[i],
+                    axis: AxisName::from_index(i),
                     name,
                     value,
                 });
@@ -412,7 +411,7 @@ fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result<(), Error>
     ] {
         if !(value.is_finite() && value >= 0.0) {
             return Err(Error::InvalidLimit {
-                axis: '-',
+                axis: None,
                 name,
                 value,
             });
@@ -453,12 +452,12 @@ fn segment(
 ) -> Result<Option<Seg>, Error> {
     let d: [f64; 6] = std::array::from_fn(|i| mv.end[i] - mv.start[i]);
     let cannot = |axis: usize, what: &'static str| Error::AxisCannotMove {
-        axis: AXIS_NAMES.get(axis).copied().unwrap_or('?'),
+        axis: AxisName::from_index(axis),
         what,
         line: mv.line,
     };
     let tcp_cannot = |what: &'static str| Error::AxisCannotMove {
-        axis: '-',
+        axis: None,
         what,
         line: mv.line,
     };
@@ -887,34 +886,23 @@ fn sample(
     warnings: Vec<Diagnostic>,
 ) -> Result<Trajectory, Error> {
     let ts = opts.ts;
-    let names: Vec<char> = match &opts.axes {
+    let names: Vec<AxisName> = match &opts.axes {
         Some(list) => {
-            let mut out = Vec::new();
-            for &c in list {
-                let c = c.to_ascii_uppercase();
-                if !AXIS_NAMES.contains(&c) {
-                    return Err(Error::UnknownAxis { name: c });
-                }
-                if !out.contains(&c) {
-                    out.push(c);
-                }
-            }
-            out.sort_by_key(|c| AXIS_NAMES.iter().position(|n| n == c));
+            let mut out = list.clone();
+            out.sort();
+            out.dedup();
             out
         }
         None => {
             let used = tp.axis_names();
             if used.is_empty() {
-                vec!['X', 'Y', 'Z']
+                vec![AxisName::X, AxisName::Y, AxisName::Z]
             } else {
                 used
             }
         }
     };
-    let idx: Vec<usize> = names
-        .iter()
-        .filter_map(|c| AXIS_NAMES.iter().position(|n| n == c))
-        .collect();
+    let idx: Vec<usize> = names.iter().map(|a| a.index()).collect();
     let len = usize::try_from(total + 1).map_err(|_| Error::TooManySamples {
         samples: (total + 1) as f64,
         max: opts.max_samples,
@@ -1024,7 +1012,7 @@ mod tests {
 
     /// Tool-tip (XYZ) speed at sample k.
     fn speed(t: &Trajectory, k: usize) -> f64 {
-        ['X', 'Y', 'Z']
+        [AxisName::X, AxisName::Y, AxisName::Z]
             .iter()
             .filter_map(|&a| t.axis(a))
             .map(|a| a.vel[k] * a.vel[k])
@@ -1073,7 +1061,7 @@ mod tests {
                 2.0 * (l / a).sqrt()
             };
             let expected = (t_star / ts - 1e-9).ceil() * ts;
-            let x = t.axis('X').unwrap();
+            let x = t.axis(AxisName::X).unwrap();
             assert!((t.duration_s() - expected).abs() < 1e-12, "{l} {v} {a}");
             assert_eq!(*x.pos.last().unwrap(), l);
             assert!(max_abs(&x.vel) <= v * (1.0 + 1e-12));
@@ -1095,10 +1083,10 @@ mod tests {
         )
         .unwrap();
         assert!((t.duration_s() - 0.5).abs() < 1e-12);
-        let y = t.axis('Y').unwrap();
+        let y = t.axis(AxisName::Y).unwrap();
         assert!((max_abs(&y.vel) - 100.0).abs() < 1e-9);
         assert!((max_abs(&y.acc) - 1000.0).abs() < 1e-9);
-        assert!((max_abs(&t.axis('X').unwrap().vel) - 75.0).abs() < 1e-9);
+        assert!((max_abs(&t.axis(AxisName::X).unwrap().vel) - 75.0).abs() < 1e-9);
     }
 
     #[test]
@@ -1115,7 +1103,7 @@ mod tests {
         .unwrap();
         assert!((t.duration_s() - 1.09).abs() < 1e-12);
         assert_eq!(t.axes.len(), 1);
-        assert_eq!(t.axes[0].name, 'A');
+        assert_eq!(t.axes[0].name, AxisName::A);
     }
 
     #[test]
@@ -1124,9 +1112,9 @@ mod tests {
         let src = "G0 X10 Y0 Z0\nG3 X-10 Y0 Z5 I-10 J0 F6000\nG2 X10 Y0 R10";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
         let (x, y, z) = (
-            t.axis('X').unwrap(),
-            t.axis('Y').unwrap(),
-            t.axis('Z').unwrap(),
+            t.axis(AxisName::X).unwrap(),
+            t.axis(AxisName::Y).unwrap(),
+            t.axis(AxisName::Z).unwrap(),
         );
         for k in 0..t.len() {
             let r = x.pos[k].hypot(y.pos[k]);
@@ -1160,7 +1148,7 @@ mod tests {
         let t = traj(&src, &limits, &InterpolateOptions::default()).unwrap();
         assert!((t.duration_s() - 1.1).abs() < 1e-12);
         let one = Trap::new(100.0, 0.0, 0.0, 100.0, 1000.0);
-        let x = t.axis('X').unwrap();
+        let x = t.axis(AxisName::X).unwrap();
         for k in 0..t.len() {
             let (s, sd, sdd) = one.eval(k as f64 * 0.001);
             assert!((x.pos[k] - s).abs() < 1e-9, "k {k}");
@@ -1207,7 +1195,7 @@ mod tests {
         for (got, want) in d.iter().zip([1.0, 0.5, 0.1, 2.0]) {
             assert!((got - want).abs() < 1e-12, "{d:?}");
         }
-        assert_eq!(t.axis('X').unwrap().pos.last(), Some(&15.0));
+        assert_eq!(t.axis(AxisName::X).unwrap().pos.last(), Some(&15.0));
         // 100 mm in 0.1 s cannot be done at 100 mm/s.
         let src = "G0 X0\nG93 G1 X100 F600";
         match traj(src, &limits, &InterpolateOptions::default()) {
@@ -1237,7 +1225,7 @@ mod tests {
         let limits = Limits::uniform(100.0, 1000.0);
         let t = traj("G0 X1\nG4 P0.2505", &limits, &InterpolateOptions::default()).unwrap();
         assert_eq!(t.len(), 252);
-        assert!(t.axis('X').unwrap().pos.iter().all(|&x| x == 1.0));
+        assert!(t.axis(AxisName::X).unwrap().pos.iter().all(|&x| x == 1.0));
     }
 
     #[test]
@@ -1256,7 +1244,7 @@ mod tests {
         assert!(matches!(
             traj("G0 B0\nG1 B1 F600", &l, &InterpolateOptions::default()),
             Err(Error::AxisCannotMove {
-                axis: 'B',
+                axis: Some(AxisName::B),
                 line: 2,
                 ..
             })
@@ -1264,7 +1252,10 @@ mod tests {
         l.axes[0].max_acc = f64::NAN;
         assert!(matches!(
             traj("G0 X0", &l, &InterpolateOptions::default()),
-            Err(Error::InvalidLimit { axis: 'X', .. })
+            Err(Error::InvalidLimit {
+                axis: Some(AxisName::X),
+                ..
+            })
         ));
         let opts = InterpolateOptions {
             ts: 0.0,
@@ -1298,12 +1289,12 @@ mod tests {
     fn output_axes_can_be_chosen() {
         let limits = Limits::uniform(100.0, 1000.0);
         let opts = InterpolateOptions {
-            axes: Some(vec!['c', 'X']),
+            axes: Some(vec![AxisName::C, AxisName::X]),
             ..InterpolateOptions::default()
         };
         let t = traj("G0 X0\nG1 X1 F600", &limits, &opts).unwrap();
-        let names: Vec<char> = t.axes.iter().map(|a| a.name).collect();
-        assert_eq!(names, vec!['X', 'C']);
-        assert!(t.axis('C').unwrap().pos.iter().all(|&c| c == 0.0));
+        let names: Vec<AxisName> = t.axes.iter().map(|a| a.name).collect();
+        assert_eq!(names, vec![AxisName::X, AxisName::C]);
+        assert!(t.axis(AxisName::C).unwrap().pos.iter().all(|&c| c == 0.0));
     }
 }

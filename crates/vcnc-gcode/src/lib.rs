@@ -18,7 +18,7 @@
 //! let run = load(src, &InterpOptions::default(), &limits, &InterpolateOptions::default()).unwrap();
 //! // 10 mm at 10 mm/s with 2500 mm/s²: T = L/V + V/A = 1.004 s.
 //! assert!((run.trajectory.duration_s() - 1.004).abs() < 1e-9);
-//! assert_eq!(run.trajectory.axis('X').unwrap().pos.last(), Some(&10.0));
+//! assert_eq!(run.trajectory.axis(vcnc_gcode::AxisName::X).unwrap().pos.last(), Some(&10.0));
 //! ```
 
 pub mod diag;
@@ -42,8 +42,9 @@ pub use syntax::{
     parse_with,
 };
 
-/// Axis letters in the order used by every `[f64; 6]` position: X Y Z (mm), A B C (deg).
-pub const AXIS_NAMES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+/// Axis names; their order ([`AxisName::ALL`]) is that of every `[f64; 6]` position: X Y Z
+/// (mm), A B C (deg).
+pub use vcnc_axis::AxisName;
 
 /// Errors of this crate. Each carries the values needed to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -55,10 +56,10 @@ pub enum Error {
         diagnostics: Vec<Diagnostic>,
     },
     /// A limit is negative or not finite.
-    #[error("limit {name} of axis {axis} is {value:?}; it must be a finite number ≥ 0")]
+    #[error("limit {name} of {} is {value:?}; it must be a finite number ≥ 0", axis_label(*.axis))]
     InvalidLimit {
-        /// Axis letter (`-` for the tool-tip path limits).
-        axis: char,
+        /// The axis (`None` for the tool-tip path limits).
+        axis: Option<AxisName>,
         /// Which limit.
         name: &'static str,
         /// The offending value.
@@ -75,10 +76,10 @@ pub enum Error {
         expected: &'static str,
     },
     /// A move needs an axis whose limit is zero.
-    #[error("line {line}: axis {axis} must move but its {what} limit is 0")]
+    #[error("line {line}: {} must move but its {what} limit is 0", axis_label(*.axis))]
     AxisCannotMove {
-        /// Axis letter (`-` for the tool-tip path).
-        axis: char,
+        /// The axis (`None` for the tool-tip path).
+        axis: Option<AxisName>,
         /// `"velocity"` or `"acceleration"`.
         what: &'static str,
         /// Source line of the move.
@@ -116,12 +117,6 @@ pub enum Error {
         /// What was computed.
         what: &'static str,
     },
-    /// An axis letter outside `XYZABC`.
-    #[error("unknown axis '{name}': expected one of X Y Z A B C")]
-    UnknownAxis {
-        /// The letter.
-        name: char,
-    },
     /// A generator option is out of range.
     #[error("generator option {name} = {value:?} is invalid: expected {expected}")]
     InvalidGenerator {
@@ -132,6 +127,11 @@ pub enum Error {
         /// What is accepted.
         expected: &'static str,
     },
+}
+
+/// `axis X`, or `the tool-tip path` for `None`.
+fn axis_label(axis: Option<AxisName>) -> String {
+    axis.map_or_else(|| "the tool-tip path".to_string(), |a| format!("axis {a}"))
 }
 
 fn count_errors(d: &[Diagnostic]) -> usize {

@@ -2,7 +2,7 @@
 //! Each test is named after its bug and fails on the code before the fix (by a panic, or by
 //! trying to build a program of unbounded size).
 
-use vcnc_gcode::{Error, IdentificationOptions, identification};
+use vcnc_gcode::{AxisName, Error, IdentificationOptions, identification};
 
 /// The identification generator drew long strokes from `long_min ..= 2 R`; with a finite range
 /// `R` above `f64::MAX / 2` the upper end overflowed to infinity and `rand`'s `random_range`
@@ -15,7 +15,7 @@ fn identification_range_whose_double_overflows_is_an_error_not_a_panic() {
             range,
             ..IdentificationOptions::default()
         };
-        match identification('X', &opts) {
+        match identification(AxisName::X, &opts) {
             Err(Error::InvalidGenerator { name, value, .. }) => {
                 assert_eq!(name, "range");
                 assert_eq!(value, range);
@@ -29,7 +29,7 @@ fn identification_range_whose_double_overflows_is_an_error_not_a_panic() {
         moves: 10,
         ..IdentificationOptions::default()
     };
-    let text = identification('X', &opts).expect("f64::MAX / 2 is a valid range");
+    let text = identification(AxisName::X, &opts).expect("f64::MAX / 2 is a valid range");
     assert_eq!(text.matches("\nG1 ").count(), 10);
 }
 
@@ -45,7 +45,7 @@ fn identification_move_count_is_bounded() {
             moves,
             ..IdentificationOptions::default()
         };
-        match identification('X', &opts) {
+        match identification(AxisName::X, &opts) {
             Err(Error::InvalidGenerator { name, value, .. }) => {
                 assert_eq!(name, "moves");
                 assert_eq!(value, moves as f64);

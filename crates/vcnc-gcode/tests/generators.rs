@@ -1,7 +1,7 @@
 //! The generators checked through this crate's own parser, interpreter and interpolator.
 
 use vcnc_gcode::{
-    Feed, IdentificationOptions, InterpOptions, InterpolateOptions, Limits, MoveKind,
+    AxisName, Feed, IdentificationOptions, InterpOptions, InterpolateOptions, Limits, MoveKind,
     SpiralOptions, TcpProgramOptions, TipPose, identification, load, spiral_points, tcp_program,
 };
 
@@ -25,7 +25,7 @@ fn identification_takes_20_to_60_s_and_reverses_30_times() {
             seed,
             ..IdentificationOptions::default()
         };
-        let text = identification('X', &opts).unwrap();
+        let text = identification(AxisName::X, &opts).unwrap();
         let run = load(
             &text,
             &InterpOptions::default(),
@@ -57,7 +57,7 @@ fn identification_takes_20_to_60_s_and_reverses_30_times() {
             .collect();
         assert_eq!(feeds.len(), 70, "every move has a per-minute feed");
         assert!(feeds.iter().all(|&f| f > 0.0 && f <= 15000.0), "{feeds:?}");
-        let x = run.trajectory.axis('X').unwrap();
+        let x = run.trajectory.axis(AxisName::X).unwrap();
         let vmax = x.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(vmax <= 250.0 * (1.0 + 1e-12), "{vmax}");
         // Short and long strokes are both present.
@@ -69,11 +69,11 @@ fn identification_takes_20_to_60_s_and_reverses_30_times() {
 
 #[test]
 fn identification_is_deterministic_and_seeded() {
-    let a = identification('Y', &IdentificationOptions::default()).unwrap();
-    let b = identification('Y', &IdentificationOptions::default()).unwrap();
+    let a = identification(AxisName::Y, &IdentificationOptions::default()).unwrap();
+    let b = identification(AxisName::Y, &IdentificationOptions::default()).unwrap();
     assert_eq!(a, b);
     let c = identification(
-        'Y',
+        AxisName::Y,
         &IdentificationOptions {
             seed: 2,
             ..IdentificationOptions::default()
@@ -85,8 +85,8 @@ fn identification_is_deterministic_and_seeded() {
 
 #[test]
 fn identification_for_a_rotary_axis_is_in_degrees() {
-    let text = identification('c', &IdentificationOptions::default()).unwrap();
-    let x = identification('X', &IdentificationOptions::default()).unwrap();
+    let text = identification(AxisName::C, &IdentificationOptions::default()).unwrap();
+    let x = identification(AxisName::X, &IdentificationOptions::default()).unwrap();
     // Same numbers, only the letter differs (F is then deg/min).
     assert_eq!(text.replace('C', "X").replace("deg", "mm"), x);
     let limits = Limits::uniform(250.0, 2500.0);
@@ -97,7 +97,7 @@ fn identification_for_a_rotary_axis_is_in_degrees() {
         &InterpolateOptions::default(),
     )
     .unwrap();
-    assert_eq!(run.toolpath.axis_names(), vec!['C']);
+    assert_eq!(run.toolpath.axis_names(), vec![AxisName::C]);
     let t = run.trajectory.duration_s();
     assert!((20.0..=60.0).contains(&t), "{t}");
 }
@@ -108,8 +108,7 @@ fn identification_rejects_bad_options() {
         min_feed: 300.0,
         ..IdentificationOptions::default()
     };
-    assert!(identification('X', &bad).is_err());
-    assert!(identification('U', &IdentificationOptions::default()).is_err());
+    assert!(identification(AxisName::X, &bad).is_err());
 }
 
 /// Branch −1 orientation → (A, C) in degrees (SPEC section 5), C unwrapped.
@@ -202,7 +201,7 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
     assert!((t - 10.1).abs() < 0.1);
     // Tip speed: 75 mm/s cruise from 0.05 s to T − 0.05 s, no dips.
     let v = |k: usize| {
-        let s: f64 = ['X', 'Y', 'Z']
+        let s: f64 = [AxisName::X, AxisName::Y, AxisName::Z]
             .iter()
             .map(|&a| run.trajectory.axis(a).unwrap().vel[k].powi(2))
             .sum();

@@ -6,7 +6,7 @@
 use proptest::prelude::*;
 use std::fmt::Write;
 use vcnc_gcode::{
-    Feed, InterpOptions, InterpolateOptions, InverseTimePolicy, Limits, Move, MoveKind,
+    AxisName, Feed, InterpOptions, InterpolateOptions, InverseTimePolicy, Limits, Move, MoveKind,
     ParseOptions, Trajectory, interpolate, interpret, load, parse_bytes, parse_with,
 };
 
@@ -197,7 +197,7 @@ fn render(ops: &[Op], style: Style) -> String {
 
 fn all_axes() -> InterpolateOptions {
     InterpolateOptions {
-        axes: Some(vec!['X', 'Y', 'Z', 'A', 'B', 'C']),
+        axes: Some(AxisName::ALL.to_vec()),
         inverse_time: InverseTimePolicy::Stretch,
         ..InterpolateOptions::default()
     }

@@ -9,7 +9,7 @@
 mod support;
 
 use support::*;
-use vcnc_drive::{ClosedLoopModel, ControllerSpec, DriveParams, PoleDesign};
+use vcnc_drive::{AxisName, ClosedLoopModel, ControllerSpec, DriveParams, PoleDesign};
 use vcnc_identify::*;
 
 struct Case {
@@ -20,7 +20,7 @@ struct Case {
     val_truth: FitMetrics,
 }
 
-fn run_case(name: &str, params: &DriveParams, axis: char, seed: u64) -> Case {
+fn run_case(name: &str, params: &DriveParams, axis: AxisName, seed: u64) -> Case {
     let truth = params.closed_loop_model().expect("valid drive");
     let est = drive_trace(params, &gcode_program(axis, seed, 2500.0));
     let val = drive_trace(params, &gcode_program(axis, seed + 1000, 2500.0));
@@ -90,7 +90,7 @@ fn table1_drive_fine_encoder_poles_within_1_percent() {
     // Issue 4: 0.1 µm encoder → ωn, p within 1 %, ζ within 3 %, dc within 5 %.
     let params = vcnc_drive::table1_drive();
     assert_eq!(params.encoder.resolution, 1e-4);
-    let c = run_case("Table 1, 0.1 µm", &params, 'X', 7);
+    let c = run_case("Table 1, 0.1 µm", &params, AxisName::X, 7);
     assert_within(
         "Table 1 0.1 µm",
         &c.id.identified,
@@ -110,7 +110,7 @@ fn table1_drive_coarse_encoder_poles_within_2_percent() {
     // Issue 4: 1 µm encoder → ωn, p within 2 %, ζ within 5 %, dc within 10 %.
     let mut params = vcnc_drive::table1_drive();
     params.encoder.resolution = 1e-3;
-    let c = run_case("Table 1, 1 µm", &params, 'X', 7);
+    let c = run_case("Table 1, 1 µm", &params, AxisName::X, 7);
     assert_within(
         "Table 1 1 µm",
         &c.id.identified,
@@ -118,7 +118,7 @@ fn table1_drive_coarse_encoder_poles_within_2_percent() {
         [0.02, 0.02, 0.05, 0.10],
     );
     // A second program seed, to make sure the first is not a lucky draw.
-    let c2 = run_case("Table 1, 1 µm, seed 3", &params, 'X', 3);
+    let c2 = run_case("Table 1, 1 µm, seed 3", &params, AxisName::X, 3);
     assert_within(
         "Table 1 1 µm seed 3",
         &c2.id.identified,
@@ -131,7 +131,13 @@ fn table1_drive_coarse_encoder_poles_within_2_percent() {
 fn nmv5000_axes_poles_within_2_percent() {
     // Issue 4: every NMV5000 axis (SPEC Table 3 poles, P-PI designed with the larger Kv rg
     // root, B/J = 4.19) → ωn and p within 2 %, ζ within 5 %.
-    for (axis, seed) in [('X', 11), ('Y', 12), ('Z', 13), ('A', 14), ('C', 15)] {
+    for (axis, seed) in [
+        (AxisName::X, 11),
+        (AxisName::Y, 12),
+        (AxisName::Z, 13),
+        (AxisName::A, 14),
+        (AxisName::C, 15),
+    ] {
         let params = vcnc_drive::nmv5000_axis_design(axis).expect("design");
         let c = run_case(&format!("NMV5000 {axis}"), &params, axis, seed);
         let e = errors(&c.id.identified, &c.truth);
@@ -169,7 +175,7 @@ fn pid_drive_predicted_within_2_percent_of_peak() {
         jff: 0.0,
         bff: 0.1,
     };
-    let c = run_case("PID", &params, 'X', 5);
+    let c = run_case("PID", &params, AxisName::X, 5);
     assert!(c.id.identified.is_stable());
     assert!(
         c.val.freerun_max <= 0.02 * c.val.tracking_peak,
@@ -188,7 +194,7 @@ fn sliding_mode_drives_are_stable_and_predicted_as_well_as_the_true_model() {
     // single reversals. So the test asks: stable, and a prediction error no worse than the true
     // model's own (plus 0.1 µm), or within 2 % of the peak, whichever is larger.
     let check = |name: &str, params: &DriveParams| {
-        let c = run_case(name, params, 'X', 5);
+        let c = run_case(name, params, AxisName::X, 5);
         assert!(
             c.id.identified.is_stable() && c.id.paper_pso.is_stable(),
             "{name}"

@@ -219,7 +219,7 @@ impl KinematicChain {
 fn compose(joints: &[ChainJoint], axes: &Axes) -> Isometry3<f64> {
     let mut t = Isometry3::identity();
     for j in joints {
-        let q = j.role.map_or(0.0, |axis| axes.get(axis));
+        let q = j.role.and_then(|axis| axes.get(axis)).unwrap_or(0.0);
         t = t * j.origin * j.motion(q);
     }
     t
@@ -232,7 +232,7 @@ fn fmt_vec(v: &Vector3<f64>) -> String {
 fn unit_name(axis: AxisName) -> (&'static str, Vector3<f64>) {
     match axis {
         AxisName::X | AxisName::A => ("+X", Vector3::x()),
-        AxisName::Y => ("+Y", Vector3::y()),
+        AxisName::Y | AxisName::B => ("+Y", Vector3::y()),
         AxisName::Z | AxisName::C => ("+Z", Vector3::z()),
     }
 }
@@ -472,8 +472,8 @@ impl Builder<'_> {
 
         let mut limits = AxisLimits::default();
         for j in tool.iter().chain(workpiece.iter()) {
-            if let Some(axis) = j.role {
-                *limits.get_mut(axis) = j.travel;
+            if let Some(t) = j.role.and_then(|axis| limits.get_mut(axis)) {
+                *t = j.travel;
             }
         }
 

@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::chain::KinematicChain;
 use crate::error::{Error, Result};
-use crate::types::{Axes, AxisLimits, AxisName, Branch, Pose, Travel};
+use crate::types::{Axes, AxisLimits, Branch, Pose, Travel};
 
 /// Below this $|\sin a|$ the C angle is undefined (the tool axis is parallel to the C axis):
 /// the inverse kinematics keeps the previous C. The C rate a path demands grows as
@@ -214,8 +214,10 @@ fn check_finite(name: &str, v: &Vector3<f64>, unit: &str) -> Result<()> {
 }
 
 fn check_limits(limits: &AxisLimits) -> Result<()> {
-    for axis in AxisName::ALL {
-        let t = limits.get(axis);
+    for (axis, t) in Axes::NAMES
+        .into_iter()
+        .zip([limits.x, limits.y, limits.z, limits.a, limits.c])
+    {
         Travel::new(t.lower, t.upper).map_err(|_| Error::BadParameter {
             name: format!("travel of {axis}"),
             value: format!("{} ..= {}", t.lower, t.upper),

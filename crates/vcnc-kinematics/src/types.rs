@@ -2,6 +2,8 @@
 
 use std::fmt;
 
+pub use vcnc_axis::AxisName;
+
 use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
@@ -56,14 +58,24 @@ impl Axes {
         Self { x, y, z, a, c }
     }
 
-    /// The value of one axis (mm or rad).
-    pub fn get(&self, axis: AxisName) -> f64 {
+    /// The five axes of a table-tilting A/C machine, in order.
+    pub const NAMES: [AxisName; 5] = [
+        AxisName::X,
+        AxisName::Y,
+        AxisName::Z,
+        AxisName::A,
+        AxisName::C,
+    ];
+
+    /// The value of one axis (mm or rad); `None` for B, which this machine does not have.
+    pub fn get(&self, axis: AxisName) -> Option<f64> {
         match axis {
-            AxisName::X => self.x,
-            AxisName::Y => self.y,
-            AxisName::Z => self.z,
-            AxisName::A => self.a,
-            AxisName::C => self.c,
+            AxisName::X => Some(self.x),
+            AxisName::Y => Some(self.y),
+            AxisName::Z => Some(self.z),
+            AxisName::A => Some(self.a),
+            AxisName::B => None,
+            AxisName::C => Some(self.c),
         }
     }
 
@@ -81,50 +93,6 @@ impl Axes {
     /// The linear axes as a vector `pm = (X, Y, Z)`, mm.
     pub fn pm(&self) -> Vector3<f64> {
         Vector3::new(self.x, self.y, self.z)
-    }
-}
-
-/// The five axes of a table-tilting A/C machine.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum AxisName {
-    /// Linear X, mm.
-    X,
-    /// Linear Y, mm.
-    Y,
-    /// Linear Z, mm.
-    Z,
-    /// Tilt about +X, rad.
-    A,
-    /// Rotation about +Z, rad.
-    C,
-}
-
-impl AxisName {
-    /// All five, in the order X, Y, Z, A, C.
-    pub const ALL: [AxisName; 5] = [
-        AxisName::X,
-        AxisName::Y,
-        AxisName::Z,
-        AxisName::A,
-        AxisName::C,
-    ];
-
-    /// True for A and C (rad), false for X, Y, Z (mm).
-    pub fn is_rotary(self) -> bool {
-        matches!(self, AxisName::A | AxisName::C)
-    }
-}
-
-impl fmt::Display for AxisName {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let s = match self {
-            AxisName::X => "X",
-            AxisName::Y => "Y",
-            AxisName::Z => "Z",
-            AxisName::A => "A",
-            AxisName::C => "C",
-        };
-        f.write_str(s)
     }
 }
 
@@ -240,34 +208,38 @@ pub struct AxisLimits {
 }
 
 impl AxisLimits {
-    /// The travel of one axis.
-    pub fn get(&self, axis: AxisName) -> Travel {
+    /// The travel of one axis; `None` for B, which this machine does not have.
+    pub fn get(&self, axis: AxisName) -> Option<Travel> {
         match axis {
-            AxisName::X => self.x,
-            AxisName::Y => self.y,
-            AxisName::Z => self.z,
-            AxisName::A => self.a,
-            AxisName::C => self.c,
+            AxisName::X => Some(self.x),
+            AxisName::Y => Some(self.y),
+            AxisName::Z => Some(self.z),
+            AxisName::A => Some(self.a),
+            AxisName::B => None,
+            AxisName::C => Some(self.c),
         }
     }
 
-    /// Mutable access to the travel of one axis.
-    pub fn get_mut(&mut self, axis: AxisName) -> &mut Travel {
+    /// Mutable access to the travel of one axis; `None` for B.
+    pub fn get_mut(&mut self, axis: AxisName) -> Option<&mut Travel> {
         match axis {
-            AxisName::X => &mut self.x,
-            AxisName::Y => &mut self.y,
-            AxisName::Z => &mut self.z,
-            AxisName::A => &mut self.a,
-            AxisName::C => &mut self.c,
+            AxisName::X => Some(&mut self.x),
+            AxisName::Y => Some(&mut self.y),
+            AxisName::Z => Some(&mut self.z),
+            AxisName::A => Some(&mut self.a),
+            AxisName::B => None,
+            AxisName::C => Some(&mut self.c),
         }
     }
 
     /// `Ok` if every axis of `axes` is within travel, else the first violation in the order
     /// X, Y, Z, A, C, tagged with `sample`.
     pub fn check(&self, axes: &Axes, sample: Option<usize>) -> Result<()> {
-        for axis in AxisName::ALL {
-            let t = self.get(axis);
-            let v = axes.get(axis);
+        for (axis, t) in Axes::NAMES
+            .into_iter()
+            .zip([self.x, self.y, self.z, self.a, self.c])
+        {
+            let v = axes.get(axis).unwrap_or(0.0);
             if !t.contains(v) {
                 return Err(Error::OutOfTravel {
                     axis,

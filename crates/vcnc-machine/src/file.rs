@@ -29,41 +29,7 @@ use serde::{Deserialize, Serialize};
 use vcnc_drive::{ControllerSpec, Encoder, Plant};
 use vcnc_identify::IdentifyOptions;
 
-/// Axis unit: millimetres for linear axes, degrees for rotary axes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Unit {
-    /// Millimetres (X, Y, Z).
-    Mm,
-    /// Degrees (A, B, C).
-    Deg,
-}
-
-impl Unit {
-    /// `"mm"` or `"deg"`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Unit::Mm => "mm",
-            Unit::Deg => "deg",
-        }
-    }
-
-    /// Unit of reported errors: µm for mm axes, millidegrees for deg axes.
-    pub fn micro_label(self) -> &'static str {
-        match self {
-            Unit::Mm => "um",
-            Unit::Deg => "mdeg",
-        }
-    }
-
-    /// Factor from the axis unit to the reporting unit (µm or mdeg).
-    pub fn micro_factor(self) -> f64 {
-        match self {
-            Unit::Mm => 1000.0,
-            Unit::Deg => 1000.0,
-        }
-    }
-}
+pub use vcnc_axis::Unit;
 
 /// The whole machine file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -101,8 +101,8 @@ pub enum Error {
         file: String,
         /// Source line of the block that moves there.
         line: u32,
-        /// Axis letter.
-        axis: char,
+        /// The axis.
+        axis: vcnc_axis::AxisName,
         /// Position reached, axis units.
         value: f64,
         /// Lower travel limit.

@@ -1,12 +1,15 @@
 //! The checked machine: raw [`MachineFile`] → [`Machine`] (ripgrep's LowArgs → HiArgs split).
 
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use vcnc_axis::AxisName;
 
 use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
 use vcnc_gcode::{AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits};
 use vcnc_identify::IdentifyOptions;
 use vcnc_kinematics::nalgebra::Vector3;
-use vcnc_kinematics::{AxisLimits as Travels, KinematicChain, TableTiltingAc, Travel};
+use vcnc_kinematics::{Axes, AxisLimits as Travels, KinematicChain, TableTiltingAc, Travel};
 
 use crate::file::{MachineFile, ProgramFile, Unit};
 use crate::locate::{error_offset, line_col, locate_key};
@@ -15,8 +18,8 @@ use crate::{Error, embedded};
 /// One checked axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
-    /// Axis letter (X Y Z A B C).
-    pub name: char,
+    /// The axis.
+    pub name: AxisName,
     /// mm or deg.
     pub unit: Unit,
     /// Travel `[lower, upper]`, axis units.
@@ -71,8 +74,6 @@ pub struct Machine {
     /// The raw file, as read (for sweeps and for writing back).
     pub file: MachineFile,
 }
-
-const AXIS_ORDER: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 
 impl Machine {
     /// Reads and checks a machine file.
@@ -148,10 +149,8 @@ impl Machine {
         }
         let mut axes = Vec::with_capacity(file.axes.len());
         for (key, a) in &file.axes {
-            let name = match key.as_str() {
-                k if k.len() == 1 && AXIS_ORDER.contains(&k.chars().next().unwrap_or(' ')) => {
-                    k.chars().next().unwrap_or('X')
-                }
+            let name = match AxisName::from_str(key) {
+                Ok(n) if n.as_str() == key => n,
                 _ => {
                     return Err(invalid(
                         &format!("axes.{key}"),
@@ -160,8 +159,7 @@ impl Machine {
                 }
             };
             let k = |field: &str| format!("axes.{key}.{field}");
-            let rotary = matches!(name, 'A' | 'B' | 'C');
-            let expected = if rotary { Unit::Deg } else { Unit::Mm };
+            let expected = name.unit();
             if a.unit != expected {
                 return Err(invalid(
                     &k("unit"),
@@ -241,7 +239,7 @@ impl Machine {
                 identification_centre: centre,
             });
         }
-        axes.sort_by_key(|a| AXIS_ORDER.iter().position(|c| *c == a.name));
+        axes.sort_by_key(|a| a.name);
 
         let t = &file.trajectory;
         for (field, v) in [
@@ -326,19 +324,14 @@ impl Machine {
                     let tr = Travel::new(axis.travel[0] * scale, axis.travel[1] * scale).map_err(
                         |e| invalid(&format!("axes.{}.travel", axis.name), e.to_string()),
                     )?;
-                    match axis.name {
-                        'X' => travels.x = tr,
-                        'Y' => travels.y = tr,
-                        'Z' => travels.z = tr,
-                        'A' => travels.a = tr,
-                        'C' => travels.c = tr,
-                        _ => {}
+                    if let Some(t) = travels.get_mut(axis.name) {
+                        *t = tr;
                     }
                 }
                 model = model
                     .with_limits(travels)
                     .map_err(|e| invalid("kinematics", e.to_string()))?;
-                for needed in ['X', 'Y', 'Z', 'A', 'C'] {
+                for needed in Axes::NAMES {
                     if !axes.iter().any(|a| a.name == needed) {
                         return Err(invalid(
                             "kinematics",
@@ -376,15 +369,13 @@ impl Machine {
         })
     }
 
-    /// The axis with this letter.
-    pub fn axis(&self, name: char) -> Option<&Axis> {
-        self.axes
-            .iter()
-            .find(|a| a.name == name.to_ascii_uppercase())
+    /// The axis with this name.
+    pub fn axis(&self, name: AxisName) -> Option<&Axis> {
+        self.axes.iter().find(|a| a.name == name)
     }
 
-    /// Axis letters in order.
-    pub fn axis_names(&self) -> Vec<char> {
+    /// Axis names in order.
+    pub fn axis_names(&self) -> Vec<AxisName> {
         self.axes.iter().map(|a| a.name).collect()
     }
 
@@ -395,12 +386,10 @@ impl Machine {
             max_acc: 0.0,
         }; 6];
         for a in &self.axes {
-            if let Some(i) = AXIS_ORDER.iter().position(|c| *c == a.name) {
-                axes[i] = GcodeAxisLimits {
-                    max_vel: a.max_velocity,
-                    max_acc: a.max_acceleration,
-                };
-            }
+            axes[a.name.index()] = GcodeAxisLimits {
+                max_vel: a.max_velocity,
+                max_acc: a.max_acceleration,
+            };
         }
         Limits {
             axes,

@@ -13,6 +13,8 @@ use vcnc_identify::{FitMetrics, Identification, Regressors, Trace, fit_metrics_w
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{Axes, Pose, TcpMotion};
 
+use vcnc_axis::AxisName;
+
 use crate::file::Unit;
 use crate::{Error, Machine};
 
@@ -21,8 +23,8 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 /// Reference signals of one machine axis, at the sample period (axis units, units/s, units/s²).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisSignals {
-    /// Axis letter.
-    pub name: char,
+    /// The axis.
+    pub name: AxisName,
     /// mm or deg.
     pub unit: Unit,
     /// Position.
@@ -101,7 +103,7 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         vcnc_gcode::parse_and_interpret(src, &interp).map_err(gcode_error)?;
     // Axes the program moves but the machine lacks: a clear error before interpolation.
     for m in &toolpath.moves {
-        for (i, name) in vcnc_gcode::AXIS_NAMES.iter().enumerate() {
+        for (i, name) in AxisName::ALL.iter().enumerate() {
             if m.end[i] != m.start[i] && machine.axis(*name).is_none() {
                 return Err(Error::Program {
                     file: file.to_string(),
@@ -112,7 +114,11 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
                         message: format!(
                             "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
                             machine.name,
-                            machine.axis_names().iter().collect::<String>()
+                            machine
+                                .axis_names()
+                                .iter()
+                                .map(|a| a.as_str())
+                                .collect::<String>()
                         ),
                     }],
                 });
@@ -135,7 +141,7 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
     let traj = &loaded.trajectory;
     let n = traj.len();
     let any_tcp = traj.tcp.iter().any(|t| *t);
-    let track = |name: char| traj.axis(name);
+    let track = |name: AxisName| traj.axis(name);
     let mut axes: Vec<AxisSignals> = machine
         .axes
         .iter()
@@ -152,10 +158,14 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         .collect();
     if any_tcp {
         let kin = machine.kinematics_model()?;
-        let idx = |c: char| machine.axes.iter().position(|a| a.name == c);
-        let (Some(ix), Some(iy), Some(iz), Some(ia), Some(ic)) =
-            (idx('X'), idx('Y'), idx('Z'), idx('A'), idx('C'))
-        else {
+        let idx = |c: AxisName| machine.axes.iter().position(|a| a.name == c);
+        let (Some(ix), Some(iy), Some(iz), Some(ia), Some(ic)) = (
+            idx(AxisName::X),
+            idx(AxisName::Y),
+            idx(AxisName::Z),
+            idx(AxisName::A),
+            idx(AxisName::C),
+        ) else {
             return Err(Error::Kinematics {
                 context: machine.source.clone(),
                 message: "TCP mode needs axes X Y Z A C".into(),
@@ -192,10 +202,9 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         let [lo, hi] = a.travel;
         if let Some(k) = s.pos.iter().position(|v| !(*v >= lo && *v <= hi)) {
             let block = traj.block_at(k);
-            let target = block.filter(|b| !b.tcp).and_then(|b| {
-                let i = vcnc_gcode::AXIS_NAMES.iter().position(|c| *c == a.name)?;
-                run_moves_end(&loaded, b.move_index, i)
-            });
+            let target = block
+                .filter(|b| !b.tcp)
+                .and_then(|b| run_moves_end(&loaded, b.move_index, a.name.index()));
             return Err(Error::Travel {
                 file: file.to_string(),
                 line: traj.block_at(k).map_or(0, |b| b.line),
@@ -257,10 +266,14 @@ fn run_moves_end(loaded: &Loaded, index: usize, i: usize) -> Option<f64> {
 /// axis (mm, deg), by the closed-form forward kinematics.
 pub fn forward_poses(machine: &Machine, axis_pos: &[&[f64]]) -> Result<Vec<Pose>, Error> {
     let kin = machine.kinematics_model()?;
-    let idx = |c: char| machine.axes.iter().position(|a| a.name == c);
-    let (Some(ix), Some(iy), Some(iz), Some(ia), Some(ic)) =
-        (idx('X'), idx('Y'), idx('Z'), idx('A'), idx('C'))
-    else {
+    let idx = |c: AxisName| machine.axes.iter().position(|a| a.name == c);
+    let (Some(ix), Some(iy), Some(iz), Some(ia), Some(ic)) = (
+        idx(AxisName::X),
+        idx(AxisName::Y),
+        idx(AxisName::Z),
+        idx(AxisName::A),
+        idx(AxisName::C),
+    ) else {
         return Err(Error::Kinematics {
             context: machine.source.clone(),
             message: "forward kinematics needs axes X Y Z A C".into(),
@@ -458,7 +471,11 @@ impl ExcitationRun {
 
 /// Generates the axis' identification program with `seed`, interpolates it and runs it through
 /// the true drive.
-pub fn excitation_run(machine: &Machine, axis: char, seed: u64) -> Result<ExcitationRun, Error> {
+pub fn excitation_run(
+    machine: &Machine,
+    axis: AxisName,
+    seed: u64,
+) -> Result<ExcitationRun, Error> {
     let a = machine.axis(axis).ok_or_else(|| Error::Invalid {
         file: machine.source.clone(),
         at: None,
@@ -523,8 +540,8 @@ pub fn excitation_run(machine: &Machine, axis: char, seed: u64) -> Result<Excita
 /// Identification of one axis of a simulated machine, with validation.
 #[derive(Debug, Clone)]
 pub struct AxisIdentification {
-    /// Axis letter.
-    pub axis: char,
+    /// The axis.
+    pub axis: AxisName,
     /// mm or deg.
     pub unit: Unit,
     /// The analytic model of the true drive.
@@ -545,7 +562,7 @@ pub struct AxisIdentification {
 /// (validation seed).
 pub fn identify_axis(
     machine: &Machine,
-    axis: char,
+    axis: AxisName,
     seed: Option<u64>,
 ) -> Result<AxisIdentification, Error> {
     let a = machine.axis(axis).ok_or_else(|| Error::Invalid {
@@ -598,7 +615,7 @@ pub fn identify_axis(
 /// Identifies several axes in parallel (results in the order given).
 pub fn identify_axes(
     machine: &Machine,
-    axes: &[char],
+    axes: &[AxisName],
     seed: Option<u64>,
 ) -> Result<Vec<AxisIdentification>, Error> {
     axes.par_iter()

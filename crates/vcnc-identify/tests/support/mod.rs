@@ -140,7 +140,7 @@ pub fn paper_program(seed: u64) -> RefSignal {
 /// The identification program of SPEC section 2 as `vcnc-gcode` generates it (paper section 4:
 /// 70 random moves within ±50, feeds up to 250/s), interpolated at 1 ms with acceleration
 /// `amax` (2500 mm/s² in the paper): G-code text → parse → interpret → trapezoidal profiles.
-pub fn gcode_program(axis: char, seed: u64, amax: f64) -> RefSignal {
+pub fn gcode_program(axis: vcnc_gcode::AxisName, seed: u64, amax: f64) -> RefSignal {
     let opts = vcnc_gcode::IdentificationOptions {
         seed,
         ..Default::default()
