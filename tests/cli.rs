@@ -1,4 +1,4 @@
-//! The command-line contract (SPEC section 9): commands, output files, their keys.
+//! The command-line contract (docs/cli.md): commands, output files, their keys.
 
 use crate::util::{json, num, ok, repo, tempdir, text, vcnc, vcnc_in};
 
@@ -60,7 +60,7 @@ fn interpolate_writes_reference_and_summary() {
     ]);
     ok(&o);
     let s = json(&out.join("summary.json"));
-    // SPEC section 6: ≈ 755 mm at 75 mm/s with 1500 mm/s² ≈ 10.1 s.
+    // docs/contour.md: ≈ 755 mm at 75 mm/s with 1500 mm/s² ≈ 10.1 s.
     assert!((num(&s, "duration_s") - 10.12).abs() < 0.02);
     assert_eq!(s["samples"].as_u64().unwrap() as usize, 10123);
     assert!((num(&s, "axes.C.max_vel") - 212.0).abs() < 1.0);
@@ -105,7 +105,7 @@ fn simulate_and_frf_write_their_files() {
     ]));
     assert!(stdout.contains("p-pi"));
     let s = json(&out.join("summary.json"));
-    // Truth: SPEC section 7, Table 1 poles.
+    // Truth: docs/reference-numbers.md, Table 1 poles.
     assert!((num(&s, "axes.X.model.wn_hz") - 30.569).abs() < 1e-3);
     assert!((num(&s, "axes.X.model.zeta") - 0.44519).abs() < 1e-5);
     assert!(num(&s, "axes.X.tracking_max_um") > 100.0);

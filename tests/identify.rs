@@ -1,6 +1,6 @@
 //! Identification end to end (issue 4): simulated drives against the analytic truth of their
-//! physical parameters (`DriveParams` → closed-loop model, SPEC section 3), and the real EMPS
-//! trace against SPEC section 7's published figures.
+//! physical parameters (`DriveParams` → closed-loop model, docs/drive-model.md), and the real EMPS
+//! trace against docs/reference-numbers.md's published figures.
 
 use std::path::Path;
 
@@ -124,7 +124,7 @@ fn smc_drive_identified_stable_and_predictive() {
 
 #[test]
 fn smc_with_exact_estimates_stays_stable() {
-    // Exact estimates: every pole is cancelled by a zero (G_track = 1, SPEC section 3), the
+    // Exact estimates: every pole is cancelled by a zero (G_track = 1, docs/drive-model.md), the
     // tracking error is Coulomb friction only (≈ 6 µm peak) and the poles are seen only through
     // the friction response. The identified model must still be stable, and predict the
     // validation run within 0.6 µm: the analytic model of the true drive itself misses the 20 kHz
@@ -150,7 +150,7 @@ fn smc_with_exact_estimates_stays_stable() {
 
 #[test]
 fn emps_real_trace() {
-    // SPEC section 7: the EMPS benchmark (Janot, Gautier, Brunot 2019), a real ball-screw drive:
+    // docs/reference-numbers.md: the EMPS benchmark (Janot, Gautier, Brunot 2019), a real ball-screw drive:
     // raw tracking error 578 µm RMS; the benchmark's physical model gives 4.0 µm RMS free-run;
     // we need a stable model at ≤ 3 µm. Unconstrained LS gives an unstable pole.
     let dir = tempdir();
@@ -245,7 +245,7 @@ fn same_seed_same_bits_for_any_thread_count() {
             "{f} differs"
         );
     }
-    // SPEC section 9 keys: model objects and fit, µm on linear axes, millidegrees on rotary.
+    // docs/cli.md keys: model objects and fit, µm on linear axes, millidegrees on rotary.
     let s = json(&a.join("summary.json"));
     for (axis, unit) in [("X", "um"), ("C", "mdeg")] {
         for model in ["identified", "paper_pso", "unconstrained_ls", "true"] {

@@ -1,4 +1,4 @@
-//! The 5-axis spiral (SPEC section 6) on the NMV5000 with the true drives and with the
+//! The 5-axis spiral (docs/contour.md) on the NMV5000 with the true drives and with the
 //! identified models: the regression test of the whole pipeline (issue 5).
 
 use std::sync::OnceLock;
@@ -47,7 +47,7 @@ fn max(v: &[f64]) -> f64 {
 
 #[test]
 fn spiral_matches_spec_geometry_and_duration() {
-    // Truth: SPEC section 6 (≈ 755 mm at 75 mm/s and 1500 mm/s² ≈ 10.1 s; axis spans X −36…36,
+    // Truth: docs/contour.md (≈ 755 mm at 75 mm/s and 1500 mm/s² ≈ 10.1 s; axis spans X −36…36,
     // Y −25…58, Z 22…61 mm, A −36.9…−11.5°, peak rates 127, 110, 28 mm/s, 4.6 and 212 °/s).
     let f = fixture();
     let d = f.run.loaded.trajectory.duration_s();
@@ -79,7 +79,10 @@ fn spiral_matches_spec_geometry_and_duration() {
         (av, 4.6, 0.1),
         (cv, 212.0, 1.0),
     ] {
-        assert!((got - want).abs() <= tol, "got {got}, SPEC says {want}");
+        assert!(
+            (got - want).abs() <= tol,
+            "got {got}, docs/contour.md says {want}"
+        );
     }
     let c = f.run.axes.iter().find(|a| a.name == AxisName::C).unwrap();
     let turns = (c.pos[c.pos.len() - 1] - c.pos[0]).abs() / 360.0;
@@ -88,7 +91,7 @@ fn spiral_matches_spec_geometry_and_duration() {
 
 #[test]
 fn true_contour_error_is_the_published_scale() {
-    // SPEC section 6 / issue 5: with Table 3 drives the true contour error peaks near 450 µm
+    // docs/contour.md / issue 5: with Table 3 drives the true contour error peaks near 450 µm
     // and 3.9 mrad.
     let f = fixture();
     let tip = f.refined.true_contour.tip_max_mm * 1e3;
@@ -114,7 +117,7 @@ fn identified_drives_predict_the_contour_error_within_a_micrometre() {
 #[test]
 fn identified_nmv5000_poles_are_within_tolerance() {
     // Issue 4: every NMV5000 axis' ωn and p within 2 %, ζ within 5 % of the analytic model of
-    // the true drive (truth: `DriveParams` → closed-loop model, SPEC section 3).
+    // the true drive (truth: `DriveParams` → closed-loop model, docs/drive-model.md).
     let f = fixture();
     for r in &f.ids {
         let t = r.truth.poles().unwrap();

@@ -1,4 +1,4 @@
-//! The command line (SPEC section 9: a contract that scripts and tests depend on).
+//! The command line (docs/cli.md: a contract that scripts and tests depend on).
 
 use std::path::PathBuf;
 
@@ -195,7 +195,7 @@ pub enum GenCommand {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
-    /// The 5-axis spiral of SPEC section 6 in tool-centre-point mode.
+    /// The 5-axis spiral of docs/contour.md in tool-centre-point mode.
     Spiral {
         /// Feed along the tool-tip path, mm/s.
         #[arg(long, default_value_t = 75.0)]

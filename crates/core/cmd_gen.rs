@@ -37,7 +37,7 @@ pub fn generate(what: &GenCommand) -> Result<()> {
     Ok(())
 }
 
-/// The SPEC section 6 spiral as a TCP program: tip points on the dome, tool axis = dome normal,
+/// The docs/contour.md spiral as a TCP program: tip points on the dome, tool axis = dome normal,
 /// turned into A and C by the inverse kinematics on branch −1 with C unwrapped continuously.
 pub fn spiral_program(feed_mm_s: f64, segment_mm: f64) -> Result<String> {
     let opts = SpiralOptions {
@@ -57,7 +57,7 @@ pub fn spiral_program(feed_mm_s: f64, segment_mm: f64) -> Result<String> {
     let popts = TcpProgramOptions {
         feed_mm_per_min: feed_mm_s * 60.0,
         title: format!(
-            "vcnc 5-axis spiral of SPEC section 6: 3 turns, radius 20 to 60 mm on a 100 mm dome centred at x 30 y 20; tool axis = dome normal, IK branch -1; {feed_mm_s} mm/s; {segment_mm} mm segments"
+            "vcnc 5-axis spiral of docs/contour.md: 3 turns, radius 20 to 60 mm on a 100 mm dome centred at x 30 y 20; tool axis = dome normal, IK branch -1; {feed_mm_s} mm/s; {segment_mm} mm segments"
         ),
         ..TcpProgramOptions::default()
     };

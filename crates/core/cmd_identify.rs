@@ -99,7 +99,7 @@ pub fn write_identification(
     let set = ModelSet {
         machine: machine.to_string(),
         description: Some(
-            "identified by vcnc: stability-constrained PSO (paper section 3) + output-error refinement (SPEC section 4)"
+            "identified by vcnc: stability-constrained PSO (paper section 3) + output-error refinement (docs/identification.md)"
                 .into(),
         ),
         axes: models,
@@ -132,7 +132,7 @@ fn axis_summary(r: &AxisIdentification) -> Value {
         "true": truth,
         "error_percent_vs_true": Value::Object(errors),
         // `fit`: the identified model on the validation run (a different seed of the
-        // identification program), SPEC section 9 keys.
+        // identification program), docs/cli.md keys.
         "fit": fit_json(&r.validation, r.unit),
         "fit_estimation": fit_json(&id.fit_estimation, r.unit),
         "fit_paper_pso": fit_json(&r.validation_paper, r.unit),

@@ -18,8 +18,8 @@ use crate::report::{
     ensure_dir, load_models, max_abs, prepare_run, print_warnings, rms, scaled_diff, table,
 };
 
-/// The twelve contour figures of a prediction, one row per statistic: table label, SPEC
-/// section 9 key, tool tip (µm), orientation (mrad).
+/// The twelve contour figures of a prediction, one row per statistic: table label, docs/cli.md
+/// key, tool tip (µm), orientation (mrad).
 fn contour_figures(p: &Prediction) -> [(&'static str, &'static str, f64, f64); 6] {
     let (t, q) = (&p.true_contour, &p.predicted_contour);
     let (d_tip, d_or) = (p.tip_discrepancy(), p.orientation_discrepancy());
@@ -54,7 +54,7 @@ fn contour_figures(p: &Prediction) -> [(&'static str, &'static str, f64, f64); 6
     .map(|(label, key, tip_mm, or_rad)| (label, key, tip_mm * 1e3, or_rad * 1e3))
 }
 
-/// Contour summary (SPEC section 9 keys) of a prediction.
+/// Contour summary (docs/cli.md keys) of a prediction.
 pub fn contour_summary(p: &Prediction) -> Value {
     let figures = contour_figures(p);
     let section = |pick: fn(&(&str, &str, f64, f64)) -> f64| {

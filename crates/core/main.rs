@@ -1,4 +1,4 @@
-//! `vcnc`: the command-line front end (SPEC section 9). Library crates do the work; this binary
+//! `vcnc`: the command-line front end (docs/cli.md). Library crates do the work; this binary
 //! parses arguments, prints tables and progress, writes files atomically and draws SVG plots.
 //!
 //! Exit codes: 0 ok, 1 runtime failure, 2 bad input (every message names the file, and the line

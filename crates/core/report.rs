@@ -1,4 +1,4 @@
-//! Summary objects (SPEC section 9 keys), plain-text tables, and the loaders shared by commands.
+//! Summary objects (docs/cli.md keys), plain-text tables, and the loaders shared by commands.
 
 use std::path::Path;
 

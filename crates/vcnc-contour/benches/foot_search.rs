@@ -1,4 +1,4 @@
-//! Windowed vs brute-force foot-point search on a 10 000-sample SPEC section 6 spiral
+//! Windowed vs brute-force foot-point search on a 10 000-sample docs/contour.md spiral
 //! (actual = reference delayed 4 ms with a 5 µm offset and a 0.2 mrad tilt).
 //!
 //! `cargo bench -p vcnc-contour --bench foot_search`

@@ -1,5 +1,5 @@
 //! Tool-tip and orientation contour errors between a reference and an actual pose sequence
-//! (SPEC section 6), for vcnc.
+//! (docs/contour.md), for vcnc.
 //!
 //! The **tool-tip contour error** of actual sample $k$ is the distance from the actual tip
 //! $p_a$ to the nearest point of the reference tip path, the polyline through the reference
@@ -57,7 +57,7 @@ pub struct Foot {
     pub orientation: Vector3<f64>,
 }
 
-/// Contour errors of an actual pose sequence against a reference one (SPEC section 6).
+/// Contour errors of an actual pose sequence against a reference one (docs/contour.md).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ContourReport {
     /// Tool-tip contour error per actual sample, mm.

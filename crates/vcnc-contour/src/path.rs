@@ -206,7 +206,7 @@ impl ReferencePath {
         best
     }
 
-    /// Windowed nearest point around the previous foot segment `prev` (SPEC section 6).
+    /// Windowed nearest point around the previous foot segment `prev` (docs/contour.md).
     ///
     /// The window starts at `prev ± min_margin` segments and grows one segment at a time at an
     /// edge while (a) the best candidate is fewer than `min_margin` segments from that edge (the

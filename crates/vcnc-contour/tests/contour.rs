@@ -1,4 +1,4 @@
-//! Contour errors (SPEC section 6): the windowed search against the brute-force oracle on the
+//! Contour errors (docs/contour.md): the windowed search against the brute-force oracle on the
 //! spiral, and both against analytic truths.
 
 mod common;
@@ -58,7 +58,7 @@ fn assert_same_as_oracle(reference: &[Pose], actual: &[Pose]) -> (ContourReport,
 
 #[test]
 fn windowed_equals_brute_force_on_spiral_with_lag() {
-    // SPEC section 6 spiral at 1 kHz (≈ 10 100 samples); actual = reference delayed 4 ms with a
+    // docs/contour.md spiral at 1 kHz (≈ 10 100 samples); actual = reference delayed 4 ms with a
     // 5 µm tip offset and a 0.2 mrad axis tilt.
     let spiral = Spiral::new();
     let r = reference(&spiral, None, 0);

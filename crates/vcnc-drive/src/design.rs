@@ -1,4 +1,4 @@
-//! Controller gains from desired closed-loop poles (SPEC section 3).
+//! Controller gains from desired closed-loop poles (docs/drive-model.md).
 //!
 //! The desired poles $(s + p)(s^2 + 2\zeta\omega_n s + \omega_n^2)$ give
 //! $a_1 = p + 2\zeta\omega_n$, $a_2 = \omega_n^2 + 2\zeta\omega_n p$, $a_3 = p\,\omega_n^2$
@@ -24,7 +24,7 @@ fn check_poles(poles: &Poles) -> Result<(f64, f64, f64), Error> {
     Ok(poles.denominator())
 }
 
-/// P-PI cascade gains for `poles` on `plant` (SPEC section 3), with the given feed-forward.
+/// P-PI cascade gains for `poles` on `plant` (docs/drive-model.md), with the given feed-forward.
 ///
 /// With $P = K_aK_tK_p/J = a_1 - B/J$ the remaining two coefficients require
 /// $P\,K^2 - a_2 K + a_3 = 0$ for $K = K_v r_g$, and then $K_aK_tK_i/J = a_3/K$. Of the two roots
@@ -81,7 +81,7 @@ pub fn design_ppi(
 }
 
 /// PID gains for `poles` on `plant`: with $k = K_aK_t r_g/J$ the PID coefficients are linear in
-/// the gains, $K_d = (a_1 - B/J)/k$, $K_p = a_2/k$, $K_i = a_3/k$ (SPEC section 3).
+/// the gains, $K_d = (a_1 - B/J)/k$, $K_p = a_2/k$, $K_i = a_3/k$ (docs/drive-model.md).
 ///
 /// Error: [`Error::NegativeGain`] when $a_1 \le B/J$ ($K_d \le 0$).
 pub fn design_pid(plant: &Plant, poles: &Poles, jff: f64, bff: f64) -> Result<PidGains, Error> {
@@ -110,7 +110,7 @@ pub fn design_pid(plant: &Plant, poles: &Poles, jff: f64, bff: f64) -> Result<Pi
 }
 
 /// Sliding-mode gains for `poles` on `plant` with exact estimates $\hat J_e = J_e$,
-/// $\hat B_e = B_e$ (SPEC section 3): $\lambda = p$, $K_s = 2\zeta\omega_n J_e$,
+/// $\hat B_e = B_e$ (docs/drive-model.md): $\lambda = p$, $K_s = 2\zeta\omega_n J_e$,
 /// $\rho = \omega_n^2 J_e$. Then $a_1 = \lambda + K_s/J_e$, $a_2 = K_s\lambda/J_e + \rho/J_e$,
 /// $a_3 = \lambda\rho/J_e$ are the desired coefficients, and every pole is cancelled by a zero
 /// ($G_{track} = 1$).
@@ -149,7 +149,7 @@ mod tests {
     use approx::assert_relative_eq;
     use proptest::prelude::*;
 
-    /// Table 1 plant (SPEC section 7), friction as SPEC recommends.
+    /// Table 1 plant (docs/reference-numbers.md), friction as docs/reference-numbers.md recommends.
     fn plant() -> Plant {
         Plant {
             j: 0.01,
@@ -164,7 +164,7 @@ mod tests {
 
     #[test]
     fn ppi_design_recovers_table1_gains() {
-        // Truth: SPEC section 7, Table 1 gains Kv = 70, Kp = 2.342478, Ki = 223.252126 give the
+        // Truth: docs/reference-numbers.md, Table 1 gains Kv = 70, Kp = 2.342478, Ki = 223.252126 give the
         // printed exact poles; designing from those poles (larger root) must give them back to
         // the precision of the printed poles (5 significant digits).
         let poles = Poles::from_hz(10.7296, 30.569, 0.44519);

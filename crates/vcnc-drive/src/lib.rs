@@ -1,5 +1,5 @@
 //! Feed drives for vcnc: the "true" machine (plant, controllers, encoder) whose dynamics vcnc
-//! identifies, and the 7-parameter closed-loop model the identifier fits (SPEC section 3).
+//! identifies, and the 7-parameter closed-loop model the identifier fits (docs/drive-model.md).
 //!
 //! - [`params`]: plain parameter data as the machine file holds it ([`DriveParams`]: [`Plant`],
 //!   [`ControllerSpec`] with gains or desired poles, [`Encoder`], servo rate), checked into a
@@ -134,7 +134,7 @@ pub enum Error {
         /// Damping ratio.
         zeta: f64,
     },
-    /// P-PI design from poles: the quadratic for $K_v r_g$ has no real root (SPEC section 3).
+    /// P-PI design from poles: the quadratic for $K_v r_g$ has no real root (docs/drive-model.md).
     #[error(
         "desired poles p = {p_hz} Hz, wn = {wn_hz} Hz, zeta = {zeta} cannot be reached by a P-PI cascade \
          on a plant with B/J = {b_over_j} 1/s: Kv*rg must solve P K^2 - a2 K + a3 = 0, whose discriminant \

@@ -1,4 +1,4 @@
-//! The 7-parameter closed-loop feed-drive model (paper eq. 3, corrected in SPEC section 3).
+//! The 7-parameter closed-loop feed-drive model (paper eq. 3, corrected in docs/drive-model.md).
 //!
 //! $$ (s^3 + a_1 s^2 + a_2 s + a_3)\,x = (b_0 s^3 + b_1 s^2 + b_2 s + a_3)\,x_r - d_c\, s\, \mathcal{L}\{\operatorname{sgn} \dot x\} $$
 //!
@@ -14,7 +14,7 @@
 //!
 //! discretised exactly for inputs that are linear between samples (first-order hold) with the
 //! friction sign held over each sample. Zero-order hold on $x_r$ would add half a sample of lag
-//! (about 124 µm at 250 mm/s, SPEC section 3).
+//! (about 124 µm at 250 mm/s, docs/drive-model.md).
 
 use nalgebra::{Complex, SMatrix, SVector};
 use serde::{Deserialize, Serialize};
@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 
 /// Closed-loop model of one feed drive: three poles, three zeros and the Coulomb friction
-/// amplitude (paper eq. 3, SPEC section 3). Units are those of the axis: mm (linear axes) or
+/// amplitude (paper eq. 3, docs/drive-model.md). Units are those of the axis: mm (linear axes) or
 /// deg (rotary axes), and seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -138,7 +138,7 @@ pub struct SimOptions {
     pub integrator: Integrator,
     /// Coulomb friction with true sticking (default `true`, exact discretisation only): the
     /// friction over each step is chosen implicitly from the end-of-step velocity, as in the
-    /// Kikuuwe et al. (2005) step of the true drive (SPEC section 3). An axis whose driving
+    /// Kikuuwe et al. (2005) step of the true drive (docs/drive-model.md). An axis whose driving
     /// acceleration stays below $d_c$ stays exactly at rest, and breakaway after a reversal or
     /// from rest is reproduced. With `false`, the sign of the start-of-step velocity (with
     /// [`SimOptions::friction_deadband`]) is held over the step.
@@ -472,7 +472,7 @@ impl ClosedLoopModel {
     /// `reference.pos[0]`. Returns the position at every sample.
     ///
     /// The model has zero initial conditions, so it simulates deviations from the rest position
-    /// ($x - x_0$, $x_r - x_0$) and adds $x_0$ back (SPEC section 3): with absolute coordinates and
+    /// ($x - x_0$, $x_r - x_0$) and adds $x_0$ back (docs/drive-model.md): with absolute coordinates and
     /// $q = 0$ the model would see a step of $(b_2 - a_2) x_0$.
     pub fn simulate(
         &self,
@@ -660,7 +660,7 @@ mod tests {
     use approx::assert_relative_eq;
     use std::f64::consts::TAU;
 
-    /// Table 1 drive, coefficients as SPEC section 7 prints them.
+    /// Table 1 drive, coefficients as docs/reference-numbers.md prints them.
     fn table1() -> ClosedLoopModel {
         ClosedLoopModel {
             a1: 238.4335,
@@ -675,7 +675,7 @@ mod tests {
 
     #[test]
     fn table1_poles_match_published_exact_values() {
-        // Truth: SPEC section 7, exact poles of the Table 1 drive.
+        // Truth: docs/reference-numbers.md, exact poles of the Table 1 drive.
         let p = table1().poles().unwrap();
         assert_relative_eq!(p.wn_hz(), 30.569, max_relative = 5e-5);
         assert_relative_eq!(p.zeta, 0.44519, max_relative = 5e-5);

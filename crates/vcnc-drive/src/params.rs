@@ -1,5 +1,5 @@
-//! Physical parameters of one feed drive: plant, controller, encoder and servo rate (SPEC
-//! section 3), as plain data that the machine file (TOML) embeds directly.
+//! Physical parameters of one feed drive: plant, controller, encoder and servo rate (docs/drive-model.md),
+//! as plain data that the machine file (TOML) embeds directly.
 //!
 //! Two levels, like ripgrep's `LowArgs` → `HiArgs`:
 //!
@@ -9,7 +9,7 @@
 //! - [`Drive`] is what [`DriveParams::validate`] returns: every number checked, the gains resolved
 //!   into a [`Controller`], the closed loop known to be stable. Only a `Drive` can be simulated.
 //!
-//! Variables are named as in the paper and SPEC section 3 (`j`, `b`, `ka`, `kt`, `rg`, `kv`,
+//! Variables are named as in the paper and docs/drive-model.md (`j`, `b`, `ka`, `kt`, `rg`, `kv`,
 //! `kp`, `ki`, `vff`, `bff`, `jff`, `lambda`, `ks`, `rho`).
 
 use serde::{Deserialize, Serialize};
@@ -18,7 +18,7 @@ use crate::Error;
 use crate::design::{design_pid, design_ppi, design_smc};
 use crate::model::{ClosedLoopModel, Poles};
 
-/// The mechanical plant and amplifier of one axis (SPEC section 3):
+/// The mechanical plant and amplifier of one axis (docs/drive-model.md):
 ///
 /// $$ J\,\ddot\theta + B\,\dot\theta = K_a K_t\, u - T_c \operatorname{sgn}(\dot\theta), \qquad x = r_g\,\theta. $$
 ///
@@ -80,7 +80,7 @@ impl Plant {
         self.b / self.j
     }
 
-    /// Equivalent inertia in axis units (SPEC section 3, sliding mode):
+    /// Equivalent inertia in axis units (docs/drive-model.md, sliding mode):
     /// $J_e = J / (K_a K_t r_g)$, V·s²/axis unit.
     pub fn je(&self) -> f64 {
         self.j / (self.ka_kt() * self.rg)
@@ -98,7 +98,7 @@ impl Plant {
 }
 
 /// Desired closed-loop poles $(s + p)(s^2 + 2\zeta\omega_n s + \omega_n^2)$, in Hz, from which the
-/// controller gains are designed (SPEC section 3).
+/// controller gains are designed (docs/drive-model.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoleDesign {
@@ -133,7 +133,7 @@ impl PoleDesign {
     }
 }
 
-/// P-PI cascade gains with feed-forward (SPEC section 3, paper Fig. 1b):
+/// P-PI cascade gains with feed-forward (docs/drive-model.md, paper Fig. 1b):
 ///
 /// $$ \omega_c = K_v (x_r - x) + V_{ff}\,\dot x_r / r_g, \qquad
 ///    u = \Big(K_p + \frac{K_i}{s}\Big)(\omega_c - \dot\theta) + \frac{J_{ff} J \ddot x_r + B_{ff} B \dot x_r}{r_g K_a K_t}. $$
@@ -154,7 +154,7 @@ pub struct PPiGains {
     pub jff: f64,
 }
 
-/// PID on the position error with inertia and viscous feed-forward (SPEC section 3):
+/// PID on the position error with inertia and viscous feed-forward (docs/drive-model.md):
 ///
 /// $$ u = K_p e + K_i \int e\,dt + K_d \dot e + \frac{J_{ff} J \ddot x_r + B_{ff} B \dot x_r}{r_g K_a K_t},
 ///    \qquad e = x_r - x. $$
@@ -173,7 +173,7 @@ pub struct PidGains {
     pub bff: f64,
 }
 
-/// Adaptive sliding-mode gains (Altintas, Erkorkmaz, Zhu 2000; SPEC section 3), in axis units:
+/// Adaptive sliding-mode gains (Altintas, Erkorkmaz, Zhu 2000; docs/drive-model.md), in axis units:
 ///
 /// $$ S = \lambda e + \dot e, \qquad u = \hat J_e(\ddot x_r + \lambda \dot e) + \hat B_e \dot x + \hat d + K_s S,
 ///    \qquad \hat d = \rho \int S\,dt. $$
@@ -215,7 +215,7 @@ impl Controller {
         }
     }
 
-    /// The 7-parameter closed-loop model of this controller on `plant` (SPEC section 3; paper
+    /// The 7-parameter closed-loop model of this controller on `plant` (docs/drive-model.md; paper
     /// eq. 4 for P-PI, corrected: "KaKtKt" → $K_aK_tK_i$, "I_ff" → $J_{ff}$; the PID form is the
     /// paper's missing eq. 5). With $k = K_a K_t$:
     ///
@@ -352,7 +352,7 @@ impl Controller {
 
 /// The controller as written in the machine file: `kind` = `"p-pi"` | `"pid"` | `"smc"`, then
 /// either every gain of that kind, or `design = { p_hz, wn_hz, zeta }` (desired poles; the gains
-/// are then designed for the plant, SPEC section 3, see [`crate::design`]). Feed-forward gains
+/// are then designed for the plant, docs/drive-model.md, see [`crate::design`]). Feed-forward gains
 /// default to 0. [`ControllerSpec::resolve`] turns it into a [`Controller`].
 ///
 /// ```toml
@@ -459,7 +459,7 @@ impl ControllerSpec {
     }
 
     /// Gains of this spec on `plant` (which should be valid, see [`Plant::validate`]): the gains
-    /// as given, or designed from `design` (SPEC section 3, [`crate::design`]). Errors when a gain
+    /// as given, or designed from `design` (docs/drive-model.md, [`crate::design`]). Errors when a gain
     /// is missing, when gains and a design are both given, or when the design is impossible.
     /// Does not check stability (see [`DriveParams::validate`]).
     pub fn resolve(&self, plant: &Plant) -> Result<Controller, Error> {
@@ -770,7 +770,7 @@ impl Drive {
         self.servo_rate_hz
     }
 
-    /// The continuous closed-loop model (SPEC section 3), see [`Controller::closed_loop_model`].
+    /// The continuous closed-loop model (docs/drive-model.md), see [`Controller::closed_loop_model`].
     pub fn closed_loop_model(&self) -> ClosedLoopModel {
         self.model
     }
@@ -944,7 +944,7 @@ mod tests {
 
     #[test]
     fn pid_has_b2_equal_a2_and_smc_with_exact_estimates_is_unity() {
-        // Truth: SPEC section 3. PID: the derivative acts on e, so b2 = a2 (unlike P-PI, whose
+        // Truth: docs/drive-model.md. PID: the derivative acts on e, so b2 = a2 (unlike P-PI, whose
         // Table 1 b2 = 37258.98 differs from a2 = 48421.586). SMC with exact estimates: every
         // coefficient of the numerator equals the denominator's, G_track = 1 at every frequency.
         let plant = table1_drive().plant;

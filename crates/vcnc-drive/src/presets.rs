@@ -1,4 +1,4 @@
-//! Reference drives from the paper (SPEC section 7), shared by the machine files and the tests.
+//! Reference drives from the paper (docs/reference-numbers.md), shared by the machine files and the tests.
 
 use std::f64::consts::PI;
 
@@ -7,12 +7,12 @@ use crate::params::{
 };
 use crate::{AxisName, Error};
 
-/// The paper's Table 1 virtual P-PI ball-screw drive (SPEC section 7): $r_g = 1.5915$ mm/rad,
+/// The paper's Table 1 virtual P-PI ball-screw drive (docs/reference-numbers.md): $r_g = 1.5915$ mm/rad,
 /// $J = 0.01$ kg·m², $B = 0.0418572$ N·m·s/rad, $K_a = K_t = 1$, $K_v = 70$ (rad/s)/mm,
 /// $K_p = 2.342478$, $K_i = 223.252126$, $V_{ff} = 0.5$, $B_{ff} = 0.1$, $J_{ff} = 0$.
 /// Its exact poles are 30.569 Hz / 0.44519 / 10.7296 Hz.
 ///
-/// Coulomb friction: SPEC's realistic $T_c = 0.3$ N·m ($d_c = 47.7$ mm/s²) instead of the
+/// Coulomb friction: the realistic $T_c = 0.3$ N·m ($d_c = 47.7$ mm/s²) instead of the
 /// table's $d_c = 2.68$, which is too small to matter. Default encoder and servo rate.
 pub fn table1_drive() -> DriveParams {
     DriveParams {
@@ -39,7 +39,7 @@ pub fn table1_drive() -> DriveParams {
     }
 }
 
-/// The NMV5000's five P-PI axes, "Actual" columns of the paper's Table 3 (SPEC section 7):
+/// The NMV5000's five P-PI axes, "Actual" columns of the paper's Table 3 (docs/reference-numbers.md):
 /// `(axis, poles)`.
 pub const NMV5000_TABLE3: [(AxisName, PoleDesign); 5] = [
     (
@@ -84,11 +84,11 @@ pub const NMV5000_TABLE3: [(AxisName, PoleDesign); 5] = [
     ),
 ];
 
-/// Mechanical pole $B/J$ of every NMV5000 axis, 1/s (SPEC section 7).
+/// Mechanical pole $B/J$ of every NMV5000 axis, 1/s (docs/reference-numbers.md).
 pub const NMV5000_B_OVER_J: f64 = 4.19;
 
 /// A drive for one NMV5000 axis (`'X'`, `'Y'`, `'Z'`, `'A'`, `'C'`, case-insensitive) whose P-PI
-/// gains are designed from its Table 3 poles (SPEC section 7: the real physical parameters are
+/// gains are designed from its Table 3 poles (docs/reference-numbers.md: the real physical parameters are
 /// not public). The controller is returned as a design (`design = { .. }`); validate it to get
 /// the gains.
 ///

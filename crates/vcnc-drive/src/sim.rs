@@ -1,5 +1,5 @@
 //! Time-domain simulation of the "true" drive: the plant with Coulomb friction and true sticking,
-//! the encoder, and the controller running at the servo rate (SPEC section 3).
+//! the encoder, and the controller running at the servo rate (docs/drive-model.md).
 //!
 //! # Timing
 //!
@@ -26,7 +26,7 @@
 //!    x_{k+1} = x_k + \varphi_1 v_k + \varphi_2 (c u_k - f), $$
 //!
 //! $\varphi_1 = \int_0^h e^{-\beta s}ds$, $\varphi_2 = \int_0^h\!\int_0^s e^{-\beta r}dr\,ds$. The
-//! friction is set-valued and chosen implicitly, as in Kikuuwe et al. (2005) and SPEC section 3
+//! friction is set-valued and chosen implicitly, as in Kikuuwe et al. (2005) and docs/drive-model.md
 //! (whose implicit-Euler form this generalises: with $e^{-\beta h} \approx 1/(1 + \beta h)$ it is
 //! the same step): with $v^* = e^{-\beta h} v_k + \varphi_1 c\,u_k$ and $L = \varphi_1 d_c$,
 //! the axis sticks ($v_{k+1} = 0$, $f$ whatever keeps it there) if $|v^*| \le L$, else
@@ -45,7 +45,7 @@
 //! limit, the integrator holds while $u$ is saturated and its increment would drive $u$ further
 //! into the limit (conditional-integration anti-windup).
 //!
-//! Variables are named as in SPEC section 3 and the paper (`kv`, `kp`, `ki`, `lambda`, `ks`,
+//! Variables are named as in docs/drive-model.md and the paper (`kv`, `kp`, `ki`, `lambda`, `ks`,
 //! `rho`, `je_hat`, `be_hat`, `dc`); `xm` is the encoder reading $\hat x$, `xr`, `vr`, `ar` the
 //! interpolated reference, `h` the servo period.
 
@@ -726,7 +726,7 @@ impl Drive {
     /// Effective continuous poles of the sampled closed loop: the three slowest eigenvalues $z$
     /// of [`Drive::sampled_transition_matrix`] (the other two are fast parasitic modes of the
     /// velocity estimator and the hold) mapped by $s = \ln(z)/h$. Returns the three poles (rad/s)
-    /// and their $(p, \omega_n, \zeta)$ form. SPEC section 3: at 20 kHz they lie within 1 % of the
+    /// and their $(p, \omega_n, \zeta)$ form. docs/drive-model.md: at 20 kHz they lie within 1 % of the
     /// continuous design; at 1 kHz they move by several percent.
     pub fn effective_poles(&self) -> Result<([Complex<f64>; 3], Poles), Error> {
         let m = self.sampled_transition_matrix()?;
@@ -919,7 +919,7 @@ mod tests {
             assert_relative_eq!(gd, d1 - d_ref0, max_relative = 1e-9);
             assert_relative_eq!(gi, i1 - i_ref0, max_relative = 1e-9);
         }
-        // The laws as SPEC section 3 writes them, with the BDF2 velocity.
+        // The laws as docs/drive-model.md writes them, with the BDF2 velocity.
         let vhat = |xm: f64| (3.0 * xm - 4.0 * s.xm1 + s.xm2) * inv_2h;
         check(&ppi, &s, r, |xm| {
             let e = r.xr - xm;

@@ -87,7 +87,7 @@ fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
 
 #[test]
 fn table1_coefficients_and_poles() {
-    // Truth: SPEC section 7 (the paper's Table 1, every printed digit).
+    // Truth: docs/reference-numbers.md (the paper's Table 1, every printed digit).
     let m = table1_drive().closed_loop_model().unwrap();
     assert_relative_eq!(m.a1, 238.4335, max_relative = 1e-6);
     assert_relative_eq!(m.a2, 48421.586, max_relative = 1e-6);
@@ -95,7 +95,7 @@ fn table1_coefficients_and_poles() {
     assert_relative_eq!(m.b1, 117.5424, max_relative = 1e-6);
     assert_relative_eq!(m.b2, 37258.98, max_relative = 1e-6);
     assert_eq!(m.b0, 0.0);
-    // SPEC: Tc = 0.3 N m gives dc = 47.7 mm/s^2.
+    // docs/reference-numbers.md: Tc = 0.3 N m gives dc = 47.7 mm/s^2.
     assert_relative_eq!(m.dc, 47.745, max_relative = 1e-4);
     let p = m.poles().unwrap();
     assert_relative_eq!(p.wn_hz(), 30.569, max_relative = 2e-5);
@@ -127,7 +127,7 @@ fn convergence(params: &DriveParams, prog: &common::Program, rates: &[f64]) -> (
 
 #[test]
 fn time_domain_drives_converge_to_the_analytic_closed_loop() {
-    // Truth: the analytic closed-loop transfer function of each drive (SPEC section 3 formulas),
+    // Truth: the analytic closed-loop transfer function of each drive (docs/drive-model.md formulas),
     // simulated by exact FOH discretisation (`ClosedLoopModel::simulate`), which shares no code
     // with the servo-rate simulator. Friction and quantisation off. A sampled controller lags
     // the continuous one by about half a servo period, so the difference must be first order in
@@ -186,9 +186,9 @@ fn time_domain_drives_converge_to_the_analytic_closed_loop() {
 
 #[test]
 fn effective_poles_of_the_sampled_loop_are_within_one_percent_at_20_khz() {
-    // Truth: the continuous design poles (SPEC section 3 coefficients; Table 3 poles for the
+    // Truth: the continuous design poles (docs/drive-model.md coefficients; Table 3 poles for the
     // NMV5000 axes). The sampled loop's poles come from the transition matrix of the simulator's
-    // own servo tick. SPEC section 3: < 1 % at 20 kHz, 5-18 % at 1 kHz.
+    // own servo tick. docs/drive-model.md: < 1 % at 20 kHz, 5-18 % at 1 kHz.
     let mut drives: Vec<(String, Drive)> = vec![
         ("Table 1 P-PI".into(), table1_drive().validate().unwrap()),
         ("PID".into(), pid_drive().validate().unwrap()),
@@ -252,7 +252,7 @@ fn effective_poles_of_the_sampled_loop_are_within_one_percent_at_20_khz() {
 
 #[test]
 fn smc_with_exact_estimates_tracks_the_reference_up_to_discretisation() {
-    // Truth: SPEC section 3, exact estimates give G_track = 1, so x = x_r. What remains comes
+    // Truth: docs/drive-model.md, exact estimates give G_track = 1, so x = x_r. What remains comes
     // from discretisation only: of the servo loop (h) and of the reference (its samples are
     // linearly interpolated between 1 ms samples, so position, velocity and acceleration
     // disagree at the acceleration corners). Both vanish as the periods shrink.
@@ -284,7 +284,7 @@ fn smc_with_exact_estimates_tracks_the_reference_up_to_discretisation() {
 
 #[test]
 fn p_pi_steady_following_error_is_one_minus_vff_v_over_kv_rg() {
-    // Truth: SPEC section 3 (final-value theorem on the P-PI cascade): at constant feed V the
+    // Truth: docs/drive-model.md (final-value theorem on the P-PI cascade): at constant feed V the
     // following error is (1 - Vff) V / (Kv rg). True drive, friction off, default encoder.
     for (vff, v) in [(0.5, 100.0), (0.0, 250.0), (0.8, -50.0)] {
         let mut p = table1_drive();
@@ -488,7 +488,7 @@ fn velocity_reversals_show_the_friction_quadrant_glitch() {
 
 #[test]
 fn nmv5000_axes_reproduce_their_table3_poles() {
-    // Truth: SPEC section 7, Table 3 poles (ωn, ζ, p) and the coefficients printed beside them.
+    // Truth: docs/reference-numbers.md, Table 3 poles (ωn, ζ, p) and the coefficients printed beside them.
     let printed = [
         (AxisName::X, 393.461, 154786.6, 1.47676e7),
         (AxisName::Y, 388.364, 247932.1, 2.96414e7),

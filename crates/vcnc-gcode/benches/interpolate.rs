@@ -1,4 +1,4 @@
-//! Parse + interpret + interpolate benchmarks: the spiral (SPEC section 6) and an
+//! Parse + interpret + interpolate benchmarks: the spiral (docs/contour.md) and an
 //! identification program (defaults, axis X).
 //!
 //! Run: `CARGO_TARGET_DIR=/work/targets/vcnc-gcode cargo bench -p vcnc-gcode --bench interpolate`
@@ -10,7 +10,7 @@ use vcnc_gcode::{
     TcpProgramOptions, identification, load, spiral_points, tcp_program,
 };
 
-/// Tool axis → (A, C) in degrees for the bench only: branch −1 of SPEC section 5,
+/// Tool axis → (A, C) in degrees for the bench only: branch −1 of docs/kinematics.md,
 /// a = −acos(o_z), c = atan2(−o_x, −o_y), c unwrapped continuously.
 fn spiral_program() -> String {
     let pts = spiral_points(&SpiralOptions::default()).expect("default spiral options are valid");

@@ -1,5 +1,5 @@
-//! Program generators: the identification excitation (paper section 4, SPEC section 2) and the
-//! 5-axis spiral test path (SPEC section 6).
+//! Program generators: the identification excitation (paper section 4, docs/gcode.md) and the
+//! 5-axis spiral test path (docs/contour.md).
 
 use crate::{AxisName, Error};
 use rand::{RngExt, SeedableRng};
@@ -233,7 +233,7 @@ pub struct TipPose {
     pub o: [f64; 3],
 }
 
-/// Settings of the spiral (SPEC section 6). Lengths in mm.
+/// Settings of the spiral (docs/contour.md). Lengths in mm.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpiralOptions {
     /// Spiral centre (x, y) in the workpiece frame, mm. Default (30, 20).
@@ -266,7 +266,7 @@ impl Default for SpiralOptions {
     }
 }
 
-/// Points of the spiral (SPEC section 6), equally spaced in tip arc length.
+/// Points of the spiral (docs/contour.md), equally spaced in tip arc length.
 ///
 /// With $\Theta = 2\pi\,\text{turns}$, $\theta \in [0, \Theta]$ and
 /// $\rho = \rho_0 + (\rho_1 - \rho_0)\,\theta/\Theta$:
@@ -386,11 +386,11 @@ pub fn spiral_points(opts: &SpiralOptions) -> Result<Vec<TipPose>, Error> {
 /// Settings of [`tcp_program`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct TcpProgramOptions {
-    /// Feed along the tool-tip path, mm/min. Default 4500 (75 mm/s, SPEC section 6).
+    /// Feed along the tool-tip path, mm/min. Default 4500 (75 mm/s, docs/contour.md).
     pub feed_mm_per_min: f64,
     /// Decimals written for positions (mm) and angles (deg). Default 5.
     pub decimals: usize,
-    /// First header comment (parentheses are replaced). Default "vcnc 5-axis spiral (SPEC section 6)".
+    /// First header comment (parentheses are replaced). Default "vcnc 5-axis spiral (docs/contour.md)".
     pub title: String,
 }
 
@@ -399,7 +399,7 @@ impl Default for TcpProgramOptions {
         TcpProgramOptions {
             feed_mm_per_min: 4500.0,
             decimals: 5,
-            title: "vcnc 5-axis spiral (SPEC section 6)".to_string(),
+            title: "vcnc 5-axis spiral (docs/contour.md)".to_string(),
         }
     }
 }

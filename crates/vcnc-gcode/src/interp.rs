@@ -1,6 +1,6 @@
 //! G-code *meaning*: the modal interpreter that turns parsed blocks into a [`Toolpath`].
 //!
-//! Supported (SPEC section 2; LinuxCNC / NIST RS274NGC v3 semantics where the SPEC is silent):
+//! Supported (docs/gcode.md; LinuxCNC / NIST RS274NGC v3 semantics where docs/gcode.md is silent):
 //!
 //! | group | codes |
 //! |---|---|
@@ -24,7 +24,7 @@
 //! Units are converted once, here: every length in the [`Toolpath`] is in mm, every angle in
 //! degrees (`G20` scales X Y Z I J K R and linear feeds by 25.4; A B C are always degrees).
 //!
-//! **Feed rule** (SPEC section 2, NIST RS274NGC v3 section 2.1.2.5): under `G94` the feed `F`
+//! **Feed rule** (docs/gcode.md, NIST RS274NGC v3 section 2.1.2.5): under `G94` the feed `F`
 //! applies to the XYZ path length (in TCP mode that *is* the tool-tip path) whenever it is
 //! non-zero, and the rotary axes move in proportion; a move of rotary axes alone takes `F` in
 //! deg/min along $\sqrt{\Delta A^2+\Delta B^2+\Delta C^2}$. Under `G93` each feed block must carry

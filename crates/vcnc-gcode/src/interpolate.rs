@@ -1,4 +1,4 @@
-//! Trapezoidal interpolation of a [`Toolpath`] at the sample period $T_s$ (SPEC section 2).
+//! Trapezoidal interpolation of a [`Toolpath`] at the sample period $T_s$ (docs/gcode.md).
 //!
 //! Every move is a curve $\mathbf{g}(s)$ of its path parameter $s \in [0, L]$ and a scalar
 //! speed profile $s(t)$; the samples are analytic:

@@ -1,5 +1,5 @@
 //! G-code front end of vcnc: parsing, modal interpretation, trapezoidal interpolation at the
-//! sample period, and the program generators (SPEC section 2).
+//! sample period, and the program generators (docs/gcode.md).
 //!
 //! The stages are kept apart (STYLE, the gcode-rs model):
 //!

@@ -1,6 +1,6 @@
 //! G-code *syntax*: lines, words, comments and their source spans (no machine meaning).
 //!
-//! The dialect is the ISO 6983 / LinuxCNC (RS274/NGC) / Fanuc common subset of SPEC section 2:
+//! The dialect is the ISO 6983 / LinuxCNC (RS274/NGC) / Fanuc common subset of docs/gcode.md:
 //!
 //! - one block per line (`\n` or `\r\n`); blank lines are dropped;
 //! - `%` alone on a line delimits the program;

@@ -111,7 +111,7 @@ fn identification_rejects_bad_options() {
     assert!(identification(AxisName::X, &bad).is_err());
 }
 
-/// Branch −1 orientation → (A, C) in degrees (SPEC section 5), C unwrapped.
+/// Branch −1 orientation → (A, C) in degrees (docs/kinematics.md), C unwrapped.
 fn angles(points: &[TipPose]) -> Vec<([f64; 3], f64, f64)> {
     let mut prev: Option<f64> = None;
     points
@@ -141,7 +141,7 @@ fn spiral_geometry_matches_spec_section_6() {
         }
     }
     let tilt = |q: &TipPose| q.o[2].acos().to_degrees();
-    // SPEC: tilt 11.5° → 36.9° (acos(√(1 − 0.2²)) = 11.537°, acos(0.8) = 36.870°).
+    // docs/contour.md: tilt 11.5° → 36.9° (acos(√(1 − 0.2²)) = 11.537°, acos(0.8) = 36.870°).
     assert!((tilt(&pts[0]) - 11.537).abs() < 1e-3);
     assert!((tilt(pts.last().unwrap()) - 36.870).abs() < 1e-3);
     // Segment lengths ≈ 0.5 mm (chords of equal arc-length steps).
@@ -154,7 +154,7 @@ fn spiral_geometry_matches_spec_section_6() {
         .sum();
     let segs = pts.len() - 1;
     println!("spiral: {segs} segments, polyline length {len:.3} mm");
-    // SPEC: ≈ 755 mm.
+    // docs/contour.md: ≈ 755 mm.
     assert!((len - 755.0).abs() < 5.0, "{len}");
     assert!((len / segs as f64 - 0.5).abs() < 0.01);
 }

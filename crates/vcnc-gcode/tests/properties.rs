@@ -1,4 +1,4 @@
-//! Property tests over random programs and limits (SPEC section 2, "Properties that must hold"):
+//! Property tests over random programs and limits (docs/gcode.md, "Properties that must hold"):
 //! no sample exceeds a limit, blocks end on their programmed points, exact-stop durations are
 //! the rounded time-optimal ones, G20 programs equal their G21 twins, G91 equals G90; and no
 //! input panics the parser, the interpreter or the interpolator.

@@ -1,4 +1,4 @@
-//! One axis' identification (SPEC section 4, issue 4): N ≈ 30 000 samples of the Table 1 drive
+//! One axis' identification (docs/identification.md, issue 4): N ≈ 30 000 samples of the Table 1 drive
 //! (20 kHz servo, 0.1 µm encoder), M = 200 particles, 100 iterations; split into the O(N)
 //! regressor pass, the swarm, and the output-error refinement. Targets on the 2-core machine:
 //! O(N) pass + PSO under 2 ms, everything under 100 ms.

@@ -1,4 +1,4 @@
-//! Zero-phase low-pass prefilter (SPEC section 4, "numerics that decide accuracy").
+//! Zero-phase low-pass prefilter (docs/identification.md, "numerics that decide accuracy").
 //!
 //! Filtering both sides of a linear ODE with one LTI filter $L$ keeps its parameters: if
 //! $Y = \Phi\Theta + r$ then $LY = (L\Phi)\Theta + Lr$. A forward-backward pass of a second-order

@@ -1,5 +1,5 @@
 //! The identification pipeline: regressors → PSO (paper) → output-error refinement, with the
-//! unconstrained least-squares baseline beside it (SPEC section 4).
+//! unconstrained least-squares baseline beside it (docs/identification.md).
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -13,8 +13,8 @@ use crate::refine::{RefineResult, refine};
 use crate::regress::{Regressors, Theta};
 use crate::trace::Trace;
 
-/// The unconstrained 7-parameter least-squares fit of paper eq. 7 (the baseline of SPEC section
-/// 4): no stability constraint, so it may be unstable (sliding-mode drives, EMPS).
+/// The unconstrained 7-parameter least-squares fit of paper eq. 7 (the baseline of
+/// docs/identification.md): no stability constraint, so it may be unstable (sliding-mode drives, EMPS).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LsBaseline {
     /// The fitted model (non-finite coefficients if $\alpha_2 = 0$).
@@ -72,7 +72,7 @@ pub fn unconstrained_ls(regs: &Regressors) -> Result<LsBaseline, Error> {
     })
 }
 
-/// Identifies the closed-loop model of one axis from `trace` (SPEC section 4).
+/// Identifies the closed-loop model of one axis from `trace` (docs/identification.md).
 ///
 /// Steps: validate the options; build the prefiltered regressors and their Gram matrix (one
 /// O(N) pass); reject data that cannot identify the model (condition number above

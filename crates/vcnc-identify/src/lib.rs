@@ -1,7 +1,7 @@
 //! Identification of the 7-parameter closed-loop feed-drive model from an air-cutting run
 //! (reference and measured axis position sampled at $T_s$), after Altintas and co-authors'
 //! "Identification of 5-Axis Machine Tools Feed Drive Systems for Contouring Simulation"
-//! (the paper, section 3), with the corrections and the extra stage of SPEC section 4.
+//! (the paper, section 3), with the corrections and the extra stage of docs/identification.md.
 //!
 //! ```text
 //! Trace (t, xr, x) ──► Regressors (one O(N) pass: prefilter, E, central differences, sign,
@@ -14,8 +14,8 @@
 //!
 //! 1. [`Trace`]: validated samples $(x_{r,k}, x_k)$ at a uniform period (optionally with the exact
 //!    reference velocity and acceleration of a simulated machine). The initial measured position
-//!    is subtracted from both signals (zero initial conditions, SPEC section 4).
-//! 2. [`Regressors`]: the corrected time-domain model (paper eq. 7, SPEC section 4's eq. 18)
+//!    is subtracted from both signals (zero initial conditions, docs/identification.md).
+//! 2. [`Regressors`]: the corrected time-domain model (paper eq. 7, docs/identification.md's eq. 18)
 //!    $$ x = \alpha_3 E - \alpha_1 \dot x - \alpha_2 \ddot x + \beta_0 x_r + \beta_1 \dot x_r + \beta_2 \ddot x_r - \delta\,\mathrm{sgn}(\dot x), \qquad E = \int (x_r - x)\,dt, $$
 //!    reduced in one O(N) pass to its Gram matrix, with a zero-phase prefilter, a sign deadband
 //!    and column scaling.
@@ -23,7 +23,7 @@
 //!    $\sigma = [p, \omega_n, \zeta]$ with $\Theta_2$ from the least-squares subproblem. The bounds
 //!    keep every pole in the left half plane (paper eq. 12). Seeded, bit-identical for any thread
 //!    count, history kept.
-//! 4. [`refine`]: output-error refinement, the step beyond the paper (SPEC section 4): the
+//! 4. [`refine`]: output-error refinement, the step beyond the paper (docs/identification.md): the
 //!    free-run simulation error of the model ([`free_run`], the same simulation the predictions
 //!    use) minimised over all seven parameters inside the same bounds, by variable projection and
 //!    a bounded Levenberg–Marquardt, with the model's own friction (sticking included) in a

@@ -1,4 +1,4 @@
-//! Fit metrics of a model on a trace (SPEC section 4, "Outputs"): one-step (equation-error)
+//! Fit metrics of a model on a trace (docs/identification.md, "Outputs"): one-step (equation-error)
 //! prediction, free-run simulation, and fit % of the tracking error.
 
 use serde::{Deserialize, Serialize};
@@ -43,7 +43,7 @@ impl FitMetrics {
 
 /// Free-run simulation of `model` driven by the trace's reference, starting at rest at the
 /// first sample, or, for a trace that starts moving, at the measured $x_0$ one sample before the
-/// first ([`Trace::prefixed_reference`], SPEC sections 3 and 7): exact first-order-hold discretisation, friction sign of the simulated velocity
+/// first ([`Trace::prefixed_reference`], docs/drive-model.md and docs/reference-numbers.md): exact first-order-hold discretisation, friction sign of the simulated velocity
 /// ([`ClosedLoopModel::simulate`] with default options). Returns $\hat x_k$, axis units.
 pub fn free_run(model: &ClosedLoopModel, trace: &Trace) -> Result<Vec<f64>, Error> {
     let (pos, vel, acc, prefixed) = trace.prefixed_reference();

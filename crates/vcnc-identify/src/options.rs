@@ -17,9 +17,9 @@ pub struct IdentifyOptions {
     pub prefilter: Prefilter,
     /// Deadband of $\mathrm{sgn}(\dot x)$, axis units/s (mm/s or deg/s). Default 1.5: above the
     /// velocity noise of a 1 µm encoder at 1 kHz after the prefilter, below any feed of interest
-    /// (SPEC section 4: 1–2 mm/s).
+    /// (docs/identification.md: 1–2 mm/s).
     pub deadband: f64,
-    /// Output-error refinement (SPEC section 4, beyond the paper).
+    /// Output-error refinement (docs/identification.md, beyond the paper).
     pub refine: RefineOptions,
     /// Seed of the ChaCha8 generator driving the swarm. Default 1.
     pub seed: u64,
@@ -238,16 +238,16 @@ impl PoleBounds {
     }
 }
 
-/// Zero-phase prefilter of the regressors (SPEC section 4).
+/// Zero-phase prefilter of the regressors (docs/identification.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Prefilter {
     /// Apply the filter. Default true. Without it, a quantised encoder biases the second
-    /// differences badly (SPEC section 4: $\omega_n$ +17 % and worse at 1 µm).
+    /// differences badly (docs/identification.md: $\omega_n$ +17 % and worse at 1 µm).
     pub enabled: bool,
     /// Cutoff of the second-order Butterworth section, Hz (the forward-backward pair is −6 dB
     /// there). Default: none given, which means $0.1/T_s$ (100 Hz at 1 kHz): above the
-    /// closed-loop bandwidth of CNC feed drives (≤ 75 Hz in SPEC Table 3), and a decade below the
+    /// closed-loop bandwidth of CNC feed drives (≤ 75 Hz in the paper's Table 3), and a decade below the
     /// sample rate, where the quantisation noise of second differences lives.
     pub cutoff_hz: Option<f64>,
 }
@@ -271,7 +271,7 @@ impl Prefilter {
     }
 }
 
-/// Output-error refinement settings (SPEC section 4).
+/// Output-error refinement settings (docs/identification.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RefineOptions {
@@ -311,7 +311,7 @@ impl RefineOptions {
     }
 }
 
-/// Whether the trace starts at rest (SPEC section 4 assumes it does).
+/// Whether the trace starts at rest (docs/identification.md assumes it does).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum StartCondition {

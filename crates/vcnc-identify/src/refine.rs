@@ -1,14 +1,14 @@
-//! Output-error refinement (SPEC section 4, the step beyond the paper).
+//! Output-error refinement (docs/identification.md, the step beyond the paper).
 //!
 //! The paper fits the equation error (eq. 16), whose regressors hold differentiated, noisy,
 //! 1 kHz data: central differences bias the fit as $\omega_n T_s$ grows, and a real pole nearly
-//! cancelled by a zero leaves the cost flat along $p$ (SPEC section 4). Here the free-run
+//! cancelled by a zero leaves the cost flat along $p$ (docs/identification.md). Here the free-run
 //! simulation error of the model is minimised instead, over all seven parameters, within the
 //! same pole bounds, so every model found is stable.
 //!
 //! Separable least squares (variable projection, Golub and Pereyra 1973): for a given friction
 //! sign sequence $F$, the free run of the model as [`ClosedLoopModel::simulate`] computes it
-//! (SPEC section 3: reference position, velocity and acceleration samples each held
+//! (docs/drive-model.md: reference position, velocity and acceleration samples each held
 //! first-order, the sign held per sample) is
 //! $$ \hat x = \frac{a_3}{D} x_r + \frac{s}{D}\left(b_2 x_r + b_1 \dot x_r + b_0 \ddot x_r - d_c F\right), \qquad D = s^3 + a_1 s^2 + a_2 s + a_3. $$
 //! For fixed poles it is linear in $(b_2, b_1, b_0, d_c)$: one pass simulates $x_r$,

@@ -1,14 +1,14 @@
 //! Regressors of the equation-error model and their Gram matrix (paper eqs. 7–10 and 16–19,
-//! corrected in SPEC section 4).
+//! corrected in docs/identification.md).
 //!
 //! The time-domain model is the inverse Laplace transform of the closed-loop model, integrated
 //! once and divided by $a_2$:
 //! $$ x_k = \alpha_3 E_k - \alpha_1 \dot x_k - \alpha_2 \ddot x_k + \beta_0 x_{r,k} + \beta_1 \dot x_{r,k} + \beta_2 \ddot x_{r,k} - \delta\,\mathrm{sgn}(\dot x_k), $$
 //! $$ \alpha_3 = \frac{a_3}{a_2},\ \alpha_1 = \frac{a_1}{a_2},\ \alpha_2 = \frac{1}{a_2},\ \beta_0 = \frac{b_2}{a_2},\ \beta_1 = \frac{b_1}{a_2},\ \beta_2 = \frac{b_0}{a_2},\ \delta = \frac{d_c}{a_2}. $$
-//! The paper's eq. 18 drops $\zeta$ from $\Theta_1$; the correct forms (SPEC section 4) are
+//! The paper's eq. 18 drops $\zeta$ from $\Theta_1$; the correct forms (docs/identification.md) are
 //! $$ \alpha_3 = \frac{p\,\omega_n^2}{\omega_n^2 + 2\zeta\omega_n p},\quad \alpha_1 = \frac{p + 2\zeta\omega_n}{\omega_n^2 + 2\zeta\omega_n p},\quad \alpha_2 = \frac{1}{\omega_n^2 + 2\zeta\omega_n p}. $$
 //!
-//! Numerics (SPEC section 4): the trace is shifted so that it starts at 0; $x$ and $x_r$ pass the
+//! Numerics (docs/identification.md): the trace is shifted so that it starts at 0; $x$ and $x_r$ pass the
 //! zero-phase prefilter $L$ once, and every column is computed from the filtered signals
 //! ($L$ commutes with central differences and with the trapezoidal integral, which are LTI too,
 //! so this equals filtering each column up to the ends, and costs three interleaved filter
@@ -68,7 +68,7 @@ pub struct Theta {
 }
 
 impl Theta {
-    /// $\Theta_1$ of the poles (SPEC section 4, corrected eq. 18), rad/s.
+    /// $\Theta_1$ of the poles (docs/identification.md, corrected eq. 18), rad/s.
     pub fn theta1(poles: &Poles) -> [f64; 3] {
         let (a1, a2, a3) = poles.denominator();
         [a3 / a2, a1 / a2, 1.0 / a2]
@@ -243,8 +243,8 @@ impl Regressors {
         let (inv2, inv_sq) = (0.5 / self.ts, 1.0 / (self.ts * self.ts));
         let lo = lo.max(self.first).max(1);
         let hi = hi.min(self.last).min(n.saturating_sub(1));
-        // E_k, the trapezoidal integral of the filtered x_r - x from the first sample (SPEC
-        // section 4; the paper's rectangle sum biases p by +4 %), accumulated as the rows go
+        // E_k, the trapezoidal integral of the filtered x_r - x from the first sample (docs/identification.md;
+        // the paper's rectangle sum biases p by +4 %), accumulated as the rows go
         // (not stored: one array less to allocate and fill); the same additions in the same
         // order for any `lo`.
         let h2 = 0.5 * self.ts;
@@ -387,7 +387,7 @@ impl Regressors {
         &self.gram
     }
 
-    /// Column scale $s_j = 1/\sqrt{G_{jj}}$ (unit-norm columns; SPEC section 4: scaling takes
+    /// Column scale $s_j = 1/\sqrt{G_{jj}}$ (unit-norm columns; docs/identification.md: scaling takes
     /// cond($\Phi_2$) from 3.4e3 to 3.2 on the Table 1 drive).
     fn scale(&self, j: usize) -> f64 {
         1.0 / self.gram[j][j].sqrt()
@@ -841,7 +841,7 @@ mod tests {
         ] {
             assert!((a - b).abs() <= 1e-12 * a.abs());
         }
-        // SPEC section 4's corrected eq. 18 against alpha = a/a2 of the same poles.
+        // docs/identification.md's corrected eq. 18 against alpha = a/a2 of the same poles.
         let poles = m.poles().unwrap();
         let t1 = Theta::theta1(&poles);
         let th = Theta::from_model(&m);
@@ -867,7 +867,7 @@ mod tests {
             ((pe.zeta - pt.zeta) / pt.zeta).abs() < 0.03,
             "{pe:?} vs {pt:?}"
         );
-        // Column scaling keeps the per-particle subproblem well conditioned (SPEC section 4:
+        // Column scaling keeps the per-particle subproblem well conditioned (docs/identification.md:
         // cond(Phi2) 3.4e3 unscaled, 3.2 scaled on its Table 1 run; 3.6 on this run) and the
         // whole regressor identifiable (about 8e2 here, the refusal limit is 1e6).
         let (c2, c) = (r.condition_phi2(), r.condition_number());

@@ -107,7 +107,7 @@ impl Trace {
     /// as it is: the model starts at rest at $x_{r,0}$ at the first sample, exactly as the drive
     /// did (a prefixed rest sample would turn an acceleration step at $t_0$ into a one-sample
     /// ramp before it and make the model lead by half a sample). A trace that starts moving
-    /// (EMPS) gets one rest sample at the measured $x_0$ prefixed (SPEC sections 3 and 7):
+    /// (EMPS) gets one rest sample at the measured $x_0$ prefixed (docs/drive-model.md and docs/reference-numbers.md):
     /// positions $[x_0, x_{r,0}, x_{r,1}, ...]$, so it enters as a one-sample ramp from $x_0$ to
     /// $x_{r,0}$. Velocity and acceleration are the exact ones when attached (with a zero
     /// prefixed), else central differences.

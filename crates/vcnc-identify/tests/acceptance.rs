@@ -1,5 +1,5 @@
 //! Acceptance figures of issue 4 against independent truth: the analytic closed-loop model of
-//! the drive parameters (`DriveParams::closed_loop_model`, SPEC section 3), identified from
+//! the drive parameters (`DriveParams::closed_loop_model`, docs/drive-model.md), identified from
 //! traces of the true drive simulator of `vcnc-drive` (plant with Coulomb friction and sticking,
 //! controller at the 20 kHz servo rate, quantised encoder) driven by the paper's identification
 //! program (section 4: 70 random moves within ±50 mm, feeds up to 250 mm/s, 2500 mm/s², 1 ms) as
@@ -98,7 +98,7 @@ fn table1_drive_fine_encoder_poles_within_1_percent() {
         [0.01, 0.01, 0.03, 0.05],
     );
     assert!(c.id.identified.is_stable() && c.id.paper_pso.is_stable());
-    // Against the published SPEC values as well (the truth itself).
+    // Against the published values (docs/reference-numbers.md) as well (the truth itself).
     let pt = c.truth.poles().expect("poles");
     assert!((pt.wn_hz() - 30.569).abs() < 1e-3 && (pt.p_hz() - 10.7296).abs() < 1e-3);
     // The validation run is predicted within 1 % of its peak tracking error (paper: 5 %).
@@ -129,7 +129,7 @@ fn table1_drive_coarse_encoder_poles_within_2_percent() {
 
 #[test]
 fn nmv5000_axes_poles_within_2_percent() {
-    // Issue 4: every NMV5000 axis (SPEC Table 3 poles, P-PI designed with the larger Kv rg
+    // Issue 4: every NMV5000 axis (the paper's Table 3 poles, docs/reference-numbers.md, P-PI designed with the larger Kv rg
     // root, B/J = 4.19) → ωn and p within 2 %, ζ within 5 %.
     for (axis, seed) in [
         (AxisName::X, 11),
@@ -186,7 +186,7 @@ fn pid_drive_predicted_within_2_percent_of_peak() {
 
 #[test]
 fn sliding_mode_drives_are_stable_and_predicted_as_well_as_the_true_model() {
-    // Sliding mode (SPEC section 3) on the Table 1 plant with the Table 1 poles. Issue 4 asks
+    // Sliding mode (docs/drive-model.md) on the Table 1 plant with the Table 1 poles. Issue 4 asks
     // for a free-run prediction within 2 % of the validation run's peak tracking error. For
     // SMC that is out of reach of the model class itself: the tracking error is mostly friction
     // (with exact estimates every pole is cancelled by a zero, G_track = 1, peak about 6 µm),
@@ -265,7 +265,7 @@ fn emps() -> Trace {
 fn emps_real_drive_free_run_within_3_um() {
     // Real ball-screw drive without integral action (a3 = 0), not starting at rest. Truth:
     // the measured position. The benchmark's physical model, mapped onto the 7 parameters
-    // (SPEC section 7), gives 4.0 µm RMS by the same simulation: a cross-check of the
+    // (docs/reference-numbers.md), gives 4.0 µm RMS by the same simulation: a cross-check of the
     // simulation convention (rest at the measured x0).
     let tr = emps();
     assert!(!tr.starts_at_rest(1.5));
@@ -328,7 +328,7 @@ fn emps_real_drive_free_run_within_3_um() {
         "free-run RMS {} µm",
         1e3 * f.freerun_rms
     );
-    // The unconstrained baseline is unstable on these data (SPEC section 7): shown, not hidden.
+    // The unconstrained baseline is unstable on these data (docs/reference-numbers.md): shown, not hidden.
     assert!(!id.unconstrained_ls.stable);
 }
 

@@ -1,7 +1,7 @@
-//! Property (issue 4, SPEC section 4): every model identified from a random stable P-PI drive
+//! Property (issue 4, docs/identification.md): every model identified from a random stable P-PI drive
 //! is stable — every pole strictly in the left half plane — for the refined model and for the
 //! paper's PSO result alike. The drives are random plants with P-PI gains designed from random
-//! poles (SPEC section 3) and random feed-forward, simulated by the true drive simulator.
+//! poles (docs/drive-model.md) and random feed-forward, simulated by the true drive simulator.
 //!
 //! 200 drives, as the issue asks: about 15 s in release mode (the README's test command).
 
@@ -80,7 +80,7 @@ fn params(d: &RandomDrive) -> DriveParams {
 
 fn check(d: &RandomDrive) -> Result<(), TestCaseError> {
     let p = params(d);
-    // Poles that a P-PI cannot place on this plant (SPEC section 3) are not a drive.
+    // Poles that a P-PI cannot place on this plant (docs/drive-model.md) are not a drive.
     prop_assume!(p.validate().is_ok());
     let r = support::identification_program(d.seed, 30, 50.0, 250.0, 2500.0, 1e-3);
     let tr = support::drive_trace(&p, &r);

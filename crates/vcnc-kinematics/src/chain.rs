@@ -1,6 +1,6 @@
 //! The machine's kinematic chain read from URDF, and generic forward kinematics over it.
 //!
-//! SPEC section 5: two branches leave the base link; one carries the X, Y, Z prismatic joints to
+//! docs/kinematics.md: two branches leave the base link; one carries the X, Y, Z prismatic joints to
 //! the tool tip, the other the A revolute joint (about +X) and the C joint (about +Z) to the
 //! workpiece. Every frame is composed from the URDF joint origins and joint motions with
 //! [`Isometry3`]; the tool pose in the workpiece frame is
@@ -84,7 +84,7 @@ impl ChainJoint {
     }
 }
 
-/// A validated table-tilting A/C chain (SPEC section 5).
+/// A validated table-tilting A/C chain (docs/kinematics.md).
 ///
 /// Built only by [`KinematicChain::from_urdf_file`] or [`KinematicChain::from_urdf_str`], which
 /// check that the URDF has exactly this structure: base → X, Y, Z prismatic joints along +X, +Y,

@@ -18,7 +18,7 @@ pub enum Error {
         message: String,
     },
 
-    /// The URDF parsed but is not the X Y Z / A→C table-tilting chain of SPEC section 5.
+    /// The URDF parsed but is not the X Y Z / A→C table-tilting chain of docs/kinematics.md.
     #[error("{file}: not a table-tilting A/C chain: {reason}")]
     NotTableTilting {
         /// Path or source name of the URDF.

@@ -6,7 +6,7 @@
 //! closed-form model [`TableTiltingAc`] takes its offsets r (C-axis centre) and d (A-axis centre
 //! relative to r) from the URDF joint origins and provides forward kinematics, inverse
 //! kinematics on both branches, sequence inverse kinematics (A = 0 singularity held, C unwrapped,
-//! travel checked) and the TCP inverse with analytic derivatives. See SPEC section 5.
+//! travel checked) and the TCP inverse with analytic derivatives. See docs/kinematics.md.
 //!
 //! **Units: lengths in mm, angles in rad, time in s**, everywhere in this crate (the URDF
 //! stores mm and rad; its metres are only a convention). Callers convert degrees at the edge.
@@ -17,7 +17,7 @@
 //! let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../machines/nmv5000.urdf");
 //! let chain = KinematicChain::from_urdf_file(path)?;
 //! let model = chain.table_tilting_ac();
-//! assert_eq!(model.d.z, -100.0); // SPEC default: table surface 100 mm above the A axis
+//! assert_eq!(model.d.z, -100.0); // vcnc's default (docs/kinematics.md): table surface 100 mm above the A axis
 //!
 //! let axes = Axes::new(10.0, -20.0, 50.0, (-30f64).to_radians(), 1.0);
 //! let pose = model.forward(&axes);

@@ -1,6 +1,6 @@
-//! Closed-form kinematics of the table-tilting A/C machine (SPEC section 5).
+//! Closed-form kinematics of the table-tilting A/C machine (docs/kinematics.md).
 //!
-//! Variables are named as in SPEC section 5: `pm` is the machine position of the tool tip
+//! Variables are named as in docs/kinematics.md: `pm` is the machine position of the tool tip
 //! (X, Y, Z), `p_w` and `o_w` the tool tip and tool axis in the workpiece frame, `r` the C-axis
 //! centre, `d` the A-axis centre relative to the C-axis centre, `a` and `c` the rotary axes.
 //! $R_x(\cdot)$, $R_z(\cdot)$ are right-handed rotations about +X and +Z.
@@ -15,10 +15,10 @@ use crate::types::{Axes, AxisLimits, Branch, Pose, Travel};
 
 /// Below this $|\sin a|$ the C angle is undefined (the tool axis is parallel to the C axis):
 /// the inverse kinematics keeps the previous C. The C rate a path demands grows as
-/// $1/|\sin a|$ near it (SPEC section 5).
+/// $1/|\sin a|$ near it (docs/kinematics.md).
 pub const SINGULAR_SIN_A: f64 = 1e-9;
 
-/// The closed-form table-tilting A/C model (SPEC section 5; equals LinuxCNC's `xyzac-trt`
+/// The closed-form table-tilting A/C model (docs/kinematics.md; equals LinuxCNC's `xyzac-trt`
 /// kinematics with `conventional-directions = 0`, x/y/z-rot-point = r, y/z-offset = d_y, d_z).
 ///
 /// Forward:
@@ -33,9 +33,9 @@ pub const SINGULAR_SIN_A: f64 = 1e-9;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TableTiltingAc {
     /// C-axis centre (a point of the C axis at A = 0) in the machine frame, mm.
-    /// SPEC default (0, 0, 0); the NMV5000's real value is not public.
+    /// vcnc's default (0, 0, 0), docs/kinematics.md; the NMV5000's real value is not public.
     pub r: Vector3<f64>,
-    /// A-axis centre relative to the C-axis centre, mm; SPEC's d = (0, L_y, L_z), default
+    /// A-axis centre relative to the C-axis centre, mm; d = (0, L_y, L_z) in docs/kinematics.md, default
     /// (0, 0, −100) (the table surface 100 mm above the A axis; not a published figure).
     /// Its x component has no effect (any point of the A axis may be used).
     pub d: Vector3<f64>,
@@ -45,7 +45,7 @@ pub struct TableTiltingAc {
 }
 
 impl Default for TableTiltingAc {
-    /// SPEC section 5 defaults: r = 0, d = (0, 0, −100) mm, unbounded travel.
+    /// docs/kinematics.md defaults: r = 0, d = (0, 0, −100) mm, unbounded travel.
     fn default() -> Self {
         Self {
             r: Vector3::zeros(),
@@ -260,7 +260,7 @@ impl TableTiltingAc {
         Vector3::new(sa * sc, sa * cc, ca)
     }
 
-    /// Forward kinematics (SPEC section 5):
+    /// Forward kinematics (docs/kinematics.md):
     /// $p_w = r + R_z(-c)\,(R_x(-a)(p_m - r - d) + d)$, $o_w$ as in
     /// [`TableTiltingAc::orientation`]. Never clamps to travel (actual positions overshoot);
     /// non-finite axes give a non-finite pose.
@@ -406,7 +406,7 @@ impl TableTiltingAc {
         })
     }
 
-    /// Inverse kinematics of a pose sequence (SPEC section 5): one branch for every sample
+    /// Inverse kinematics of a pose sequence (docs/kinematics.md): one branch for every sample
     /// (the requested one, or automatically the first of +1, −1 that keeps every axis within
     /// travel), C unwrapped continuously from sample to sample starting near
     /// [`IkOptions::c_start`], C held at the A = 0 singularity, and every sample checked against

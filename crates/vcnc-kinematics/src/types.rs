@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 
-/// A tool pose in the workpiece frame (SPEC section 5).
+/// A tool pose in the workpiece frame (docs/kinematics.md).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
     /// Tool-tip position in the workpiece frame, mm.
@@ -96,7 +96,7 @@ impl Axes {
     }
 }
 
-/// Inverse-kinematics branch (SPEC section 5): the sign of A.
+/// Inverse-kinematics branch (docs/kinematics.md): the sign of A.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Branch {
     /// Branch +1: $a = \arccos o_z \in [0, \pi]$, $c = \operatorname{atan2}(o_x, o_y)$.

@@ -1,4 +1,4 @@
-//! The closed-form table-tilting A/C model (SPEC section 5): round trips, LinuxCNC's published
+//! The closed-form table-tilting A/C model (docs/kinematics.md): round trips, LinuxCNC's published
 //! `xyzac-trt` kinematics, the TCP inverse and its derivatives, sequence inverse kinematics.
 
 use std::f64::consts::{PI, TAU};
@@ -17,7 +17,7 @@ fn model(r: [f64; 3], d: [f64; 3]) -> TableTiltingAc {
     }
 }
 
-/// The shipped NMV5000 model (SPEC defaults r = 0, d = (0, 0, −100) mm; A −120 ..= 30°).
+/// The shipped NMV5000 model (vcnc's defaults, docs/kinematics.md: r = 0, d = (0, 0, −100) mm; A −120 ..= 30°).
 fn nmv5000() -> TableTiltingAc {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../machines/nmv5000.urdf");
     match TableTiltingAc::from_urdf_file(path) {
@@ -215,12 +215,12 @@ fn linuxcnc_xyzac_inverse(p: &TrtParams, pos: [f64; 3], a_deg: f64, c_deg: f64) 
     [x, y, z]
 }
 
-/// Mapping (SPEC section 5): x/y/z-rot-point = r (the C-axis centre), y-offset = d_y,
+/// Mapping (docs/kinematics.md): x/y/z-rot-point = r (the C-axis centre), y-offset = d_y,
 /// z-offset = d_z (the A-axis centre relative to r; xyzac has no x-offset, so d_x = 0),
 /// tool-offset = 0 (vcnc's pose is the tool tip), and `conventional-directions` off: in
 /// LinuxCNC's default ("unconventional") convention a positive A or C turns the *table*
-/// right-handedly, which is SPEC's convention. With conventional directions on, LinuxCNC's
-/// formulas are SPEC's with A and C negated (checked below).
+/// right-handedly, which is vcnc's convention (docs/kinematics.md). With conventional directions on, LinuxCNC's
+/// formulas are vcnc's with A and C negated (checked below).
 fn trt_params(r: [f64; 3], d: [f64; 3], conventional: bool) -> TrtParams {
     TrtParams {
         x_rot_point: r[0],
@@ -345,7 +345,7 @@ fn tcp_derivatives_match_finite_differences() {
 #[test]
 fn singularity_keeps_previous_c() {
     // A pose with the tool along +Z (A = 0) in the middle of a sequence keeps the C of the
-    // sample before it; C then continues from there. Truth: SPEC section 5.
+    // sample before it; C then continues from there. Truth: docs/kinematics.md.
     let m = nmv5000();
     let tilt = (-20f64).to_radians();
     let poses: Vec<Pose> = [Some(1.0), Some(1.2), None, Some(1.3)]
@@ -492,9 +492,9 @@ fn bad_parameters_are_rejected() {
     assert_eq!(ok(Branch::try_from(-1)), Branch::Minus);
 }
 
-// ---- the SPEC spiral ----------------------------------------------------------------------
+// ---- the spiral (docs/contour.md) ------------------------------------------------------------
 
-/// SPEC section 6: 3 turns, radius 20 → 60 mm, tip on a dome of radius 100 mm centred at
+/// docs/contour.md: 3 turns, radius 20 → 60 mm, tip on a dome of radius 100 mm centred at
 /// (30, 20) in the workpiece frame, tool axis = dome normal.
 fn spiral(n: usize) -> Vec<Pose> {
     (0..=n)
@@ -516,7 +516,7 @@ fn spiral(n: usize) -> Vec<Pose> {
 
 #[test]
 fn spiral_axis_spans_match_spec() {
-    // Truth: SPEC section 6 (spans with the default offsets, branch −1): X −36…36 mm,
+    // Truth: docs/contour.md (spans with the default offsets, branch −1): X −36…36 mm,
     // Y −25…58 mm, Z 22…61 mm, A −36.9…−11.5°, C three turns. Compared to the printed digits.
     let m = nmv5000();
     let poses = spiral(20_000);

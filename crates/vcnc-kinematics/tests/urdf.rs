@@ -1,5 +1,5 @@
 //! The URDF chain: parsing the shipped machine, validation errors, and the generic forward
-//! kinematics against the closed form of SPEC section 5.
+//! kinematics against the closed form of docs/kinematics.md.
 
 use proptest::prelude::*;
 use vcnc_kinematics::nalgebra::Vector3;
@@ -16,7 +16,7 @@ fn shipped() -> KinematicChain {
 
 /// A table-tilting URDF with arbitrary r, d, written in the same form as the shipped file but
 /// with intermediate fixed joints and rpy rotations that cancel, to exercise the generic
-/// composition. Truth: SPEC section 5's structure (A origin r + d, C origin −d, workpiece −r).
+/// composition. Truth: docs/kinematics.md's structure (A origin r + d, C origin −d, workpiece −r).
 fn custom_urdf(r: [f64; 3], d: [f64; 3]) -> String {
     let rd = [r[0] + d[0], r[1] + d[1], r[2] + d[2]];
     format!(
@@ -78,7 +78,7 @@ fn shipped_text() -> String {
 
 #[test]
 fn shipped_urdf_has_spec_default_offsets_and_nominal_travels() {
-    // Truth: SPEC section 5 defaults r = 0, d = (0, 0, -100) mm; travels as written in the file.
+    // Truth: docs/kinematics.md defaults r = 0, d = (0, 0, -100) mm; travels as written in the file.
     let chain = shipped();
     assert_eq!(chain.name(), "nmv5000");
     assert_eq!(chain.base_link(), "machine");
@@ -179,7 +179,7 @@ fn axes_strategy() -> impl Strategy<Value = Axes> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
-    /// The generic URDF forward kinematics equals the closed form of SPEC section 5 within
+    /// The generic URDF forward kinematics equals the closed form of docs/kinematics.md within
     /// 1e-9 mm / 1e-9 (unit vector), on the shipped file.
     #[test]
     fn urdf_forward_equals_closed_form_on_shipped_machine(axes in axes_strategy()) {

@@ -1,5 +1,5 @@
 //! The machine file as written (raw, unchecked): serde structs that mirror the TOML document
-//! (SPEC section 8). Unknown keys are errors (`deny_unknown_fields` everywhere). The checked form
+//! (docs/machine-file.md). Unknown keys are errors (`deny_unknown_fields` everywhere). The checked form
 //! is [`crate::Machine`].
 //!
 //! ```toml
@@ -91,7 +91,7 @@ fn default_branch() -> i8 {
 pub struct TrajectoryFile {
     /// Tool-tip path velocity limit, mm/s. Default 250.
     pub max_linear_velocity: f64,
-    /// Tool-tip path acceleration limit, mm/s². Default 1500 (SPEC section 6).
+    /// Tool-tip path acceleration limit, mm/s². Default 1500 (docs/contour.md).
     pub max_linear_acceleration: f64,
     /// Junction deviation of the G64 corner rule, mm. Default: the interpolator's.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -1,6 +1,6 @@
 //! The vcnc machine file and pipeline.
 //!
-//! - [`MachineFile`] is the TOML document as written (SPEC section 8); [`Machine`] is the checked
+//! - [`MachineFile`] is the TOML document as written (docs/machine-file.md); [`Machine`] is the checked
 //!   machine: every axis' drive validated (gains designed, closed loop stable), the kinematic
 //!   chain loaded from its URDF, limits known. Errors name the file, line and key.
 //! - [`ModelSet`] is an identified model file (`model.toml`), read by `--model`.
@@ -30,14 +30,14 @@ pub use options_file::OptionsFile;
 
 use vcnc_gcode::Diagnostic;
 
-/// The embedded default machine (NMV5000, SPEC Table 3 drives) and its URDF, so that `vcnc demo`
+/// The embedded default machine (NMV5000, the paper's Table 3 drives) and its URDF, so that `vcnc demo`
 /// runs from anywhere.
 pub mod embedded {
     /// `machines/nmv5000.toml`.
     pub const NMV5000_TOML: &str = include_str!("../../../machines/nmv5000.toml");
     /// `machines/nmv5000.urdf`.
     pub const NMV5000_URDF: &str = include_str!("../../../machines/nmv5000.urdf");
-    /// `gcode/spiral.ngc`, the 5-axis spiral of SPEC section 6.
+    /// `gcode/spiral.ngc`, the 5-axis spiral of docs/contour.md.
     pub const SPIRAL_NGC: &str = include_str!("../../../gcode/spiral.ngc");
 }
 

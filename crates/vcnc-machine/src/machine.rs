@@ -37,7 +37,7 @@ pub struct Axis {
 }
 
 impl Axis {
-    /// The analytic closed-loop model of the true drive (SPEC section 3).
+    /// The analytic closed-loop model of the true drive (docs/drive-model.md).
     pub fn true_model(&self) -> ClosedLoopModel {
         self.drive.closed_loop_model()
     }
@@ -83,7 +83,7 @@ impl Machine {
         Machine::from_toml_str(&src, &file, &base)
     }
 
-    /// The embedded default: the NMV5000 with the SPEC Table 3 drives (URDF embedded too).
+    /// The embedded default: the NMV5000 with the the paper's Table 3 drives (URDF embedded too).
     pub fn embedded_nmv5000() -> Result<Machine, Error> {
         let name = "<embedded>/machines/nmv5000.toml";
         let file = parse_file(embedded::NMV5000_TOML, name)?;

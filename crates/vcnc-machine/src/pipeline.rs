@@ -1,4 +1,4 @@
-//! The pipeline (SPEC section 1): program → reference trajectory → (inverse kinematics) → axis
+//! The pipeline (ARCHITECTURE.md): program → reference trajectory → (inverse kinematics) → axis
 //! references → true drives and identified models → (forward kinematics) → tool poses → contour
 //! errors; and, on the side, identification of each axis from its excitation run.
 //!

@@ -7,7 +7,7 @@
 //! machine or a typed [`vcnc_machine::Error`] that is a bad-input error (exit code 2) and whose
 //! message names the file. A panic fails the test. Accepted machines must keep the loader's
 //! promise that every drive's closed loop is finite and stable (Routh–Hurwitz on the analytic
-//! model, SPEC section 3).
+//! model, docs/drive-model.md).
 //!
 //! `ballscrew-*.toml` have no URDF; `nmv5000.toml` is loaded with the real `machines/` folder as
 //! base directory so that its URDF chain, offsets and travels are checked too.

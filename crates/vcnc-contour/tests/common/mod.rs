@@ -1,4 +1,4 @@
-//! Synthetic test paths: the SPEC section 6 spiral with a trapezoidal feed, plus lagged and
+//! Synthetic test paths: the docs/contour.md spiral with a trapezoidal feed, plus lagged and
 //! offset "actual" copies of it. Shared by the tests and the benchmark.
 #![allow(dead_code)]
 
@@ -7,10 +7,10 @@ use std::f64::consts::TAU;
 use vcnc_kinematics::Pose;
 use vcnc_kinematics::nalgebra::Vector3;
 
-/// Sample period, s (SPEC section 2 default).
+/// Sample period, s (docs/gcode.md default).
 pub const TS: f64 = 1e-3;
 
-/// The SPEC section 6 spiral: 3 turns, radius 20 → 60 mm, tip on a dome of radius 100 mm
+/// The docs/contour.md spiral: 3 turns, radius 20 → 60 mm, tip on a dome of radius 100 mm
 /// centred at (30, 20) in the workpiece frame, tool axis = dome normal; parametrised by the
 /// polar angle θ ∈ [0, 6π] and, through a table, by the tip arc length s.
 pub struct Spiral {
@@ -95,7 +95,7 @@ pub fn trapezoid(t: f64, l: f64, v: f64, a: f64) -> (f64, f64) {
     (s, dur)
 }
 
-/// Arc length as a function of time for the whole spiral at 75 mm/s, 1500 mm/s² (SPEC 6), or,
+/// Arc length as a function of time for the whole spiral at 75 mm/s, 1500 mm/s² (docs/contour.md), or,
 /// with `stop = Some((s_stop, dwell))`, two moves with a dwell of `dwell` s at `s_stop`.
 pub fn arc_length_at(t: f64, length: f64, stop: Option<(f64, f64)>) -> f64 {
     let (v, a) = (75.0, 1500.0);

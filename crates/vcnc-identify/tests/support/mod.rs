@@ -137,7 +137,7 @@ pub fn paper_program(seed: u64) -> RefSignal {
     identification_program(seed, 70, 50.0, 250.0, 2500.0, 1e-3)
 }
 
-/// The identification program of SPEC section 2 as `vcnc-gcode` generates it (paper section 4:
+/// The identification program of docs/gcode.md as `vcnc-gcode` generates it (paper section 4:
 /// 70 random moves within ±50, feeds up to 250/s), interpolated at 1 ms with acceleration
 /// `amax` (2500 mm/s² in the paper): G-code text → parse → interpret → trapezoidal profiles.
 pub fn gcode_program(axis: vcnc_gcode::AxisName, seed: u64, amax: f64) -> RefSignal {
