@@ -105,13 +105,46 @@ fn simulate_and_frf_write_their_files() {
     ]));
     assert!(stdout.contains("p-pi"));
     let s = json(&out.join("summary.json"));
-    // Truth: docs/reference-numbers.md, Table 1 poles.
-    assert!((num(&s, "axes.X.model.wn_hz") - 30.569).abs() < 1e-3);
-    assert!((num(&s, "axes.X.model.zeta") - 0.44519).abs() < 1e-5);
+    // Truth: docs/reference-numbers.md, Table 1 poles. The true drive's model is `true_model`
+    // (issue 11: it was written as `model`, the key of the identified model).
+    assert!((num(&s, "axes.X.true_model.wn_hz") - 30.569).abs() < 1e-3);
+    assert!((num(&s, "axes.X.true_model.zeta") - 0.44519).abs() < 1e-5);
+    assert!(s["axes"]["X"].get("model").is_none());
+    assert!(s.get("models").is_none());
     assert!(num(&s, "axes.X.tracking_max_um") > 100.0);
     let header = std::fs::read_to_string(out.join("trace.csv")).unwrap();
     assert!(header.starts_with("t,X_ref,X_act\n"));
     assert!(out.join("tracking.svg").exists());
+
+    // With --model: the model file is recorded and its model written under `model`.
+    let id = dir.path().join("id");
+    ok(&vcnc(&[
+        "identify",
+        "machines/ballscrew-ppi.toml",
+        "--quiet",
+        "--out",
+        id.to_str().unwrap(),
+    ]));
+    let model = id.join("model.toml");
+    let out2 = dir.path().join("sim2");
+    ok(&vcnc(&[
+        "simulate",
+        "machines/ballscrew-ppi.toml",
+        "gcode/identification-X.ngc",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]));
+    let s2 = json(&out2.join("summary.json"));
+    assert_eq!(s2["models"].as_str(), model.to_str());
+    let identified = json(&id.join("summary.json"));
+    assert_eq!(
+        s2["axes"]["X"]["model"]["wn_hz"],
+        identified["axes"]["X"]["identified"]["wn_hz"]
+    );
+    assert!((num(&s2, "axes.X.true_model.wn_hz") - 30.569).abs() < 1e-3);
+    assert!(num(&s2, "axes.X.model_vs_true_max_um") < 5.0);
 
     let frf = dir.path().join("frf");
     ok(&vcnc(&[
@@ -171,6 +204,40 @@ fn kinematics_forward_and_inverse_round_trip() {
         for (a, b) in r.iter().zip(w) {
             assert!((a - b).abs() < 1e-9, "{r:?} vs {w:?}");
         }
+    }
+    // Without --branch the machine file's `kinematics.branch` decides (issue 11: the command
+    // used -1 whatever the file said). A machine on branch +1 gives A = +30° for the pose of
+    // A = -30°, C = 57.3° (the same tool axis, C turned by 180°).
+    let text = std::fs::read_to_string(repo("machines/nmv5000.toml"))
+        .unwrap()
+        .replace("branch = -1", "branch = 1")
+        .replace(
+            "urdf = \"nmv5000.urdf\"",
+            &format!("urdf = {:?}", repo("machines/nmv5000.urdf")),
+        );
+    let plus = dir.path().join("plus.toml");
+    std::fs::write(&plus, text).unwrap();
+    for (machine, sign) in [
+        ("machines/nmv5000.toml", -1.0),
+        (plus.to_str().unwrap(), 1.0),
+    ] {
+        let out = ok(&vcnc(&[
+            "kinematics",
+            machine,
+            "inverse",
+            "--input",
+            poses.to_str().unwrap(),
+        ]));
+        let a: f64 = out
+            .lines()
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .nth(3)
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!((a - sign * 30.0).abs() < 1e-9, "{machine}: A = {a}");
     }
 }
 

@@ -4,8 +4,8 @@
 use std::sync::OnceLock;
 
 use vcnc_drive::{AxisName, ClosedLoopModel};
-use vcnc_machine::pipeline::{self, AxisIdentification, Prediction, Run};
 use vcnc_machine::{Machine, embedded};
+use vcnc_pipeline::{AxisIdentification, Prediction, Run, identify, predict, run};
 
 struct Fixture {
     machine: Machine,
@@ -21,13 +21,13 @@ fn fixture() -> &'static Fixture {
     F.get_or_init(|| {
         let machine = Machine::embedded_nmv5000().expect("embedded machine");
         let run =
-            pipeline::prepare(&machine, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
-        let ids =
-            pipeline::identify_axes(&machine, &machine.axis_names(), None).expect("identification");
+            run::prepare(&machine, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
+        let axes: Vec<_> = machine.axes.iter().collect();
+        let ids = identify::identify_axes(&machine, &axes, None).expect("identification");
         let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
         let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
-        let [refined, paper]: [pipeline::Prediction; 2] =
-            pipeline::predict_many(&machine, &run, &[&refined, &paper])
+        let [refined, paper]: [Prediction; 2] =
+            predict::predict_many(&machine, &run, &[&refined, &paper])
                 .expect("prediction")
                 .try_into()
                 .expect("two predictions");
@@ -120,7 +120,8 @@ fn identified_nmv5000_poles_are_within_tolerance() {
     // the true drive (truth: `DriveParams` → closed-loop model, docs/drive-model.md).
     let f = fixture();
     for r in &f.ids {
-        let t = r.truth.poles().unwrap();
+        let truth = r.truth().unwrap();
+        let t = truth.poles().unwrap();
         let p = r.result.identified.poles().expect("identified poles");
         let e = |a: f64, b: f64| (a - b).abs() / b;
         eprintln!(
@@ -129,7 +130,7 @@ fn identified_nmv5000_poles_are_within_tolerance() {
             100.0 * (p.p - t.p) / t.p,
             100.0 * (p.wn - t.wn) / t.wn,
             100.0 * (p.zeta - t.zeta) / t.zeta,
-            100.0 * (r.result.identified.dc - r.truth.dc) / r.truth.dc
+            100.0 * (r.result.identified.dc - truth.dc) / truth.dc
         );
         assert!(r.result.identified.is_stable(), "{}", r.axis);
         assert!(e(p.wn, t.wn) < 0.02, "{} wn {} vs {}", r.axis, p.wn, t.wn);

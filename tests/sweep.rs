@@ -140,6 +140,19 @@ fn hundred_configurations_equal_predict_and_shards_merge_back() {
         m["best"], f["best"]
     );
     assert!(m["best"]["values"]["axes.X.controller.vff"].is_f64());
+    // The merge draws the same plots as the sweep (issue 11: it drew none).
+    for name in [
+        "sweep_axes_X_controller_vff.svg",
+        "sweep_axes_Y_controller_design_wn_hz.svg",
+    ] {
+        let (a, b) = (merged.join(name), full.join(name));
+        assert!(a.exists(), "{} missing", a.display());
+        assert_eq!(
+            std::fs::read(&a).unwrap(),
+            std::fs::read(&b).unwrap(),
+            "{name}"
+        );
+    }
 }
 
 #[test]
@@ -171,10 +184,12 @@ fn thread_count_does_not_change_results() {
 
 #[test]
 fn bad_configurations_are_reported_per_row() {
-    // An unknown key and an impossible design fail their own configurations, not the sweep.
+    // An unknown key and an impossible design fail their own configurations, not the sweep;
+    // a sweep whose every configuration failed measured nothing: it keeps its rows and exits 1
+    // (issue 11).
     let dir = tempdir();
     let out = dir.path().join("s");
-    ok(&vcnc(&[
+    let all_failed = vcnc(&[
         "sweep",
         "machines/nmv5000.toml",
         "gcode/spiral.ngc",
@@ -185,7 +200,15 @@ fn bad_configurations_are_reported_per_row() {
         "axes.X.plant.no_such_key=1",
         "--out",
         out.to_str().unwrap(),
-    ]));
+    ]);
+    assert_eq!(all_failed.status.code(), Some(1), "{:?}", text(&all_failed));
+    assert!(
+        text(&all_failed)
+            .1
+            .contains("all 2 configurations of the sweep failed"),
+        "{:?}",
+        text(&all_failed)
+    );
     let t = rows(&out.join("sweep.csv"));
     assert_eq!(t.len(), 3);
     for r in &t[1..] {

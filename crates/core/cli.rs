@@ -36,35 +36,46 @@ pub enum Command {
     Identify(IdentifyArgs),
     /// Run a program through the machine's true drives.
     Simulate {
+        /// Machine file (TOML).
         machine: PathBuf,
+        /// G-code program.
         program: PathBuf,
         /// Also simulate this identified model file and add `<AXIS>_model` columns.
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Output folder (trace.csv, summary.json, tracking.svg).
         #[arg(long, default_value = "vcnc-simulate")]
         out: PathBuf,
     },
     /// Predict tool-tip and orientation contour errors of a program with the true and the
     /// identified drives.
     Predict {
+        /// Machine file (TOML).
         machine: PathBuf,
+        /// G-code program.
         program: PathBuf,
         /// Identified model file (from `vcnc identify`); identified on the fly when absent.
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Output folder (contour.csv, summary.json, plots).
         #[arg(long, default_value = "vcnc-predict")]
         out: PathBuf,
     },
     /// Interpolate a program into the reference trajectory at the sample period.
     Interpolate {
+        /// Machine file (TOML).
         machine: PathBuf,
+        /// G-code program.
         program: PathBuf,
+        /// Output folder (reference.csv, summary.json).
         #[arg(long, default_value = "vcnc-interpolate")]
         out: PathBuf,
     },
     /// Forward or inverse kinematics of the machine on a CSV of axes or poses.
     Kinematics {
+        /// Machine file (TOML) with a `[kinematics]` section.
         machine: PathBuf,
+        /// `forward` (axes → poses) or `inverse` (poses → axes).
         direction: Direction,
         /// Input CSV: columns X Y Z A C (forward) or px py pz ox oy oz (inverse).
         #[arg(long)]
@@ -72,16 +83,19 @@ pub enum Command {
         /// Output CSV (default: standard output).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Inverse-kinematics branch (sign of A).
-        #[arg(long, default_value = "-1", allow_hyphen_values = true)]
-        branch: i8,
+        /// Inverse-kinematics branch (sign of A) [default: the machine file's
+        /// `kinematics.branch`].
+        #[arg(long, allow_hyphen_values = true)]
+        branch: Option<i8>,
     },
     /// Tracking and disturbance frequency responses of each axis (CSV and SVG Bode plots).
     Frf {
+        /// Machine file (TOML).
         machine: PathBuf,
         /// Also plot this identified model file beside the true drives.
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Output folder (`frf_<AXIS>.csv`/`.svg`, `summary.json`).
         #[arg(long, default_value = "vcnc-frf")]
         out: PathBuf,
     },
@@ -89,9 +103,10 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Join the outputs of sharded sweeps.
     SweepMerge {
-        /// Shard output folders.
+        /// Shard output folders (each with its sweep.csv).
         #[arg(required = true)]
         dirs: Vec<PathBuf>,
+        /// Output folder of the joined table, summary and plots.
         #[arg(long)]
         out: PathBuf,
     },
@@ -154,13 +169,16 @@ pub struct IdentifyArgs {
     /// `[identification.options]` table (deadband, bounds, prefilter, pso, refine, seed, ...).
     #[arg(long, value_name = "OPTIONS.toml", requires = "trace")]
     pub options: Option<PathBuf>,
+    /// Output folder (summary.json, model.toml, plots).
     #[arg(long, default_value = "vcnc-identify")]
     pub out: PathBuf,
 }
 
 #[derive(Debug, Args)]
 pub struct SweepArgs {
+    /// Machine file (TOML) whose keys are swept.
     pub machine: PathBuf,
+    /// G-code program run on every configuration.
     pub program: PathBuf,
     /// `KEY=V1,V2,...` or `KEY=start:stop:count`; KEY is a dotted machine-file path such as
     /// `axes.X.controller.kv`. Repeat for a cartesian product.
@@ -172,6 +190,7 @@ pub struct SweepArgs {
     /// Run shard i of n (1-based), a deterministic 1/n of the product.
     #[arg(long, value_name = "i/n")]
     pub shard: Option<String>,
+    /// Output folder (sweep.csv streamed row by row, summary.json, plots).
     #[arg(long, default_value = "vcnc-sweep")]
     pub out: PathBuf,
 }
@@ -189,15 +208,18 @@ pub enum GenCommand {
         /// Moves stay within ±RANGE (mm or deg).
         #[arg(long, default_value_t = 50.0)]
         range: f64,
-        /// Highest feed, units/s.
+        /// Highest feed in units per SECOND (mm/s or deg/s; the program's F words are written
+        /// per minute, F = 60 × this).
         #[arg(long, default_value_t = 250.0)]
         max_feed: f64,
+        /// Seed of the random moves (same seed, same program).
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
     /// The 5-axis spiral of docs/contour.md in tool-centre-point mode.
     Spiral {
-        /// Feed along the tool-tip path, mm/s.
+        /// Feed along the tool-tip path in mm per SECOND (the program's F word is per minute,
+        /// F = 60 × this).
         #[arg(long, default_value_t = 75.0)]
         feed: f64,
         /// Segment length along the tip path, mm.

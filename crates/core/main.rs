@@ -1,19 +1,25 @@
-//! `vcnc`: the command-line front end (docs/cli.md). Library crates do the work; this binary
-//! parses arguments, prints tables and progress, writes files atomically and draws SVG plots.
+//! `vcnc`: the command-line front end (docs/cli.md). Library crates do the work (the runs are
+//! `vcnc-pipeline`'s); this binary parses arguments, prints tables and progress, writes files
+//! atomically and draws SVG plots. Command files (`cmd_*`) do not import each other: what
+//! several share is in `writers`, `figures`, `output` and `table`.
 //!
 //! Exit codes: 0 ok, 1 runtime failure, 2 bad input (every message names the file, and the line
 //! and column where there is one).
 
 mod cli;
+mod cmd_demo;
+mod cmd_frf;
 mod cmd_gen;
 mod cmd_identify;
 mod cmd_kinematics;
 mod cmd_predict;
-mod cmd_sim;
+mod cmd_simulate;
 mod cmd_sweep;
+mod figures;
 mod output;
 mod plot;
-mod report;
+mod table;
+mod writers;
 
 use std::process::ExitCode;
 
@@ -82,14 +88,14 @@ fn main() -> ExitCode {
 
 fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
     match command {
-        Command::Demo { out } => cmd_predict::demo(&out, ctx),
+        Command::Demo { out } => cmd_demo::demo(&out, ctx),
         Command::Identify(args) => cmd_identify::identify(&args, ctx),
         Command::Simulate {
             machine,
             program,
             model,
             out,
-        } => cmd_sim::simulate(&machine, &program, model.as_deref(), &out, ctx),
+        } => cmd_simulate::simulate(&machine, &program, model.as_deref(), &out, ctx),
         Command::Predict {
             machine,
             program,
@@ -100,7 +106,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             machine,
             program,
             out,
-        } => cmd_sim::interpolate(&machine, &program, &out, ctx),
+        } => cmd_simulate::interpolate(&machine, &program, &out, ctx),
         Command::Kinematics {
             machine,
             direction,
@@ -112,24 +118,29 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             machine,
             model,
             out,
-        } => cmd_sim::frf(&machine, model.as_deref(), &out, ctx),
+        } => cmd_frf::frf(&machine, model.as_deref(), &out, ctx),
         Command::Sweep(args) => cmd_sweep::sweep(&args, ctx),
         Command::SweepMerge { dirs, out } => cmd_sweep::merge(&dirs, &out, ctx),
         Command::Gen { what } => cmd_gen::generate(&what),
     }
 }
 
-/// 2 when any error in the chain is the user's input, else 1.
+/// The exit code of an error, decided by its kind: 2 when the user's input is at fault, else 1.
 fn exit_code(e: &anyhow::Error) -> u8 {
     for cause in e.chain() {
-        if cause.downcast_ref::<BadInput>().is_some() {
-            return 2;
-        }
-        if let Some(m) = cause.downcast_ref::<vcnc_machine::Error>() {
-            return if m.is_bad_input() { 2 } else { 1 };
-        }
-        if cause.downcast_ref::<clap::Error>().is_some() {
-            return 2;
+        let bad = if cause.downcast_ref::<BadInput>().is_some()
+            || cause.downcast_ref::<clap::Error>().is_some()
+        {
+            Some(true)
+        } else if let Some(p) = cause.downcast_ref::<vcnc_pipeline::Error>() {
+            Some(p.is_bad_input())
+        } else {
+            cause
+                .downcast_ref::<vcnc_machine::Error>()
+                .map(vcnc_machine::Error::is_bad_input)
+        };
+        if let Some(bad) = bad {
+            return if bad { 2 } else { 1 };
         }
     }
     1

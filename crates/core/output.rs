@@ -33,14 +33,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// Pretty JSON, written atomically.
-pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    let mut text = serde_json::to_string_pretty(value)?;
+/// Pretty JSON of a summary, keys sorted at every level (the contract's layout), written
+/// atomically.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    // Through `serde_json::Value`, whose maps keep their keys sorted.
+    let value = serde_json::to_value(value)?;
+    let mut text = serde_json::to_string_pretty(&value)?;
     text.push('\n');
     write_atomic(path, text.as_bytes())
 }
 
-/// A CSV table, built in memory and written atomically.
+/// A CSV table of numeric columns, built in memory and written atomically.
 pub fn write_csv(path: &Path, header: &[String], columns: &[&[f64]]) -> Result<()> {
     let rows = columns.iter().map(|c| c.len()).max().unwrap_or(0);
     let mut w =
@@ -60,14 +63,7 @@ pub fn write_csv(path: &Path, header: &[String], columns: &[&[f64]]) -> Result<(
     write_atomic(path, &bytes)
 }
 
-/// Shortest round-trip representation of a float (so CSV values reload bit-identically).
-pub fn format_num(v: f64) -> String {
-    if v == 0.0 {
-        "0".to_string()
-    } else {
-        format!("{v}")
-    }
-}
+pub use vcnc_pipeline::format_num;
 
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
@@ -91,4 +87,10 @@ fn fail_point(path: &Path) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Creates the output folder.
+pub fn ensure_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create output folder {}", dir.display()))
 }

@@ -63,5 +63,13 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// False: the pose sequences are computed by vcnc (interpolation, simulation, kinematics),
+    /// so a bad sequence is a failure of the run, not of the user's input (exit code 1).
+    pub fn is_bad_input(&self) -> bool {
+        false
+    }
+}
+
 /// Shorthand for this crate's results.
 pub type Result<T, E = Error> = std::result::Result<T, E>;

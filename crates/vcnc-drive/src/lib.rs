@@ -212,6 +212,32 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// True when drive parameters are at fault (exit code 2: a bad value, unstable or
+    /// unreachable gains); false for a failure to simulate signals the caller built (exit
+    /// code 1).
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            Error::BadParameter { .. }
+            | Error::MissingGain { .. }
+            | Error::GainsAndDesign { .. }
+            | Error::Unstable { .. }
+            | Error::BadDesign { .. }
+            | Error::Unreachable { .. }
+            | Error::NegativeGain { .. }
+            | Error::ServoRate { .. }
+            | Error::TooStiff { .. }
+            | Error::SampledUnstable { .. }
+            | Error::UnknownAxis { .. } => true,
+            Error::EmptySignal
+            | Error::LengthMismatch { .. }
+            | Error::NonFinite { .. }
+            | Error::BadSamplePeriod { .. }
+            | Error::NonFiniteModel => false,
+        }
+    }
+}
+
 fn unstable_message(model: &ClosedLoopModel, poles: &Option<Poles>) -> String {
     use std::f64::consts::TAU;
     let roots = model.roots();

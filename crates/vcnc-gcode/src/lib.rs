@@ -129,6 +129,23 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// Every error of this crate is about the program, the limits or the options it was given
+    /// (exit code 2).
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            Error::Program { .. }
+            | Error::InvalidLimit { .. }
+            | Error::InvalidOption { .. }
+            | Error::AxisCannotMove { .. }
+            | Error::TooManySamples { .. }
+            | Error::InverseTimeInfeasible { .. }
+            | Error::NonFinite { .. }
+            | Error::InvalidGenerator { .. } => true,
+        }
+    }
+}
+
 /// `axis X`, or `the tool-tip path` for `None`.
 fn axis_label(axis: Option<AxisName>) -> String {
     axis.map_or_else(|| "the tool-tip path".to_string(), |a| format!("axis {a}"))

@@ -194,3 +194,25 @@ pub enum Error {
     #[error("model simulation failed: {0}")]
     Drive(#[from] vcnc_drive::Error),
 }
+
+impl Error {
+    /// True when the data or the options are at fault (exit code 2: too few samples, no
+    /// motion, an unidentifiable trace, a bad option); false for a numerical failure of the
+    /// identifier itself (exit code 1).
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            Error::LengthMismatch { .. }
+            | Error::NonFinite { .. }
+            | Error::TimeNotIncreasing { .. }
+            | Error::NonUniformTime { .. }
+            | Error::BadSamplePeriod { .. }
+            | Error::TooFewSamples { .. }
+            | Error::NoMotion { .. }
+            | Error::ZeroRegressor { .. }
+            | Error::IllConditioned { .. }
+            | Error::InvalidOption { .. }
+            | Error::InvalidBounds { .. } => true,
+            Error::PsoDivergent { .. } | Error::Drive(_) => false,
+        }
+    }
+}

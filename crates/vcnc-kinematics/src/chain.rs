@@ -237,6 +237,18 @@ fn unit_name(axis: AxisName) -> (&'static str, Vector3<f64>) {
     }
 }
 
+/// The URDF's links as a tree.
+struct Tree<'r> {
+    /// Link name → index in the URDF.
+    link_index: HashMap<&'r str, usize>,
+    /// Joints whose parent is each link.
+    child_joints: Vec<Vec<usize>>,
+    /// Index of the base link.
+    root: usize,
+    /// Name of the base link.
+    base_link: String,
+}
+
 struct Builder<'a> {
     source: &'a str,
     robot: &'a urdf_rs::Robot,
@@ -250,7 +262,70 @@ impl Builder<'_> {
         }
     }
 
+    /// Reads the URDF in stages: the link tree, its root-to-leaf paths, the joint kinds, the two
+    /// branches (X Y Z to the tool tip, A C to the workpiece), then the geometry at zero.
     fn build(&self) -> Result<KinematicChain> {
+        let tree = self.tree()?;
+        let paths = self.paths(&tree)?;
+        let kinds = self.joint_kinds()?;
+        let (tool_path, wp_path) = self.branches(&paths, &kinds, &tree.base_link)?;
+        let tool = self.convert(&tool_path, &kinds, &[AxisName::X, AxisName::Y, AxisName::Z])?;
+        let workpiece = self.convert(&wp_path, &kinds, &[AxisName::A, AxisName::C])?;
+
+        // Geometry at the zero position.
+        self.check_axes(&tool)?;
+        let wp_points = self.check_axes(&workpiece)?;
+        let zero = Axes::default();
+        let tool_tip = self.leaf_name(&tool_path, &tree.base_link);
+        let wp_link = self.leaf_name(&wp_path, &tree.base_link);
+        self.check_identity(
+            &compose(&tool, &zero),
+            &format!("the tool tip link '{tool_tip}'"),
+            "X = Y = Z = 0",
+            "make the tool tip coincide with the machine origin, tool along +Z, at zero",
+        )?;
+        self.check_identity(
+            &compose(&workpiece, &zero),
+            &format!("the workpiece link '{wp_link}'"),
+            "A = C = 0",
+            "the fixed workpiece joint's origin must be -r (the workpiece frame equals the \
+             machine frame at A = C = 0)",
+        )?;
+        let (p_a, p_c) = match wp_points.as_slice() {
+            [pa, pc] => (*pa, *pc),
+            _ => return Err(self.fail("internal: the A C branch lost a joint".into())),
+        };
+
+        let mut limits = AxisLimits::default();
+        for j in tool.iter().chain(workpiece.iter()) {
+            if let Some(t) = j.role.and_then(|axis| limits.get_mut(axis)) {
+                *t = j.travel;
+            }
+        }
+
+        Ok(KinematicChain {
+            name: self.robot.name.clone(),
+            source: self.source.to_string(),
+            base_link: tree.base_link,
+            tool_link: tool_tip,
+            workpiece_link: wp_link,
+            tool,
+            workpiece,
+            r: p_c,
+            d: p_a - p_c,
+            limits,
+        })
+    }
+
+    /// The name of the link that ends `path` (the base link for an empty path).
+    fn leaf_name(&self, path: &[usize], base_link: &str) -> String {
+        path.last()
+            .and_then(|&ji| self.robot.joints.get(ji))
+            .map_or(base_link.to_string(), |j| j.child.link.clone())
+    }
+
+    /// Links and joints as a tree: unique names, one parent joint per link, one base link.
+    fn tree(&self) -> Result<Tree<'_>> {
         let robot = self.robot;
         // Links and their parent joints.
         let mut link_index: HashMap<&str, usize> = HashMap::new();
@@ -320,8 +395,24 @@ impl Builder<'_> {
             .get(root)
             .map_or(String::new(), |l| l.name.clone());
 
-        // Every root-to-leaf path (each link has one parent, so this walk terminates and visits
-        // every link reachable from the root exactly once).
+        Ok(Tree {
+            link_index,
+            child_joints,
+            root,
+            base_link,
+        })
+    }
+
+    /// Every root-to-leaf path of joint indices (each link has one parent, so this walk
+    /// terminates and visits every link reachable from the root exactly once).
+    fn paths(&self, tree: &Tree<'_>) -> Result<Vec<Vec<usize>>> {
+        let robot = self.robot;
+        let (link_index, child_joints, root, base_link) = (
+            &tree.link_index,
+            &tree.child_joints,
+            tree.root,
+            &tree.base_link,
+        );
         let mut paths: Vec<Vec<usize>> = Vec::new();
         let mut stack: Vec<(usize, Vec<usize>)> = vec![(root, Vec::new())];
         let mut visited = 0usize;
@@ -353,7 +444,12 @@ impl Builder<'_> {
             )));
         }
 
-        // Joint kinds.
+        Ok(paths)
+    }
+
+    /// The kind of every joint, in URDF order; mimic and planar/floating joints are refused.
+    fn joint_kinds(&self) -> Result<Vec<JointKind>> {
+        let robot = self.robot;
         let mut kinds = Vec::with_capacity(robot.joints.len());
         for joint in &robot.joints {
             if joint.mimic.is_some() {
@@ -377,6 +473,18 @@ impl Builder<'_> {
             };
             kinds.push(kind);
         }
+        Ok(kinds)
+    }
+
+    /// The X Y Z branch (three prismatic joints) and the A C branch (two rotary joints); any
+    /// other moving joint is an error.
+    fn branches(
+        &self,
+        paths: &[Vec<usize>],
+        kinds: &[JointKind],
+        base_link: &str,
+    ) -> Result<(Vec<usize>, Vec<usize>)> {
+        let robot = self.robot;
         let kind_of = |ji: usize| kinds.get(ji).copied().unwrap_or(JointKind::Fixed);
         let movable = |path: &[usize]| -> Vec<usize> {
             path.iter()
@@ -388,7 +496,7 @@ impl Builder<'_> {
         // Identify the two branches by their movable joints.
         let mut tool_paths = Vec::new();
         let mut wp_paths = Vec::new();
-        for path in &paths {
+        for path in paths {
             let m = movable(path);
             let ks: Vec<JointKind> = m.iter().map(|&ji| kind_of(ji)).collect();
             if ks.len() == 3 && ks.iter().all(|k| *k == JointKind::Prismatic) {
@@ -397,11 +505,7 @@ impl Builder<'_> {
                 wp_paths.push(path.clone());
             }
         }
-        let leaf_name = |path: &[usize]| -> String {
-            path.last()
-                .and_then(|&ji| robot.joints.get(ji))
-                .map_or(base_link.clone(), |j| j.child.link.clone())
-        };
+        let leaf_name = |path: &[usize]| self.leaf_name(path, base_link);
         let tool_path = match tool_paths.as_slice() {
             [p] => p.clone(),
             [] => {
@@ -443,52 +547,7 @@ impl Builder<'_> {
             }
         }
 
-        let tool = self.convert(&tool_path, &kinds, &[AxisName::X, AxisName::Y, AxisName::Z])?;
-        let workpiece = self.convert(&wp_path, &kinds, &[AxisName::A, AxisName::C])?;
-
-        // Geometry at the zero position.
-        self.check_axes(&tool)?;
-        let wp_points = self.check_axes(&workpiece)?;
-        let zero = Axes::default();
-        let tool_tip = leaf_name(&tool_path);
-        let wp_link = leaf_name(&wp_path);
-        self.check_identity(
-            &compose(&tool, &zero),
-            &format!("the tool tip link '{tool_tip}'"),
-            "X = Y = Z = 0",
-            "make the tool tip coincide with the machine origin, tool along +Z, at zero",
-        )?;
-        self.check_identity(
-            &compose(&workpiece, &zero),
-            &format!("the workpiece link '{wp_link}'"),
-            "A = C = 0",
-            "the fixed workpiece joint's origin must be -r (the workpiece frame equals the \
-             machine frame at A = C = 0)",
-        )?;
-        let (p_a, p_c) = match wp_points.as_slice() {
-            [pa, pc] => (*pa, *pc),
-            _ => return Err(self.fail("internal: the A C branch lost a joint".into())),
-        };
-
-        let mut limits = AxisLimits::default();
-        for j in tool.iter().chain(workpiece.iter()) {
-            if let Some(t) = j.role.and_then(|axis| limits.get_mut(axis)) {
-                *t = j.travel;
-            }
-        }
-
-        Ok(KinematicChain {
-            name: robot.name.clone(),
-            source: self.source.to_string(),
-            base_link,
-            tool_link: tool_tip,
-            workpiece_link: wp_link,
-            tool,
-            workpiece,
-            r: p_c,
-            d: p_a - p_c,
-            limits,
-        })
+        Ok((tool_path, wp_path))
     }
 
     /// Converts the URDF joints of one branch, assigning `roles` to its movable joints in order.

@@ -93,6 +93,13 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// Every error of this crate is about its input (a URDF, a pose, a travel): exit code 2.
+    pub fn is_bad_input(&self) -> bool {
+        true
+    }
+}
+
 /// Shorthand for this crate's results.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 

@@ -37,7 +37,7 @@ pub use chain::{CHAIN_TOLERANCE, ChainJoint, JointKind, KinematicChain};
 pub use error::{Error, Result};
 pub use model::{
     IkOptions, IkSolution, MachineMotion, RotaryAngles, SINGULAR_SIN_A, TableTiltingAc, TcpMotion,
-    unwrap_near,
+    Track, Track3, unwrap_near,
 };
 pub use types::{Axes, AxisLimits, AxisName, Branch, Pose, Travel};
 

@@ -125,6 +125,28 @@ pub struct TcpMotion {
     pub c_ddot: f64,
 }
 
+/// One axis over a run, borrowed: position, velocity and acceleration per sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Track<'a> {
+    /// Position per sample (mm or deg).
+    pub pos: &'a [f64],
+    /// Velocity per sample (units/s).
+    pub vel: &'a [f64],
+    /// Acceleration per sample (units/s²).
+    pub acc: &'a [f64],
+}
+
+/// One axis over a run, owned: position, velocity and acceleration per sample.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Track3 {
+    /// Position per sample (mm).
+    pub pos: Vec<f64>,
+    /// Velocity per sample (mm/s).
+    pub vel: Vec<f64>,
+    /// Acceleration per sample (mm/s²).
+    pub acc: Vec<f64>,
+}
+
 /// Linear-axis motion $p_m = (X, Y, Z)$ and its analytic time derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MachineMotion {
@@ -353,6 +375,50 @@ impl TableTiltingAc {
                 + rx1 * u_dot * (2.0 * m.a_dot)
                 + rx * u_ddot,
         }
+    }
+
+    /// [`inverse_tcp_motion`](Self::inverse_tcp_motion) over a whole run: the X Y Z tracks hold
+    /// the tool tip in the workpiece frame (mm, mm/s, mm/s²) and the A C tracks the rotary axes
+    /// in **degrees** (deg/s, deg/s²), as a tool-centre-point program is interpolated; the
+    /// result is the X Y Z machine-axis references (position, velocity, acceleration) with the
+    /// analytic derivatives of the chain rule. Samples where `tcp[k]` is false are machine-axis
+    /// coordinates already and are copied unchanged. All tracks have `tcp.len()` samples.
+    pub fn inverse_tcp_track(
+        &self,
+        tip: [Track<'_>; 3],
+        a: Track<'_>,
+        c: Track<'_>,
+        tcp: &[bool],
+    ) -> [Track3; 3] {
+        const DEG: f64 = std::f64::consts::PI / 180.0;
+        let mut out: [Track3; 3] = std::array::from_fn(|i| Track3 {
+            pos: tip[i].pos.to_vec(),
+            vel: tip[i].vel.to_vec(),
+            acc: tip[i].acc.to_vec(),
+        });
+        for (k, _) in tcp.iter().enumerate().filter(|(_, on)| **on) {
+            let v3 = |pick: usize| {
+                let at = |t: &Track<'_>| [t.pos, t.vel, t.acc][pick][k];
+                Vector3::new(at(&tip[0]), at(&tip[1]), at(&tip[2]))
+            };
+            let m = self.inverse_tcp_motion(&TcpMotion {
+                p_w: v3(0),
+                p_w_dot: v3(1),
+                p_w_ddot: v3(2),
+                a: a.pos[k] * DEG,
+                a_dot: a.vel[k] * DEG,
+                a_ddot: a.acc[k] * DEG,
+                c: c.pos[k] * DEG,
+                c_dot: c.vel[k] * DEG,
+                c_ddot: c.acc[k] * DEG,
+            });
+            for (j, o) in out.iter_mut().enumerate() {
+                o.pos[k] = m.pm[j];
+                o.vel[k] = m.pm_dot[j];
+                o.acc[k] = m.pm_ddot[j];
+            }
+        }
+        out
     }
 
     /// Inverse kinematics of one pose on `branch`, C nearest to `c_prev` (rad) and held at

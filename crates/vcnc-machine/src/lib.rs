@@ -1,37 +1,35 @@
-//! The vcnc machine file and pipeline.
+//! The vcnc machine file: raw TOML → checked machine, and the other TOML files of vcnc.
 //!
-//! - [`MachineFile`] is the TOML document as written (docs/machine-file.md); [`Machine`] is the checked
-//!   machine: every axis' drive validated (gains designed, closed loop stable), the kinematic
-//!   chain loaded from its URDF, limits known. Errors name the file, line and key.
+//! - [`MachineFile`] is the TOML document as written (docs/machine-file.md); [`MachineDocument`]
+//!   a file as read (its table, text and base folder); [`Machine`] the checked machine: every
+//!   axis' drive validated (gains designed, closed loop stable), the kinematic chain loaded from
+//!   its URDF with the roles of its axes resolved, limits known. Errors name the file, line and
+//!   key.
 //! - [`ModelSet`] is an identified model file (`model.toml`), read by `--model`.
-//! - [`pipeline`]: program → reference trajectory → (inverse kinematics) → axis references →
-//!   true drives / identified models → (forward kinematics) → tool poses → contour errors; and
-//!   identification of each axis on its excitation program.
-//! - [`sweep`]: machine-file keys set by dotted path, cartesian products and shards.
+//! - [`OptionsFile`] holds identifier options: a machine file's `[identification.options]` or an
+//!   `--options` file of their own (the same keys, the same type).
 //!
-//! Only this crate knows TOML; only the binary knows the command line and plotting.
+//! Only this crate knows TOML. Runs (interpolation, simulation, identification, prediction,
+//! sweeps) are `vcnc-pipeline`'s.
 
 mod file;
 mod locate;
 mod machine;
 mod models;
 mod options_file;
-pub mod pipeline;
-pub mod sweep;
+mod sweep;
 
 pub use file::{
     AxisFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, ProgramFile,
     TrajectoryFile, Unit,
 };
 pub use locate::{LineCol, line_col, locate_key};
-pub use machine::{Axis, Machine};
+pub use machine::{AcAxes, Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};
 pub use models::{AxisModel, ModelSet};
 pub use options_file::OptionsFile;
 
-use vcnc_gcode::Diagnostic;
-
-/// The embedded default machine (NMV5000, the paper's Table 3 drives) and its URDF, so that `vcnc demo`
-/// runs from anywhere.
+/// The embedded default machine (NMV5000, the paper's Table 3 drives) and its URDF, so that
+/// `vcnc demo` runs from anywhere.
 pub mod embedded {
     /// `machines/nmv5000.toml`.
     pub const NMV5000_TOML: &str = include_str!("../../../machines/nmv5000.toml");
@@ -41,8 +39,8 @@ pub mod embedded {
     pub const SPIRAL_NGC: &str = include_str!("../../../gcode/spiral.ngc");
 }
 
-/// Errors of the machine crate and pipeline. [`Error::is_bad_input`] tells the binary which exit
-/// code to use (2 for bad input, 1 for a runtime failure).
+/// Errors of the machine, model and options files. Every variant but [`Error::Write`] is the
+/// user's input (exit code 2); each names the file, and the line and key where known.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Error {
     /// A file could not be read.
@@ -64,7 +62,11 @@ pub enum Error {
         message: String,
     },
     /// A value that parses but makes no sense (negative inertia, unstable gains, ...).
-    #[error("{file}:{}{key}: {message}", at.map(|a| format!("{a}: ")).unwrap_or_default())]
+    #[error(
+        "{file}:{}{}{message}",
+        at.map(|a| format!("{a}: ")).unwrap_or_default(),
+        if key.is_empty() { " ".to_string() } else { format!("{key}: ") }
+    )]
     Invalid {
         /// The path.
         file: String,
@@ -75,64 +77,21 @@ pub enum Error {
         /// What is wrong, with the value.
         message: String,
     },
-    /// G-code errors, every one with its line and column.
-    #[error("{}", format_diagnostics(file, diagnostics))]
-    Program {
-        /// The program's path.
-        file: String,
-        /// Every diagnostic (errors and warnings).
-        diagnostics: Vec<Diagnostic>,
-    },
-    /// The program cannot be interpolated (limits, too long, infeasible inverse-time feed).
-    #[error("{file}: {message}")]
-    Interpolation {
-        /// The program's path.
-        file: String,
-        /// What is wrong.
-        message: String,
-    },
-    /// An axis leaves its travel.
-    #[error(
-        "{file}:{line}: axis {axis} reaches {value:.4} {unit}, beyond its travel {lower} ..= {upper} {unit} (at t = {t_s:.3} s){}",
-        target.map(|t| format!("; the block moves it to {t} {unit}")).unwrap_or_default()
-    )]
-    Travel {
-        /// The program's path.
-        file: String,
-        /// Source line of the block that moves there.
-        line: u32,
-        /// The axis.
-        axis: vcnc_axis::AxisName,
-        /// Position reached, axis units.
-        value: f64,
-        /// Lower travel limit.
-        lower: f64,
-        /// Upper travel limit.
-        upper: f64,
-        /// Unit label.
-        unit: &'static str,
-        /// Time of the first sample beyond travel, s.
-        t_s: f64,
-        /// The block's programmed end position of the axis (axis-coordinate programs).
-        target: Option<f64>,
-    },
-    /// Kinematics: the chain is unusable, a pose unreachable.
+    /// The URDF chain is unusable.
     #[error("{context}: {message}")]
     Kinematics {
-        /// File or stage.
+        /// File and key.
         context: String,
         /// What is wrong.
         message: String,
     },
-    /// Identification refused or failed for an axis.
-    #[error("axis {axis}: identification failed: {message}")]
-    Identify {
-        /// Axis letter or trace name.
-        axis: String,
-        /// Why.
-        message: String,
-        /// True when the data are at fault (exit code 2), false for a numerical failure.
-        bad_input: bool,
+    /// The machine file has no `[kinematics]` section but the run needs one.
+    #[error(
+        "{file}: the machine file has no [kinematics] section (needed for TCP programs, poses and contour errors)"
+    )]
+    NoKinematics {
+        /// The machine file.
+        file: String,
     },
     /// A model file that does not fit the machine (axis missing, unit mismatch).
     #[error("{file}: {message}")]
@@ -142,32 +101,21 @@ pub enum Error {
         /// What does not fit.
         message: String,
     },
-    /// Numerical or internal failure (not the user's input).
-    #[error("{0}")]
-    Runtime(String),
+    /// A document could not be serialised (not the user's input).
+    #[error("cannot write {what}: {message}")]
+    Write {
+        /// What was being written.
+        what: String,
+        /// The serialiser's message.
+        message: String,
+    },
 }
 
 impl Error {
-    /// True when the input (files, options, data) is at fault: exit code 2.
+    /// True when the input (a file) is at fault: exit code 2.
     pub fn is_bad_input(&self) -> bool {
-        match self {
-            Error::Runtime(_) => false,
-            Error::Identify { bad_input, .. } => *bad_input,
-            _ => true,
-        }
+        !matches!(self, Error::Write { .. })
     }
-}
-
-fn format_diagnostics(file: &str, diagnostics: &[Diagnostic]) -> String {
-    let mut lines: Vec<String> = diagnostics
-        .iter()
-        .filter(|d| d.is_error())
-        .map(|d| format!("{file}:{d}"))
-        .collect();
-    if lines.is_empty() {
-        lines.push(format!("{file}: the program has errors"));
-    }
-    lines.join("\n")
 }
 
 /// Reads a text file: its display name (for messages) and contents, or [`Error::Io`] naming it.

@@ -1,18 +1,25 @@
 //! The checked machine: raw [`MachineFile`] → [`Machine`] (ripgrep's LowArgs → HiArgs split).
+//!
+//! [`MachineDocument`] is a machine file as read (its TOML table, its text when it has one, and
+//! where relative paths resolve); [`MachineDocument::check`] checks it section by section into a
+//! [`Machine`] that holds only checked values, with every look-up the pipeline needs resolved at
+//! load time (the drives, the kinematics and which machine axis plays X Y Z A C), so no look-up
+//! can fail after loading. Sweeps set keys in the document's table and check it again
+//! ([`MachineDocument::with_values`]).
 
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 
-use vcnc_axis::AxisName;
-
+use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
 use vcnc_gcode::{AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits};
-use vcnc_identify::IdentifyOptions;
 use vcnc_kinematics::nalgebra::Vector3;
-use vcnc_kinematics::{Axes, AxisLimits as Travels, KinematicChain, TableTiltingAc, Travel};
+use vcnc_kinematics::{
+    Axes, AxisLimits as Travels, Branch, KinematicChain, TableTiltingAc, Travel,
+};
 
-use crate::file::{MachineFile, ProgramFile, Unit};
+use crate::file::{AxisFile, IdentificationFile, KinematicsFile, MachineFile, ProgramFile};
 use crate::locate::{error_offset, line_col, locate_key};
+use crate::options_file::OptionsFile;
 use crate::{Error, embedded};
 
 /// One checked axis.
@@ -43,7 +50,60 @@ impl Axis {
     }
 }
 
-/// A checked machine. Build it with [`Machine::load`] or [`Machine::from_toml_str`].
+/// Which of a machine's axes (indices into [`Machine::axes`]) play the five roles of the
+/// table-tilting A/C kinematics. Resolved when the machine is checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AcAxes {
+    /// Index of X.
+    pub x: usize,
+    /// Index of Y.
+    pub y: usize,
+    /// Index of Z.
+    pub z: usize,
+    /// Index of A.
+    pub a: usize,
+    /// Index of C.
+    pub c: usize,
+}
+
+impl AcAxes {
+    /// The kinematics' axes (mm, rad) at sample `k` of per-machine-axis position series (mm,
+    /// deg).
+    pub fn at(&self, positions: &[&[f64]], k: usize) -> Axes {
+        Axes::new(
+            positions[self.x][k],
+            positions[self.y][k],
+            positions[self.z][k],
+            positions[self.a][k].to_radians(),
+            positions[self.c][k].to_radians(),
+        )
+    }
+}
+
+/// The checked kinematics of a table-tilting A/C machine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Kinematics {
+    /// The URDF chain.
+    pub chain: KinematicChain,
+    /// The closed-form model (mm, rad) with the file's offsets and the axes' travels.
+    pub model: TableTiltingAc,
+    /// Inverse-kinematics branch (the sign of A) for poses given without axes.
+    pub branch: Branch,
+    /// Which machine axes are X Y Z A C.
+    pub axes: AcAxes,
+}
+
+/// The identification settings, checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentificationSettings {
+    /// The excitation program.
+    pub program: ProgramFile,
+    /// The identifier options (the same type as an `--options` file).
+    pub options: OptionsFile,
+}
+
+/// A checked machine. Build it with [`Machine::load`], [`Machine::from_toml_str`] or
+/// [`MachineDocument::check`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Machine {
     /// Machine name.
@@ -54,11 +114,8 @@ pub struct Machine {
     pub ts: f64,
     /// Axes in the canonical order X Y Z A B C.
     pub axes: Vec<Axis>,
-    /// The closed-form table-tilting A/C model (mm, rad), with its URDF chain, when the file
-    /// has `[kinematics]`.
-    pub kinematics: Option<(KinematicChain, TableTiltingAc)>,
-    /// Inverse-kinematics branch sign (−1 or +1).
-    pub branch: i8,
+    /// The table-tilting A/C kinematics, when the file has `[kinematics]`.
+    pub kinematics: Option<Kinematics>,
     /// Tool-tip path velocity limit, mm/s.
     pub tcp_max_vel: f64,
     /// Tool-tip path acceleration limit, mm/s².
@@ -67,306 +124,120 @@ pub struct Machine {
     pub junction_deviation: Option<f64>,
     /// M-codes switching TCP on / off.
     pub tcp_mcodes: (Vec<u32>, Vec<u32>),
-    /// Identification program settings.
-    pub program: ProgramFile,
-    /// Identifier settings.
-    pub identify: IdentifyOptions,
-    /// The raw file, as read (for sweeps and for writing back).
-    pub file: MachineFile,
+    /// Identification program and identifier settings.
+    pub identification: IdentificationSettings,
+}
+
+/// Where relative paths of a machine file resolve.
+#[derive(Debug, Clone, PartialEq)]
+enum Base {
+    /// Compiled into the binary.
+    Embedded,
+    /// A folder on disk.
+    Dir(PathBuf),
+}
+
+/// A machine file as read: its TOML table, its text (for line numbers in messages; absent once
+/// keys are set programmatically), its name and where its relative paths resolve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineDocument {
+    /// The name used in messages (the path, or `<embedded>/…`).
+    pub source: String,
+    text: Option<String>,
+    table: toml::Table,
+    base: Base,
+}
+
+impl MachineDocument {
+    /// Reads a machine file (not yet checked).
+    pub fn load(path: &Path) -> Result<MachineDocument, Error> {
+        let (file, src) = crate::read_text(path)?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        MachineDocument::from_toml_str(&src, &file, &base)
+    }
+
+    /// A machine file given as text; `source` names it in messages, `base_dir` resolves its
+    /// URDF path. Only TOML syntax is checked here.
+    pub fn from_toml_str(
+        src: &str,
+        source: &str,
+        base_dir: &Path,
+    ) -> Result<MachineDocument, Error> {
+        MachineDocument::new(src, source, Base::Dir(base_dir.to_path_buf()))
+    }
+
+    /// The embedded NMV5000 (its URDF is embedded too).
+    pub fn embedded_nmv5000() -> Result<MachineDocument, Error> {
+        MachineDocument::new(
+            embedded::NMV5000_TOML,
+            "<embedded>/machines/nmv5000.toml",
+            Base::Embedded,
+        )
+    }
+
+    fn new(src: &str, source: &str, base: Base) -> Result<MachineDocument, Error> {
+        let table: toml::Table = toml::from_str(src).map_err(|e| toml_error(src, source, &e))?;
+        Ok(MachineDocument {
+            source: source.to_string(),
+            text: Some(src.to_string()),
+            table,
+            base,
+        })
+    }
+
+    /// Checks the document into a machine. Errors name the file, line and key.
+    pub fn check(&self) -> Result<Machine, Error> {
+        let file: MachineFile = match &self.text {
+            Some(src) => toml::from_str(src).map_err(|e| toml_error(src, &self.source, &e))?,
+            None => toml::Value::Table(self.table.clone()).try_into().map_err(
+                |e: toml::de::Error| Error::Invalid {
+                    file: self.source.clone(),
+                    at: None,
+                    key: String::new(),
+                    message: e.message().to_string(),
+                },
+            )?,
+        };
+        Checker { doc: self }.machine(file)
+    }
+
+    /// The machine with numeric keys set by their dotted paths (`axes.X.controller.kv`), then
+    /// checked. Errors carry no line numbers (the keys were not written in the file).
+    pub fn with_values(&self, values: &[(&str, f64)]) -> Result<Machine, Error> {
+        let mut doc = self.clone();
+        doc.text = None;
+        for (key, value) in values {
+            crate::sweep::set_key(&mut doc.table, key, *value).map_err(|e| match e {
+                Error::Invalid {
+                    at, key, message, ..
+                } => Error::Invalid {
+                    file: self.source.clone(),
+                    at,
+                    key,
+                    message,
+                },
+                other => other,
+            })?;
+        }
+        doc.check()
+    }
 }
 
 impl Machine {
     /// Reads and checks a machine file.
     pub fn load(path: &Path) -> Result<Machine, Error> {
-        let (file, src) = crate::read_text(path)?;
-        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Machine::from_toml_str(&src, &file, &base)
+        MachineDocument::load(path)?.check()
     }
 
-    /// The embedded default: the NMV5000 with the the paper's Table 3 drives (URDF embedded too).
+    /// The embedded default: the NMV5000 with the paper's Table 3 drives (URDF embedded too).
     pub fn embedded_nmv5000() -> Result<Machine, Error> {
-        let name = "<embedded>/machines/nmv5000.toml";
-        let file = parse_file(embedded::NMV5000_TOML, name)?;
-        Machine::from_file(file, name, Source::Embedded, Some(embedded::NMV5000_TOML))
+        MachineDocument::embedded_nmv5000()?.check()
     }
 
     /// Checks a machine file given as text. `source` names it in messages; `base_dir` resolves
     /// the URDF path.
     pub fn from_toml_str(src: &str, source: &str, base_dir: &Path) -> Result<Machine, Error> {
-        let file = parse_file(src, source)?;
-        Machine::from_file(file, source, Source::Dir(base_dir.to_path_buf()), Some(src))
-    }
-
-    /// Checks a machine file given as a TOML table (sweeps set keys in the table first). Errors
-    /// carry no line numbers (the table has none).
-    pub fn from_toml_table(
-        table: toml::Table,
-        source: &str,
-        base_dir: Option<&Path>,
-    ) -> Result<Machine, Error> {
-        let file: MachineFile =
-            toml::Value::Table(table)
-                .try_into()
-                .map_err(|e: toml::de::Error| Error::Invalid {
-                    file: source.to_string(),
-                    at: None,
-                    key: String::new(),
-                    message: e.message().to_string(),
-                })?;
-        let src = match base_dir {
-            Some(d) => Source::Dir(d.to_path_buf()),
-            None => Source::Embedded,
-        };
-        Machine::from_file(file, source, src, None)
-    }
-
-    fn from_file(
-        file: MachineFile,
-        source: &str,
-        base: Source,
-        src: Option<&str>,
-    ) -> Result<Machine, Error> {
-        let invalid = |key: &str, message: String| {
-            let path: Vec<&str> = key.split('.').collect();
-            Error::Invalid {
-                file: source.to_string(),
-                at: src.and_then(|s| locate_key(s, &path)),
-                key: key.to_string(),
-                message,
-            }
-        };
-        let ts = file.sample_period_s;
-        // 1 µs: the servo loop runs at most at 1 MHz (vcnc-drive), and a trace is never
-        // sampled faster than its servo.
-        if !(ts.is_finite() && (1e-6..=0.1).contains(&ts)) {
-            return Err(invalid(
-                "sample_period_s",
-                format!("sample period must be in [1e-6, 0.1] s, got {ts:?}"),
-            ));
-        }
-        if file.axes.is_empty() {
-            return Err(invalid("axes", "the machine has no axes".to_string()));
-        }
-        let mut axes = Vec::with_capacity(file.axes.len());
-        for (key, a) in &file.axes {
-            let name = match AxisName::from_str(key) {
-                Ok(n) if n.as_str() == key => n,
-                _ => {
-                    return Err(invalid(
-                        &format!("axes.{key}"),
-                        format!("unknown axis '{key}': expected one of X Y Z A B C"),
-                    ));
-                }
-            };
-            let k = |field: &str| format!("axes.{key}.{field}");
-            let expected = name.unit();
-            if a.unit != expected {
-                return Err(invalid(
-                    &k("unit"),
-                    format!(
-                        "axis {name} must be in {}, got \"{}\"",
-                        expected.as_str(),
-                        a.unit.as_str()
-                    ),
-                ));
-            }
-            let [lo, hi] = a.travel;
-            if !(lo.is_finite()
-                && hi.is_finite()
-                && lo < hi
-                && lo.abs() <= LIMIT
-                && hi.abs() <= LIMIT)
-            {
-                return Err(invalid(
-                    &k("travel"),
-                    format!(
-                        "travel must be [lower, upper] with lower < upper, both within ±{LIMIT:e}, got [{lo:e}, {hi:e}]"
-                    ),
-                ));
-            }
-            for (field, v) in [
-                ("max_velocity", a.max_velocity),
-                ("max_acceleration", a.max_acceleration),
-            ] {
-                if !positive(v) || v > LIMIT {
-                    return Err(invalid(
-                        &k(field),
-                        format!("{field} must be positive and at most {LIMIT:e}, got {v:e}"),
-                    ));
-                }
-            }
-            let params = DriveParams {
-                plant: a.plant.clone(),
-                controller: a.controller.clone(),
-                encoder: a.encoder.clone(),
-                servo_rate_hz: a.servo_rate_hz,
-            };
-            let drive = params.validate().map_err(|e| {
-                let field = drive_error_key(&e);
-                invalid(&k(field), format!("axis {name}: {e}"))
-            })?;
-            drive
-                .ticks_per_sample(ts)
-                .map_err(|e| invalid(&k("servo_rate_hz"), format!("axis {name}: {e}")))?;
-            let range = a
-                .identification_range
-                .unwrap_or(file.identification.program.range);
-            let centre = a.identification_centre.unwrap_or(0.0);
-            if !positive(range) || range > LIMIT || !centre.is_finite() {
-                return Err(invalid(
-                    &k("identification_range"),
-                    format!("identification range must be positive, got {range:?}"),
-                ));
-            }
-            if centre - range < lo || centre + range > hi {
-                return Err(invalid(
-                    &k("identification_range"),
-                    format!(
-                        "identification moves {} ± {range} {} leave the travel [{lo}, {hi}]; set identification_range / identification_centre",
-                        centre,
-                        a.unit.as_str()
-                    ),
-                ));
-            }
-            axes.push(Axis {
-                name,
-                unit: a.unit,
-                travel: a.travel,
-                max_velocity: a.max_velocity,
-                max_acceleration: a.max_acceleration,
-                drive,
-                identification_range: range,
-                identification_centre: centre,
-            });
-        }
-        axes.sort_by_key(|a| a.name);
-
-        let t = &file.trajectory;
-        for (field, v) in [
-            ("max_linear_velocity", t.max_linear_velocity),
-            ("max_linear_acceleration", t.max_linear_acceleration),
-        ] {
-            if !positive(v) {
-                return Err(invalid(
-                    &format!("trajectory.{field}"),
-                    format!("{field} must be positive, got {v:?}"),
-                ));
-            }
-        }
-        if let Some(j) = t.junction_deviation.filter(|j| !positive(*j)) {
-            return Err(invalid(
-                "trajectory.junction_deviation",
-                format!("junction deviation must be positive, got {j:?}"),
-            ));
-        }
-        let p = &file.identification.program;
-        if let Some(acc) = p.max_acceleration.filter(|a| !positive(*a)) {
-            return Err(invalid(
-                "identification.program.max_acceleration",
-                format!("max_acceleration must be positive, got {acc:?}"),
-            ));
-        }
-        if !(10..=100_000).contains(&p.moves)
-            || !positive(p.max_feed)
-            || !positive(p.min_feed)
-            || p.min_feed > p.max_feed
-        {
-            return Err(invalid(
-                "identification.program",
-                format!(
-                    "the identification program needs 10 to 100 000 moves and 0 < min_feed <= max_feed (got {} moves, feeds {} ..= {})",
-                    p.moves, p.min_feed, p.max_feed
-                ),
-            ));
-        }
-        file.identification
-            .options
-            .validate()
-            .map_err(|e| invalid("identification.options", e.to_string()))?;
-
-        let kinematics = match &file.kinematics {
-            None => None,
-            Some(k) => {
-                let (chain, urdf_name) = match &base {
-                    Source::Embedded => (
-                        KinematicChain::from_urdf_str(
-                            embedded::NMV5000_URDF,
-                            "<embedded>/machines/nmv5000.urdf",
-                        ),
-                        "<embedded>/machines/nmv5000.urdf".to_string(),
-                    ),
-                    Source::Dir(dir) => {
-                        let path = dir.join(&k.urdf);
-                        (
-                            KinematicChain::from_urdf_file(&path),
-                            path.display().to_string(),
-                        )
-                    }
-                };
-                let chain = chain.map_err(|e| Error::Kinematics {
-                    context: format!("{source}: kinematics.urdf = {}", urdf_name),
-                    message: e.to_string(),
-                })?;
-                let mut model = chain.table_tilting_ac();
-                let r = k.c_centre_mm.map(Vector3::from).unwrap_or(model.r);
-                let d = k.a_offset_mm.map(Vector3::from).unwrap_or(model.d);
-                model = model
-                    .with_offsets(r, d)
-                    .map_err(|e| invalid("kinematics", e.to_string()))?;
-                // The machine file's travels govern (the URDF's are nominal).
-                let mut travels = Travels::default();
-                for axis in &axes {
-                    let scale = if axis.unit == Unit::Deg {
-                        std::f64::consts::PI / 180.0
-                    } else {
-                        1.0
-                    };
-                    let tr = Travel::new(axis.travel[0] * scale, axis.travel[1] * scale).map_err(
-                        |e| invalid(&format!("axes.{}.travel", axis.name), e.to_string()),
-                    )?;
-                    if let Some(t) = travels.get_mut(axis.name) {
-                        *t = tr;
-                    }
-                }
-                model = model
-                    .with_limits(travels)
-                    .map_err(|e| invalid("kinematics", e.to_string()))?;
-                for needed in Axes::NAMES {
-                    if !axes.iter().any(|a| a.name == needed) {
-                        return Err(invalid(
-                            "kinematics",
-                            format!("a table-tilting A/C machine needs axis {needed} in [axes]"),
-                        ));
-                    }
-                }
-                if k.branch != 1 && k.branch != -1 {
-                    return Err(invalid(
-                        "kinematics.branch",
-                        format!("branch must be 1 or -1, got {}", k.branch),
-                    ));
-                }
-                Some((chain, model))
-            }
-        };
-
-        Ok(Machine {
-            name: file.name.clone(),
-            source: source.to_string(),
-            ts,
-            axes,
-            kinematics,
-            branch: file.kinematics.as_ref().map_or(-1, |k| k.branch),
-            tcp_max_vel: t.max_linear_velocity,
-            tcp_max_acc: t.max_linear_acceleration,
-            junction_deviation: t.junction_deviation,
-            tcp_mcodes: (
-                file.gcode.tcp_on_mcodes.clone(),
-                file.gcode.tcp_off_mcodes.clone(),
-            ),
-            program: file.identification.program.clone(),
-            identify: file.identification.options.clone(),
-            file,
-        })
+        MachineDocument::from_toml_str(src, source, base_dir)?.check()
     }
 
     /// The axis with this name.
@@ -421,11 +292,11 @@ impl Machine {
         o
     }
 
-    /// The closed-form kinematics, or an error saying the machine has none.
-    pub fn kinematics_model(&self) -> Result<&TableTiltingAc, Error> {
-        self.kinematics.as_ref().map(|(_, m)| m).ok_or_else(|| Error::Kinematics {
-            context: self.source.clone(),
-            message: "the machine file has no [kinematics] section (needed for TCP programs, poses and contour errors)".into(),
+    /// The kinematics, or an error saying the machine has none (needed for TCP programs, poses
+    /// and contour errors).
+    pub fn require_kinematics(&self) -> Result<&Kinematics, Error> {
+        self.kinematics.as_ref().ok_or_else(|| Error::NoKinematics {
+            file: self.source.clone(),
         })
     }
 }
@@ -438,21 +309,316 @@ fn positive(v: f64) -> bool {
     v.is_finite() && v > 0.0
 }
 
-/// Where relative paths of a machine file resolve.
-enum Source {
-    /// Compiled into the binary.
-    Embedded,
-    /// A folder on disk.
-    Dir(PathBuf),
-}
-
-/// TOML text → raw file, errors with file:line:col.
-fn parse_file(src: &str, source: &str) -> Result<MachineFile, Error> {
-    toml::from_str::<MachineFile>(src).map_err(|e| Error::Toml {
+/// TOML syntax or schema error → file:line:col.
+fn toml_error(src: &str, source: &str, e: &toml::de::Error) -> Error {
+    Error::Toml {
         file: source.to_string(),
         at: line_col(src, error_offset(src, e.span(), e.message())),
         message: e.message().trim().to_string(),
-    })
+    }
+}
+
+/// The section checkers of one document: each takes its raw section and returns its checked
+/// form, or an error naming the file, line and key.
+struct Checker<'a> {
+    doc: &'a MachineDocument,
+}
+
+impl Checker<'_> {
+    /// Error about `key` (dotted), located in the text when there is one.
+    fn invalid(&self, key: &str, message: String) -> Error {
+        let path: Vec<&str> = key.split('.').collect();
+        Error::Invalid {
+            file: self.doc.source.clone(),
+            at: self.doc.text.as_deref().and_then(|s| locate_key(s, &path)),
+            key: key.to_string(),
+            message,
+        }
+    }
+
+    fn machine(&self, file: MachineFile) -> Result<Machine, Error> {
+        let ts = self.sample_period(file.sample_period_s)?;
+        let axes = self.axes(&file, ts)?;
+        let t = &file.trajectory;
+        self.trajectory(
+            t.max_linear_velocity,
+            t.max_linear_acceleration,
+            t.junction_deviation,
+        )?;
+        let identification = self.identification(&file.identification)?;
+        let kinematics = match &file.kinematics {
+            None => None,
+            Some(k) => Some(self.kinematics(k, &axes)?),
+        };
+        Ok(Machine {
+            name: file.name,
+            source: self.doc.source.clone(),
+            ts,
+            axes,
+            kinematics,
+            tcp_max_vel: t.max_linear_velocity,
+            tcp_max_acc: t.max_linear_acceleration,
+            junction_deviation: t.junction_deviation,
+            tcp_mcodes: (file.gcode.tcp_on_mcodes, file.gcode.tcp_off_mcodes),
+            identification,
+        })
+    }
+
+    fn sample_period(&self, ts: f64) -> Result<f64, Error> {
+        // 1 µs: the servo loop runs at most at 1 MHz (vcnc-drive), and a trace is never
+        // sampled faster than its servo.
+        if ts.is_finite() && (1e-6..=0.1).contains(&ts) {
+            Ok(ts)
+        } else {
+            Err(self.invalid(
+                "sample_period_s",
+                format!("sample period must be in [1e-6, 0.1] s, got {ts:?}"),
+            ))
+        }
+    }
+
+    /// Every `[axes.<letter>]`, in canonical order.
+    fn axes(&self, file: &MachineFile, ts: f64) -> Result<Vec<Axis>, Error> {
+        if file.axes.is_empty() {
+            return Err(self.invalid("axes", "the machine has no axes".to_string()));
+        }
+        let mut axes = file
+            .axes
+            .iter()
+            .map(|(key, a)| self.axis(key, a, ts, file.identification.program.range))
+            .collect::<Result<Vec<Axis>, Error>>()?;
+        axes.sort_by_key(|a| a.name);
+        Ok(axes)
+    }
+
+    fn axis(&self, key: &str, a: &AxisFile, ts: f64, default_range: f64) -> Result<Axis, Error> {
+        let name = match key.parse::<AxisName>() {
+            Ok(n) if n.as_str() == key => n,
+            _ => {
+                return Err(self.invalid(
+                    &format!("axes.{key}"),
+                    format!("unknown axis '{key}': expected one of X Y Z A B C"),
+                ));
+            }
+        };
+        let k = |field: &str| format!("axes.{key}.{field}");
+        if a.unit != name.unit() {
+            return Err(self.invalid(
+                &k("unit"),
+                format!("axis {name} must be in {}, got \"{}\"", name.unit(), a.unit),
+            ));
+        }
+        let [lo, hi] = a.travel;
+        if !(lo.is_finite() && hi.is_finite() && lo < hi && lo.abs() <= LIMIT && hi.abs() <= LIMIT)
+        {
+            return Err(self.invalid(
+                &k("travel"),
+                format!(
+                    "travel must be [lower, upper] with lower < upper, both within ±{LIMIT:e}, got [{lo:e}, {hi:e}]"
+                ),
+            ));
+        }
+        for (field, v) in [
+            ("max_velocity", a.max_velocity),
+            ("max_acceleration", a.max_acceleration),
+        ] {
+            if !positive(v) || v > LIMIT {
+                return Err(self.invalid(
+                    &k(field),
+                    format!("{field} must be positive and at most {LIMIT:e}, got {v:e}"),
+                ));
+            }
+        }
+        let params = DriveParams {
+            plant: a.plant.clone(),
+            controller: a.controller.clone(),
+            encoder: a.encoder.clone(),
+            servo_rate_hz: a.servo_rate_hz,
+        };
+        let drive = params
+            .validate()
+            .map_err(|e| self.invalid(&k(drive_error_key(&e)), format!("axis {name}: {e}")))?;
+        drive
+            .ticks_per_sample(ts)
+            .map_err(|e| self.invalid(&k("servo_rate_hz"), format!("axis {name}: {e}")))?;
+        let range = a.identification_range.unwrap_or(default_range);
+        let centre = a.identification_centre.unwrap_or(0.0);
+        if !positive(range) || range > LIMIT || !centre.is_finite() {
+            return Err(self.invalid(
+                &k("identification_range"),
+                format!("identification range must be positive, got {range:?}"),
+            ));
+        }
+        if centre - range < lo || centre + range > hi {
+            return Err(self.invalid(
+                &k("identification_range"),
+                format!(
+                    "identification moves {centre} ± {range} {} leave the travel [{lo}, {hi}]; set identification_range / identification_centre",
+                    a.unit
+                ),
+            ));
+        }
+        Ok(Axis {
+            name,
+            unit: a.unit,
+            travel: a.travel,
+            max_velocity: a.max_velocity,
+            max_acceleration: a.max_acceleration,
+            drive,
+            identification_range: range,
+            identification_centre: centre,
+        })
+    }
+
+    /// `[trajectory]`.
+    fn trajectory(&self, vel: f64, acc: f64, junction: Option<f64>) -> Result<(), Error> {
+        for (field, v) in [
+            ("max_linear_velocity", vel),
+            ("max_linear_acceleration", acc),
+        ] {
+            if !positive(v) {
+                return Err(self.invalid(
+                    &format!("trajectory.{field}"),
+                    format!("{field} must be positive, got {v:?}"),
+                ));
+            }
+        }
+        if let Some(j) = junction.filter(|j| !positive(*j)) {
+            return Err(self.invalid(
+                "trajectory.junction_deviation",
+                format!("junction deviation must be positive, got {j:?}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `[identification]`: the program and the identifier options.
+    fn identification(&self, f: &IdentificationFile) -> Result<IdentificationSettings, Error> {
+        let p = &f.program;
+        if let Some(acc) = p.max_acceleration.filter(|a| !positive(*a)) {
+            return Err(self.invalid(
+                "identification.program.max_acceleration",
+                format!("max_acceleration must be positive, got {acc:?}"),
+            ));
+        }
+        if !(10..=100_000).contains(&p.moves)
+            || !positive(p.max_feed)
+            || !positive(p.min_feed)
+            || p.min_feed > p.max_feed
+        {
+            return Err(self.invalid(
+                "identification.program",
+                format!(
+                    "the identification program needs 10 to 100 000 moves and 0 < min_feed <= max_feed (got {} moves, feeds {} ..= {})",
+                    p.moves, p.min_feed, p.max_feed
+                ),
+            ));
+        }
+        f.options
+            .validate()
+            .map_err(|e| self.invalid("identification.options", e.to_string()))?;
+        let sets_p_bounds = table_has(
+            &self.doc.table,
+            &["identification", "options", "bounds", "p_hz"],
+        );
+        Ok(IdentificationSettings {
+            program: p.clone(),
+            options: OptionsFile {
+                options: f.options.clone(),
+                sets_p_bounds,
+            },
+        })
+    }
+
+    /// `[kinematics]`: the URDF chain, the file's offsets, the axes' travels and roles.
+    fn kinematics(&self, k: &KinematicsFile, axes: &[Axis]) -> Result<Kinematics, Error> {
+        let source = &self.doc.source;
+        let (chain, urdf_name) = match &self.doc.base {
+            Base::Embedded => {
+                let name = "<embedded>/machines/nmv5000.urdf";
+                (
+                    KinematicChain::from_urdf_str(embedded::NMV5000_URDF, name),
+                    name.to_string(),
+                )
+            }
+            Base::Dir(dir) => {
+                let path = dir.join(&k.urdf);
+                (
+                    KinematicChain::from_urdf_file(&path),
+                    path.display().to_string(),
+                )
+            }
+        };
+        let chain = chain.map_err(|e| Error::Kinematics {
+            context: format!("{source}: kinematics.urdf = {urdf_name}"),
+            message: e.to_string(),
+        })?;
+        let index = |needed: AxisName| {
+            axes.iter().position(|a| a.name == needed).ok_or_else(|| {
+                self.invalid(
+                    "kinematics",
+                    format!("a table-tilting A/C machine needs axis {needed} in [axes]"),
+                )
+            })
+        };
+        let roles = AcAxes {
+            x: index(AxisName::X)?,
+            y: index(AxisName::Y)?,
+            z: index(AxisName::Z)?,
+            a: index(AxisName::A)?,
+            c: index(AxisName::C)?,
+        };
+        let mut model = chain.table_tilting_ac();
+        let r = k.c_centre_mm.map(Vector3::from).unwrap_or(model.r);
+        let d = k.a_offset_mm.map(Vector3::from).unwrap_or(model.d);
+        model = model
+            .with_offsets(r, d)
+            .map_err(|e| self.invalid("kinematics", e.to_string()))?;
+        // The machine file's travels govern (the URDF's are nominal).
+        let mut travels = Travels::default();
+        for axis in axes {
+            let scale = if axis.unit == Unit::Deg {
+                std::f64::consts::PI / 180.0
+            } else {
+                1.0
+            };
+            let tr = Travel::new(axis.travel[0] * scale, axis.travel[1] * scale)
+                .map_err(|e| self.invalid(&format!("axes.{}.travel", axis.name), e.to_string()))?;
+            if let Some(t) = travels.get_mut(axis.name) {
+                *t = tr;
+            }
+        }
+        model = model
+            .with_limits(travels)
+            .map_err(|e| self.invalid("kinematics", e.to_string()))?;
+        let branch = Branch::try_from(i32::from(k.branch)).map_err(|_| {
+            self.invalid(
+                "kinematics.branch",
+                format!("branch must be 1 or -1, got {}", k.branch),
+            )
+        })?;
+        Ok(Kinematics {
+            chain,
+            model,
+            branch,
+            axes: roles,
+        })
+    }
+}
+
+/// True when the dotted `path` is written in `table`.
+fn table_has(table: &toml::Table, path: &[&str]) -> bool {
+    let Some((last, parents)) = path.split_last() else {
+        return false;
+    };
+    let mut t = table;
+    for p in parents {
+        match t.get(*p) {
+            Some(toml::Value::Table(inner)) => t = inner,
+            _ => return false,
+        }
+    }
+    t.contains_key(*last)
 }
 
 /// The machine-file key a drive error is about.
@@ -463,5 +629,56 @@ fn drive_error_key(e: &vcnc_drive::Error) -> &'static str {
         E::Unstable { .. } | E::MissingGain { .. } | E::GainsAndDesign { .. } => "controller",
         E::BadDesign { .. } => "controller.design",
         _ => "controller",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn nmv5000() -> MachineDocument {
+        MachineDocument::embedded_nmv5000().unwrap()
+    }
+
+    #[test]
+    fn kinematic_roles_are_resolved_at_load_time() {
+        let m = nmv5000().check().unwrap();
+        let k = m.kinematics.as_ref().unwrap();
+        for (i, name) in [
+            (k.axes.x, AxisName::X),
+            (k.axes.y, AxisName::Y),
+            (k.axes.z, AxisName::Z),
+            (k.axes.a, AxisName::A),
+            (k.axes.c, AxisName::C),
+        ] {
+            assert_eq!(m.axes[i].name, name);
+        }
+        assert_eq!(k.branch, Branch::Minus);
+    }
+
+    #[test]
+    fn set_values_are_checked_like_the_file() {
+        let doc = nmv5000();
+        let m = doc.with_values(&[("axes.X.controller.vff", 0.7)]).unwrap();
+        let base = doc.check().unwrap();
+        assert_ne!(m.axes[0].drive, base.axes[0].drive);
+        assert_eq!(m.axes[1], base.axes[1]);
+        let e = doc
+            .with_values(&[("axes.X.controller.kv", 30.0)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("<embedded>/machines/nmv5000.toml"), "{e}");
+        let e = doc.with_values(&[("axes.Q.plant.j", 1.0)]).unwrap_err();
+        assert!(e.to_string().contains("axes.Q"), "{e}");
+    }
+
+    #[test]
+    fn the_options_record_whether_they_set_the_pole_bound() {
+        let m = nmv5000().check().unwrap();
+        assert!(m.identification.options.sets_p_bounds);
+        let src = embedded::NMV5000_TOML.replace("p_hz = [0.2, 500.0]", "");
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
+        let m = Machine::from_toml_str(&src, "m.toml", &dir).unwrap();
+        assert!(!m.identification.options.sets_p_bounds);
     }
 }

@@ -138,7 +138,7 @@ impl ModelSet {
             .map(|a| {
                 let m = self
                     .axes
-                    .get(&a.name.to_string())
+                    .get(a.name.as_str())
                     .ok_or_else(|| Error::ModelMismatch {
                         file: file.to_string(),
                         message: format!(
@@ -151,9 +151,7 @@ impl ModelSet {
                         file: file.to_string(),
                         message: format!(
                             "axis {}: the model is in {} but the machine axis is in {}",
-                            a.name,
-                            m.unit.as_str(),
-                            a.unit.as_str()
+                            a.name, m.unit, a.unit
                         ),
                     });
                 }
@@ -164,7 +162,9 @@ impl ModelSet {
 
     /// TOML text of this model set.
     pub fn to_toml_string(&self) -> Result<String, Error> {
-        toml::to_string_pretty(self)
-            .map_err(|e| Error::Runtime(format!("cannot write the model file: {e}")))
+        toml::to_string_pretty(self).map_err(|e| Error::Write {
+            what: "the model file".into(),
+            message: e.to_string(),
+        })
     }
 }

@@ -22,7 +22,7 @@ use crate::locate::{error_offset, line_col, locate_key};
 /// Identifier options read from a file, with whether the file sets the lower pole bound
 /// `bounds.p_hz` itself (callers relax its default for drives without integral action only
 /// when it does not).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct OptionsFile {
     /// The options, checked.
     pub options: IdentifyOptions,

@@ -1,0 +1,57 @@
+//! `vcnc frf`: tracking and disturbance frequency responses of each axis.
+
+use std::path::Path;
+
+use anyhow::Result;
+use vcnc_drive::ClosedLoopModel;
+use vcnc_machine::{Machine, ModelSet};
+use vcnc_pipeline::frf::frf_summary;
+
+use crate::Ctx;
+use crate::figures::write_frf;
+use crate::output::{ensure_dir, write_json};
+use crate::table::table;
+
+/// `vcnc frf MACHINE [--model MODEL] --out DIR`.
+pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> Result<()> {
+    let machine = Machine::load(machine_path)?;
+    let models = match model {
+        Some(p) => Some(ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?),
+        None => None,
+    };
+    ensure_dir(out)?;
+    for (i, a) in machine.axes.iter().enumerate() {
+        let truth = a.true_model();
+        let mut list: Vec<(&str, &ClosedLoopModel)> = vec![("true", &truth)];
+        if let Some(m) = &models {
+            list.push(("model", &m[i]));
+        }
+        write_frf(out, &format!("frf_{}", a.name), a.name, &list)?;
+    }
+    let summary = frf_summary(&machine, models.as_deref());
+    write_json(&out.join("summary.json"), &summary)?;
+    if !ctx.quiet {
+        // Machine order (the summary's map is sorted by letter).
+        let rows: Vec<Vec<String>> = machine
+            .axes
+            .iter()
+            .filter_map(|a| Some((a.name, summary.axes.get(a.name.as_str())?)))
+            .map(|(name, s)| {
+                let f = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
+                vec![
+                    name.to_string(),
+                    f(s.truth.wn_hz, 3),
+                    f(s.truth.zeta, 4),
+                    f(s.truth.p_hz, 3),
+                    f(s.bandwidth_3db_hz, 2),
+                ]
+            })
+            .collect();
+        print!(
+            "{}",
+            table(&["axis", "wn [Hz]", "zeta", "p [Hz]", "-3 dB [Hz]"], &rows)
+        );
+        println!("-> {}", out.display());
+    }
+    Ok(())
+}

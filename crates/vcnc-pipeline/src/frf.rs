@@ -1,0 +1,171 @@
+//! Frequency responses of closed-loop models: Bode data of the tracking and disturbance
+//! transfer functions (docs/drive-model.md), and the tracking bandwidth.
+
+use std::collections::BTreeMap;
+use std::f64::consts::TAU;
+
+use serde::Serialize;
+use vcnc_drive::ClosedLoopModel;
+use vcnc_kinematics::nalgebra::Complex;
+use vcnc_machine::Machine;
+
+use crate::summary::ModelSummary;
+
+/// `n` log-spaced frequencies from `f0` to `f1` Hz (both included).
+pub fn log_freqs(f0: f64, f1: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| f0 * (f1 / f0).powf(i as f64 / (n.max(2) - 1) as f64))
+        .collect()
+}
+
+/// Magnitude (dB) and phase (deg, unwrapped from sample to sample) of a frequency response
+/// `h(ω)`, ω in rad/s, at `freqs` Hz.
+pub fn bode(freqs: &[f64], h: impl Fn(f64) -> Complex<f64>) -> (Vec<f64>, Vec<f64>) {
+    let mut mag = Vec::with_capacity(freqs.len());
+    let mut phase = Vec::with_capacity(freqs.len());
+    let mut prev: Option<f64> = None;
+    for f in freqs {
+        let z = h(TAU * f);
+        mag.push(20.0 * z.norm().log10());
+        let mut p = z.arg().to_degrees();
+        if let Some(q) = prev {
+            while p - q > 180.0 {
+                p -= 360.0;
+            }
+            while p - q < -180.0 {
+                p += 360.0;
+            }
+        }
+        prev = Some(p);
+        phase.push(p);
+    }
+    (mag, phase)
+}
+
+/// Bode data of one model: tracking $x/x_r$ and disturbance $x/d$ (d an acceleration).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodeData {
+    /// Tracking magnitude, dB.
+    pub track_mag: Vec<f64>,
+    /// Tracking phase, deg.
+    pub track_phase: Vec<f64>,
+    /// Disturbance magnitude, dB.
+    pub dist_mag: Vec<f64>,
+    /// Disturbance phase, deg.
+    pub dist_phase: Vec<f64>,
+}
+
+impl BodeData {
+    /// Bode data of `m` at `freqs` Hz.
+    pub fn of(m: &ClosedLoopModel, freqs: &[f64]) -> BodeData {
+        let (track_mag, track_phase) = bode(freqs, |w| m.tracking_frf(w));
+        let (dist_mag, dist_phase) = bode(freqs, |w| m.disturbance_frf(w));
+        BodeData {
+            track_mag,
+            track_phase,
+            dist_mag,
+            dist_phase,
+        }
+    }
+}
+
+/// The frequencies of every FRF file and plot: 400 log-spaced points from 0.1 to 500 Hz.
+pub fn standard_freqs() -> Vec<f64> {
+    log_freqs(0.1, 500.0, 400)
+}
+
+/// First frequency where |G_track| falls 3 dB below its DC value (1), Hz, by bisection on a
+/// log grid from 0.01 to 5000 Hz; `None` when it never does there.
+pub fn bandwidth_hz(m: &ClosedLoopModel) -> Option<f64> {
+    let target = 10f64.powf(-3.0 / 20.0);
+    let freqs = log_freqs(0.01, 5000.0, 2000);
+    let idx = freqs
+        .iter()
+        .position(|f| m.tracking_frf(TAU * f).norm() < target)?;
+    if idx == 0 {
+        return Some(freqs[0]);
+    }
+    let (mut lo, mut hi) = (freqs[idx - 1], freqs[idx]);
+    for _ in 0..60 {
+        let mid = (lo * hi).sqrt();
+        if m.tracking_frf(TAU * mid).norm() < target {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Some(0.5 * (lo + hi))
+}
+
+/// One axis of `vcnc frf`'s summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AxisFrfSummary {
+    /// The true drive's analytic model.
+    #[serde(rename = "true")]
+    pub truth: ModelSummary,
+    /// The -3 dB tracking bandwidth of the true drive, Hz.
+    pub bandwidth_3db_hz: Option<f64>,
+    /// The model given with `--model`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<ModelSummary>,
+}
+
+/// `summary.json` of `vcnc frf`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrfSummary {
+    /// Machine name.
+    pub machine: String,
+    /// Per axis.
+    pub axes: BTreeMap<String, AxisFrfSummary>,
+}
+
+/// The FRF summary of a machine (and of models, one per machine axis).
+pub fn frf_summary(machine: &Machine, models: Option<&[ClosedLoopModel]>) -> FrfSummary {
+    FrfSummary {
+        machine: machine.name.clone(),
+        axes: machine
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(i, a)| {
+                let truth = a.true_model();
+                (
+                    a.name.to_string(),
+                    AxisFrfSummary {
+                        truth: ModelSummary::of(&truth),
+                        bandwidth_3db_hz: bandwidth_hz(&truth),
+                        model: models.map(|m| ModelSummary::of(&m[i])),
+                    },
+                )
+            })
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bandwidth_of_a_first_order_lag_is_its_corner() {
+        // Truth: a3 / (s + p)(s² + 2ζωn s + ωn²) with a fast pair is ≈ a first-order lag of
+        // corner p; p = 10 Hz, ωn = 1 kHz, ζ = 0.7 → −3 dB within 0.2 % of 10 Hz.
+        let (p, wn, z) = (TAU * 10.0, TAU * 1000.0, 0.7);
+        let a1 = p + 2.0 * z * wn;
+        let a2 = wn * wn + 2.0 * z * wn * p;
+        let a3 = p * wn * wn;
+        let m = ClosedLoopModel {
+            a1,
+            a2,
+            a3,
+            b0: 0.0,
+            b1: 0.0,
+            b2: 0.0,
+            dc: 0.0,
+        };
+        let bw = bandwidth_hz(&m).unwrap();
+        assert!((bw - 10.0).abs() < 0.02, "{bw}");
+        let (mag, phase) = bode(&[1e-3], |w| m.tracking_frf(w));
+        assert!(mag[0].abs() < 1e-6 && phase[0].abs() < 1e-3);
+    }
+}

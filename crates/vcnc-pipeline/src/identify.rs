@@ -1,0 +1,479 @@
+//! Identification of feed drives, one route for simulated machines and measured traces
+//! (docs/identification.md): the same options type ([`OptionsFile`]), the same bound rule
+//! ([`identifier_options`]), the same result ([`AxisIdentification`]) and summary.
+//!
+//! - A simulated machine axis: generate its identification program (estimation seed),
+//!   interpolate it, run the true drive, identify; validate on a second run (validation seed).
+//! - A measured trace: identify on it; its fit is its own.
+
+use std::collections::BTreeMap;
+
+use rayon::prelude::*;
+use serde::Serialize;
+use vcnc_axis::{AxisName, Unit};
+use vcnc_drive::{ClosedLoopModel, DriveTrace};
+use vcnc_gcode::IdentificationOptions;
+use vcnc_identify::{
+    FitMetrics, Identification, IdentifyOptions, Regressors, Trace, fit_metrics_with,
+};
+use vcnc_machine::{Axis, AxisModel, Machine, ModelSet, OptionsFile};
+
+use crate::Error;
+use crate::run::AxisSignals;
+use crate::summary::{FitSummary, ModelSummary, PoleErrors};
+
+/// The identifier options a run uses: the file's, with the seed overridden when given, and the
+/// one bound rule of vcnc — unless the options set `bounds.p_hz` themselves, the real pole may
+/// approach 0 (lower bound 1e-4 Hz), so that drives without integral action ($a_3 = 0$, such as
+/// the EMPS benchmark) are identifiable.
+pub fn identifier_options(file: &OptionsFile, seed: Option<u64>) -> IdentifyOptions {
+    let mut opts = file.options.clone();
+    if let Some(s) = seed {
+        opts.seed = s;
+    }
+    if !file.sets_p_bounds {
+        opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    }
+    opts
+}
+
+/// The machine's axes named in `names` (all of them when empty), each once, in the order
+/// given; an error names any axis the machine lacks.
+pub fn select_axes<'m>(machine: &'m Machine, names: &[AxisName]) -> Result<Vec<&'m Axis>, Error> {
+    if names.is_empty() {
+        return Ok(machine.axes.iter().collect());
+    }
+    let mut out: Vec<&Axis> = Vec::new();
+    for &n in names {
+        let a = machine.axis(n).ok_or_else(|| {
+            Error::Usage(format!(
+                "--axis {n}: machine \"{}\" ({}) has no axis {n}; it has {}",
+                machine.name,
+                machine.source,
+                machine
+                    .axis_names()
+                    .iter()
+                    .map(|a| a.as_str())
+                    .collect::<String>()
+            ))
+        })?;
+        if !out.iter().any(|b| b.name == n) {
+            out.push(a);
+        }
+    }
+    Ok(out)
+}
+
+/// The excitation run of one axis: program text, reference and true-drive trace.
+#[derive(Debug, Clone)]
+pub struct ExcitationRun {
+    /// The generated G-code.
+    pub program: String,
+    /// Reference signals of the axis (centre offset applied).
+    pub reference: AxisSignals,
+    /// The true drive's response.
+    pub trace: DriveTrace,
+}
+
+impl ExcitationRun {
+    /// The identification trace: reference and encoder position, with the interpolator's exact
+    /// reference velocity and acceleration attached (a simulated machine knows them; a measured
+    /// trace falls back to central differences, which smear the acceleration steps of the
+    /// trapezoids and cost accuracy when $b_0 \ne 0$).
+    pub fn identification_trace(&self) -> Result<Trace, Error> {
+        Trace::new(
+            self.trace.ts,
+            self.reference.pos.clone(),
+            self.trace.position.clone(),
+        )
+        .and_then(|t| {
+            t.with_reference_derivatives(self.reference.vel.clone(), self.reference.acc.clone())
+        })
+        .map_err(|e| Error::identify(format!("axis {}", self.reference.name), e))
+    }
+}
+
+/// Generates the axis' identification program with `seed`, interpolates it and runs it through
+/// the true drive.
+pub fn excitation_run(machine: &Machine, a: &Axis, seed: u64) -> Result<ExcitationRun, Error> {
+    let p = &machine.identification.program;
+    let opts = IdentificationOptions {
+        moves: p.moves,
+        range: a.identification_range,
+        max_feed: p.max_feed,
+        min_feed: p.min_feed,
+        seed,
+        ..IdentificationOptions::default()
+    };
+    let name = format!("<identification program of axis {} (seed {seed})>", a.name);
+    let program = vcnc_gcode::identification(a.name, &opts).map_err(|e| Error::gcode(&name, e))?;
+    let mut iopts = machine.interpolate_options();
+    iopts.axes = Some(vec![a.name]);
+    let mut limits = machine.limits();
+    if let Some(acc) = p.max_acceleration {
+        for l in limits.axes.iter_mut() {
+            l.max_acc = l.max_acc.min(acc);
+        }
+    }
+    let loaded = vcnc_gcode::load(&program, &machine.interp_options(false), &limits, &iopts)
+        .map_err(|e| Error::gcode(&name, e))?;
+    // The interpolator outputs exactly the axes it is asked for.
+    let track =
+        loaded.trajectory.axes.first().ok_or_else(|| {
+            Error::Internal(format!("{name}: the interpolator returned no track"))
+        })?;
+    let reference = AxisSignals {
+        name: a.name,
+        unit: a.unit,
+        pos: track
+            .pos
+            .iter()
+            .map(|v| v + a.identification_centre)
+            .collect(),
+        vel: track.vel.clone(),
+        acc: track.acc.clone(),
+    };
+    let trace = a
+        .drive
+        .simulate(reference.reference(), machine.ts)
+        .map_err(|source| Error::Drive {
+            axis: a.name,
+            source,
+        })?;
+    Ok(ExcitationRun {
+        program,
+        reference,
+        trace,
+    })
+}
+
+/// Where an identification's data came from.
+#[derive(Debug, Clone)]
+pub enum IdentificationSource {
+    /// A simulated machine axis: its estimation and validation runs and the true model.
+    Simulated {
+        /// The analytic model of the true drive.
+        truth: ClosedLoopModel,
+        /// The estimation run.
+        estimation: Box<ExcitationRun>,
+        /// The validation run.
+        validation: Box<ExcitationRun>,
+    },
+    /// A measured trace (one run: the fit is on it).
+    Measured {
+        /// The trace's path.
+        file: String,
+    },
+}
+
+/// The identification of one axis, from either source.
+#[derive(Debug, Clone)]
+pub struct AxisIdentification {
+    /// The axis.
+    pub axis: AxisName,
+    /// mm or deg.
+    pub unit: Unit,
+    /// Where the data came from.
+    pub source: IdentificationSource,
+    /// The options the identifier was given (defaults included).
+    pub options: IdentifyOptions,
+    /// Everything the identifier produced (refined, paper PSO, LS baseline, history, fits).
+    pub result: Identification,
+    /// The trace the `validation` fits are computed on: the validation run of a simulated
+    /// machine, the trace itself for a measurement.
+    pub validation_trace: Trace,
+    /// Free-run fit of the refined model on `validation_trace`.
+    pub validation: FitMetrics,
+    /// Free-run fit of the paper-method (PSO) model on `validation_trace`.
+    pub validation_paper: FitMetrics,
+}
+
+impl AxisIdentification {
+    /// The true model, for a simulated machine.
+    pub fn truth(&self) -> Option<&ClosedLoopModel> {
+        match &self.source {
+            IdentificationSource::Simulated { truth, .. } => Some(truth),
+            IdentificationSource::Measured { .. } => None,
+        }
+    }
+}
+
+/// Identifies one axis of a simulated machine: estimation run (program seed), identification,
+/// validation run (validation seed). `seed` overrides the machine file's seeds (the validation
+/// seed keeps its distance to the estimation seed).
+pub fn identify_axis(
+    machine: &Machine,
+    a: &Axis,
+    seed: Option<u64>,
+) -> Result<AxisIdentification, Error> {
+    let p = &machine.identification.program;
+    let program_seed = seed.unwrap_or(p.seed);
+    let validation_seed = match seed {
+        Some(s) => s.wrapping_add(p.validation_seed.wrapping_sub(p.seed).max(1)),
+        None => p.validation_seed,
+    };
+    let opts = identifier_options(&machine.identification.options, seed);
+    let (est, val) = rayon::join(
+        || excitation_run(machine, a, program_seed),
+        || excitation_run(machine, a, validation_seed),
+    );
+    let (est, val) = (est?, val?);
+    let subject = format!("axis {}", a.name);
+    let trace = est.identification_trace()?;
+    let result =
+        vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(&subject, e))?;
+    let vtrace = val.identification_trace()?;
+    // One regressor pass over the validation run serves both models.
+    let regs = Regressors::build(&vtrace, &opts).map_err(|e| Error::identify(&subject, e))?;
+    let validation = fit_metrics_with(&result.identified, &vtrace, &regs)
+        .map_err(|e| Error::identify(&subject, e))?;
+    let validation_paper = fit_metrics_with(&result.paper_pso, &vtrace, &regs)
+        .map_err(|e| Error::identify(&subject, e))?;
+    Ok(AxisIdentification {
+        axis: a.name,
+        unit: a.unit,
+        source: IdentificationSource::Simulated {
+            truth: a.true_model(),
+            estimation: Box::new(est),
+            validation: Box::new(val),
+        },
+        options: opts,
+        result,
+        validation_trace: vtrace,
+        validation,
+        validation_paper,
+    })
+}
+
+/// Identifies several axes in parallel (results in the order given).
+pub fn identify_axes(
+    machine: &Machine,
+    axes: &[&Axis],
+    seed: Option<u64>,
+) -> Result<Vec<AxisIdentification>, Error> {
+    axes.par_iter()
+        .map(|a| identify_axis(machine, a, seed))
+        .collect()
+}
+
+/// Identifies the axis `axis` (in `unit`) from a measured trace read from `file`.
+pub fn identify_trace(
+    trace: Trace,
+    file: &str,
+    axis: AxisName,
+    unit: Unit,
+    options: &OptionsFile,
+    seed: Option<u64>,
+) -> Result<AxisIdentification, Error> {
+    let opts = identifier_options(options, seed);
+    let result = vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(file, e))?;
+    Ok(AxisIdentification {
+        axis,
+        unit,
+        source: IdentificationSource::Measured {
+            file: file.to_string(),
+        },
+        options: opts,
+        validation: result.fit_estimation.clone(),
+        validation_paper: result.fit_estimation_paper.clone(),
+        result,
+        validation_trace: trace,
+    })
+}
+
+/// The model file of identifications (`model.toml`).
+pub fn model_set(machine: &str, description: &str, ids: &[AxisIdentification]) -> ModelSet {
+    ModelSet {
+        machine: machine.to_string(),
+        description: Some(description.to_string()),
+        axes: ids
+            .iter()
+            .map(|r| {
+                (
+                    r.axis.to_string(),
+                    AxisModel::new(r.unit, &r.result.identified),
+                )
+            })
+            .collect(),
+    }
+}
+
+/// PSO figures of a summary.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PsoSummary {
+    /// Equation-error cost of the swarm's best (paper eq. 16), axis units².
+    pub cost: f64,
+    /// Iterations run.
+    pub iterations: usize,
+}
+
+/// Relative pole errors of the refined and the paper-PSO models against the truth.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorsVsTrue {
+    /// The refined model's errors.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub identified: Option<PoleErrors>,
+    /// The paper-PSO model's errors.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub paper_pso: Option<PoleErrors>,
+}
+
+/// One axis of an identification summary (docs/cli.md).
+#[derive(Debug, Clone, Serialize)]
+pub struct AxisIdentifySummary {
+    /// `mm` or `deg`.
+    pub unit: Unit,
+    /// The final (refined) model.
+    pub identified: ModelSummary,
+    /// The paper's equation-error PSO alone.
+    pub paper_pso: ModelSummary,
+    /// Unconstrained least squares of the seven parameters (may be unstable).
+    pub unconstrained_ls: ModelSummary,
+    /// The true drive's analytic model (simulated machines).
+    #[serde(rename = "true", skip_serializing_if = "Option::is_none")]
+    pub truth: Option<ModelSummary>,
+    /// Pole errors against the truth, % (simulated machines).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_percent_vs_true: Option<ErrorsVsTrue>,
+    /// The refined model's fit on the validation run (a simulated machine's second run; a
+    /// measured trace's own run).
+    pub fit: FitSummary,
+    /// The refined model's fit on the estimation run (simulated machines).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_estimation: Option<FitSummary>,
+    /// The paper-PSO model's fit on the validation run.
+    pub fit_paper_pso: FitSummary,
+    /// The paper-PSO model's fit on the estimation run (simulated machines).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_paper_pso_estimation: Option<FitSummary>,
+    /// Swarm figures.
+    pub pso: PsoSummary,
+    /// Condition number of the column-scaled regressors.
+    pub regressor_condition: f64,
+    /// Whether the trace was treated as starting in motion (measured traces).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub moving_start: Option<bool>,
+}
+
+impl AxisIdentifySummary {
+    /// The summary of one axis.
+    pub fn of(r: &AxisIdentification) -> AxisIdentifySummary {
+        let id = &r.result;
+        let fit = |f: &FitMetrics| FitSummary {
+            unit: r.unit,
+            fit: f.clone(),
+        };
+        let truth = r.truth();
+        let simulated = truth.is_some();
+        AxisIdentifySummary {
+            unit: r.unit,
+            identified: ModelSummary::of(&id.identified),
+            paper_pso: ModelSummary::of(&id.paper_pso),
+            unconstrained_ls: ModelSummary::of(&id.unconstrained_ls.model),
+            truth: truth.map(ModelSummary::of),
+            error_percent_vs_true: truth.map(|t| ErrorsVsTrue {
+                identified: PoleErrors::of_models(t, &id.identified),
+                paper_pso: PoleErrors::of_models(t, &id.paper_pso),
+            }),
+            fit: fit(&r.validation),
+            fit_estimation: simulated.then(|| fit(&id.fit_estimation)),
+            fit_paper_pso: fit(&r.validation_paper),
+            fit_paper_pso_estimation: simulated.then(|| fit(&id.fit_estimation_paper)),
+            pso: PsoSummary {
+                cost: id.pso_cost,
+                iterations: id.pso_history.len(),
+            },
+            regressor_condition: id.condition_number,
+            moving_start: (!simulated).then_some(id.moving_start),
+        }
+    }
+}
+
+/// `summary.json` of `vcnc identify`: a machine's axes, or a trace's.
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentifySummary {
+    /// Machine name (simulated machines).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub machine: Option<String>,
+    /// The trace's path (measured traces).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace: Option<String>,
+    /// Samples of the trace.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub samples: Option<usize>,
+    /// Sample period of the trace, s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ts_s: Option<f64>,
+    /// Unit of the trace's positions after conversion.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub units: Option<Unit>,
+    /// Per axis.
+    pub axes: BTreeMap<String, AxisIdentifySummary>,
+    /// What the identifier was told (defaults included), so the run can be repeated
+    /// (measured traces).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub identify_options: Option<IdentifyOptions>,
+}
+
+impl IdentifySummary {
+    /// The summary of a machine's identifications.
+    pub fn machine(machine: &str, ids: &[AxisIdentification]) -> IdentifySummary {
+        IdentifySummary {
+            machine: Some(machine.to_string()),
+            trace: None,
+            samples: None,
+            ts_s: None,
+            units: None,
+            axes: axes_summary(ids),
+            identify_options: None,
+        }
+    }
+
+    /// The summary of a trace's identification.
+    pub fn trace(file: &str, id: &AxisIdentification) -> IdentifySummary {
+        IdentifySummary {
+            machine: None,
+            trace: Some(file.to_string()),
+            samples: Some(id.validation_trace.len()),
+            ts_s: Some(id.validation_trace.ts),
+            units: Some(id.unit),
+            axes: axes_summary(std::slice::from_ref(id)),
+            identify_options: Some(id.options.clone()),
+        }
+    }
+}
+
+fn axes_summary(ids: &[AxisIdentification]) -> BTreeMap<String, AxisIdentifySummary> {
+    ids.iter()
+        .map(|r| (r.axis.to_string(), AxisIdentifySummary::of(r)))
+        .collect()
+}
+
+/// Per-axis pole errors of the refined and paper-PSO models (p, ωn, ζ; %), for the demo's
+/// overview (keys `identified_error_percent`, `paper_pso_error_percent`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AxisOverview {
+    /// The refined model's errors (null when not writable as poles).
+    pub identified_error_percent: Option<PoleErrors>,
+    /// The paper-PSO model's errors.
+    pub paper_pso_error_percent: Option<PoleErrors>,
+}
+
+/// The demo's identification overview, per axis.
+pub fn overview(ids: &[AxisIdentification]) -> BTreeMap<String, AxisOverview> {
+    ids.iter()
+        .map(|r| {
+            let errs = |m: &ClosedLoopModel| {
+                let t = r.truth()?.poles()?;
+                Some(PoleErrors::of(&t, &m.poles()?))
+            };
+            (
+                r.axis.to_string(),
+                AxisOverview {
+                    identified_error_percent: errs(&r.result.identified),
+                    paper_pso_error_percent: errs(&r.result.paper_pso),
+                },
+            )
+        })
+        .collect()
+}

@@ -1,0 +1,72 @@
+//! `vcnc kinematics`: forward and inverse kinematics of a machine over tables of axes or poses.
+
+use std::path::Path;
+
+use vcnc_kinematics::nalgebra::Vector3;
+use vcnc_kinematics::{Axes, Branch, IkOptions, Pose};
+use vcnc_machine::Machine;
+
+use crate::Error;
+use crate::table::read_columns;
+
+/// Columns of a forward-kinematics input: X Y Z (mm), A C (deg).
+pub const AXES_COLUMNS: [&str; 5] = ["X", "Y", "Z", "A", "C"];
+/// Columns of an inverse-kinematics input (and a forward output): tool tip px py pz (mm) and
+/// tool axis ox oy oz in the workpiece frame.
+pub const POSE_COLUMNS: [&str; 6] = ["px", "py", "pz", "ox", "oy", "oz"];
+
+/// Forward kinematics of every row of the CSV at `input` (columns [`AXES_COLUMNS`]): rows of
+/// `px py pz ox oy oz`.
+pub fn forward_file(machine: &Machine, input: &Path) -> Result<Vec<[f64; 6]>, Error> {
+    let kin = machine.require_kinematics()?;
+    let c = read_columns(input, &AXES_COLUMNS, "")?;
+    Ok((0..c[0].len())
+        .map(|k| {
+            let axes = Axes::new(
+                c[0][k],
+                c[1][k],
+                c[2][k],
+                c[3][k].to_radians(),
+                c[4][k].to_radians(),
+            );
+            let p = kin.model.forward(&axes);
+            [p.p.x, p.p.y, p.p.z, p.o.x, p.o.y, p.o.z]
+        })
+        .collect())
+}
+
+/// Inverse kinematics of every row of the CSV at `input` (columns [`POSE_COLUMNS`]) on
+/// `branch` (the machine file's when `None`), C unwrapped continuously from row to row: rows of
+/// `X Y Z A C` (mm, deg).
+pub fn inverse_file(
+    machine: &Machine,
+    input: &Path,
+    branch: Option<Branch>,
+) -> Result<Vec<[f64; 5]>, Error> {
+    let kin = machine.require_kinematics()?;
+    let c = read_columns(input, &POSE_COLUMNS, "")?;
+    let poses: Vec<Pose> = (0..c[0].len())
+        .map(|k| {
+            Pose::new(
+                Vector3::new(c[0][k], c[1][k], c[2][k]),
+                Vector3::new(c[3][k], c[4][k], c[5][k]),
+            )
+        })
+        .collect();
+    let opts = IkOptions {
+        branch: Some(branch.unwrap_or(kin.branch)),
+        ..IkOptions::default()
+    };
+    let sol = kin
+        .model
+        .inverse_sequence(&poses, &opts)
+        .map_err(|source| Error::Kinematics {
+            context: input.display().to_string(),
+            source,
+        })?;
+    Ok(sol
+        .axes
+        .iter()
+        .map(|a| [a.x, a.y, a.z, a.a.to_degrees(), a.c.to_degrees()])
+        .collect())
+}

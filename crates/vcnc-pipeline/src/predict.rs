@@ -1,0 +1,258 @@
+//! Tool-tip and orientation contour errors of a run with the true drives and with identified
+//! models (docs/contour.md).
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+use vcnc_contour::{ContourReport, contour_errors};
+use vcnc_drive::{ClosedLoopModel, DriveTrace};
+use vcnc_kinematics::Pose;
+use vcnc_machine::Machine;
+
+use crate::Error;
+use crate::run::{Run, forward_poses};
+use crate::simulate::{simulate_models, simulate_true};
+use crate::stats::{max_abs, rms};
+
+/// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
+/// reference poses.
+pub fn contour(
+    machine: &Machine,
+    run: &Run,
+    actual: &[&[f64]],
+) -> Result<(Vec<Pose>, ContourReport), Error> {
+    let reference = run
+        .poses
+        .as_ref()
+        .ok_or_else(|| vcnc_machine::Error::NoKinematics {
+            file: machine.source.clone(),
+        })?;
+    let poses = forward_poses(machine, actual)?;
+    let report = contour_errors(reference, &poses)?;
+    Ok((poses, report))
+}
+
+/// Tool-tip and orientation contour errors with the true and the predicted drives.
+#[derive(Debug, Clone)]
+pub struct Prediction {
+    /// True drives: encoder traces per axis.
+    pub true_traces: Vec<DriveTrace>,
+    /// Identified models: positions per axis.
+    pub predicted: Vec<Vec<f64>>,
+    /// Tool poses with the true drives.
+    pub true_poses: Vec<Pose>,
+    /// Tool poses with the identified models.
+    pub predicted_poses: Vec<Pose>,
+    /// Contour errors with the true drives.
+    pub true_contour: ContourReport,
+    /// Contour errors with the identified models.
+    pub predicted_contour: ContourReport,
+}
+
+impl Prediction {
+    /// Per-sample |predicted − true| tool-tip contour error, mm.
+    pub fn tip_discrepancy(&self) -> Vec<f64> {
+        self.true_contour
+            .tip_mm
+            .iter()
+            .zip(&self.predicted_contour.tip_mm)
+            .map(|(a, b)| (a - b).abs())
+            .collect()
+    }
+
+    /// Per-sample |predicted − true| orientation contour error, rad.
+    pub fn orientation_discrepancy(&self) -> Vec<f64> {
+        self.true_contour
+            .orientation_rad
+            .iter()
+            .zip(&self.predicted_contour.orientation_rad)
+            .map(|(a, b)| (a - b).abs())
+            .collect()
+    }
+
+    /// Per-axis tracking errors of the true drives (their true, not encoder, positions) and of
+    /// the models.
+    pub fn tracking(&self, machine: &Machine, run: &Run) -> Vec<crate::AxisTracking> {
+        let actual: Vec<&[f64]> = self
+            .true_traces
+            .iter()
+            .map(|t| t.true_position.as_slice())
+            .collect();
+        crate::simulate::tracking_of(machine, run, &actual, Some(&self.predicted))
+    }
+
+    /// The six contour statistics, tool tip in µm and orientation in mrad.
+    pub fn figures(&self) -> ContourFigures {
+        let (t, q) = (&self.true_contour, &self.predicted_contour);
+        let (d_tip, d_or) = (self.tip_discrepancy(), self.orientation_discrepancy());
+        let pair = |tip_mm: f64, or_rad: f64| Figure {
+            tip_um: tip_mm * 1e3,
+            orientation_mrad: or_rad * 1e3,
+        };
+        ContourFigures {
+            true_max: pair(t.tip_max_mm, t.orientation_max_rad),
+            true_rms: pair(t.tip_rms_mm, t.orientation_rms_rad),
+            predicted_max: pair(q.tip_max_mm, q.orientation_max_rad),
+            predicted_rms: pair(q.tip_rms_mm, q.orientation_rms_rad),
+            discrepancy_max: pair(max_abs(&d_tip), max_abs(&d_or)),
+            discrepancy_rms: pair(rms(&d_tip), rms(&d_or)),
+        }
+    }
+}
+
+/// One statistic of the tool-tip (µm) and orientation (mrad) contour errors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figure {
+    /// Tool tip, µm.
+    pub tip_um: f64,
+    /// Orientation, mrad.
+    pub orientation_mrad: f64,
+}
+
+/// The contour statistics of a prediction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContourFigures {
+    /// Max with the true drives.
+    pub true_max: Figure,
+    /// RMS with the true drives.
+    pub true_rms: Figure,
+    /// Max with the models.
+    pub predicted_max: Figure,
+    /// RMS with the models.
+    pub predicted_rms: Figure,
+    /// Max of |predicted − true|.
+    pub discrepancy_max: Figure,
+    /// RMS of |predicted − true|.
+    pub discrepancy_rms: Figure,
+}
+
+impl ContourFigures {
+    /// `(table label, summary key, figure)`, in table order.
+    pub fn rows(&self) -> [(&'static str, &'static str, Figure); 6] {
+        [
+            ("true max", "true_max", self.true_max),
+            ("true RMS", "true_rms", self.true_rms),
+            ("predicted max", "predicted_max", self.predicted_max),
+            ("predicted RMS", "predicted_rms", self.predicted_rms),
+            ("|pred - true| max", "discrepancy_max", self.discrepancy_max),
+            ("|pred - true| RMS", "discrepancy_rms", self.discrepancy_rms),
+        ]
+    }
+}
+
+/// The contour part of a summary: `contour_um.{true_max …}`, `orientation_mrad.{…}`,
+/// `samples`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ContourSummary {
+    /// Tool-tip contour error statistics, µm.
+    pub contour_um: BTreeMap<&'static str, f64>,
+    /// Orientation contour error statistics, mrad.
+    pub orientation_mrad: BTreeMap<&'static str, f64>,
+    /// Number of samples.
+    pub samples: usize,
+}
+
+impl ContourSummary {
+    /// The summary of a prediction.
+    pub fn of(p: &Prediction) -> ContourSummary {
+        let rows = p.figures().rows();
+        ContourSummary {
+            contour_um: rows.iter().map(|(_, k, f)| (*k, f.tip_um)).collect(),
+            orientation_mrad: rows
+                .iter()
+                .map(|(_, k, f)| (*k, f.orientation_mrad))
+                .collect(),
+            samples: p.true_contour.tip_mm.len(),
+        }
+    }
+}
+
+/// `summary.json` of `vcnc predict`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PredictSummary {
+    /// The contour figures.
+    #[serde(flatten)]
+    pub contour: ContourSummary,
+    /// Machine name.
+    pub machine: String,
+    /// Program path.
+    pub program: String,
+    /// Where the models come from (a file, or "identified on the fly").
+    pub models: String,
+    /// Warnings of the run.
+    pub warnings: Vec<String>,
+}
+
+/// Runs `run` through the true drives and through `models`, and evaluates both contour errors.
+pub fn predict(
+    machine: &Machine,
+    run: &Run,
+    models: &[ClosedLoopModel],
+) -> Result<Prediction, Error> {
+    let mut all = predict_many(machine, run, &[models])?;
+    Ok(all.remove(0))
+}
+
+/// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
+/// one run: the true drives, the costly half, are simulated and evaluated once and shared.
+pub fn predict_many(
+    machine: &Machine,
+    run: &Run,
+    model_sets: &[&[ClosedLoopModel]],
+) -> Result<Vec<Prediction>, Error> {
+    use rayon::prelude::*;
+    let truth = || -> Result<_, Error> {
+        let traces = simulate_true(machine, run)?;
+        let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
+        let (poses, report) = contour(machine, run, &pos)?;
+        Ok((traces, poses, report))
+    };
+    let (truth, halves) = rayon::join(truth, || {
+        model_sets
+            .par_iter()
+            .map(|m| model_contour(machine, run, m))
+            .collect::<Vec<_>>()
+    });
+    let (true_traces, true_poses, true_contour) = truth?;
+    halves
+        .into_iter()
+        .map(|h| {
+            let m = h?;
+            Ok(Prediction {
+                true_traces: true_traces.clone(),
+                predicted: m.positions,
+                true_poses: true_poses.clone(),
+                predicted_poses: m.poses,
+                true_contour: true_contour.clone(),
+                predicted_contour: m.contour,
+            })
+        })
+        .collect()
+}
+
+/// Models run on a program: axis positions, tool poses and contour errors.
+#[derive(Debug, Clone)]
+pub struct ModelRun {
+    /// Axis positions per machine axis.
+    pub positions: Vec<Vec<f64>>,
+    /// Tool poses.
+    pub poses: Vec<Pose>,
+    /// Contour errors against the run's reference.
+    pub contour: ContourReport,
+}
+
+/// The models' axis positions, poses and contour errors on `run`.
+pub fn model_contour(
+    machine: &Machine,
+    run: &Run,
+    models: &[ClosedLoopModel],
+) -> Result<ModelRun, Error> {
+    let positions = simulate_models(models, run)?;
+    let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
+    let (poses, contour) = contour(machine, run, &pos)?;
+    Ok(ModelRun {
+        positions,
+        poses,
+        contour,
+    })
+}

@@ -1,0 +1,361 @@
+//! Program → axis references: parse, interpret and interpolate a program on a machine, turn
+//! tool-centre-point samples into machine-axis references, check travel, and compute the
+//! reference tool poses.
+
+use std::path::Path;
+
+use vcnc_axis::{AxisName, Unit};
+use vcnc_drive::Reference;
+use vcnc_gcode::{Diagnostic, Loaded, Severity};
+use vcnc_kinematics::{Pose, Track};
+use vcnc_machine::Machine;
+
+use crate::Error;
+
+/// Reference signals of one machine axis, at the sample period (axis units, units/s, units/s²).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisSignals {
+    /// The axis.
+    pub name: AxisName,
+    /// mm or deg.
+    pub unit: Unit,
+    /// Position.
+    pub pos: Vec<f64>,
+    /// Velocity (analytic, from the profile and the kinematics' derivatives).
+    pub vel: Vec<f64>,
+    /// Acceleration (analytic).
+    pub acc: Vec<f64>,
+}
+
+impl AxisSignals {
+    /// As a drive/model reference.
+    pub fn reference(&self) -> Reference<'_> {
+        Reference {
+            pos: &self.pos,
+            vel: &self.vel,
+            acc: &self.acc,
+        }
+    }
+
+    fn track(&self) -> Track<'_> {
+        Track {
+            pos: &self.pos,
+            vel: &self.vel,
+            acc: &self.acc,
+        }
+    }
+}
+
+/// A program prepared for a machine: interpolated, turned into axis references, checked against
+/// travel.
+#[derive(Debug, Clone)]
+pub struct Run {
+    /// The program's path (for messages).
+    pub file: String,
+    /// Parse tree, moves, trajectory and warnings.
+    pub loaded: Loaded,
+    /// Sample period, s.
+    pub ts: f64,
+    /// Axis references in machine order (one per [`Machine::axes`]).
+    pub axes: Vec<AxisSignals>,
+    /// Reference tool poses in the workpiece frame (mm), when the machine has kinematics.
+    pub poses: Option<Vec<Pose>>,
+    /// Warnings for the user (G-code warnings, limit excursions of IK'd references).
+    pub warnings: Vec<String>,
+}
+
+impl Run {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.axes.first().map_or(0, |a| a.pos.len())
+    }
+
+    /// True if the run has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Time of sample k, s.
+    pub fn time(&self, k: usize) -> f64 {
+        k as f64 * self.ts
+    }
+
+    /// Times of every sample, s.
+    pub fn times(&self) -> Vec<f64> {
+        (0..self.len()).map(|k| self.time(k)).collect()
+    }
+
+    /// Duration of the program, s.
+    pub fn duration_s(&self) -> f64 {
+        self.loaded.trajectory.duration_s()
+    }
+
+    /// True when some samples are in tool-centre-point mode.
+    pub fn has_tcp(&self) -> bool {
+        self.loaded.trajectory.tcp.iter().any(|t| *t)
+    }
+}
+
+/// Largest program file accepted, bytes. A toolpath this long already asks for more samples
+/// than the interpolator's cap; refusing it up front keeps a huge junk file from costing
+/// seconds and gigabytes in the parser.
+pub const MAX_PROGRAM_BYTES: u64 = 64 << 20;
+
+/// Reads a program file (lossy UTF-8: the parser reports the replacement characters).
+pub fn read_program(path: &Path) -> Result<String, Error> {
+    let cannot = |e: std::io::Error| Error::Io {
+        file: path.display().to_string(),
+        message: e.to_string(),
+    };
+    let size = std::fs::metadata(path).map_err(cannot)?.len();
+    if size > MAX_PROGRAM_BYTES {
+        return Err(Error::Usage(format!(
+            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts; split it",
+            path.display(),
+            MAX_PROGRAM_BYTES >> 20
+        )));
+    }
+    let bytes = std::fs::read(path).map_err(cannot)?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// Reads the program at `path` and prepares it on `machine` ([`prepare`]).
+pub fn prepare_file(machine: &Machine, path: &Path, lenient: bool) -> Result<Run, Error> {
+    let src = read_program(path)?;
+    prepare(machine, &src, &path.display().to_string(), lenient)
+}
+
+/// Interpolates `src` (the program at `file`) on `machine` and prepares the axis references.
+///
+/// In TCP mode (G43.4) the trajectory carries the tool tip in the workpiece frame and the rotary
+/// angles; inverse kinematics turns every sample into X Y Z with analytic velocity and
+/// acceleration ([`vcnc_kinematics::TableTiltingAc::inverse_tcp_track`]). Every sample is
+/// checked against the axis travels.
+pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Result<Run, Error> {
+    let interp = machine.interp_options(lenient);
+    let (program, toolpath, diags) =
+        vcnc_gcode::parse_and_interpret(src, &interp).map_err(|e| Error::gcode(file, e))?;
+    check_axes_exist(machine, &toolpath, file)?;
+    let loaded = vcnc_gcode::load_toolpath(
+        program,
+        toolpath,
+        diags,
+        &machine.limits(),
+        &machine.interpolate_options(),
+    )
+    .map_err(|e| Error::gcode(file, e))?;
+    let mut warnings: Vec<String> = loaded
+        .warnings
+        .iter()
+        .map(|d| format!("{file}:{}:{}: warning: {}", d.line, d.col, d.message))
+        .collect();
+    let traj = &loaded.trajectory;
+    let n = traj.len();
+    let mut axes: Vec<AxisSignals> = machine
+        .axes
+        .iter()
+        .map(|a| {
+            let t = traj.axis(a.name);
+            AxisSignals {
+                name: a.name,
+                unit: a.unit,
+                pos: t.map_or_else(|| vec![0.0; n], |t| t.pos.clone()),
+                vel: t.map_or_else(|| vec![0.0; n], |t| t.vel.clone()),
+                acc: t.map_or_else(|| vec![0.0; n], |t| t.acc.clone()),
+            }
+        })
+        .collect();
+    let any_tcp = traj.tcp.iter().any(|t| *t);
+    if any_tcp {
+        let kin = machine.require_kinematics()?;
+        let r = kin.axes;
+        let [x, y, z] = kin.model.inverse_tcp_track(
+            [axes[r.x].track(), axes[r.y].track(), axes[r.z].track()],
+            axes[r.a].track(),
+            axes[r.c].track(),
+            &traj.tcp,
+        );
+        for (i, t) in [(r.x, x), (r.y, y), (r.z, z)] {
+            axes[i].pos = t.pos;
+            axes[i].vel = t.vel;
+            axes[i].acc = t.acc;
+        }
+    }
+    for (a, s) in machine.axes.iter().zip(&axes) {
+        check_travel(a, s, &loaded, file)?;
+        if any_tcp {
+            warnings.extend(limit_warnings(a, s, file));
+        }
+    }
+    let poses = match &machine.kinematics {
+        Some(_) => Some(forward_poses(
+            machine,
+            &axes.iter().map(|a| a.pos.as_slice()).collect::<Vec<_>>(),
+        )?),
+        None => None,
+    };
+    Ok(Run {
+        file: file.to_string(),
+        ts: traj.ts,
+        loaded,
+        axes,
+        poses,
+        warnings,
+    })
+}
+
+/// Axes the program moves but the machine lacks: a clear error before interpolation.
+fn check_axes_exist(
+    machine: &Machine,
+    toolpath: &vcnc_gcode::Toolpath,
+    file: &str,
+) -> Result<(), Error> {
+    for m in &toolpath.moves {
+        for name in AxisName::ALL {
+            let i = name.index();
+            if m.end[i] != m.start[i] && machine.axis(name).is_none() {
+                return Err(Error::Program {
+                    file: file.to_string(),
+                    diagnostics: vec![Diagnostic {
+                        line: m.line,
+                        col: m.col,
+                        severity: Severity::Error,
+                        message: format!(
+                            "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
+                            machine.name,
+                            machine
+                                .axis_names()
+                                .iter()
+                                .map(|a| a.as_str())
+                                .collect::<String>()
+                        ),
+                    }],
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The first sample of `s` beyond the axis' travel, as an error naming the block.
+fn check_travel(
+    a: &vcnc_machine::Axis,
+    s: &AxisSignals,
+    loaded: &Loaded,
+    file: &str,
+) -> Result<(), Error> {
+    let [lo, hi] = a.travel;
+    let Some(k) = s.pos.iter().position(|v| !(*v >= lo && *v <= hi)) else {
+        return Ok(());
+    };
+    let traj = &loaded.trajectory;
+    let block = traj.block_at(k);
+    let target = block
+        .filter(|b| !b.tcp)
+        .and_then(|b| loaded.toolpath.moves.get(b.move_index))
+        .map(|m| m.end[a.name.index()]);
+    Err(Error::Travel {
+        file: file.to_string(),
+        line: block.map_or(0, |b| b.line),
+        axis: a.name,
+        value: s.pos[k],
+        lower: lo,
+        upper: hi,
+        unit: a.unit.as_str(),
+        t_s: k as f64 * traj.ts,
+        target,
+    })
+}
+
+/// Velocity and acceleration limit excursions of a kinematically transformed reference.
+fn limit_warnings(a: &vcnc_machine::Axis, s: &AxisSignals, file: &str) -> Vec<String> {
+    let vmax = s.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let amax = s.acc.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let u = a.unit;
+    let mut w = Vec::new();
+    if vmax > a.max_velocity * (1.0 + 1e-9) {
+        w.push(format!(
+            "{file}: warning: axis {} reference reaches {vmax:.1} {u}/s, above its velocity limit {} {u}/s",
+            a.name, a.max_velocity,
+        ));
+    }
+    if amax > a.max_acceleration * (1.0 + 1e-9) {
+        w.push(format!(
+            "{file}: warning: axis {} reference reaches {amax:.1} {u}/s², above its acceleration limit {} {u}/s²",
+            a.name, a.max_acceleration,
+        ));
+    }
+    w
+}
+
+/// Tool poses in the workpiece frame (mm, unit tool axis) of axis positions given per machine
+/// axis (mm, deg), by the closed-form forward kinematics.
+pub fn forward_poses(machine: &Machine, axis_pos: &[&[f64]]) -> Result<Vec<Pose>, Error> {
+    let kin = machine.require_kinematics()?;
+    let n = axis_pos.first().map_or(0, |p| p.len());
+    Ok((0..n)
+        .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
+        .collect())
+}
+
+/// Peak reference rates of one axis.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct AxisRates {
+    /// `mm` or `deg`.
+    pub unit: Unit,
+    /// Largest |velocity|, units/s.
+    pub max_vel: f64,
+    /// Largest |acceleration|, units/s².
+    pub max_acc: f64,
+}
+
+/// `summary.json` of `vcnc interpolate`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct InterpolateSummary {
+    /// Machine name.
+    pub machine: String,
+    /// Program path.
+    pub program: String,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Number of samples.
+    pub samples: usize,
+    /// Sample period, s.
+    pub ts_s: f64,
+    /// Whether the program uses tool-centre-point mode.
+    pub tcp: bool,
+    /// Per axis.
+    pub axes: std::collections::BTreeMap<String, AxisRates>,
+    /// Warnings of the run.
+    pub warnings: Vec<String>,
+}
+
+impl InterpolateSummary {
+    /// The summary of a run.
+    pub fn of(machine: &Machine, run: &Run) -> InterpolateSummary {
+        use crate::stats::max_abs;
+        InterpolateSummary {
+            machine: machine.name.clone(),
+            program: run.file.clone(),
+            duration_s: run.duration_s(),
+            samples: run.len(),
+            ts_s: run.ts,
+            tcp: run.has_tcp(),
+            axes: run
+                .axes
+                .iter()
+                .map(|a| {
+                    (
+                        a.name.to_string(),
+                        AxisRates {
+                            unit: a.unit,
+                            max_vel: max_abs(&a.vel),
+                            max_acc: max_abs(&a.acc),
+                        },
+                    )
+                })
+                .collect(),
+            warnings: run.warnings.clone(),
+        }
+    }
+}

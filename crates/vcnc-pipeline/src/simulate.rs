@@ -1,0 +1,225 @@
+//! Axis references through the true drives and through identified models.
+
+use rayon::prelude::*;
+use serde::Serialize;
+use vcnc_axis::{AxisName, Unit};
+use vcnc_drive::{ClosedLoopModel, DriveTrace, SimOptions};
+use vcnc_machine::Machine;
+
+use crate::Error;
+use crate::run::Run;
+use crate::stats::{max_abs, rms, scaled_diff};
+use crate::summary::ModelSummary;
+
+/// Runs every axis reference through its true drive (axes in parallel, results in axis order).
+pub fn simulate_true(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Error> {
+    machine
+        .axes
+        .par_iter()
+        .zip(run.axes.par_iter())
+        .map(|(axis, s)| {
+            axis.drive
+                .simulate(s.reference(), run.ts)
+                .map_err(|source| Error::Drive {
+                    axis: axis.name,
+                    source,
+                })
+        })
+        .collect()
+}
+
+/// Runs every axis reference through a closed-loop model (one per machine axis, in order).
+pub fn simulate_models(models: &[ClosedLoopModel], run: &Run) -> Result<Vec<Vec<f64>>, Error> {
+    if models.len() != run.axes.len() {
+        return Err(Error::Usage(format!(
+            "{} models for {} axes",
+            models.len(),
+            run.axes.len()
+        )));
+    }
+    models
+        .par_iter()
+        .zip(run.axes.par_iter())
+        .map(|(m, s)| {
+            m.simulate(s.reference(), run.ts, &SimOptions::default())
+                .map_err(|source| Error::Drive {
+                    axis: s.name,
+                    source,
+                })
+        })
+        .collect()
+}
+
+/// `vcnc simulate`: the true drives' traces and, optionally, the models' positions.
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    /// True drives: encoder traces per axis.
+    pub traces: Vec<DriveTrace>,
+    /// Models' positions per axis, when models were given.
+    pub predicted: Option<Vec<Vec<f64>>>,
+}
+
+/// Simulates the true drives, and the models when given.
+pub fn simulate(
+    machine: &Machine,
+    run: &Run,
+    models: Option<&[ClosedLoopModel]>,
+) -> Result<Simulation, Error> {
+    let traces = simulate_true(machine, run)?;
+    let predicted = models.map(|m| simulate_models(m, run)).transpose()?;
+    Ok(Simulation { traces, predicted })
+}
+
+/// Tracking figures of one axis of a simulation, in µm (linear axes) or millidegrees.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisTracking {
+    /// The axis.
+    pub axis: AxisName,
+    /// mm or deg.
+    pub unit: Unit,
+    /// Controller kind of the true drive (`p-pi`, `pid`, `smc`).
+    pub controller: &'static str,
+    /// The true drive's analytic closed-loop model.
+    pub true_model: ClosedLoopModel,
+    /// Tracking error $x_r - x$ of the true drive per sample, µm or mdeg.
+    pub error: Vec<f64>,
+    /// Tracking error of the model per sample, µm or mdeg, when a model was simulated.
+    pub model_error: Option<Vec<f64>>,
+    /// max |x_r − x|, µm or mdeg.
+    pub tracking_max: f64,
+    /// RMS of x_r − x, µm or mdeg.
+    pub tracking_rms: f64,
+    /// max |x_model − x|, µm or mdeg.
+    pub model_vs_true_max: Option<f64>,
+    /// RMS of x_model − x, µm or mdeg.
+    pub model_vs_true_rms: Option<f64>,
+}
+
+/// Per-axis tracking figures of a simulation (the encoder positions, as a control sees them).
+pub fn tracking(machine: &Machine, run: &Run, sim: &Simulation) -> Vec<AxisTracking> {
+    let actual: Vec<&[f64]> = sim.traces.iter().map(|t| t.position.as_slice()).collect();
+    tracking_of(machine, run, &actual, sim.predicted.as_deref())
+}
+
+/// Per-axis tracking figures of `actual` axis positions (one series per machine axis) and,
+/// optionally, of model positions, against the run's references.
+pub fn tracking_of(
+    machine: &Machine,
+    run: &Run,
+    actual: &[&[f64]],
+    models: Option<&[Vec<f64>]>,
+) -> Vec<AxisTracking> {
+    machine
+        .axes
+        .iter()
+        .zip(run.axes.iter().zip(actual))
+        .enumerate()
+        .map(|(i, (axis, (a, x)))| {
+            let k = a.unit.micro_factor();
+            let error = scaled_diff(&a.pos, x, k);
+            let vs = models.map(|p| scaled_diff(&p[i], x, k));
+            AxisTracking {
+                axis: a.name,
+                unit: a.unit,
+                controller: axis.drive.controller().kind(),
+                true_model: axis.true_model(),
+                tracking_max: max_abs(&error),
+                tracking_rms: rms(&error),
+                model_error: models.map(|p| scaled_diff(&a.pos, &p[i], k)),
+                model_vs_true_max: vs.as_deref().map(max_abs),
+                model_vs_true_rms: vs.as_deref().map(rms),
+                error,
+            }
+        })
+        .collect()
+}
+
+/// `summary.json` of `vcnc simulate` (keys sorted when written).
+#[derive(Debug, Clone, Serialize)]
+pub struct SimulateSummary {
+    /// Machine name.
+    pub machine: String,
+    /// Program path.
+    pub program: String,
+    /// The identified model file given with `--model`, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub models: Option<String>,
+    /// Number of samples.
+    pub samples: usize,
+    /// Program duration, s.
+    pub duration_s: f64,
+    /// Per axis.
+    pub axes: std::collections::BTreeMap<String, SimulateAxisSummary>,
+}
+
+/// One axis of [`SimulateSummary`]. Error keys end in `_um` (linear axes) or `_mdeg` (rotary).
+#[derive(Debug, Clone)]
+pub struct SimulateAxisSummary {
+    /// mm or deg.
+    pub unit: Unit,
+    /// Tracking error max / RMS, µm or mdeg.
+    pub tracking: (f64, f64),
+    /// The true drive's analytic model (key `true_model`).
+    pub true_model: ModelSummary,
+    /// The model given with `--model` (key `model`).
+    pub model: Option<ModelSummary>,
+    /// |model − true| max / RMS, µm or mdeg.
+    pub model_vs_true: Option<(f64, f64)>,
+    /// Controller kind.
+    pub controller: &'static str,
+}
+
+impl Serialize for SimulateAxisSummary {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let u = self.unit.micro_label();
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("unit", self.unit.as_str())?;
+        m.serialize_entry(&format!("tracking_max_{u}"), &self.tracking.0)?;
+        m.serialize_entry(&format!("tracking_rms_{u}"), &self.tracking.1)?;
+        m.serialize_entry("true_model", &self.true_model)?;
+        if let Some(model) = &self.model {
+            m.serialize_entry("model", model)?;
+        }
+        if let Some((max, rms)) = self.model_vs_true {
+            m.serialize_entry(&format!("model_vs_true_max_{u}"), &max)?;
+            m.serialize_entry(&format!("model_vs_true_rms_{u}"), &rms)?;
+        }
+        m.serialize_entry("controller", self.controller)?;
+        m.end()
+    }
+}
+
+/// The summary of a simulation.
+pub fn simulate_summary(
+    machine: &Machine,
+    run: &Run,
+    tracking: &[AxisTracking],
+    models: Option<(&str, &[ClosedLoopModel])>,
+) -> SimulateSummary {
+    let axes = tracking
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            (
+                t.axis.to_string(),
+                SimulateAxisSummary {
+                    unit: t.unit,
+                    tracking: (t.tracking_max, t.tracking_rms),
+                    true_model: ModelSummary::of(&t.true_model),
+                    model: models.map(|(_, m)| ModelSummary::of(&m[i])),
+                    model_vs_true: t.model_vs_true_max.zip(t.model_vs_true_rms),
+                    controller: t.controller,
+                },
+            )
+        })
+        .collect();
+    SimulateSummary {
+        machine: machine.name.clone(),
+        program: run.file.clone(),
+        models: models.map(|(f, _)| f.to_string()),
+        samples: run.len(),
+        duration_s: run.duration_s(),
+        axes,
+    }
+}

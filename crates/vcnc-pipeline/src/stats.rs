@@ -1,0 +1,42 @@
+//! Small statistics of sample series.
+
+/// `(a - b) * k` sample by sample: tracking errors `x_r - x` and prediction errors in µm/mdeg.
+pub fn scaled_diff(a: &[f64], b: &[f64], k: f64) -> Vec<f64> {
+    a.iter().zip(b).map(|(a, b)| (a - b) * k).collect()
+}
+
+/// Root mean square of a slice (0 for an empty one).
+pub fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+/// Largest |x| of a slice (0 for an empty one).
+pub fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+/// Relative error in percent, `100 (est − truth) / truth`.
+pub fn rel_pct(est: f64, truth: f64) -> f64 {
+    100.0 * (est - truth) / truth
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn figures_of_a_known_series() {
+        let v = [3.0, -4.0];
+        assert_eq!(max_abs(&v), 4.0);
+        assert!((rms(&v) - (12.5f64).sqrt()).abs() < 1e-15);
+        assert_eq!(rms(&[]), 0.0);
+        assert_eq!(
+            scaled_diff(&[1.0, 2.0], &[0.5, 2.0], 1000.0),
+            vec![500.0, 0.0]
+        );
+        assert_eq!(rel_pct(110.0, 100.0), 10.000000000000009);
+    }
+}

@@ -1,0 +1,785 @@
+//! Machine-configuration sweeps (`vcnc sweep`, `vcnc sweep-merge`): numeric machine-file keys
+//! set by their dotted path (`axes.X.controller.kv`), value lists and ranges, the cartesian
+//! product, deterministic shards of it, and the engine that runs configurations in parallel and
+//! hands back typed rows in configuration order.
+//!
+//! Each configuration is the machine document with its keys set and checked again, so unknown
+//! keys and impossible or unstable configurations become that row's error, not the sweep's. The
+//! reference run (and the identified models' contour errors, with `--model`) is shared by every
+//! configuration unless a key changes it (interpolation limits, kinematics, dialect).
+
+use std::collections::BTreeMap;
+
+use rayon::prelude::*;
+use serde::Serialize;
+use vcnc_contour::ContourReport;
+use vcnc_drive::ClosedLoopModel;
+use vcnc_machine::{Machine, MachineDocument};
+
+use crate::predict::{contour, model_contour};
+use crate::run::{Run, prepare};
+use crate::simulate::simulate_true;
+use crate::stats::{max_abs, rms, scaled_diff};
+use crate::{Error, format_num};
+
+/// One swept key and its values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepKey {
+    /// Dotted machine-file path, e.g. `axes.X.controller.kv`.
+    pub key: String,
+    /// Values, in the order given.
+    pub values: Vec<f64>,
+}
+
+/// Parses `KEY=V1,V2,...` or `KEY=start:stop:count` (count ≥ 2 values evenly spaced, both ends
+/// included; count = 1 gives `start`).
+pub fn parse_set(arg: &str) -> Result<SweepKey, String> {
+    let (key, values) = arg
+        .split_once('=')
+        .ok_or_else(|| format!("--set {arg}: expected KEY=V1,V2,... or KEY=start:stop:count"))?;
+    let key = key.trim();
+    if key.is_empty() || key.split('.').any(str::is_empty) {
+        return Err(format!(
+            "--set {arg}: the key must be a dotted path such as axes.X.controller.kv"
+        ));
+    }
+    let num = |s: &str| -> Result<f64, String> {
+        let v: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("--set {arg}: '{}' is not a number", s.trim()))?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(format!("--set {arg}: '{}' is not finite", s.trim()))
+        }
+    };
+    let values = if values.contains(':') {
+        let parts: Vec<&str> = values.split(':').collect();
+        if parts.len() != 3 {
+            return Err(format!("--set {arg}: a range is start:stop:count"));
+        }
+        let (a, b) = (num(parts[0])?, num(parts[1])?);
+        let count: usize = parts[2].trim().parse().map_err(|_| {
+            format!(
+                "--set {arg}: count '{}' is not a whole number",
+                parts[2].trim()
+            )
+        })?;
+        if count == 0 || count > 1_000_000 {
+            return Err(format!(
+                "--set {arg}: count must be 1 ..= 1000000, got {count}"
+            ));
+        }
+        if count == 1 {
+            vec![a]
+        } else {
+            (0..count)
+                .map(|i| {
+                    if i + 1 == count {
+                        b
+                    } else {
+                        a + (b - a) * i as f64 / (count - 1) as f64
+                    }
+                })
+                .collect()
+        }
+    } else {
+        values.split(',').map(num).collect::<Result<Vec<_>, _>>()?
+    };
+    if values.is_empty() {
+        return Err(format!("--set {arg}: no values"));
+    }
+    Ok(SweepKey {
+        key: key.to_string(),
+        values,
+    })
+}
+
+/// Number of configurations of the product (saturating).
+pub fn product_len(keys: &[SweepKey]) -> usize {
+    keys.iter()
+        .fold(1usize, |n, k| n.saturating_mul(k.values.len()))
+}
+
+/// The values of configuration `index` of the product (the last key varies fastest).
+pub fn configuration(keys: &[SweepKey], mut index: usize) -> Vec<f64> {
+    let mut out = vec![0.0; keys.len()];
+    for (i, k) in keys.iter().enumerate().rev() {
+        let n = k.values.len();
+        out[i] = k.values[index % n];
+        index /= n;
+    }
+    out
+}
+
+/// Parses `i/n` (1-based shard i of n).
+pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let (i, n) = s
+        .split_once('/')
+        .ok_or_else(|| format!("--shard {s}: expected i/n, e.g. 2/8"))?;
+    let i: usize = i
+        .trim()
+        .parse()
+        .map_err(|_| format!("--shard {s}: '{i}' is not a whole number"))?;
+    let n: usize = n
+        .trim()
+        .parse()
+        .map_err(|_| format!("--shard {s}: '{n}' is not a whole number"))?;
+    if n == 0 || i == 0 || i > n {
+        return Err(format!("--shard {s}: need 1 <= i <= n"));
+    }
+    Ok((i, n))
+}
+
+/// The configuration indices of shard `i` of `n` (1-based): every index with
+/// `index % n == i - 1`. Deterministic, and the shards partition the product.
+pub fn shard_indices(total: usize, shard: Option<(usize, usize)>) -> Vec<usize> {
+    match shard {
+        None => (0..total).collect(),
+        Some((i, n)) => (0..total).filter(|k| k % n == i - 1).collect(),
+    }
+}
+
+/// Keys whose change alters the reference run (interpolation limits, kinematics, dialect).
+pub fn changes_reference(key: &str) -> bool {
+    let k = key.split('.').collect::<Vec<_>>();
+    match k.as_slice() {
+        ["sample_period_s"] | ["trajectory", ..] | ["kinematics", ..] | ["gcode", ..] => true,
+        ["axes", _, leaf] => matches!(*leaf, "travel" | "max_velocity" | "max_acceleration"),
+        _ => false,
+    }
+}
+
+/// Largest number of configurations of one sweep.
+pub const MAX_CONFIGURATIONS: usize = 10_000_000;
+
+/// One configuration's figures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigResult {
+    /// Per machine axis: tracking error max and RMS of the encoder position, µm or mdeg.
+    pub tracking: Vec<(f64, f64)>,
+    /// Tool-tip contour error with the true drives, max, µm.
+    pub contour_max_um: f64,
+    /// Tool-tip contour error with the true drives, RMS, µm.
+    pub contour_rms_um: f64,
+    /// Orientation contour error, max, mrad.
+    pub orientation_max_mrad: f64,
+    /// Orientation contour error, RMS, mrad.
+    pub orientation_rms_mrad: f64,
+    /// With models: predicted contour max and RMS and max |predicted − true|, µm.
+    pub predicted: Option<(f64, f64, f64)>,
+}
+
+/// One row of a sweep: the configuration and its figures or its error.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepRow {
+    /// Configuration index in the product.
+    pub index: usize,
+    /// The swept keys' values.
+    pub values: Vec<f64>,
+    /// Figures, or the configuration's error message.
+    pub result: Result<ConfigResult, String>,
+}
+
+/// The best configuration: the smallest true tool-tip contour error (max).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Best {
+    /// Configuration index.
+    pub index: usize,
+    /// The keys' values.
+    pub values: Vec<f64>,
+    /// Its contour error, µm.
+    pub contour_max_um: f64,
+}
+
+/// A sweep ready to run: the base machine and run, the keys, the configurations of this shard.
+pub struct Sweep<'a> {
+    doc: &'a MachineDocument,
+    base: Machine,
+    program: &'a str,
+    program_name: &'a str,
+    keys: Vec<SweepKey>,
+    total: usize,
+    shard: Option<(usize, usize)>,
+    indices: Vec<usize>,
+    base_run: Run,
+    reuse: bool,
+    models: Option<Vec<ClosedLoopModel>>,
+    base_predicted: Option<ContourReport>,
+    lenient: bool,
+}
+
+impl<'a> Sweep<'a> {
+    /// Plans a sweep of `program` (its text and name) on the machine `doc` over `keys`
+    /// (`--set` arguments), restricted to `shard` (`i/n`), with optional identified `models`
+    /// (one per machine axis). The base machine and run must be valid.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        doc: &'a MachineDocument,
+        program: &'a str,
+        program_name: &'a str,
+        sets: &[String],
+        shard: Option<&str>,
+        models: Option<Vec<ClosedLoopModel>>,
+        lenient: bool,
+    ) -> Result<Sweep<'a>, Error> {
+        let base = doc.check()?;
+        let keys: Vec<SweepKey> = sets
+            .iter()
+            .map(|s| parse_set(s).map_err(Error::Usage))
+            .collect::<Result<_, _>>()?;
+        let shard = shard.map(parse_shard).transpose().map_err(Error::Usage)?;
+        let total = product_len(&keys);
+        if total > MAX_CONFIGURATIONS {
+            return Err(Error::Usage(format!(
+                "the sweep has {total} configurations; split it (at most {MAX_CONFIGURATIONS})"
+            )));
+        }
+        let base_run = prepare(&base, program, program_name, lenient)?;
+        let reuse = !keys.iter().any(|k| changes_reference(&k.key));
+        let base_predicted = match (&models, reuse) {
+            (Some(m), true) => Some(model_contour(&base, &base_run, m)?.contour),
+            _ => None,
+        };
+        Ok(Sweep {
+            doc,
+            base,
+            program,
+            program_name,
+            indices: shard_indices(total, shard),
+            keys,
+            total,
+            shard,
+            base_run,
+            reuse,
+            models,
+            base_predicted,
+            lenient,
+        })
+    }
+
+    /// The base machine (checked).
+    pub fn base(&self) -> &Machine {
+        &self.base
+    }
+
+    /// The reference run of the base machine.
+    pub fn base_run(&self) -> &Run {
+        &self.base_run
+    }
+
+    /// The swept keys.
+    pub fn keys(&self) -> &[SweepKey] {
+        &self.keys
+    }
+
+    /// The configurations this sweep (shard) runs, in order.
+    pub fn indices(&self) -> &[usize] {
+        &self.indices
+    }
+
+    /// The column names of `sweep.csv`.
+    pub fn header(&self) -> Vec<String> {
+        let mut h = vec!["index".to_string()];
+        h.extend(self.keys.iter().map(|k| k.key.clone()));
+        for a in &self.base.axes {
+            h.push(format!("{}_tracking_max", a.name));
+            h.push(format!("{}_tracking_rms", a.name));
+        }
+        h.extend(
+            [
+                "contour_max_um",
+                "contour_rms_um",
+                "orientation_max_mrad",
+                "orientation_rms_mrad",
+            ]
+            .map(String::from),
+        );
+        if self.models.is_some() {
+            h.extend(
+                [
+                    "predicted_contour_max_um",
+                    "predicted_contour_rms_um",
+                    "discrepancy_max_um",
+                ]
+                .map(String::from),
+            );
+        }
+        h.push("status".into());
+        h
+    }
+
+    /// The CSV cells of a row (the header's columns).
+    pub fn cells(&self, row: &SweepRow) -> Vec<String> {
+        let mut cells = vec![row.index.to_string()];
+        cells.extend(row.values.iter().map(|v| format_num(*v)));
+        match &row.result {
+            Ok(r) => {
+                for (max, rms) in &r.tracking {
+                    cells.push(format_num(*max));
+                    cells.push(format_num(*rms));
+                }
+                cells.extend(
+                    [
+                        r.contour_max_um,
+                        r.contour_rms_um,
+                        r.orientation_max_mrad,
+                        r.orientation_rms_mrad,
+                    ]
+                    .map(format_num),
+                );
+                if let Some((max, rms, disc)) = r.predicted {
+                    cells.extend([max, rms, disc].map(format_num));
+                }
+                cells.push("ok".into());
+            }
+            Err(msg) => {
+                let n = 2 * self.base.axes.len() + 4 + if self.models.is_some() { 3 } else { 0 };
+                cells.extend(std::iter::repeat_n(String::new(), n));
+                cells.push(csv_cell(&format!("error: {msg}")));
+            }
+        }
+        cells
+    }
+
+    /// Runs configuration `index`.
+    pub fn run_config(&self, index: usize) -> SweepRow {
+        let values = configuration(&self.keys, index);
+        let result = self
+            .evaluate(&values)
+            .map_err(|e| e.to_string().replace(['\n', '\r'], " "));
+        SweepRow {
+            index,
+            values,
+            result,
+        }
+    }
+
+    fn evaluate(&self, values: &[f64]) -> Result<ConfigResult, Error> {
+        let set: Vec<(&str, f64)> = self
+            .keys
+            .iter()
+            .zip(values)
+            .map(|(k, v)| (k.key.as_str(), *v))
+            .collect();
+        let machine = self.doc.with_values(&set)?;
+        let owned;
+        let run = if self.reuse {
+            &self.base_run
+        } else {
+            owned = prepare(&machine, self.program, self.program_name, self.lenient)?;
+            &owned
+        };
+        let traces = simulate_true(&machine, run)?;
+        let tracking = run
+            .axes
+            .iter()
+            .zip(&traces)
+            .map(|(a, tr)| {
+                let e = scaled_diff(&a.pos, &tr.position, a.unit.micro_factor());
+                (max_abs(&e), rms(&e))
+            })
+            .collect();
+        let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
+        let (_, c) = contour(&machine, run, &pos)?;
+        let predicted = match &self.models {
+            None => None,
+            Some(models) => {
+                let owned_pc;
+                let pc = match &self.base_predicted {
+                    Some(pc) => pc,
+                    None => {
+                        owned_pc = model_contour(&machine, run, models)?.contour;
+                        &owned_pc
+                    }
+                };
+                let disc = c
+                    .tip_mm
+                    .iter()
+                    .zip(&pc.tip_mm)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                Some((pc.tip_max_mm * 1e3, pc.tip_rms_mm * 1e3, disc * 1e3))
+            }
+        };
+        Ok(ConfigResult {
+            tracking,
+            contour_max_um: c.tip_max_mm * 1e3,
+            contour_rms_um: c.tip_rms_mm * 1e3,
+            orientation_max_mrad: c.orientation_max_rad * 1e3,
+            orientation_rms_mrad: c.orientation_rms_rad * 1e3,
+            predicted,
+        })
+    }
+
+    /// Runs every configuration of the shard, `chunk` at a time in parallel; hands each chunk's
+    /// rows, in configuration order, to `on_chunk` (which writes them) and calls `progress`
+    /// once per configuration. Same rows for any thread count.
+    pub fn run(
+        &self,
+        chunk: usize,
+        progress: &(dyn Fn() + Sync),
+        mut on_chunk: impl FnMut(&[SweepRow]) -> std::io::Result<()>,
+    ) -> Result<SweepOutcome, SweepRunError> {
+        let mut outcome = SweepOutcome::default();
+        for part in self.indices.chunks(chunk.max(1)) {
+            let rows: Vec<SweepRow> = part
+                .par_iter()
+                .map(|&i| {
+                    let r = self.run_config(i);
+                    progress();
+                    r
+                })
+                .collect();
+            on_chunk(&rows).map_err(SweepRunError::Write)?;
+            for r in rows {
+                outcome.add(r);
+            }
+        }
+        Ok(outcome)
+    }
+
+    /// The summary of a finished run.
+    pub fn summary(&self, outcome: &SweepOutcome) -> SweepSummary {
+        SweepSummary {
+            keys: self
+                .keys
+                .iter()
+                .map(|k| KeySummary {
+                    key: k.key.clone(),
+                    values: k.values.clone(),
+                })
+                .collect(),
+            configurations: self.total,
+            shard: self.shard.map(|(i, n)| format!("{i}/{n}")),
+            ok: outcome.ok,
+            failed: outcome.failed,
+            best: outcome
+                .best
+                .as_ref()
+                .map(|b| BestSummary::of(b, &self.keys)),
+            criterion: CRITERION,
+        }
+    }
+}
+
+/// A sweep could not write its rows.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepRunError {
+    /// Writing a chunk failed.
+    #[error("cannot write the sweep table: {0}")]
+    Write(std::io::Error),
+}
+
+/// What a finished sweep (or merge) found.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SweepOutcome {
+    /// Configurations that ran.
+    pub ok: usize,
+    /// Configurations that failed.
+    pub failed: usize,
+    /// The first failure's message.
+    pub first_error: Option<String>,
+    /// The best configuration.
+    pub best: Option<Best>,
+    /// `(values, contour max µm)` of every configuration that ran, for plots.
+    pub points: Vec<(Vec<f64>, f64)>,
+}
+
+impl SweepOutcome {
+    fn add(&mut self, r: SweepRow) {
+        match r.result {
+            Ok(c) => {
+                self.ok += 1;
+                let c = c.contour_max_um;
+                if self.best.as_ref().is_none_or(|b| c < b.contour_max_um) {
+                    self.best = Some(Best {
+                        index: r.index,
+                        values: r.values.clone(),
+                        contour_max_um: c,
+                    });
+                }
+                self.points.push((r.values, c));
+            }
+            Err(e) => {
+                self.failed += 1;
+                self.first_error.get_or_insert(e);
+            }
+        }
+    }
+
+    /// An error when configurations ran and every one failed (a sweep that measured nothing).
+    pub fn check_any_ok(&self) -> Result<(), Error> {
+        if self.ok == 0 && self.failed > 0 {
+            return Err(Error::SweepFailed {
+                configurations: self.failed,
+                first: self.first_error.clone().unwrap_or_default(),
+            });
+        }
+        Ok(())
+    }
+}
+
+fn csv_cell(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\"").replace(['\n', '\r'], " "))
+    } else {
+        s.to_string()
+    }
+}
+
+const CRITERION: &str = "smallest tool-tip contour error (max) with the true drives";
+
+/// A swept key in the summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KeySummary {
+    /// Dotted key.
+    pub key: String,
+    /// Its values.
+    pub values: Vec<f64>,
+}
+
+/// The best configuration in a summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BestSummary {
+    /// Configuration index.
+    pub index: usize,
+    /// Key → value.
+    pub values: BTreeMap<String, f64>,
+    /// Its tool-tip contour error (max), µm.
+    pub contour_max_um: f64,
+}
+
+impl BestSummary {
+    fn of(b: &Best, keys: &[SweepKey]) -> BestSummary {
+        BestSummary {
+            index: b.index,
+            values: keys
+                .iter()
+                .zip(&b.values)
+                .map(|(k, v)| (k.key.clone(), *v))
+                .collect(),
+            contour_max_um: b.contour_max_um,
+        }
+    }
+}
+
+/// `summary.json` of `vcnc sweep`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SweepSummary {
+    /// The swept keys and values.
+    pub keys: Vec<KeySummary>,
+    /// Configurations of the whole product.
+    pub configurations: usize,
+    /// `i/n` when sharded.
+    pub shard: Option<String>,
+    /// Configurations that ran.
+    pub ok: usize,
+    /// Configurations that failed.
+    pub failed: usize,
+    /// The best configuration.
+    pub best: Option<BestSummary>,
+    /// How "best" is judged.
+    pub criterion: &'static str,
+}
+
+/// `sweep-merge`'s result: the joined table and what it holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Merged {
+    /// The joined `sweep.csv` text (header and rows in index order).
+    pub text: String,
+    /// The swept keys' names (from the header).
+    pub keys: Vec<String>,
+    /// Rows, ok/failed counts, best and plot points.
+    pub outcome: SweepOutcome,
+    /// Rows in the joined table.
+    pub rows: usize,
+}
+
+/// `summary.json` of `vcnc sweep-merge`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MergeSummary {
+    /// The shard folders.
+    pub merged_from: Vec<String>,
+    /// Rows in the joined table.
+    pub configurations: usize,
+    /// Rows that ran.
+    pub ok: usize,
+    /// Rows that failed.
+    pub failed: usize,
+    /// The best configuration.
+    pub best: Option<BestSummary>,
+}
+
+/// Joins shard tables `(path, text)` with the same header into one table in index order; a
+/// configuration in two shards is an error.
+pub fn merge(tables: &[(String, String)]) -> Result<Merged, Error> {
+    let mut header: Option<&str> = None;
+    let mut rows: Vec<(usize, &str)> = Vec::new();
+    for (path, text) in tables {
+        let mut lines = text.lines();
+        let h = lines
+            .next()
+            .ok_or_else(|| Error::Usage(format!("{path}: empty file")))?;
+        match header {
+            None => header = Some(h),
+            Some(prev) if prev != h => {
+                return Err(Error::Usage(format!(
+                    "{path}: its columns differ from the first shard's"
+                )));
+            }
+            _ => {}
+        }
+        for (n, line) in lines.enumerate() {
+            if line.is_empty() {
+                continue;
+            }
+            let idx: usize = line
+                .split(',')
+                .next()
+                .and_then(|s| s.parse().ok())
+                .ok_or_else(|| Error::Table {
+                    file: path.clone(),
+                    line: n as u64 + 2,
+                    message: "no configuration index".into(),
+                })?;
+            rows.push((idx, line));
+        }
+    }
+    rows.sort_by_key(|r| r.0);
+    if let Some(w) = rows.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(Error::Usage(format!(
+            "configuration {} appears in more than one shard",
+            w[0].0
+        )));
+    }
+    let header = header.ok_or_else(|| Error::Usage("no shard folders given".into()))?;
+    let cols: Vec<&str> = header.split(',').collect();
+    // The swept keys are the columns between `index` and the first per-axis column.
+    let nkeys = cols
+        .iter()
+        .skip(1)
+        .position(|c| c.ends_with("_tracking_max"))
+        .unwrap_or(0);
+    let ci = cols.iter().position(|c| *c == "contour_max_um");
+    let si = cols.iter().position(|c| *c == "status");
+    let mut outcome = SweepOutcome::default();
+    let mut text = format!("{header}\n");
+    for (i, r) in &rows {
+        text.push_str(r);
+        text.push('\n');
+        let cells: Vec<&str> = r.split(',').collect();
+        let values: Vec<f64> = cells
+            .iter()
+            .skip(1)
+            .take(nkeys)
+            .map(|v| v.parse().unwrap_or(f64::NAN))
+            .collect();
+        let ok = si.and_then(|s| cells.get(s)).is_some_and(|s| *s == "ok");
+        let c = ci
+            .and_then(|c| cells.get(c))
+            .and_then(|c| c.parse::<f64>().ok());
+        let result = match (ok, c) {
+            (true, Some(c)) => Ok(ConfigResult {
+                tracking: Vec::new(),
+                contour_max_um: c,
+                contour_rms_um: f64::NAN,
+                orientation_max_mrad: f64::NAN,
+                orientation_rms_mrad: f64::NAN,
+                predicted: None,
+            }),
+            _ => Err(r.to_string()),
+        };
+        outcome.add(SweepRow {
+            index: *i,
+            values,
+            result,
+        });
+    }
+    Ok(Merged {
+        text,
+        keys: cols[1..=nkeys].iter().map(|s| s.to_string()).collect(),
+        rows: rows.len(),
+        outcome,
+    })
+}
+
+impl Merged {
+    /// The summary of a merge of the shard folders `dirs`.
+    pub fn summary(&self, dirs: Vec<String>) -> MergeSummary {
+        let keys: Vec<SweepKey> = self
+            .keys
+            .iter()
+            .map(|k| SweepKey {
+                key: k.clone(),
+                values: Vec::new(),
+            })
+            .collect();
+        MergeSummary {
+            merged_from: dirs,
+            configurations: self.rows,
+            ok: self.outcome.ok,
+            failed: self.outcome.failed,
+            best: self
+                .outcome
+                .best
+                .as_ref()
+                .map(|b| BestSummary::of(b, &keys)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lists_and_ranges_parse() {
+        let k = parse_set("axes.X.controller.kv=10,20.5,3e1").unwrap();
+        assert_eq!(k.key, "axes.X.controller.kv");
+        assert_eq!(k.values, vec![10.0, 20.5, 30.0]);
+        let r = parse_set("a.b=0:1:5").unwrap();
+        assert_eq!(r.values, vec![0.0, 0.25, 0.5, 0.75, 1.0]);
+        assert!(parse_set("a.b=1,x").is_err());
+        assert!(parse_set("a.b=0:1").is_err());
+        assert!(parse_set("=1").is_err());
+        assert!(parse_set("a..b=1").is_err());
+        assert!(parse_set("a.b=nan").is_err());
+    }
+
+    #[test]
+    fn product_enumerates_every_combination_once() {
+        let keys = vec![
+            SweepKey {
+                key: "a".into(),
+                values: vec![1.0, 2.0],
+            },
+            SweepKey {
+                key: "b".into(),
+                values: vec![10.0, 20.0, 30.0],
+            },
+        ];
+        assert_eq!(product_len(&keys), 6);
+        let all: Vec<Vec<f64>> = (0..6).map(|i| configuration(&keys, i)).collect();
+        assert_eq!(all[0], vec![1.0, 10.0]);
+        assert_eq!(all[5], vec![2.0, 30.0]);
+        let mut sorted = all.clone();
+        sorted.sort_by(|x, y| x.partial_cmp(y).unwrap());
+        sorted.dedup();
+        assert_eq!(sorted.len(), 6);
+    }
+
+    #[test]
+    fn shards_partition_the_product() {
+        let mut seen = vec![0; 100];
+        for i in 1..=3 {
+            for k in shard_indices(100, Some((i, 3))) {
+                seen[k] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1));
+        assert!(parse_shard("0/3").is_err());
+        assert!(parse_shard("4/3").is_err());
+        assert_eq!(parse_shard("2/3").unwrap(), (2, 3));
+    }
+}
