@@ -197,8 +197,9 @@ pub enum Error {
 
 impl Error {
     /// True when the data or the options are at fault (exit code 2: too few samples, no
-    /// motion, an unidentifiable trace, a bad option); false for a numerical failure of the
-    /// identifier itself (exit code 1).
+    /// motion, an unidentifiable trace, a bad option or PSO settings outside the convergence
+    /// region); false for a numerical failure of the identifier itself, such as a candidate
+    /// model that cannot be simulated (exit code 1).
     pub fn is_bad_input(&self) -> bool {
         match self {
             Error::LengthMismatch { .. }
@@ -211,8 +212,9 @@ impl Error {
             | Error::ZeroRegressor { .. }
             | Error::IllConditioned { .. }
             | Error::InvalidOption { .. }
-            | Error::InvalidBounds { .. } => true,
-            Error::PsoDivergent { .. } | Error::Drive(_) => false,
+            | Error::InvalidBounds { .. }
+            | Error::PsoDivergent { .. } => true,
+            Error::Drive(_) => false,
         }
     }
 }

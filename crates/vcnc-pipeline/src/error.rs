@@ -172,3 +172,52 @@ fn format_diagnostics(file: &str, diagnostics: &[Diagnostic]) -> String {
     }
     lines.join("\n")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_exit_code_follows_the_kind_of_the_wrapped_error() {
+        let data = Error::identify(
+            "t.csv",
+            vcnc_identify::Error::TooFewSamples {
+                got: 3,
+                needed: 100,
+            },
+        );
+        assert!(data.is_bad_input());
+        assert!(
+            data.to_string().contains("identification refused"),
+            "{data}"
+        );
+        let numeric = Error::identify(
+            "axis X",
+            vcnc_identify::Error::Drive(vcnc_drive::Error::NonFiniteModel),
+        );
+        assert!(!numeric.is_bad_input());
+        assert!(
+            numeric.to_string().contains("identification failed"),
+            "{numeric}"
+        );
+        let gains = Error::Drive {
+            axis: AxisName::X,
+            source: vcnc_drive::Error::TooStiff {
+                norm: 1e300,
+                limit: 1e15,
+            },
+        };
+        assert!(gains.is_bad_input());
+        let signal = Error::Drive {
+            axis: AxisName::X,
+            source: vcnc_drive::Error::EmptySignal,
+        };
+        assert!(!signal.is_bad_input());
+        assert!(!Error::Internal("x".into()).is_bad_input());
+        let m: Error = vcnc_machine::Error::NoKinematics {
+            file: "m.toml".into(),
+        }
+        .into();
+        assert!(m.is_bad_input());
+    }
+}
