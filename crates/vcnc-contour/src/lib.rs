@@ -4,7 +4,7 @@
 //! The **tool-tip contour error** of actual sample $k$ is the distance from the actual tip
 //! $p_a$ to the nearest point of the reference tip path, the polyline through the reference
 //! samples:
-//! $$ \varepsilon_k = \min_{j,\ t\in[0,1]} \big\lVert p_a - \big(p_j + t\,(p_{j+1}-p_j)\big)\big\rVert, $$
+//! $$ \varepsilon_k = \min_{j,\ t\in\[0,1\]} \big\lVert p_a - \big(p_j + t\,(p_{j+1}-p_j)\big)\big\rVert, $$
 //! reached at the foot parameter $u^* = j + t$ (segment index plus fraction). The
 //! **orientation contour error** is the angle between the actual tool axis and the reference
 //! tool axis at the same $u^*$ (normalised linear interpolation between the two samples):
