@@ -30,6 +30,8 @@ pub enum Command {
         /// Output folder.
         #[arg(long, default_value = "vcnc-demo")]
         out: PathBuf,
+        #[command(flatten)]
+        table: TableArgs,
     },
     /// Identify each axis' closed-loop model: from a simulated machine (interpolate the
     /// identification program, run the true drive, identify, validate) or from a measured trace.
@@ -46,6 +48,8 @@ pub enum Command {
         /// Output folder (trace.csv, summary.json, tracking.svg).
         #[arg(long, default_value = "vcnc-simulate")]
         out: PathBuf,
+        #[command(flatten)]
+        table: TableArgs,
     },
     /// Predict tool-tip and orientation contour errors of a program with the true and the
     /// identified drives.
@@ -60,6 +64,8 @@ pub enum Command {
         /// Output folder (contour.csv, summary.json, plots).
         #[arg(long, default_value = "vcnc-predict")]
         out: PathBuf,
+        #[command(flatten)]
+        table: TableArgs,
     },
     /// Interpolate a program into the reference trajectory at the sample period.
     Interpolate {
@@ -70,6 +76,8 @@ pub enum Command {
         /// Output folder (reference.csv, summary.json).
         #[arg(long, default_value = "vcnc-interpolate")]
         out: PathBuf,
+        #[command(flatten)]
+        table: TableArgs,
     },
     /// Forward or inverse kinematics of the machine on a CSV of axes or poses.
     Kinematics {
@@ -115,6 +123,31 @@ pub enum Command {
         #[command(subcommand)]
         what: GenCommand,
     },
+}
+
+/// How per-sample tables (`reference`, `trace`, `contour`) are written.
+#[derive(Debug, Clone, Args)]
+pub struct TableArgs {
+    /// Table format: `csv`, `parquet`, or `auto` (CSV up to 200 000 rows, Parquet beyond).
+    #[arg(long, value_enum, default_value_t = crate::sink::Format::Auto)]
+    pub format: crate::sink::Format,
+    /// Write every N-th sample only (summaries and plots still use every sample).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    pub decimate: u64,
+    /// Columns to write, comma-separated names or `prefix*` patterns (e.g. `t,X_*,true_contour_um`).
+    #[arg(long, value_name = "COLS")]
+    pub columns: Option<String>,
+}
+
+impl TableArgs {
+    /// The writer's options.
+    pub fn options(&self) -> crate::sink::TableOptions {
+        crate::sink::TableOptions {
+            format: self.format,
+            decimate: usize::try_from(self.decimate).unwrap_or(usize::MAX),
+            columns: self.columns.as_deref().map(crate::sink::parse_columns),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

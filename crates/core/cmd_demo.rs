@@ -16,9 +16,10 @@ use vcnc_pipeline::run;
 use crate::Ctx;
 use crate::figures::write_prediction_plots;
 use crate::output::{ensure_dir, write_json};
-use crate::table::{print_warnings, table};
+use crate::sink::TableOptions;
+use crate::table::{print_warnings, table as text_table};
 use crate::writers::{
-    MACHINE_MODELS, contour_rows, identification_table, write_contour_csv, write_identification,
+    MACHINE_MODELS, contour_rows, identification_table, write_contour_table, write_identification,
 };
 
 /// `summary.json` of the demo.
@@ -37,7 +38,7 @@ struct DemoSummary {
 }
 
 /// `vcnc demo [--out DIR]`.
-pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
+pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     let start = Instant::now();
     let machine = Machine::embedded_nmv5000()?;
     let spiral = "<embedded>/gcode/spiral.ngc";
@@ -73,7 +74,7 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
         identification: identify::overview(&ids),
     };
     write_json(&out.join("summary.json"), &summary)?;
-    write_contour_csv(&out.join("contour.csv"), &run, &p)?;
+    write_contour_table(out, &run, &p, table)?;
     write_prediction_plots(
         out,
         &run,
@@ -110,7 +111,7 @@ pub fn demo(out: &Path, ctx: &Ctx) -> Result<()> {
             .collect();
         print!(
             "{}",
-            table(
+            text_table(
                 &[
                     "",
                     "tip [um] refined",

@@ -12,8 +12,9 @@ use vcnc_pipeline::run;
 use crate::Ctx;
 use crate::figures::write_prediction_plots;
 use crate::output::{ensure_dir, write_json};
-use crate::table::{print_warnings, table};
-use crate::writers::{contour_rows, write_contour_csv};
+use crate::sink::TableOptions;
+use crate::table::{print_warnings, table as text_table};
+use crate::writers::{contour_rows, write_contour_table};
 
 /// `vcnc predict MACHINE PROGRAM [--model MODEL] --out DIR`.
 pub fn predict(
@@ -21,6 +22,7 @@ pub fn predict(
     program: &Path,
     model: Option<&Path>,
     out: &Path,
+    table: &TableOptions,
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
@@ -49,7 +51,7 @@ pub fn predict(
         models: source,
         warnings: run.warnings.clone(),
     };
-    write_contour_csv(&out.join("contour.csv"), &run, &p)?;
+    write_contour_table(out, &run, &p, table)?;
     write_json(&out.join("summary.json"), &summary)?;
     write_prediction_plots(out, &run, &p, &p.tracking(&machine, &run), None)?;
     if !ctx.quiet {
@@ -59,7 +61,7 @@ pub fn predict(
             .collect();
         print!(
             "{}",
-            table(
+            text_table(
                 &["contour error", "tool tip [um]", "orientation [mrad]"],
                 &rows
             )

@@ -9,11 +9,18 @@ use vcnc_pipeline::simulate;
 
 use crate::Ctx;
 use crate::figures::write_tracking;
-use crate::output::{ensure_dir, write_csv, write_json};
-use crate::table::{print_warnings, table};
+use crate::output::{ensure_dir, write_json};
+use crate::sink::{TableOptions, write_table};
+use crate::table::{print_warnings, table as text_table};
 
 /// `vcnc interpolate MACHINE PROGRAM --out DIR`: `reference.csv` and `summary.json`.
-pub fn interpolate(machine: &Path, program: &Path, out: &Path, ctx: &Ctx) -> Result<()> {
+pub fn interpolate(
+    machine: &Path,
+    program: &Path,
+    out: &Path,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> Result<()> {
     let machine = Machine::load(machine)?;
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&run.warnings);
@@ -41,7 +48,7 @@ pub fn interpolate(machine: &Path, program: &Path, out: &Path, ctx: &Ctx) -> Res
         cols.push(&a.vel);
         cols.push(&a.acc);
     }
-    write_csv(&out.join("reference.csv"), &header, &cols)?;
+    write_table(out, "reference", header, &cols, table)?;
     write_json(
         &out.join("summary.json"),
         &InterpolateSummary::of(&machine, &run),
@@ -65,6 +72,7 @@ pub fn simulate(
     program: &Path,
     model: Option<&Path>,
     out: &Path,
+    table: &TableOptions,
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
@@ -92,7 +100,7 @@ pub fn simulate(
             cols.push(&p[i]);
         }
     }
-    write_csv(&out.join("trace.csv"), &header, &cols)?;
+    write_table(out, "trace", header, &cols, table)?;
     let tracking = simulate::tracking(&machine, &run, &sim);
     let summary = simulate::simulate_summary(
         &machine,
@@ -130,7 +138,7 @@ pub fn simulate(
         if sim.predicted.is_some() {
             header.push("|model - true| max");
         }
-        print!("{}", table(&header, &rows));
+        print!("{}", text_table(&header, &rows));
         println!("-> {}", out.display());
     }
     Ok(())

@@ -18,6 +18,7 @@ mod cmd_sweep;
 mod figures;
 mod output;
 mod plot;
+mod sink;
 mod table;
 mod writers;
 
@@ -88,25 +89,42 @@ fn main() -> ExitCode {
 
 fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
     match command {
-        Command::Demo { out } => cmd_demo::demo(&out, ctx),
+        Command::Demo { out, table } => cmd_demo::demo(&out, &table.options(), ctx),
         Command::Identify(args) => cmd_identify::identify(&args, ctx),
         Command::Simulate {
             machine,
             program,
             model,
             out,
-        } => cmd_simulate::simulate(&machine, &program, model.as_deref(), &out, ctx),
+            table,
+        } => cmd_simulate::simulate(
+            &machine,
+            &program,
+            model.as_deref(),
+            &out,
+            &table.options(),
+            ctx,
+        ),
         Command::Predict {
             machine,
             program,
             model,
             out,
-        } => cmd_predict::predict(&machine, &program, model.as_deref(), &out, ctx),
+            table,
+        } => cmd_predict::predict(
+            &machine,
+            &program,
+            model.as_deref(),
+            &out,
+            &table.options(),
+            ctx,
+        ),
         Command::Interpolate {
             machine,
             program,
             out,
-        } => cmd_simulate::interpolate(&machine, &program, &out, ctx),
+            table,
+        } => cmd_simulate::interpolate(&machine, &program, &out, &table.options(), ctx),
         Command::Kinematics {
             machine,
             direction,

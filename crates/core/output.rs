@@ -75,7 +75,7 @@ fn parent_dir(path: &Path) -> PathBuf {
 /// Test hook: when `VCNC_FAIL_WRITE` names this file's name, fail after the temporary file is
 /// written and before the rename, as a crash or full disk would. Lets the end-to-end tests check
 /// that an interrupted run leaves the previous file intact.
-fn fail_point(path: &Path) -> Result<()> {
+pub fn fail_point(path: &Path) -> Result<()> {
     if let Ok(name) = std::env::var("VCNC_FAIL_WRITE")
         && path
             .file_name()

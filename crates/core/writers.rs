@@ -9,7 +9,8 @@ use vcnc_pipeline::identify::{IdentifySummary, model_set};
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
 use crate::figures::write_identification_plots;
-use crate::output::{write_atomic, write_csv, write_json};
+use crate::output::{write_atomic, write_json};
+use crate::sink::{TableOptions, write_table};
 use crate::table::table;
 
 /// How `model.toml` describes models identified on a simulated machine.
@@ -80,9 +81,15 @@ pub fn identification_table(results: &[AxisIdentification]) -> String {
     )
 }
 
-/// `contour.csv`: per sample t; reference, true and predicted axis positions; reference, true
-/// and predicted tool tip and orientation; contour and orientation errors of both.
-pub fn write_contour_csv(path: &Path, run: &Run, p: &Prediction) -> Result<()> {
+/// The `contour` table (`contour.csv` or `.parquet`): per sample t; reference, true and
+/// predicted axis positions; reference, true and predicted tool tip and orientation; contour and
+/// orientation errors of both.
+pub fn write_contour_table(
+    out: &Path,
+    run: &Run,
+    p: &Prediction,
+    opts: &TableOptions,
+) -> Result<()> {
     let n = run.len();
     let t = run.times();
     let reference = run.poses.as_deref().unwrap_or(&[]);
@@ -136,7 +143,8 @@ pub fn write_contour_csv(path: &Path, run: &Run, p: &Prediction) -> Result<()> {
         or_t.as_slice(),
         or_p.as_slice(),
     ]);
-    write_csv(path, &header, &cols)
+    write_table(out, "contour", header, &cols, opts)?;
+    Ok(())
 }
 
 /// The contour figures as table rows: label, tool tip (µm), orientation (mrad).

@@ -1,0 +1,424 @@
+//! Per-sample tables (`reference`, `trace`, `contour`), written chunk by chunk as CSV or as
+//! columnar Parquet, with the columns and the decimation the user asked for. Like every output
+//! file, a table goes to a temporary file in its folder and is renamed into place when finished,
+//! so a reader never sees half a table.
+//!
+//! Format (`--format`): `csv`, `parquet`, or `auto` (the default): CSV while the table has at
+//! most [`AUTO_CSV_ROWS`] rows — every short run, readable in any tool — and Parquet beyond,
+//! where CSV costs gigabytes and most of the run time. The decision is taken when the first
+//! [`AUTO_CSV_ROWS`] + 1 rows have arrived, so a streamed run needs no length up front.
+//! Parquet files hold one `Float64` column per table column (Snappy-compressed, row groups of
+//! [`ROW_GROUP_ROWS`] rows, so memory stays bounded).
+
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use arrow_array::{ArrayRef, Float64Array, RecordBatch};
+use arrow_schema::{DataType, Field, Schema};
+use parquet::arrow::ArrowWriter;
+use parquet::basic::Compression;
+use parquet::file::properties::WriterProperties;
+
+use crate::bad_input;
+use crate::output::{fail_point, format_num};
+
+/// Tables with at most this many rows are CSV under `--format auto`.
+pub const AUTO_CSV_ROWS: usize = 200_000;
+
+/// Rows per Parquet row group (and per record batch).
+pub const ROW_GROUP_ROWS: usize = 65_536;
+
+/// `--format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Format {
+    /// CSV up to 200 000 rows, Parquet beyond.
+    #[default]
+    Auto,
+    /// Comma-separated text, shortest round-trip numbers.
+    Csv,
+    /// Apache Parquet, one Float64 column per table column.
+    Parquet,
+}
+
+/// How per-sample tables are written (`--format`, `--decimate`, `--columns`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TableOptions {
+    /// File format.
+    pub format: Format,
+    /// Keep every N-th row (rows 0, N, 2N, …); 1 or 0 keeps every row.
+    pub decimate: usize,
+    /// Columns to write, by name or `prefix*` pattern, in the table's own order; `None` writes
+    /// every column.
+    pub columns: Option<Vec<String>>,
+}
+
+/// A per-sample table being written.
+pub struct TableWriter {
+    dir: PathBuf,
+    stem: String,
+    header: Vec<String>,
+    keep: Vec<usize>,
+    decimate: usize,
+    rows_in: usize,
+    rows_out: usize,
+    state: State,
+}
+
+enum State {
+    /// `auto`, still deciding: the rows so far, column-major.
+    Pending(Vec<Vec<f64>>),
+    Csv(BufWriter<tempfile::NamedTempFile>, PathBuf),
+    Parquet(
+        Box<ArrowWriter<tempfile::NamedTempFile>>,
+        Arc<Schema>,
+        PathBuf,
+    ),
+    Done,
+}
+
+impl TableWriter {
+    /// A table `DIR/STEM.csv` or `DIR/STEM.parquet` with the columns `header` (of which the
+    /// options keep some). Unknown `--columns` names are bad input naming the available ones.
+    pub fn create(
+        dir: &Path,
+        stem: &str,
+        header: Vec<String>,
+        opts: &TableOptions,
+    ) -> Result<Self> {
+        let keep = select(&header, opts.columns.as_deref(), stem)?;
+        let mut w = TableWriter {
+            dir: dir.to_path_buf(),
+            stem: stem.to_string(),
+            header,
+            keep,
+            decimate: opts.decimate.max(1),
+            rows_in: 0,
+            rows_out: 0,
+            state: State::Done,
+        };
+        w.state = match opts.format {
+            Format::Auto => State::Pending(vec![Vec::new(); w.keep.len()]),
+            Format::Csv => w.open_csv()?,
+            Format::Parquet => w.open_parquet()?,
+        };
+        Ok(w)
+    }
+
+    /// Appends rows: `columns[i][k]` is row k of column i of the full header; every column has
+    /// the same length.
+    pub fn write(&mut self, columns: &[&[f64]]) -> Result<()> {
+        let n = columns.first().map_or(0, |c| c.len());
+        if columns.len() != self.header.len() || columns.iter().any(|c| c.len() != n) {
+            anyhow::bail!(
+                "{}: internal error: {} columns of unequal length for a {}-column table",
+                self.stem,
+                columns.len(),
+                self.header.len()
+            );
+        }
+        // Rows kept by the decimation: global index ≡ 0 (mod N).
+        let first = (self.decimate - self.rows_in % self.decimate) % self.decimate;
+        let rows: Vec<usize> = (first..n).step_by(self.decimate).collect();
+        self.rows_in += n;
+        if rows.is_empty() {
+            return Ok(());
+        }
+        let picked: Vec<Vec<f64>> = self
+            .keep
+            .iter()
+            .map(|&c| rows.iter().map(|&k| columns[c][k]).collect())
+            .collect();
+        self.push(picked)
+    }
+
+    fn push(&mut self, cols: Vec<Vec<f64>>) -> Result<()> {
+        let n = cols.first().map_or(0, Vec::len);
+        self.rows_out += n;
+        if let State::Pending(buf) = &mut self.state {
+            for (b, c) in buf.iter_mut().zip(&cols) {
+                b.extend_from_slice(c);
+            }
+            if self.rows_out <= AUTO_CSV_ROWS {
+                return Ok(());
+            }
+            // Too long for CSV: Parquet, starting with what was buffered.
+            let State::Pending(buf) = std::mem::replace(&mut self.state, State::Done) else {
+                unreachable!("matched above")
+            };
+            self.state = self.open_parquet()?;
+            return self.emit(&buf);
+        }
+        self.emit(&cols)
+    }
+
+    /// Writes column-major rows to the open file.
+    fn emit(&mut self, cols: &[Vec<f64>]) -> Result<()> {
+        let n = cols.first().map_or(0, Vec::len);
+        match &mut self.state {
+            State::Csv(w, _) => {
+                let mut line = String::with_capacity(16 * cols.len());
+                for k in 0..n {
+                    line.clear();
+                    for (i, c) in cols.iter().enumerate() {
+                        if i > 0 {
+                            line.push(',');
+                        }
+                        line.push_str(&format_num(c[k]));
+                    }
+                    line.push('\n');
+                    w.write_all(line.as_bytes())?;
+                }
+            }
+            State::Parquet(w, schema, _) => {
+                for start in (0..n).step_by(ROW_GROUP_ROWS) {
+                    let end = (start + ROW_GROUP_ROWS).min(n);
+                    let arrays: Vec<ArrayRef> = cols
+                        .iter()
+                        .map(|c| Arc::new(Float64Array::from(c[start..end].to_vec())) as ArrayRef)
+                        .collect();
+                    let batch = RecordBatch::try_new(schema.clone(), arrays)?;
+                    w.write(&batch)?;
+                }
+            }
+            State::Pending(_) | State::Done => {}
+        }
+        Ok(())
+    }
+
+    fn temp(&self) -> Result<tempfile::NamedTempFile> {
+        std::fs::create_dir_all(&self.dir)
+            .with_context(|| format!("cannot create folder {}", self.dir.display()))?;
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".vcnc-").suffix(".tmp");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        builder
+            .tempfile_in(&self.dir)
+            .with_context(|| format!("cannot create a temporary file in {}", self.dir.display()))
+    }
+
+    fn names(&self) -> Vec<&str> {
+        self.keep.iter().map(|&c| self.header[c].as_str()).collect()
+    }
+
+    fn open_csv(&self) -> Result<State> {
+        let path = self.dir.join(format!("{}.csv", self.stem));
+        let mut w = BufWriter::with_capacity(1 << 20, self.temp()?);
+        writeln!(w, "{}", self.names().join(","))?;
+        Ok(State::Csv(w, path))
+    }
+
+    fn open_parquet(&self) -> Result<State> {
+        let path = self.dir.join(format!("{}.parquet", self.stem));
+        let schema = Arc::new(Schema::new(
+            self.names()
+                .iter()
+                .map(|n| Field::new(*n, DataType::Float64, false))
+                .collect::<Vec<_>>(),
+        ));
+        let props = WriterProperties::builder()
+            .set_compression(Compression::SNAPPY)
+            .set_dictionary_enabled(false)
+            .set_max_row_group_row_count(Some(ROW_GROUP_ROWS))
+            .build();
+        let w = ArrowWriter::try_new(self.temp()?, schema.clone(), Some(props))?;
+        Ok(State::Parquet(Box::new(w), schema, path))
+    }
+
+    /// Finishes the file and renames it into place; returns its path.
+    pub fn finish(mut self) -> Result<PathBuf> {
+        if matches!(self.state, State::Pending(_)) {
+            let State::Pending(buf) = std::mem::replace(&mut self.state, State::Done) else {
+                unreachable!("matched above")
+            };
+            self.state = self.open_csv()?;
+            self.emit(&buf)?;
+        }
+        let (tmp, path) = match std::mem::replace(&mut self.state, State::Done) {
+            State::Csv(w, path) => (w.into_inner().map_err(|e| e.into_error())?, path),
+            State::Parquet(w, _, path) => (w.into_inner()?, path),
+            State::Pending(_) | State::Done => unreachable!("opened above"),
+        };
+        tmp.as_file()
+            .sync_all()
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        fail_point(&path)?;
+        tmp.persist(&path)
+            .map_err(|e| e.error)
+            .with_context(|| format!("cannot move the new {} into place", path.display()))?;
+        Ok(path)
+    }
+
+    /// The format this table ends up in so far (`auto` while still deciding).
+    #[cfg(test)]
+    fn format(&self) -> Format {
+        match self.state {
+            State::Csv(..) => Format::Csv,
+            State::Parquet(..) => Format::Parquet,
+            _ => Format::Auto,
+        }
+    }
+}
+
+/// Indices of the header's columns that `patterns` select (`name` or `prefix*`), in header
+/// order; every pattern must select something.
+fn select(header: &[String], patterns: Option<&[String]>, stem: &str) -> Result<Vec<usize>> {
+    let Some(patterns) = patterns else {
+        return Ok((0..header.len()).collect());
+    };
+    let matches = |p: &str, h: &str| match p.strip_suffix('*') {
+        Some(prefix) => h.starts_with(prefix),
+        None => p == h,
+    };
+    for p in patterns {
+        if !header.iter().any(|h| matches(p, h)) {
+            return Err(bad_input(format!(
+                "--columns {p}: the {stem} table has no such column; it has {}",
+                header.join(" ")
+            )));
+        }
+    }
+    Ok((0..header.len())
+        .filter(|&i| patterns.iter().any(|p| matches(p, &header[i])))
+        .collect())
+}
+
+/// Writes a whole per-sample table (`DIR/STEM.csv` or `.parquet`) at once.
+pub fn write_table(
+    out: &Path,
+    stem: &str,
+    header: Vec<String>,
+    cols: &[&[f64]],
+    opts: &TableOptions,
+) -> Result<PathBuf> {
+    let mut w = TableWriter::create(out, stem, header, opts)?;
+    w.write(cols)?;
+    w.finish()
+}
+
+/// Parses `--columns a,b,c*`.
+pub fn parse_columns(s: &str) -> Vec<String> {
+    s.split(',')
+        .map(|c| c.trim().to_string())
+        .filter(|c| !c.is_empty())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::fs::File;
+
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+
+    fn header() -> Vec<String> {
+        ["t", "X_ref", "X_true", "Y_ref"].map(String::from).to_vec()
+    }
+
+    fn columns(n: usize) -> Vec<Vec<f64>> {
+        (0..4)
+            .map(|c| (0..n).map(|k| (c * 1000 + k) as f64 * 0.001).collect())
+            .collect()
+    }
+
+    #[test]
+    fn csv_keeps_the_asked_columns_and_rows_across_chunks() {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = TableOptions {
+            format: Format::Csv,
+            decimate: 3,
+            columns: Some(vec!["t".into(), "X_*".into()]),
+        };
+        let mut w = TableWriter::create(dir.path(), "trace", header(), &opts).unwrap();
+        let c = columns(10);
+        // Two chunks of 4 and 6 rows: decimation counts rows globally.
+        let first: Vec<&[f64]> = c.iter().map(|v| &v[..4]).collect();
+        let rest: Vec<&[f64]> = c.iter().map(|v| &v[4..]).collect();
+        w.write(&first).unwrap();
+        w.write(&rest).unwrap();
+        let path = w.finish().unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "t,X_ref,X_true");
+        let t: Vec<f64> = lines[1..]
+            .iter()
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        assert_eq!(t, vec![c[0][0], c[0][3], c[0][6], c[0][9]]);
+        assert_eq!(lines[2], format!("{},{},{}", c[0][3], c[1][3], c[2][3]));
+    }
+
+    #[test]
+    fn auto_switches_to_parquet_past_the_limit_and_reads_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut w =
+            TableWriter::create(dir.path(), "contour", header(), &TableOptions::default()).unwrap();
+        let n = AUTO_CSV_ROWS + 10;
+        let c = columns(n);
+        for chunk in (0..n).step_by(70_000) {
+            let end = (chunk + 70_000).min(n);
+            let part: Vec<&[f64]> = c.iter().map(|v| &v[chunk..end]).collect();
+            w.write(&part).unwrap();
+        }
+        assert_eq!(w.format(), Format::Parquet);
+        let path = w.finish().unwrap();
+        assert_eq!(path.extension().unwrap(), "parquet");
+        let r = SerializedFileReader::new(File::open(&path).unwrap()).unwrap();
+        let meta = r.metadata().file_metadata();
+        assert_eq!(meta.num_rows() as usize, n);
+        assert_eq!(meta.schema_descr().num_columns(), 4);
+        // Values round-trip bit for bit.
+        let mut reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(
+            File::open(&path).unwrap(),
+        )
+        .unwrap()
+        .build()
+        .unwrap();
+        let mut got = Vec::new();
+        for b in reader.by_ref() {
+            let b = b.unwrap();
+            let a = b
+                .column(1)
+                .as_any()
+                .downcast_ref::<Float64Array>()
+                .unwrap()
+                .clone();
+            got.extend(a.values().iter().copied());
+        }
+        assert_eq!(got, c[1]);
+        // No temporary file left.
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1);
+    }
+
+    #[test]
+    fn short_auto_tables_are_csv_and_unknown_columns_are_bad_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut w =
+            TableWriter::create(dir.path(), "reference", header(), &TableOptions::default())
+                .unwrap();
+        let c = columns(5);
+        let cols: Vec<&[f64]> = c.iter().map(Vec::as_slice).collect();
+        w.write(&cols).unwrap();
+        let path = w.finish().unwrap();
+        assert_eq!(path.file_name().unwrap(), "reference.csv");
+        let e = TableWriter::create(
+            dir.path(),
+            "reference",
+            header(),
+            &TableOptions {
+                columns: Some(vec!["Q".into()]),
+                ..TableOptions::default()
+            },
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("--columns Q"), "{e}");
+        assert!(e.downcast_ref::<crate::BadInput>().is_some());
+    }
+}
