@@ -287,6 +287,33 @@ pub(crate) fn axis_title(q: &Quantity, t: &Ticks) -> String {
     }
 }
 
+/// Splits an axis title into two lines at the space nearest its middle when it is longer than
+/// `len_px` (a y title must not run past its panel into the next one).
+pub(crate) fn wrap_to(text: &str, len_px: f64) -> Vec<String> {
+    if text_width_px(text, style::LABEL_FONT_PX) <= len_px {
+        return vec![text.to_string()];
+    }
+    let mid = text.chars().count() / 2;
+    let best = text
+        .char_indices()
+        .filter(|(_, c)| *c == ' ')
+        .map(|(i, _)| i)
+        .min_by_key(|&i| (text[..i].chars().count() as i64 - mid as i64).abs());
+    match best {
+        Some(i) => vec![text[..i].to_string(), text[i + 1..].to_string()],
+        None => vec![text.to_string()],
+    }
+}
+
+/// Extra left margin a y title needs when it wraps to two lines, px.
+pub(crate) fn y_title_extra(q: &Quantity, t: &Ticks, len_px: f64) -> f64 {
+    if wrap_to(&axis_title(q, t), len_px + 8.0).len() > 1 {
+        style::LABEL_FONT_PX + 2.0
+    } else {
+        0.0
+    }
+}
+
 /// Number of labelled ticks that fit along `len_px` with `per_px` px per label.
 pub(crate) fn tick_target(len_px: f64, per_px: f64) -> usize {
     ((len_px / per_px).round() as usize).clamp(2, 12)
@@ -404,15 +431,14 @@ pub(crate) fn draw_frame(
             "#000000",
         );
     }
-    svg.text(
-        o.y_title_x,
-        r.y + r.h / 2.0,
-        &axis_title(o.y_quantity, yt),
-        style::LABEL_FONT_PX,
-        Anchor::Middle,
-        -90.0,
-        "#000000",
-    );
+    let title = axis_title(o.y_quantity, yt);
+    let lines = wrap_to(&title, r.h + 8.0);
+    let n = lines.len() as f64;
+    for (i, l) in lines.iter().enumerate() {
+        // Lines of a rotated title stack to the right (towards the axis).
+        let x = o.y_title_x - (n - 1.0 - i as f64) * (style::LABEL_FONT_PX + 2.0);
+        svg.text(x, r.y + r.h / 2.0, l, style::LABEL_FONT_PX, Anchor::Middle, -90.0, "#000000");
+    }
     if let Some(t) = o.title {
         svg.text(
             r.x,

@@ -162,7 +162,13 @@ pub fn line_figure(fig: &LineFigure) -> Result<Figure, Error> {
         })
         .collect();
     let label_w = yts.iter().map(chart::y_label_width).fold(0.0, f64::max);
-    let left = label_w + style::TICK_PX + 3.0 + 8.0 + style::LABEL_FONT_PX + 12.0;
+    let extra = fig
+        .panels
+        .iter()
+        .zip(&yts)
+        .map(|(p, t)| chart::y_title_extra(&p.y.quantity, t, p.height_px))
+        .fold(0.0, f64::max);
+    let left = label_w + style::TICK_PX + 3.0 + 8.0 + style::LABEL_FONT_PX + 12.0 + extra;
     let y_title_x = left - label_w - style::TICK_PX - 3.0 - 8.0 - style::LABEL_FONT_PX / 2.0;
     let plot_w = w - left - RIGHT_PX;
 

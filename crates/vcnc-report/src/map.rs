@@ -129,7 +129,7 @@ pub fn sweep_heatmap(title: &str, m: &HeatMap) -> Result<Figure, Error> {
         ),
         None => String::new(),
     };
-    let h = 24.0 + 10.0 + 18.0 + plot_h + 60.0 + 40.0;
+    let h = 24.0 + 10.0 + 18.0 + 6.0 + plot_h.max(120.0) + 50.0;
     let mut svg = Svg::new(w, h);
     let top = draw_title(&mut svg, title, &note, 12.0) + 6.0;
     let r = Rect {

@@ -78,6 +78,51 @@ pub fn worst_blocks(values: &[f64], block_line: &[u32], n: usize) -> Vec<WorstBl
     all
 }
 
+/// A marked place on a figure: the worst sample of one or more bad blocks lying close together.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct HotSpot {
+    /// Sample index of the worst value.
+    pub index: usize,
+    /// "L142", or "L26–29" for neighbouring blocks merged into one mark.
+    pub label: String,
+}
+
+/// Up to `n` marks for the worst blocks: blocks are taken worst first, and a block whose worst
+/// sample lies within `radius` (by `dist` between sample indices) of a mark already made joins
+/// that mark's label instead of getting a ring of its own (labels never pile up).
+pub(crate) fn hot_spots(
+    values: &[f64],
+    block_line: &[u32],
+    n: usize,
+    dist: impl Fn(usize, usize) -> f64,
+    radius: f64,
+) -> Vec<HotSpot> {
+    let cand = worst_blocks(values, block_line, 4 * n);
+    let mut spots: Vec<(usize, Vec<u32>)> = Vec::new();
+    for b in cand {
+        if let Some(s) = spots.iter_mut().find(|s| dist(s.0, b.index) < radius) {
+            s.1.push(b.line);
+        } else if spots.len() < n {
+            spots.push((b.index, vec![b.line]));
+        }
+    }
+    spots
+        .into_iter()
+        .map(|(index, lines)| {
+            let worst = lines[0];
+            let mut l = lines;
+            l.sort_unstable();
+            let consecutive = l.windows(2).all(|w| w[1] == w[0] + 1);
+            let label = match l.len() {
+                1 => format!("L{worst}"),
+                _ if consecutive => format!("L{}–{}", l[0], l[l.len() - 1]),
+                k => format!("L{worst} +{}", k - 1),
+            };
+            HotSpot { index, label }
+        })
+        .collect()
+}
+
 /// The `p`-th percentile (0 … 100) of the finite values, interpolating linearly between order
 /// statistics (Hyndman & Fan's definition 7, the default of R and NumPy); `None` if no value
 /// is finite.
@@ -312,7 +357,7 @@ fn draw_view(
     view: View,
     path: &ColouredPath,
     cs: &ColourScale,
-    worst: &[WorstBlock],
+    worst: &[HotSpot],
     min_h: f64,
 ) {
     let pts: Vec<(f64, f64)> = path.points_mm.iter().map(|p| view.project(p)).collect();
@@ -401,14 +446,44 @@ fn draw_view(
     draw_coloured_path(svg, &clip, &px, path.values, cs);
     // Worst blocks: a ring at the worst sample and the line number beside it.
     let ring = Stroke::solid("#000000", 1.4);
-    for wb in worst {
-        if let Some(&(x, y)) = px.get(wb.index)
-            && x.is_finite()
-            && y.is_finite()
-        {
-            svg.circle(x, y, 6.0, "none", Some(&ring));
-            svg.text_halo(x + 8.0, y - 7.0, &format!("L{}", wb.line), style::TICK_FONT_PX, Anchor::Start);
-        }
+    let marks: Vec<(f64, f64, &str)> = worst
+        .iter()
+        .filter_map(|wb| {
+            let &(x, y) = px.get(wb.index)?;
+            (x.is_finite() && y.is_finite()).then_some((x, y, wb.label.as_str()))
+        })
+        .collect();
+    for &(x, y, _) in &marks {
+        svg.circle(x, y, 6.0, "none", Some(&ring));
+    }
+    // Labels: the first of four places around the ring that overlaps no label placed before.
+    let mut placed: Vec<Rect> = Vec::new();
+    for &(x, y, label) in &marks {
+        let wl = text_width_px(label, style::TICK_FONT_PX);
+        let hl = style::TICK_FONT_PX;
+        let options = [
+            (x + 8.0, y - 7.0, Anchor::Start),
+            (x - 8.0, y - 7.0, Anchor::End),
+            (x + 8.0, y + 7.0 + hl, Anchor::Start),
+            (x - 8.0, y + 7.0 + hl, Anchor::End),
+        ];
+        let boxed = |&(lx, ly, a): &(f64, f64, Anchor)| Rect {
+            x: if a == Anchor::Start { lx } else { lx - wl },
+            y: ly - hl,
+            w: wl,
+            h: hl + 2.0,
+        };
+        let free = |r: &Rect| {
+            placed
+                .iter()
+                .all(|q| r.x + r.w < q.x || q.x + q.w < r.x || r.y + r.h < q.y || q.y + q.h < r.y)
+        };
+        let choice = options
+            .iter()
+            .find(|o| free(&boxed(o)))
+            .unwrap_or(&options[0]);
+        placed.push(boxed(choice));
+        svg.text_halo(choice.0, choice.1, label, style::TICK_FONT_PX, choice.2);
     }
 }
 
@@ -526,6 +601,23 @@ pub(crate) fn draw_colour_bar(svg: &mut Svg, r: Rect, cs: &ColourScale, q: &Quan
     }
 }
 
+/// "99.5th", "99th", "1st", "92nd" (percentile names).
+fn ordinal_pct(p: f64) -> String {
+    let s = fmt_pct(p);
+    let suffix = if s.contains('.') {
+        "th"
+    } else {
+        match (p as u64 % 100, p as u64 % 10) {
+            (11..=13, _) => "th",
+            (_, 1) => "st",
+            (_, 2) => "nd",
+            (_, 3) => "rd",
+            _ => "th",
+        }
+    };
+    format!("{s}{suffix}")
+}
+
 fn fmt_pct(p: f64) -> String {
     let s = format!("{p:.2}");
     s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -618,6 +710,34 @@ pub fn contour_path_views(
         .block_line
         .map(|l| worst_blocks(path.values, l, opts.worst_blocks))
         .unwrap_or_default();
+    // Marks: neighbouring bad blocks (within 4 % of the part's size) share one ring.
+    let diag = {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in path.points_mm.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (0..3).map(|k| (hi[k] - lo[k]).max(0.0).powi(2)).sum::<f64>().sqrt()
+    };
+    let pts3 = path.points_mm;
+    let spots = path
+        .block_line
+        .map(|l| {
+            hot_spots(
+                path.values,
+                l,
+                opts.worst_blocks,
+                |a, b| {
+                    let (p, q) = (pts3[a], pts3[b]);
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+                },
+                0.04 * diag,
+            )
+        })
+        .unwrap_or_default();
 
     let w = opts.width_px;
     let bar_col = 150.0;
@@ -631,12 +751,12 @@ pub fn contour_path_views(
     let row2_h = ((bv1 - bv0) / (bu1 - bu0) * inner_w).clamp(90.0, cell - 66.0) + 66.0;
 
     let mut note = format!(
-        "colour: {} ({}), scale 0 … {} {} ({} % percentile)",
+        "colour: {} ({}), scale 0 … {} {} ({} percentile)",
         path.value.name,
         path.value.unit,
         fmt_value(hi),
         path.value.unit,
-        fmt_pct(opts.clip_percentile)
+        ordinal_pct(opts.clip_percentile)
     );
     if lo != 0.0 {
         note = note.replacen(" 0 …", &format!(" {} …", fmt_value(lo)), 1);
@@ -670,9 +790,9 @@ pub fn contour_path_views(
         w: left_w,
         h: row2_h,
     };
-    draw_view(&mut svg, c1, View::Iso, path, &cs, &worst, 60.0);
-    draw_view(&mut svg, c2, planes[0], path, &cs, &worst, 60.0);
-    draw_view(&mut svg, c3, planes[1], path, &cs, &worst, 60.0);
+    draw_view(&mut svg, c1, View::Iso, path, &cs, &spots, 60.0);
+    draw_view(&mut svg, c2, planes[0], path, &cs, &spots, 60.0);
+    draw_view(&mut svg, c3, planes[1], path, &cs, &spots, 60.0);
     let bar = Rect {
         x: left_w + 24.0,
         y: top + 40.0,
@@ -687,13 +807,15 @@ pub fn contour_path_views(
     let pct = opts.clip_percentile;
     let footer = if cs.max > cs.hi {
         vec![
-            format!("scale clipped at the {} % percentile", fmt_pct(pct)),
-            format!("({}{unit}); max {}{unit}", fmt_value(cs.hi), fmt_value(cs.max)),
+            "scale clipped at the".to_string(),
+            format!("{} percentile:", ordinal_pct(pct)),
+            format!("{}{unit} (max {}{unit})", fmt_value(cs.hi), fmt_value(cs.max)),
         ]
     } else {
         vec![
-            format!("scale to the {} % percentile", fmt_pct(pct)),
-            format!("= max ({}{unit})", fmt_value(cs.max)),
+            "scale up to the".to_string(),
+            format!("{} percentile", ordinal_pct(pct)),
+            format!("= max, {}{unit}", fmt_value(cs.max)),
         ]
     };
     draw_colour_bar(&mut svg, bar, &cs, &path.value, &footer);
@@ -751,13 +873,21 @@ pub fn error_along_path(title: &str, e: &PathErrors) -> Result<Figure, Error> {
                     found: l.len(),
                 });
             }
-            worst_blocks(e.contour_truth.y, l, e.worst_blocks)
-                .into_iter()
-                .map(|b| XMarker {
-                    x: e.arc_length_mm[b.index],
-                    label: format!("L{}", b.line),
-                })
-                .collect()
+            let s = e.arc_length_mm;
+            let total = s.iter().copied().filter(|v| v.is_finite()).fold(0.0, f64::max);
+            hot_spots(
+                e.contour_truth.y,
+                l,
+                e.worst_blocks,
+                |a, b| (s[a] - s[b]).abs(),
+                0.02 * total,
+            )
+            .into_iter()
+            .map(|h| XMarker {
+                x: s[h.index],
+                label: h.label,
+            })
+            .collect()
         }
         None => Vec::new(),
     };
@@ -848,7 +978,7 @@ mod tests {
         let top = ColourScale::level_colour(COLOUR_LEVELS - 1);
         assert!(f.svg.contains(&format!("stroke=\"{top}\"")), "spike drawn in the top colour");
         assert!(f.svg.contains("L124"), "the spike's block is labelled");
-        assert!(f.svg.contains("99.5 % percentile"));
+        assert!(f.svg.contains("99.5th percentile"));
         assert!(f.svg.len() < 200_000, "{} bytes", f.svg.len());
     }
 }

@@ -54,10 +54,10 @@ impl Role {
     /// Line width, px.
     pub fn width_px(self) -> f64 {
         match self {
-            Role::TrueMachine => 2.6,
-            Role::Measurement => 2.0,
+            Role::TrueMachine => 3.2,
+            Role::Measurement => 2.6,
             Role::Reference => 1.1,
-            Role::Model => 1.2,
+            Role::Model => 1.3,
             Role::Paper => 1.4,
             Role::Other(_) => 1.6,
         }

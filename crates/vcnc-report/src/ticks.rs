@@ -52,13 +52,14 @@ fn nice_step(raw: f64) -> f64 {
     let e = raw.log10().floor();
     let base = 10f64.powf(e);
     let m = raw / base;
-    let nice = if m <= 1.0 {
+    // The nice value nearest `raw` on a log scale (thresholds near the geometric means).
+    let nice = if m < 1.45 {
         1.0
-    } else if m <= 2.0 {
+    } else if m < 2.24 {
         2.0
-    } else if m <= 2.5 {
+    } else if m < 3.5 {
         2.5
-    } else if m <= 5.0 {
+    } else if m < 7.1 {
         5.0
     } else {
         10.0
