@@ -89,7 +89,8 @@ pub(crate) struct HotSpot {
 
 /// Up to `n` marks for the worst blocks: blocks are taken worst first, and a block whose worst
 /// sample lies within `radius` (by `dist` between sample indices) of a mark already made joins
-/// that mark's label instead of getting a ring of its own (labels never pile up).
+/// that mark (and, if among the 4n worst, its label) instead of getting a ring of its own, so
+/// labels never pile up and the marks show n separate bad places.
 pub(crate) fn hot_spots(
     values: &[f64],
     block_line: &[u32],
@@ -97,13 +98,20 @@ pub(crate) fn hot_spots(
     dist: impl Fn(usize, usize) -> f64,
     radius: f64,
 ) -> Vec<HotSpot> {
-    let cand = worst_blocks(values, block_line, 4 * n);
+    // Every block, worst first: a block near a mark joins its label while it is among the 4n
+    // worst (beyond that it is just the flank of a mark's peak); a block far from every mark
+    // starts a new one, so the n marks are n separate places.
+    let cand = worst_blocks(values, block_line, usize::MAX);
     let mut spots: Vec<(usize, Vec<u32>)> = Vec::new();
-    for b in cand {
+    for (rank, b) in cand.into_iter().enumerate() {
         if let Some(s) = spots.iter_mut().find(|s| dist(s.0, b.index) < radius) {
-            s.1.push(b.line);
+            if rank < 4 * n {
+                s.1.push(b.line);
+            }
         } else if spots.len() < n {
             spots.push((b.index, vec![b.line]));
+        } else if rank >= 4 * n {
+            break;
         }
     }
     spots
@@ -710,7 +718,7 @@ pub fn contour_path_views(
         .block_line
         .map(|l| worst_blocks(path.values, l, opts.worst_blocks))
         .unwrap_or_default();
-    // Marks: neighbouring bad blocks (within 4 % of the part's size) share one ring.
+    // Marks: neighbouring bad blocks (within 8 % of the part's size) share one ring.
     let diag = {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
@@ -734,7 +742,7 @@ pub fn contour_path_views(
                     let (p, q) = (pts3[a], pts3[b]);
                     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
                 },
-                0.04 * diag,
+                0.08 * diag,
             )
         })
         .unwrap_or_default();
