@@ -29,8 +29,7 @@ struct Csv {
 
 impl Csv {
     fn read(path: &Path) -> Res<Csv> {
-        let text =
-            std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut lines = text.lines().filter(|l| !l.starts_with('#'));
         let header: Vec<String> = lines
             .next()
@@ -41,9 +40,10 @@ impl Csv {
         let mut cols = vec![Vec::new(); header.len()];
         for (i, l) in lines.enumerate() {
             for (j, cell) in l.split(',').enumerate() {
-                let v: f64 = cell.trim().parse().map_err(|e| {
-                    format!("{}:{}: column {}: {e}", path.display(), i + 2, j + 1)
-                })?;
+                let v: f64 = cell
+                    .trim()
+                    .parse()
+                    .map_err(|e| format!("{}:{}: column {}: {e}", path.display(), i + 2, j + 1))?;
                 cols.get_mut(j)
                     .ok_or(format!("{}:{}: too many columns", path.display(), i + 2))?
                     .push(v);
@@ -114,7 +114,13 @@ fn run(demo: &Path, program: &Path, out: &Path) -> Res<()> {
     let t = c.col("t")?;
     // 1. Tracking errors of every axis (µm, mdeg), truth and model.
     let mut errs = Vec::new();
-    for a in [AxisName::X, AxisName::Y, AxisName::Z, AxisName::A, AxisName::C] {
+    for a in [
+        AxisName::X,
+        AxisName::Y,
+        AxisName::Z,
+        AxisName::A,
+        AxisName::C,
+    ] {
         let r = c.col(&format!("{a}_ref"))?;
         let tr = c.col(&format!("{a}_true"))?;
         let pr = c.col(&format!("{a}_pred"))?;
@@ -160,12 +166,17 @@ fn run(demo: &Path, program: &Path, out: &Path) -> Res<()> {
     let lines: Vec<u32> = s
         .iter()
         .map(|v| {
-            let j = ends.partition_point(|(_, e)| e < v).min(ends.len().saturating_sub(1));
+            let j = ends
+                .partition_point(|(_, e)| e < v)
+                .min(ends.len().saturating_sub(1));
             ends.get(j).map_or(0, |b| b.0)
         })
         .collect();
     let (ct, cp) = (c.col("true_contour_um")?, c.col("pred_contour_um")?);
-    let (ot, op) = (c.col("true_orientation_mrad")?, c.col("pred_orientation_mrad")?);
+    let (ot, op) = (
+        c.col("true_orientation_mrad")?,
+        c.col("pred_orientation_mrad")?,
+    );
     add(
         error_along_path(
             "spiral: contour and orientation errors along the path",
@@ -208,7 +219,10 @@ fn run(demo: &Path, program: &Path, out: &Path) -> Res<()> {
     let f = Csv::read(&demo.join("identify/frf_X.csv"))?;
     let fz = f.col("f_hz")?;
     let mut groups = Vec::new();
-    for (name, key) in [("tracking x/x_r", "track"), ("disturbance x/d (d: acceleration)", "dist")] {
+    for (name, key) in [
+        ("tracking x/x_r", "track"),
+        ("disturbance x/d (d: acceleration)", "dist"),
+    ] {
         let mut curves = Vec::new();
         for (label, role, p) in [
             ("true machine", Role::TrueMachine, "true"),

@@ -45,6 +45,9 @@ fn tracking(t: &[f64], wn_hz: f64, zeta: f64, amp: f64) -> Vec<f64> {
         .collect()
 }
 
+/// Tracking magnitude and phase, disturbance magnitude and phase.
+type Response = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
 pub struct Gallery {
     pub dir: PathBuf,
     pub figures: Vec<(String, usize)>,
@@ -79,10 +82,14 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
             value: "clip percentile 99.5 %, 5 worst blocks".into(),
         },
     ];
-    manifest.warnings = vec![
-        "spiral.ngc:57: feed F12000 exceeds the X axis limit; clamped to 10000 mm/min".into(),
-    ];
-    let add = |fig: Figure, file: &str, caption: &str, section: &str, m: &mut Manifest| -> Result<(), Error> {
+    manifest.warnings =
+        vec!["spiral.ngc:57: feed F12000 exceeds the X axis limit; clamped to 10000 mm/min".into()];
+    let add = |fig: Figure,
+               file: &str,
+               caption: &str,
+               section: &str,
+               m: &mut Manifest|
+     -> Result<(), Error> {
         fig.save(&dir.join(file))?;
         m.figures.push(FigureEntry {
             file: file.into(),
@@ -93,13 +100,15 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
     };
 
     // 1. Bode of the true loop, the vcnc model and the paper's method.
-    let f: Vec<f64> = (0..400).map(|k| 0.1 * 5000f64.powf(k as f64 / 399.0)).collect();
+    let f: Vec<f64> = (0..400)
+        .map(|k| 0.1 * 5000f64.powf(k as f64 / 399.0))
+        .collect();
     let curves = [
         ("true machine", Role::TrueMachine, 55.54, 0.39),
         ("vcnc model", Role::Model, 55.78, 0.3878),
         ("paper's method", Role::Paper, 55.13, 0.405),
     ];
-    let resp: Vec<(Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>)> = curves
+    let resp: Vec<Response> = curves
         .iter()
         .map(|&(_, _, wn, z)| {
             let (m, p): (Vec<f64>, Vec<f64>) = f.iter().map(|&f| second_order(wn, z, f)).unzip();
@@ -290,7 +299,12 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
                 contour_truth: Series::line("true machine", Role::TrueMachine, &s, &contour),
                 contour_models: vec![Series::line("vcnc model", Role::Model, &s, &contour_model)],
                 orientation_truth: Series::line("true machine", Role::TrueMachine, &s, &orient),
-                orientation_models: vec![Series::line("vcnc model", Role::Model, &s, &orient_model)],
+                orientation_models: vec![Series::line(
+                    "vcnc model",
+                    Role::Model,
+                    &s,
+                    &orient_model,
+                )],
                 block_line: Some(&lines),
                 worst_blocks: 5,
             },
@@ -314,7 +328,11 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
             kz.push(feed / 40.0 * (1.0 + ((kp - 55.0) / 30.0).powi(2)));
         }
     }
-    let (xs, ys, grid) = grid_from_rows(&kx, &ky, &kz)?;
+    let SweepGrid {
+        x_values: xs,
+        y_values: ys,
+        values: grid,
+    } = grid_from_rows(&kx, &ky, &kz)?;
     add(
         sweep_heatmap(
             "sweep: max contour error over position gain and feed",
@@ -382,11 +400,7 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
     manifest.summary = Some("summary.json".into());
     manifest.tables.push(Table {
         title: "contour errors".into(),
-        header: vec![
-            "".into(),
-            "tip (µm)".into(),
-            "orientation (mrad)".into(),
-        ],
+        header: vec!["".into(), "tip (µm)".into(), "orientation (mrad)".into()],
         rows: vec![
             vec!["true max".into(), "1920".into(), "3.900".into()],
             vec!["|model − true| max".into(), "0.31".into(), "0.0004".into()],

@@ -242,7 +242,13 @@ pub(crate) fn legend_rows(entries: &[LegendEntry], width: f64) -> Vec<Vec<(Legen
 
 /// Draws a legend above the data (outside every panel) starting at (`x`, `y`); returns the
 /// height used.
-pub(crate) fn draw_legend(svg: &mut Svg, entries: &[LegendEntry], x: f64, y: f64, width: f64) -> f64 {
+pub(crate) fn draw_legend(
+    svg: &mut Svg,
+    entries: &[LegendEntry],
+    x: f64,
+    y: f64,
+    width: f64,
+) -> f64 {
     let rows = legend_rows(entries, width);
     for (r, row) in rows.iter().enumerate() {
         let cy = y + r as f64 * LEGEND_ROW_PX + LEGEND_ROW_PX / 2.0;
@@ -437,7 +443,15 @@ pub(crate) fn draw_frame(
     for (i, l) in lines.iter().enumerate() {
         // Lines of a rotated title stack to the right (towards the axis).
         let x = o.y_title_x - (n - 1.0 - i as f64) * (style::LABEL_FONT_PX + 2.0);
-        svg.text(x, r.y + r.h / 2.0, l, style::LABEL_FONT_PX, Anchor::Middle, -90.0, "#000000");
+        svg.text(
+            x,
+            r.y + r.h / 2.0,
+            l,
+            style::LABEL_FONT_PX,
+            Anchor::Middle,
+            -90.0,
+            "#000000",
+        );
     }
     if let Some(t) = o.title {
         svg.text(
@@ -457,7 +471,14 @@ pub(crate) fn draw_frame(
 pub(crate) const X_LABELS_PX: f64 = 44.0;
 
 /// Draws the series of a panel inside its clip, thick truth first and thin models on top.
-pub(crate) fn draw_series(svg: &mut Svg, clip: &str, r: Rect, xm: &AxisMap, ym: &AxisMap, series: &[Series]) {
+pub(crate) fn draw_series(
+    svg: &mut Svg,
+    clip: &str,
+    r: Rect,
+    xm: &AxisMap,
+    ym: &AxisMap,
+    series: &[Series],
+) {
     let mut order: Vec<&Series> = series.iter().collect();
     order.sort_by_key(|s| s.role.z_order());
     svg.open_group_clipped(clip);
@@ -482,7 +503,9 @@ pub(crate) fn draw_series(svg: &mut Svg, clip: &str, r: Rect, xm: &AxisMap, ym: 
 /// The `d` data of one series: finite runs, min/max per pixel column, then simplified.
 fn line_path(x: &[f64], y: &[f64], r: Rect, xm: &AxisMap, ym: &AxisMap) -> String {
     let n = x.len().min(y.len());
-    let monotone = x.windows(2).all(|w| !(w[1] < w[0]));
+    let monotone = x
+        .windows(2)
+        .all(|w| w[1] >= w[0] || w[0].is_nan() || w[1].is_nan());
     let mut d = String::new();
     let mut k = 0;
     while k < n {

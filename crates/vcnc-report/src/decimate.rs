@@ -15,12 +15,7 @@
 ///
 /// `x` must be non-decreasing (a time or arc-length axis); samples with a non-finite `x` or
 /// `y` are skipped. Returns all finite indices when there are fewer than four per column.
-pub fn min_max_per_column(
-    x: &[f64],
-    y: &[f64],
-    x_range: (f64, f64),
-    columns: usize,
-) -> Vec<usize> {
+pub fn min_max_per_column(x: &[f64], y: &[f64], x_range: (f64, f64), columns: usize) -> Vec<usize> {
     let n = x.len().min(y.len());
     let finite = |k: usize| x[k].is_finite() && y[k].is_finite();
     if n <= 4 * columns.max(1) {
@@ -130,9 +125,7 @@ mod tests {
         // Oracle: brute-force min and max per column equal those of the kept samples.
         let n = 50_000;
         let x: Vec<f64> = (0..n).map(|k| k as f64).collect();
-        let y: Vec<f64> = (0..n)
-            .map(|k| ((k * 7919) % 1000) as f64 - 500.0)
-            .collect();
+        let y: Vec<f64> = (0..n).map(|k| ((k * 7919) % 1000) as f64 - 500.0).collect();
         let cols = 300;
         let keep = min_max_per_column(&x, &y, (0.0, (n - 1) as f64), cols);
         let col = |v: f64| ((v / (n - 1) as f64) * cols as f64).floor() as usize;

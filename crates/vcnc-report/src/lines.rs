@@ -102,7 +102,15 @@ pub(crate) fn draw_title(svg: &mut Svg, title: &str, note: &str, x: f64) -> f64 
     );
     if !note.is_empty() {
         y += 18.0;
-        svg.text(x, y, note, style::TICK_FONT_PX, Anchor::Start, 0.0, "#444444");
+        svg.text(
+            x,
+            y,
+            note,
+            style::TICK_FONT_PX,
+            Anchor::Start,
+            0.0,
+            "#444444",
+        );
     }
     y + 10.0
 }
@@ -286,7 +294,15 @@ fn draw_marker_labels(svg: &mut Svg, spans: &mut [(f64, String)], top: f64, h: f
         };
         row_end[row] = px + wdt / 2.0;
         let y = top + h - 4.0 - row as f64 * 13.0;
-        svg.text(*px, y, label, style::TICK_FONT_PX, Anchor::Middle, 0.0, "#222222");
+        svg.text(
+            *px,
+            y,
+            label,
+            style::TICK_FONT_PX,
+            Anchor::Middle,
+            0.0,
+            "#222222",
+        );
     }
 }
 
@@ -303,7 +319,8 @@ pub struct Comparison<'a> {
     pub truth: Series<'a>,
     /// Models compared against it (same samples as the truth).
     pub others: Vec<Series<'a>>,
-    /// Quantity of the difference panel; `None`: "<other> − <truth label>" in the signal's unit.
+    /// Quantity of the difference panel; `None`: "`other label` − `truth label`" in the signal's
+    /// unit.
     pub difference: Option<Quantity>,
 }
 
@@ -652,5 +669,83 @@ mod tests {
             bode("b", &[g]),
             Err(Error::NonFinite { index: 0, .. })
         ));
+    }
+}
+
+#[cfg(test)]
+mod long_series {
+    use super::*;
+
+    /// Absolute coordinates of every `<path d=…>` drawn in `stroke` colour.
+    fn paths_of(svg: &str, stroke: &str) -> Vec<Vec<(f64, f64)>> {
+        let mut out = Vec::new();
+        for el in svg.split("<path").skip(1) {
+            if !el.contains(&format!("stroke=\"{stroke}\"")) {
+                continue;
+            }
+            let d = el
+                .split(" d=\"")
+                .nth(1)
+                .and_then(|r| r.split('"').next())
+                .unwrap();
+            let mut pts = Vec::new();
+            let mut cur: (f64, f64);
+            for sub in d.split('M').filter(|s| !s.is_empty()) {
+                let (start, rest) = sub.split_once('l').unwrap_or((sub, ""));
+                let v: Vec<f64> = start.split(' ').map(|x| x.parse().unwrap()).collect();
+                cur = (v[0], v[1]);
+                pts.push(cur);
+                let r: Vec<f64> = rest
+                    .split(' ')
+                    .filter(|x| !x.is_empty())
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                for c in r.chunks(2) {
+                    cur = (cur.0 + c[0], cur.1 + c[1]);
+                    pts.push(cur);
+                }
+            }
+            out.push(pts);
+        }
+        out
+    }
+
+    #[test]
+    fn a_million_samples_make_a_small_svg_that_still_reaches_the_spike() {
+        let n = 1_000_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-4).collect();
+        let mut e: Vec<f64> = t.iter().map(|t| 20.0 * (t * 3.0).sin()).collect();
+        e[777_777] = 95.0;
+        let fig = line_figure(&LineFigure::new(
+            "long run",
+            Axis::linear("time t", "s"),
+            vec![Panel::new(
+                Axis {
+                    quantity: Quantity::new("tracking error", "µm"),
+                    scale: Scale::Linear,
+                    range: Some((-25.0, 100.0)),
+                },
+                vec![Series::line("true machine", Role::TrueMachine, &t, &e)],
+            )],
+        ))
+        .unwrap();
+        assert!(fig.svg.len() < 20_000, "{} bytes", fig.svg.len());
+        let paths = paths_of(&fig.svg, Role::TrueMachine.colour());
+        // The legend sample is one path; the data path is the one with many points.
+        let data = paths.iter().max_by_key(|p| p.len()).unwrap();
+        let top = data.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        // The panel spans 190 px for 125 µm: 95 µm sits 5/125 of the way down from the top.
+        let frame_top = fig
+            .svg
+            .split("<rect x=\"")
+            .filter_map(|r| {
+                let (x, rest) = r.split_once('"')?;
+                let y = rest.split("y=\"").nth(1)?.split('"').next()?;
+                let h = rest.split("height=\"").nth(1)?.split('"').next()?;
+                (x.parse::<f64>().ok()? > 10.0 && h == "190").then(|| y.parse::<f64>().ok())?
+            })
+            .next()
+            .unwrap();
+        approx::assert_abs_diff_eq!(top, frame_top + 190.0 * 5.0 / 125.0, epsilon = 0.15);
     }
 }

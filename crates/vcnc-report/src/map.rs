@@ -26,10 +26,21 @@ pub struct HeatMap<'a> {
     pub values: &'a [f64],
 }
 
+/// A sweep table put on a grid (see [`grid_from_rows`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepGrid {
+    /// Distinct values of the first key, ascending (columns).
+    pub x_values: Vec<f64>,
+    /// Distinct values of the second key, ascending (rows).
+    pub y_values: Vec<f64>,
+    /// Row-major results, `values[j * x_values.len() + i]`; NaN where no row gave one.
+    pub values: Vec<f64>,
+}
+
 /// Sorted distinct key values and the row-major grid of a scattered sweep table (one row per
 /// configuration: key 1, key 2, result). Configurations missing from the table are NaN; when a
 /// pair occurs twice the later row wins.
-pub fn grid_from_rows(x: &[f64], y: &[f64], z: &[f64]) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), Error> {
+pub fn grid_from_rows(x: &[f64], y: &[f64], z: &[f64]) -> Result<SweepGrid, Error> {
     for (what, v) in [("second key", y), ("result", z)] {
         if v.len() != x.len() {
             return Err(Error::LengthMismatch {
@@ -60,14 +71,22 @@ pub fn grid_from_rows(x: &[f64], y: &[f64], z: &[f64]) -> Result<(Vec<f64>, Vec<
         let j = ys.partition_point(|v| v < b);
         grid[j * xs.len() + i] = *c;
     }
-    Ok((xs, ys, grid))
+    Ok(SweepGrid {
+        x_values: xs,
+        y_values: ys,
+        values: grid,
+    })
 }
 
 /// A swept key value as printed: its shortest exact form when short (`0.002`, `350`), else
 /// three significant digits.
 fn fmt_key(v: f64) -> String {
     let s = format!("{v}");
-    if s.len() <= 8 { s.replace('-', "−") } else { fmt_value(v) }
+    if s.len() <= 8 {
+        s.replace('-', "−")
+    } else {
+        fmt_value(v)
+    }
 }
 
 /// Renders a [`HeatMap`]: cells coloured on the sequential map from the smallest to the
@@ -95,7 +114,11 @@ pub fn sweep_heatmap(title: &str, m: &HeatMap) -> Result<Figure, Error> {
         });
     }
     let hi_s = if hi > lo { hi } else { lo + 1.0 };
-    let cs = ColourScale { lo, hi: hi_s, max: hi };
+    let cs = ColourScale {
+        lo,
+        hi: hi_s,
+        max: hi,
+    };
     let best = m
         .values
         .iter()
@@ -164,7 +187,15 @@ pub fn sweep_heatmap(title: &str, m: &HeatMap) -> Result<Figure, Error> {
                 }
                 None => {
                     svg.rect(x, y, cell_w, cell_h, "#e6e6e6", Some(&grid));
-                    svg.text(x + cell_w / 2.0, y + cell_h / 2.0 + 4.0, "–", style::TICK_FONT_PX, Anchor::Middle, 0.0, "#777777");
+                    svg.text(
+                        x + cell_w / 2.0,
+                        y + cell_h / 2.0 + 4.0,
+                        "–",
+                        style::TICK_FONT_PX,
+                        Anchor::Middle,
+                        0.0,
+                        "#777777",
+                    );
                 }
             }
         }
@@ -190,14 +221,46 @@ pub fn sweep_heatmap(title: &str, m: &HeatMap) -> Result<Figure, Error> {
         ((widest + 8.0) / cell_w).ceil().max(1.0) as usize
     };
     for (i, v) in m.x_values.iter().enumerate().step_by(xstep) {
-        svg.text(r.x + (i as f64 + 0.5) * cell_w, r.y + r.h + 16.0, &fmt_key(*v), style::TICK_FONT_PX, Anchor::Middle, 0.0, "#000000");
+        svg.text(
+            r.x + (i as f64 + 0.5) * cell_w,
+            r.y + r.h + 16.0,
+            &fmt_key(*v),
+            style::TICK_FONT_PX,
+            Anchor::Middle,
+            0.0,
+            "#000000",
+        );
     }
     let ystep = ((14.0 / cell_h).ceil().max(1.0)) as usize;
     for (j, l) in ylabels.iter().enumerate().step_by(ystep) {
-        svg.text(r.x - 6.0, r.y + r.h - (j as f64 + 0.5) * cell_h + 4.0, l, style::TICK_FONT_PX, Anchor::End, 0.0, "#000000");
+        svg.text(
+            r.x - 6.0,
+            r.y + r.h - (j as f64 + 0.5) * cell_h + 4.0,
+            l,
+            style::TICK_FONT_PX,
+            Anchor::End,
+            0.0,
+            "#000000",
+        );
     }
-    svg.text(r.x + r.w / 2.0, r.y + r.h + 38.0, &m.x_key.label(), style::LABEL_FONT_PX, Anchor::Middle, 0.0, "#000000");
-    svg.text(left - label_w - 14.0 - style::LABEL_FONT_PX / 2.0, r.y + r.h / 2.0, &m.y_key.label(), style::LABEL_FONT_PX, Anchor::Middle, -90.0, "#000000");
+    svg.text(
+        r.x + r.w / 2.0,
+        r.y + r.h + 38.0,
+        &m.x_key.label(),
+        style::LABEL_FONT_PX,
+        Anchor::Middle,
+        0.0,
+        "#000000",
+    );
+    svg.text(
+        left - label_w - 14.0 - style::LABEL_FONT_PX / 2.0,
+        r.y + r.h / 2.0,
+        &m.y_key.label(),
+        style::LABEL_FONT_PX,
+        Anchor::Middle,
+        -90.0,
+        "#000000",
+    );
     let bar = Rect {
         x: r.x + r.w + 30.0,
         y: r.y,
@@ -222,18 +285,27 @@ mod tests {
         let x = [2.0, 1.0, 2.0, 1.0];
         let y = [10.0, 10.0, 20.0, 20.0];
         let z = [4.0, 3.0, 6.0, 5.0];
-        let (xs, ys, g) = grid_from_rows(&x, &y, &z).unwrap();
-        assert_eq!(xs, [1.0, 2.0]);
-        assert_eq!(ys, [10.0, 20.0]);
-        assert_eq!(g, [3.0, 4.0, 5.0, 6.0]);
-        let (_, _, g) = grid_from_rows(&x[..3], &y[..3], &z[..3]).unwrap();
-        assert!(g[2].is_nan());
+        let g = grid_from_rows(&x, &y, &z).unwrap();
+        assert_eq!(g.x_values, [1.0, 2.0]);
+        assert_eq!(g.y_values, [10.0, 20.0]);
+        assert_eq!(g.values, [3.0, 4.0, 5.0, 6.0]);
+        let g = grid_from_rows(&x[..3], &y[..3], &z[..3]).unwrap();
+        assert!(g.values[2].is_nan());
         assert!(grid_from_rows(&[f64::NAN], &[1.0], &[1.0]).is_err());
     }
 
     #[test]
     fn the_best_cell_is_named_in_the_note() {
-        let (xs, ys, g) = grid_from_rows(&[1.0, 2.0, 1.0, 2.0], &[5.0, 5.0, 6.0, 6.0], &[9.0, 2.5, 7.0, 8.0]).unwrap();
+        let SweepGrid {
+            x_values: xs,
+            y_values: ys,
+            values: g,
+        } = grid_from_rows(
+            &[1.0, 2.0, 1.0, 2.0],
+            &[5.0, 5.0, 6.0, 6.0],
+            &[9.0, 2.5, 7.0, 8.0],
+        )
+        .unwrap();
         let f = sweep_heatmap(
             "sweep",
             &HeatMap {
@@ -246,6 +318,11 @@ mod tests {
             },
         )
         .unwrap();
-        assert!(f.svg.contains("smallest max contour error: 2.50 µm at kp = 2, feed = 5"), "{}", f.svg);
+        assert!(
+            f.svg
+                .contains("smallest max contour error: 2.50 µm at kp = 2, feed = 5"),
+            "{}",
+            f.svg
+        );
     }
 }

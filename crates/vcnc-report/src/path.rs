@@ -269,18 +269,20 @@ fn draw_coloured_path(
     let mut run_level: Option<usize> = None;
     let mut pending: Option<(f64, f64)> = None;
     let mut outline_run: Vec<(f64, f64)> = Vec::new();
-    let flush =
-        |run: &mut Vec<(f64, f64)>, pending: &mut Option<(f64, f64)>, level: Option<usize>, levels: &mut Vec<String>| {
-            if let Some(p) = pending.take() {
-                run.push(p);
-            }
-            if let Some(l) = level
-                && run.len() > 1
-            {
-                push_polyline_data(&mut levels[l], run);
-            }
-            run.clear();
-        };
+    let flush = |run: &mut Vec<(f64, f64)>,
+                 pending: &mut Option<(f64, f64)>,
+                 level: Option<usize>,
+                 levels: &mut Vec<String>| {
+        if let Some(p) = pending.take() {
+            run.push(p);
+        }
+        if let Some(l) = level
+            && run.len() > 1
+        {
+            push_polyline_data(&mut levels[l], run);
+        }
+        run.clear();
+    };
     let far = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs().max((a.1 - b.1).abs()) >= MERGE_PX;
     for i in 1..pts.len().min(values.len()) {
         let (p, q) = (pts[i - 1], pts[i]);
@@ -339,7 +341,10 @@ fn draw_coloured_path(
 
 /// Bounds of finite 2-D points, padded 5 % (at least 1 mm).
 fn bounds(pts: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
-    let mut b = ((f64::INFINITY, f64::NEG_INFINITY), (f64::INFINITY, f64::NEG_INFINITY));
+    let mut b = (
+        (f64::INFINITY, f64::NEG_INFINITY),
+        (f64::INFINITY, f64::NEG_INFINITY),
+    );
     for &(u, v) in pts {
         if u.is_finite() && v.is_finite() {
             b.0 = (b.0.0.min(u), b.0.1.max(u));
@@ -371,7 +376,11 @@ fn draw_view(
     let pts: Vec<(f64, f64)> = path.points_mm.iter().map(|p| view.project(p)).collect();
     let ((u0, u1), (v0, v1)) = bounds(&pts);
     let framed = matches!(view, View::Plane(..));
-    let (ml, mb, mt) = if framed { (70.0, 44.0, 22.0) } else { (8.0, 8.0, 22.0) };
+    let (ml, mb, mt) = if framed {
+        (70.0, 44.0, 22.0)
+    } else {
+        (8.0, 8.0, 22.0)
+    };
     let inner = Rect {
         x: cell.x + ml,
         y: cell.y + mt,
@@ -537,20 +546,47 @@ fn draw_triad_and_scale_bar(svg: &mut Svg, cell: Rect, r: Rect, px_per_mm: f64) 
             ],
             &Stroke::solid("#333333", 1.3),
         );
-        let label = format!("{} mm", ticks::linear(0.0, nice, 2).major.last().map_or_else(|| nice.to_string(), |t| t.text.clone()));
-        svg.text((x0 + x1) / 2.0, y - 7.0, &label, style::TICK_FONT_PX, Anchor::Middle, 0.0, "#333333");
+        let label = format!(
+            "{} mm",
+            ticks::linear(0.0, nice, 2)
+                .major
+                .last()
+                .map_or_else(|| nice.to_string(), |t| t.text.clone())
+        );
+        svg.text(
+            (x0 + x1) / 2.0,
+            y - 7.0,
+            &label,
+            style::TICK_FONT_PX,
+            Anchor::Middle,
+            0.0,
+            "#333333",
+        );
     }
 }
 
 /// Vertical colour bar with ticks, the clip stated under it and its label to the right of the
 /// tick numbers (never over them).
-pub(crate) fn draw_colour_bar(svg: &mut Svg, r: Rect, cs: &ColourScale, q: &Quantity, footer: &[String]) {
+pub(crate) fn draw_colour_bar(
+    svg: &mut Svg,
+    r: Rect,
+    cs: &ColourScale,
+    q: &Quantity,
+    footer: &[String],
+) {
     let n = COLOUR_LEVELS;
     let step = r.h / n as f64;
     for l in 0..n {
         let y = r.y + r.h - (l + 1) as f64 * step;
         // Overlap by half a pixel so no white seams show between the bands.
-        svg.rect(r.x, y - 0.5, r.w, step + 1.0, &ColourScale::level_colour(l), None);
+        svg.rect(
+            r.x,
+            y - 0.5,
+            r.w,
+            step + 1.0,
+            &ColourScale::level_colour(l),
+            None,
+        );
     }
     let axis = Stroke::solid(style::AXIS_COLOUR, 1.0);
     svg.rect(r.x, r.y, r.w, r.h, "none", Some(&axis));
@@ -558,7 +594,11 @@ pub(crate) fn draw_colour_bar(svg: &mut Svg, r: Rect, cs: &ColourScale, q: &Quan
     if clipped {
         // An arrow head on top in the top colour: values beyond the scale exist.
         svg.polygon(
-            &[(r.x, r.y - 1.0), (r.x + r.w / 2.0, r.y - 13.0), (r.x + r.w, r.y - 1.0)],
+            &[
+                (r.x, r.y - 1.0),
+                (r.x + r.w / 2.0, r.y - 13.0),
+                (r.x + r.w, r.y - 1.0),
+            ],
             &ColourScale::level_colour(n - 1),
         );
     }
@@ -605,7 +645,15 @@ pub(crate) fn draw_colour_bar(svg: &mut Svg, r: Rect, cs: &ColourScale, q: &Quan
         "#000000",
     );
     for (i, l) in footer.iter().enumerate() {
-        svg.text(r.x - 10.0, r.y + r.h + 22.0 + 14.0 * i as f64, l, style::TICK_FONT_PX - 0.5, Anchor::Start, 0.0, "#333333");
+        svg.text(
+            r.x - 10.0,
+            r.y + r.h + 22.0 + 14.0 * i as f64,
+            l,
+            style::TICK_FONT_PX - 0.5,
+            Anchor::Start,
+            0.0,
+            "#333333",
+        );
     }
 }
 
@@ -722,13 +770,20 @@ pub fn contour_path_views(
     let diag = {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
-        for p in path.points_mm.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+        for p in path
+            .points_mm
+            .iter()
+            .filter(|p| p.iter().all(|c| c.is_finite()))
+        {
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
                 hi[k] = hi[k].max(p[k]);
             }
         }
-        (0..3).map(|k| (hi[k] - lo[k]).max(0.0).powi(2)).sum::<f64>().sqrt()
+        (0..3)
+            .map(|k| (hi[k] - lo[k]).max(0.0).powi(2))
+            .sum::<f64>()
+            .sqrt()
     };
     let pts3 = path.points_mm;
     let spots = path
@@ -753,7 +808,11 @@ pub fn contour_path_views(
     let cell = (left_w / 2.0).floor();
     let planes = best_planes(path.points_mm);
     // Height of the second projection's cell from its aspect ratio.
-    let pts_b: Vec<(f64, f64)> = path.points_mm.iter().map(|p| planes[1].project(p)).collect();
+    let pts_b: Vec<(f64, f64)> = path
+        .points_mm
+        .iter()
+        .map(|p| planes[1].project(p))
+        .collect();
     let ((bu0, bu1), (bv0, bv1)) = bounds(&pts_b);
     let inner_w = left_w - 80.0;
     let row2_h = ((bv1 - bv0) / (bu1 - bu0) * inner_w).clamp(90.0, cell - 66.0) + 66.0;
@@ -774,7 +833,11 @@ pub fn contour_path_views(
             .iter()
             .map(|b| format!("L{} {}", b.line, fmt_value(b.value)))
             .collect();
-        note.push_str(&format!("; worst blocks ({}): {}", path.value.unit, list.join(", ")));
+        note.push_str(&format!(
+            "; worst blocks ({}): {}",
+            path.value.unit,
+            list.join(", ")
+        ));
     }
     let top0 = 24.0 + 10.0 + 18.0;
     let h = top0 + cell + row2_h + 10.0;
@@ -817,7 +880,11 @@ pub fn contour_path_views(
         vec![
             "scale clipped at the".to_string(),
             format!("{} percentile:", ordinal_pct(pct)),
-            format!("{}{unit} (max {}{unit})", fmt_value(cs.hi), fmt_value(cs.max)),
+            format!(
+                "{}{unit} (max {}{unit})",
+                fmt_value(cs.hi),
+                fmt_value(cs.max)
+            ),
         ]
     } else {
         vec![
@@ -882,7 +949,11 @@ pub fn error_along_path(title: &str, e: &PathErrors) -> Result<Figure, Error> {
                 });
             }
             let s = e.arc_length_mm;
-            let total = s.iter().copied().filter(|v| v.is_finite()).fold(0.0, f64::max);
+            let total = s
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max);
             hot_spots(
                 e.contour_truth.y,
                 l,
@@ -946,9 +1017,21 @@ mod tests {
         assert_eq!(
             w,
             vec![
-                WorstBlock { line: 10, index: 1, value: 9.0 },
-                WorstBlock { line: 12, index: 3, value: 8.0 },
-                WorstBlock { line: 13, index: 6, value: 3.0 },
+                WorstBlock {
+                    line: 10,
+                    index: 1,
+                    value: 9.0
+                },
+                WorstBlock {
+                    line: 12,
+                    index: 3,
+                    value: 8.0
+                },
+                WorstBlock {
+                    line: 13,
+                    index: 6,
+                    value: 3.0
+                },
             ]
         );
     }
@@ -984,9 +1067,45 @@ mod tests {
         };
         let f = contour_path_views("t", &p, &PathViewOptions::default()).unwrap();
         let top = ColourScale::level_colour(COLOUR_LEVELS - 1);
-        assert!(f.svg.contains(&format!("stroke=\"{top}\"")), "spike drawn in the top colour");
+        assert!(
+            f.svg.contains(&format!("stroke=\"{top}\"")),
+            "spike drawn in the top colour"
+        );
         assert!(f.svg.contains("L124"), "the spike's block is labelled");
         assert!(f.svg.contains("99.5th percentile"));
         assert!(f.svg.len() < 200_000, "{} bytes", f.svg.len());
+    }
+}
+
+#[cfg(test)]
+mod long_path {
+    use super::*;
+
+    #[test]
+    fn a_million_point_path_stays_a_light_svg() {
+        // Size is bounded by pixels, not samples: runs of one colour merge below 0.6 px.
+        let n = 1_000_000;
+        let pts: Vec<[f64; 3]> = (0..n)
+            .map(|k| {
+                let s = k as f64 / n as f64;
+                let a = s * 6.0 * std::f64::consts::PI;
+                [
+                    30.0 + (20.0 + 50.0 * s) * a.cos(),
+                    15.0 + (20.0 + 50.0 * s) * a.sin(),
+                    -6.0 * s,
+                ]
+            })
+            .collect();
+        let v: Vec<f64> = (0..n)
+            .map(|k| 400.0 * (k as f64 / n as f64 * 37.0).sin().abs())
+            .collect();
+        let p = ColouredPath {
+            points_mm: &pts,
+            values: &v,
+            value: Quantity::new("contour error", "µm"),
+            block_line: None,
+        };
+        let f = contour_path_views("t", &p, &PathViewOptions::default()).unwrap();
+        assert!(f.svg.len() < 300_000, "{} bytes", f.svg.len());
     }
 }

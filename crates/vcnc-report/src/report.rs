@@ -77,6 +77,25 @@ impl Manifest {
         }
     }
 
+    /// Saves `fig` as `DIR/file` and lists it (in call order) under `section` with `caption`.
+    pub fn add_figure(
+        &mut self,
+        dir: &Path,
+        file: &str,
+        fig: &crate::Figure,
+        caption: &str,
+        section: &str,
+    ) -> Result<(), Error> {
+        let path = inside(dir, &dir.join(MANIFEST_FILE), file)?;
+        fig.save(&path)?;
+        self.figures.push(FigureEntry {
+            file: file.to_string(),
+            caption: caption.to_string(),
+            section: section.to_string(),
+        });
+        Ok(())
+    }
+
     /// Writes `DIR/manifest.json` atomically.
     pub fn write(&self, dir: &Path) -> Result<(), Error> {
         let path = dir.join(MANIFEST_FILE);
@@ -184,7 +203,7 @@ caption{caption-side:top;text-align:left;font-weight:600;padding:4px 0}
 figure{margin:18px 0 30px}figure svg{display:block;max-width:100%;height:auto;border:1px solid #e4e4e4}
 figcaption{font-size:.9em;color:#333;margin-top:6px;max-width:960px}
 figcaption .file{color:#777;font-family:monospace;font-size:.95em}
-code{font-family:'DejaVu Sans Mono',monospace}
+code{font-family:'DejaVu Sans Mono',monospace}.scroll{overflow-x:auto}
 @media print{nav{display:none}figure{break-inside:avoid}}
 ";
 
@@ -257,7 +276,12 @@ fn fmt_number(v: &serde_json::Number) -> String {
         format!("{f:.3e}")
     } else {
         let dec = (3 - a.log10().floor() as i32).max(0) as usize;
-        format!("{f:.dec$}")
+        let t = format!("{f:.dec$}");
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
     };
     s.replace('-', "−")
 }
@@ -268,9 +292,13 @@ fn fmt_json(v: &Value) -> (String, bool) {
         Value::Bool(b) => (if *b { "yes" } else { "no" }.into(), false),
         Value::Number(n) => (fmt_number(n), true),
         Value::String(s) => (s.clone(), false),
-        Value::Array(a) if a.len() <= 8 && a.iter().all(|x| !x.is_object() && !x.is_array()) => {
-            (a.iter().map(|x| fmt_json(x).0).collect::<Vec<_>>().join(", "), false)
-        }
+        Value::Array(a) if a.len() <= 8 && a.iter().all(|x| !x.is_object() && !x.is_array()) => (
+            a.iter()
+                .map(|x| fmt_json(x).0)
+                .collect::<Vec<_>>()
+                .join(", "),
+            false,
+        ),
         Value::Array(a) => (format!("[{} values]", a.len()), false),
         Value::Object(_) => ("{…}".into(), false),
     }
@@ -316,7 +344,7 @@ fn summary_tables(v: &Value) -> Vec<Table> {
     }
     for (k, x) in top {
         let Value::Object(m) = x else { continue };
-        let children: Vec<(String, Vec<(String, Value)>)> = m
+        let mut children: Vec<(String, Vec<(String, Value)>)> = m
             .iter()
             .filter(|(_, c)| c.is_object())
             .map(|(ck, c)| {
@@ -325,13 +353,34 @@ fn summary_tables(v: &Value) -> Vec<Table> {
                 (ck.clone(), leaves)
             })
             .collect();
+        // Members named by machine axes go in the canonical order X Y Z A B C.
+        let axis = |k: &str| k.parse::<vcnc_axis::AxisName>().ok().map(|a| a.index());
+        if children.iter().all(|(k, _)| axis(k).is_some()) {
+            children.sort_by_key(|(k, _)| axis(k));
+        }
         let same_shape = children.len() == m.len()
             && children.len() > 1
             && children.windows(2).all(|w| {
-                w[0].1.len() == w[1].1.len()
-                    && w[0].1.iter().zip(&w[1].1).all(|(a, b)| a.0 == b.0)
+                w[0].1.len() == w[1].1.len() && w[0].1.iter().zip(&w[1].1).all(|(a, b)| a.0 == b.0)
             });
-        if same_shape {
+        if same_shape && children[0].1.len() > children.len() {
+            // Many leaves, few members (one column per axis): leaves as rows.
+            let mut header = vec![String::new()];
+            header.extend(children.iter().map(|(ck, _)| ck.clone()));
+            let rows = (0..children[0].1.len())
+                .map(|i| {
+                    let mut r = vec![children[0].1[i].0.clone()];
+                    r.extend(children.iter().map(|(_, leaves)| fmt_json(&leaves[i].1).0));
+                    r
+                })
+                .collect();
+            out.push(Table {
+                title: k.clone(),
+                header,
+                rows,
+                note: String::new(),
+            });
+        } else if same_shape {
             let mut header = vec![String::new()];
             header.extend(children[0].1.iter().map(|(p, _)| p.clone()));
             let rows = children
@@ -367,11 +416,13 @@ fn summary_tables(v: &Value) -> Vec<Table> {
 
 fn looks_numeric(s: &str) -> bool {
     let t = s.trim().trim_start_matches(['−', '-', '+']);
-    !t.is_empty() && t.chars().next().is_some_and(|c| c.is_ascii_digit()) && t.parse::<f64>().is_ok()
+    !t.is_empty()
+        && t.chars().next().is_some_and(|c| c.is_ascii_digit())
+        && t.parse::<f64>().is_ok()
 }
 
 fn html_table(out: &mut String, t: &Table) {
-    out.push_str("<table>");
+    out.push_str("<div class=\"scroll\"><table>");
     if !t.title.is_empty() {
         let _ = write!(out, "<caption>{}</caption>", escape(&t.title));
     }
@@ -391,7 +442,7 @@ fn html_table(out: &mut String, t: &Table) {
         }
         out.push_str("</tr>");
     }
-    out.push_str("</tbody></table>");
+    out.push_str("</tbody></table></div>");
     if !t.note.is_empty() {
         let _ = write!(out, "<p class=\"note\">{}</p>", escape(&t.note));
     }
@@ -437,7 +488,9 @@ pub fn report_html(dir: &Path, m: &Manifest) -> Result<String, Error> {
             .collect(),
         note: String::new(),
     };
-    inputs.rows.push(vec!["vcnc version".into(), m.version.clone()]);
+    inputs
+        .rows
+        .push(vec!["vcnc version".into(), m.version.clone()]);
     html_table(&mut o, &inputs);
     o.push_str("</section>\n");
 
@@ -478,9 +531,9 @@ pub fn report_html(dir: &Path, m: &Manifest) -> Result<String, Error> {
         }
         section = &f.section;
         let svg = inline_svg(dir, &mpath, &f.file, k)?;
-        let _ = write!(
+        let _ = writeln!(
             o,
-            "<figure id=\"figure-{k}\">{svg}<figcaption><strong>Figure {}.</strong> {} <span class=\"file\">({})</span></figcaption></figure>\n",
+            "<figure id=\"figure-{k}\">{svg}<figcaption><strong>Figure {}.</strong> {} <span class=\"file\">({})</span></figcaption></figure>",
             k + 1,
             escape(&f.caption),
             escape(&f.file)
@@ -544,9 +597,23 @@ mod tests {
         assert_eq!(t[0].rows, vec![vec!["machine".to_string(), "M".into()]]);
         let id = t.iter().find(|t| t.title == "identification").unwrap();
         assert_eq!(id.header, ["", "wn", "zeta / a"]);
-        assert_eq!(id.rows[1], ["Y", "3.500", "4"]);
+        assert_eq!(id.rows[1], ["Y", "3.5", "4"]);
         let c = t.iter().find(|t| t.title == "contour_um").unwrap();
         assert_eq!(c.rows[0], ["true_max", "450.6"]);
+    }
+
+    #[test]
+    fn wide_per_axis_objects_are_transposed_and_axes_keep_machine_order() {
+        let v: Value = serde_json::json!({
+            "id": {
+                "Z": {"a": 1, "b": 2, "c": 3, "d": 0},
+                "A": {"a": 4, "b": 5, "c": 6, "d": 0},
+                "X": {"a": 7, "b": 8, "c": 9, "d": 0}
+            }
+        });
+        let t = summary_tables(&v);
+        assert_eq!(t[0].header, ["", "X", "Z", "A"]);
+        assert_eq!(t[0].rows[0], ["a", "7", "1", "4"]);
     }
 
     #[test]

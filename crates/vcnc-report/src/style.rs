@@ -237,7 +237,11 @@ const VIRIDIS: [(u8, u8, u8); 11] = [
 
 /// The colour of `f` in [0, 1] on the sequential map (values outside are clamped, NaN → 0).
 pub fn colour_map(f: f64) -> (u8, u8, u8) {
-    let f = if f.is_finite() { f.clamp(0.0, 1.0) } else { 0.0 };
+    let f = if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let s = f * (VIRIDIS.len() - 1) as f64;
     let i = (s.floor() as usize).min(VIRIDIS.len() - 2);
     let t = s - i as f64;
@@ -293,7 +297,10 @@ mod tests {
 
     #[test]
     fn labels_carry_quantity_and_unit() {
-        assert_eq!(Quantity::new("contour error", units::UM).label(), "contour error (µm)");
+        assert_eq!(
+            Quantity::new("contour error", units::UM).label(),
+            "contour error (µm)"
+        );
         assert_eq!(Quantity::new("cost", "").label(), "cost");
         assert_eq!(error_unit(vcnc_axis::Unit::Mm), "µm");
     }

@@ -144,6 +144,9 @@ pub(crate) fn push_polyline_data(d: &mut String, pts: &[(f64, f64)]) {
     }
 }
 
+/// A line segment from one point (px) to another.
+pub(crate) type Segment = ((f64, f64), (f64, f64));
+
 /// An SVG document under construction. Coordinates are px from the top-left corner.
 pub(crate) struct Svg {
     pub width: f64,
@@ -219,7 +222,7 @@ impl Svg {
     }
 
     /// Several line segments with one stroke, as one `<path>` (grid lines, ticks).
-    pub fn segments(&mut self, segs: &[((f64, f64), (f64, f64))], stroke: &Stroke) {
+    pub fn segments(&mut self, segs: &[Segment], stroke: &Stroke) {
         if segs.is_empty() {
             return;
         }
@@ -282,7 +285,16 @@ impl Svg {
         rotate_deg: f64,
         colour: &str,
     ) {
-        self.text_markup(x, y, &escape(text), size_px, anchor, rotate_deg, colour, false);
+        self.text_markup(
+            x,
+            y,
+            &escape(text),
+            size_px,
+            anchor,
+            rotate_deg,
+            colour,
+            false,
+        );
     }
 
     /// Text whose content is already SVG markup (escaped text and `<tspan>`s).
@@ -387,7 +399,10 @@ mod tests {
     #[test]
     fn tenths_are_written_exactly_and_relative_steps_do_not_drift() {
         let mut d = String::new();
-        push_polyline_data(&mut d, &[(1.0, 2.0), (1.34, 2.0), (0.5, -1.25), (0.5, -1.25)]);
+        push_polyline_data(
+            &mut d,
+            &[(1.0, 2.0), (1.34, 2.0), (0.5, -1.25), (0.5, -1.25)],
+        );
         assert_eq!(d, "M1 2l.3 0 -.8 -3.3");
         // Summing the relative steps gives back the last point to the tenth.
         let mut d2 = String::new();

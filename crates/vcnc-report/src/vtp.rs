@@ -298,7 +298,13 @@ pub fn vtp_string(path: &VtpPath, enc: VtpEncoding) -> Result<String, Error> {
     let pts = Values::F64(kept.iter().flat_map(|&i| path.points_mm[i]).collect());
     data_array(&mut out, Some("Points"), 3, &pts, enc);
     out.push_str("</Points>\n<Lines>\n");
-    data_array(&mut out, Some("connectivity"), 1, &Values::I64(connectivity), enc);
+    data_array(
+        &mut out,
+        Some("connectivity"),
+        1,
+        &Values::I64(connectivity),
+        enc,
+    );
     data_array(&mut out, Some("offsets"), 1, &Values::I64(offsets), enc);
     out.push_str("</Lines>\n</Piece>\n</PolyData>\n</VTKFile>\n");
     Ok(out)
@@ -339,7 +345,11 @@ mod tests {
         let path = VtpPath::contour(&p, &e, &e, &a, None);
         assert!(matches!(
             vtp_string(&path, VtpEncoding::Ascii),
-            Err(Error::LengthMismatch { expected: 3, found: 2, .. })
+            Err(Error::LengthMismatch {
+                expected: 3,
+                found: 2,
+                ..
+            })
         ));
         let e3 = [1.0, f64::NAN, 2.0];
         let path = VtpPath::contour(&p, &e3, &e3, &a, None);

@@ -12,7 +12,6 @@
 //! never skips silently.
 
 #[path = "../examples/gallery.rs"]
-#[allow(dead_code)]
 mod gallery;
 
 use std::path::{Path, PathBuf};
@@ -112,8 +111,14 @@ fn report_renders_in_headless_chromium_with_every_figure() {
     let html = std::fs::read_to_string(&report).unwrap();
 
     // 1. Self-contained: no script, no stylesheet link, no external reference of any kind.
-    assert!(!html.contains("<script"), "the report must not need JavaScript");
-    assert!(!html.contains("<link"), "the report must not load stylesheets");
+    assert!(
+        !html.contains("<script"),
+        "the report must not need JavaScript"
+    );
+    assert!(
+        !html.contains("<link"),
+        "the report must not load stylesheets"
+    );
     let external = html
         .match_indices("http")
         .filter(|(i, _)| !html[*i..].starts_with("http://www.w3.org/2000/svg"))
@@ -123,7 +128,11 @@ fn report_renders_in_headless_chromium_with_every_figure() {
 
     // 2. Every figure laid out with a real size.
     let check = dir.join("report-check.html");
-    std::fs::write(&check, html.replace("</body>", &format!("{MEASURE}</body>"))).unwrap();
+    std::fs::write(
+        &check,
+        html.replace("</body>", &format!("{MEASURE}</body>")),
+    )
+    .unwrap();
     let dom = chromium(
         &exe,
         &tmp.path().join("profile-dom"),
@@ -137,10 +146,23 @@ fn report_renders_in_headless_chromium_with_every_figure() {
         + "<pre id=\"vcnc-check\">".len();
     let end = start + dom[start..].find("</pre>").unwrap();
     let m: Measured = serde_json::from_str(&dom[start..end].replace("&quot;", "\"")).unwrap();
-    assert_eq!(m.figures.len(), g.figures.len(), "every manifest figure is in the page");
+    assert_eq!(
+        m.figures.len(),
+        g.figures.len(),
+        "every manifest figure is in the page"
+    );
     for (f, (name, _)) in m.figures.iter().zip(&g.figures) {
-        assert!(f.w > 400.0 && f.h > 150.0, "{name} laid out at {} × {} px", f.w, f.h);
-        assert!(f.elements > 20, "{name} has only {} SVG elements", f.elements);
+        assert!(
+            f.w > 400.0 && f.h > 150.0,
+            "{name} laid out at {} × {} px",
+            f.w,
+            f.h
+        );
+        assert!(
+            f.elements > 20,
+            "{name} has only {} SVG elements",
+            f.elements
+        );
     }
 
     // 3. The screenshot of the whole page (no script) is not blank, nor is any figure.
@@ -177,7 +199,11 @@ fn report_renders_in_headless_chromium_with_every_figure() {
         .filter(|&(x, y)| non_white(px(x, y)))
         .count();
     let frac = total as f64 / ((w / 2) * (h / 2)) as f64;
-    assert!(frac > 0.02, "the screenshot is (nearly) blank: {:.2} % drawn", 100.0 * frac);
+    assert!(
+        frac > 0.02,
+        "the screenshot is (nearly) blank: {:.2} % drawn",
+        100.0 * frac
+    );
     for (f, (name, _)) in m.figures.iter().zip(&g.figures) {
         let (x0, y0) = (f.x.max(0.0) as usize, f.y.max(0.0) as usize);
         let (x1, y1) = (((f.x + f.w) as usize).min(w), ((f.y + f.h) as usize).min(h));
@@ -192,7 +218,14 @@ fn report_renders_in_headless_chromium_with_every_figure() {
             }
         }
         let (df, cf) = (drawn as f64 / n as f64, colour as f64 / n as f64);
-        assert!(df > 0.03, "{name}: only {:.2} % of its box is drawn", 100.0 * df);
-        assert!(cf > 0.001, "{name}: no coloured pixel (curves or colour map missing)");
+        assert!(
+            df > 0.03,
+            "{name}: only {:.2} % of its box is drawn",
+            100.0 * df
+        );
+        assert!(
+            cf > 0.001,
+            "{name}: no coloured pixel (curves or colour map missing)"
+        );
     }
 }

@@ -18,7 +18,11 @@ fn sample() -> Sample {
     let mut pts: Vec<[f64; 3]> = (0..n)
         .map(|k| {
             let a = k as f64 * 0.01;
-            [40.0 * a.cos(), 40.0 * a.sin(), 0.05 * k as f64 + 1e-9 * k as f64]
+            [
+                40.0 * a.cos(),
+                40.0 * a.sin(),
+                0.05 * k as f64 + 1e-9 * k as f64,
+            ]
         })
         .collect();
     for p in &mut pts[700..703] {
@@ -63,7 +67,8 @@ fn round_trip(enc: VtpEncoding) {
     write_vtp(&file, &path, enc).unwrap();
     let text = std::fs::read(&file).unwrap();
     assert_eq!(text, vtp_string(&path, enc).unwrap().into_bytes());
-    let vtk = vtkio::Vtk::parse_xml(std::io::BufReader::new(text.as_slice())).expect("vtkio parses the file");
+    let vtk = vtkio::Vtk::parse_xml(std::io::BufReader::new(text.as_slice()))
+        .expect("vtkio parses the file");
     let DataSet::PolyData { pieces, .. } = vtk.data else {
         panic!("not PolyData");
     };
@@ -71,7 +76,9 @@ fn round_trip(enc: VtpEncoding) {
     let Piece::Inline(p) = &pieces[0] else {
         panic!("piece not inline");
     };
-    let kept: Vec<usize> = (0..s.pts.len()).filter(|&i| s.pts[i][0].is_finite()).collect();
+    let kept: Vec<usize> = (0..s.pts.len())
+        .filter(|&i| s.pts[i][0].is_finite())
+        .collect();
     assert_eq!(kept.len(), 1997);
     // Points, exactly.
     let pts = f64s(&p.points);
@@ -91,9 +98,15 @@ fn round_trip(enc: VtpEncoding) {
     // Arrays, exactly, with their component counts.
     let a = &p.data.point;
     let c = point_array(a, "contour_error_um");
-    assert_eq!(f64s(&c.data), kept.iter().map(|&i| s.contour[i]).collect::<Vec<_>>());
+    assert_eq!(
+        f64s(&c.data),
+        kept.iter().map(|&i| s.contour[i]).collect::<Vec<_>>()
+    );
     let o = point_array(a, "orientation_error_mrad");
-    assert_eq!(f64s(&o.data), kept.iter().map(|&i| s.orient[i]).collect::<Vec<_>>());
+    assert_eq!(
+        f64s(&o.data),
+        kept.iter().map(|&i| s.orient[i]).collect::<Vec<_>>()
+    );
     let t = point_array(a, "tool_axis");
     assert!(
         matches!(t.elem, ElementType::Vectors)
@@ -102,7 +115,10 @@ fn round_trip(enc: VtpEncoding) {
         "tool_axis has 3 components: {:?}",
         t.elem
     );
-    assert_eq!(f64s(&t.data), kept.iter().flat_map(|&i| s.axis[i]).collect::<Vec<_>>());
+    assert_eq!(
+        f64s(&t.data),
+        kept.iter().flat_map(|&i| s.axis[i]).collect::<Vec<_>>()
+    );
     let l = point_array(a, "block_line");
     assert_eq!(
         l.data.cast_into::<u32>().unwrap(),
