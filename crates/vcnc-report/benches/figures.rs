@@ -54,7 +54,7 @@ fn bench(c: &mut Criterion) {
     let e4: Vec<f64> = t4.iter().map(|t| 200.0 * (t * 2.0).sin()).collect();
     c.bench_function("tracking_errors 5 axes x 10123 samples", |b| {
         b.iter(|| {
-            let axes: Vec<AxisTracking> = [
+            let axes: Vec<AxisErrors> = [
                 AxisName::X,
                 AxisName::Y,
                 AxisName::Z,
@@ -62,7 +62,7 @@ fn bench(c: &mut Criterion) {
                 AxisName::C,
             ]
             .iter()
-            .map(|&a| AxisTracking {
+            .map(|&a| AxisErrors {
                 axis: a,
                 reference: &r4,
                 truth: Series::line("true machine", Role::TrueMachine, &t4, &e4),

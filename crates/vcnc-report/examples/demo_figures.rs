@@ -129,9 +129,9 @@ fn run(demo: &Path, program: &Path, out: &Path) -> Res<()> {
         let ep: Vec<f64> = r.iter().zip(pr).map(|(r, x)| (r - x) * k).collect();
         errs.push((a, r, et, ep));
     }
-    let axes: Vec<AxisTracking> = errs
+    let axes: Vec<AxisErrors> = errs
         .iter()
-        .map(|(a, r, et, ep)| AxisTracking {
+        .map(|(a, r, et, ep)| AxisErrors {
             axis: *a,
             reference: r,
             truth: Series::line("true machine", Role::TrueMachine, t, et),

@@ -221,7 +221,7 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
     let mx: Vec<f64> = ex.iter().map(|e| e * 1.001).collect();
     let my: Vec<f64> = ey.iter().map(|e| e * 0.999).collect();
     let mz: Vec<f64> = ez.iter().map(|e| e * 1.002).collect();
-    let axis = |a, r, e, m| AxisTracking {
+    let axis = |a, r, e, m| AxisErrors {
         axis: a,
         reference: r,
         truth: Series::line("true machine", Role::TrueMachine, &t, e),

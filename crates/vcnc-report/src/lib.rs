@@ -67,7 +67,7 @@ pub use decimate::min_max_per_column;
 pub use error::Error;
 pub use figure::{Figure, write_atomic};
 pub use lines::{
-    AxisTracking, BodeCurve, BodeGroup, Comparison, LineFigure, Panel, XMarker, axis_is_used, bode,
+    AxisErrors, BodeCurve, BodeGroup, Comparison, LineFigure, Panel, XMarker, axis_is_used, bode,
     comparison_figure, convergence, line_figure, sweep_line, tracking_errors,
 };
 pub use map::{HeatMap, SweepGrid, grid_from_rows, sweep_heatmap};

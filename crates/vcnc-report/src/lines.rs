@@ -403,7 +403,7 @@ pub fn comparison_figure(
 /// Tracking error of one machine axis: the reference position (to tell whether the program
 /// moves the axis) and the errors to draw.
 #[derive(Debug, Clone, PartialEq)]
-pub struct AxisTracking<'a> {
+pub struct AxisErrors<'a> {
     /// The axis.
     pub axis: AxisName,
     /// Reference position x_r, in the axis unit (mm or deg).
@@ -416,7 +416,7 @@ pub struct AxisTracking<'a> {
 }
 
 /// Whether a program uses an axis: its reference moves, or some error on it is not zero.
-pub fn axis_is_used(t: &AxisTracking) -> bool {
+pub fn axis_is_used(t: &AxisErrors) -> bool {
     let span = t
         .reference
         .iter()
@@ -433,8 +433,8 @@ pub fn axis_is_used(t: &AxisTracking) -> bool {
 
 /// Tracking errors x_r − x of the axes a program uses (one signal panel and one difference
 /// panel each); axes it does not move are left out and named in the note.
-pub fn tracking_errors(title: &str, axes: &[AxisTracking]) -> Result<Figure, Error> {
-    let (used, unused): (Vec<&AxisTracking>, Vec<&AxisTracking>) =
+pub fn tracking_errors(title: &str, axes: &[AxisErrors]) -> Result<Figure, Error> {
+    let (used, unused): (Vec<&AxisErrors>, Vec<&AxisErrors>) =
         axes.iter().partition(|a| axis_is_used(a));
     if used.is_empty() {
         return Err(Error::Empty {
@@ -619,7 +619,7 @@ mod tests {
         let still = vec![0.0; 100];
         let err: Vec<f64> = t.iter().map(|v| v.sin()).collect();
         let zero = vec![0.0; 100];
-        let ax = |axis, r, e| AxisTracking {
+        let ax = |axis, r, e| AxisErrors {
             axis,
             reference: r,
             truth: Series::line("true machine", Role::TrueMachine, &t, e),

@@ -132,8 +132,11 @@ pub(crate) fn hot_spots(
 }
 
 /// The `p`-th percentile (0 … 100) of the finite values, interpolating linearly between order
-/// statistics (Hyndman & Fan's definition 7, the default of R and NumPy); `None` if no value
-/// is finite.
+/// statistics (Hyndman & Fan, *Sample quantiles in statistical packages*, 1996, definition 7,
+/// the default of R and NumPy); `None` if no value is finite. With the sorted values
+/// $x_{(1)} \le \dots \le x_{(n)}$ and $h = (n-1)\,p/100$:
+///
+/// $$ Q(p) = x_{(\lfloor h \rfloor + 1)} + (h - \lfloor h \rfloor)\,\big(x_{(\lfloor h \rfloor + 2)} - x_{(\lfloor h \rfloor + 1)}\big) $$
 pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     if v.is_empty() {
@@ -170,7 +173,8 @@ pub fn arc_length_mm(points_mm: &[[f64; 3]]) -> Vec<f64> {
 /// A 2-D view of the path: how to map a 3-D point to the plane, and what its axes are.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum View {
-    /// Isometric from (+1, −1, +1): u = (x + y) cos 30°, v = z + (y − x) sin 30°.
+    /// Isometric, seen from the direction (+1, −1, +1): $u = (x + y)\cos 30°$,
+    /// $v = z + (y - x)\sin 30°$ (u right, v up; +x points right-down, +y right-up, +z up).
     Iso,
     /// Orthographic onto the plane of two coordinates (indices into x y z).
     Plane(usize, usize),
