@@ -1078,6 +1078,9 @@ mod tests {
         assert!(f.svg.contains("L124"), "the spike's block is labelled");
         assert!(f.svg.contains("99.5th percentile"));
         assert!(f.svg.len() < 200_000, "{} bytes", f.svg.len());
+        // Same input, same bytes.
+        let g = contour_path_views("t", &p, &PathViewOptions::default()).unwrap();
+        assert_eq!(f.svg, g.svg);
     }
 }
 

@@ -617,6 +617,55 @@ mod tests {
     }
 
     #[test]
+    fn a_missing_or_foreign_figure_is_an_error_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut m = Manifest::new("t", "c", "v");
+        m.figures.push(FigureEntry {
+            file: "gone.svg".into(),
+            caption: String::new(),
+            section: String::new(),
+        });
+        m.write(dir.path()).unwrap();
+        let e = build_report(dir.path()).unwrap_err();
+        assert!(
+            matches!(&e, Error::BadFigure { file, .. } if file == "gone.svg"),
+            "{e}"
+        );
+        std::fs::write(
+            dir.path().join("gone.svg"),
+            "<svg><script>alert(1)</script></svg>",
+        )
+        .unwrap();
+        let e = build_report(dir.path()).unwrap_err();
+        assert!(e.to_string().contains("script"), "{e}");
+    }
+
+    #[test]
+    fn inlined_figures_get_ids_of_their_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let fig = crate::svg::Svg::new(10.0, 10.0);
+        let mut svg = fig;
+        let id = svg.clip_rect(0.0, 0.0, 5.0, 5.0);
+        svg.open_group_clipped(&id);
+        svg.close_group();
+        let text = svg.finish("f", "sans-serif");
+        std::fs::write(dir.path().join("a.svg"), &text).unwrap();
+        std::fs::write(dir.path().join("b.svg"), &text).unwrap();
+        let mut m = Manifest::new("t", "c", "v");
+        for f in ["a.svg", "b.svg"] {
+            m.figures.push(FigureEntry {
+                file: f.into(),
+                caption: String::new(),
+                section: String::new(),
+            });
+        }
+        let html = report_html(dir.path(), &m).unwrap();
+        assert!(html.contains("id=\"fig0-0\"") && html.contains("url(#fig0-0)"));
+        assert!(html.contains("id=\"fig1-0\"") && html.contains("url(#fig1-0)"));
+        assert!(!html.contains(ID_PREFIX));
+    }
+
+    #[test]
     fn manifest_paths_cannot_leave_the_folder() {
         let d = Path::new("/tmp/x");
         let m = Path::new("/tmp/x/manifest.json");
