@@ -10,8 +10,8 @@
 //! the values are written as text.
 //!
 //! Why hand-written and not the `vtkio` crate: its stable line (0.6.3) dates from March 2021 and
-//! pins nom 3; the 0.7 line that modernised it has stayed at release candidates (0.7.0-rc2) and
-//! its release pull request was closed unmerged. The file is a fixed, small XML structure; the
+//! pins nom 3; the 0.7 line that modernised it has only release candidates (0.7.0-rc2). The file
+//! is a fixed, small XML structure; the
 //! tests parse it back with `vtkio` as an independent reader and compare points and arrays.
 
 use std::fmt::Write as _;
