@@ -11,8 +11,8 @@
 //!
 //! Why hand-written and not the `vtkio` crate: its stable line (0.6.3) dates from March 2021 and
 //! pins nom 3; the 0.7 line that modernised it has only release candidates (0.7.0-rc2). The file
-//! is a fixed, small XML structure; the
-//! tests parse it back with `vtkio` as an independent reader and compare points and arrays.
+//! is a fixed, small XML structure; the tests parse it back with `vtkio` as an independent
+//! reader and compare points and arrays.
 
 use std::fmt::Write as _;
 use std::path::Path;
