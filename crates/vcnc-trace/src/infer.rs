@@ -24,16 +24,36 @@ use vcnc_axis::AxisName;
 
 use crate::model::{AxisSource, Quantity};
 
-/// Words of a name, lower case (see the module documentation).
-pub(crate) fn words(name: &str) -> Vec<String> {
+/// A word of a name.
+struct Word {
+    /// Lower case.
+    lower: String,
+    /// As written.
+    original: String,
+    /// A one-letter lower-case prefix glued to a capitalised word (`bEnable`, `fPos`, `sName`):
+    /// the type prefix of PLC naming conventions, not an axis letter or a quantity.
+    prefix: bool,
+}
+
+/// Cuts a name into words (see the module documentation).
+fn cut(name: &str) -> Vec<Word> {
     let mut out = Vec::new();
     let mut cur = String::new();
+    let mut run_start = true;
     let chars: Vec<char> = name.chars().collect();
+    let push = |cur: &mut String, out: &mut Vec<Word>, prefix: bool| {
+        if !cur.is_empty() {
+            out.push(Word {
+                lower: cur.to_lowercase(),
+                original: std::mem::take(cur),
+                prefix,
+            });
+        }
+    };
     for (i, &c) in chars.iter().enumerate() {
         if !c.is_alphanumeric() {
-            if !cur.is_empty() {
-                out.push(std::mem::take(&mut cur));
-            }
+            push(&mut cur, &mut out, false);
+            run_start = true;
             continue;
         }
         if !cur.is_empty() && c.is_uppercase() {
@@ -41,15 +61,20 @@ pub(crate) fn words(name: &str) -> Vec<String> {
             let next_lower = chars.get(i + 1).is_some_and(|n| n.is_lowercase());
             // fooBar → foo|Bar; XMLFile → XML|File; but X1, REAL64 and AxisX stay as cut.
             if prev.is_lowercase() || (prev.is_uppercase() && next_lower) {
-                out.push(std::mem::take(&mut cur));
+                let prefix = run_start && cur.chars().count() == 1 && prev.is_lowercase();
+                push(&mut cur, &mut out, prefix);
+                run_start = false;
             }
         }
-        cur.extend(c.to_lowercase());
+        cur.push(c);
     }
-    if !cur.is_empty() {
-        out.push(cur);
-    }
+    push(&mut cur, &mut out, false);
     out
+}
+
+/// Words of a name, lower case (see the module documentation).
+pub(crate) fn words(name: &str) -> Vec<String> {
+    cut(name).into_iter().map(|w| w.lower).collect()
 }
 
 const SIDE_SUFFIXES: &[&str] = &[
@@ -78,7 +103,8 @@ pub(crate) fn axis_of(
     field: &str,
     joints: Option<&[AxisName]>,
 ) -> Option<(AxisName, AxisSource, String)> {
-    let ws = words(name);
+    let cut = cut(name);
+    let ws: Vec<&str> = cut.iter().map(|w| w.lower.as_str()).collect();
     let mut found: Option<(AxisName, AxisSource, String)> = None;
     let mut conflict = false;
     let mut note = |axis: AxisName, source: AxisSource, suffix: &str| match &found {
@@ -87,8 +113,11 @@ pub(crate) fn axis_of(
         None => found = Some((axis, source, suffix.to_string())),
     };
     for (i, w) in ws.iter().enumerate() {
+        if cut[i].prefix {
+            continue;
+        }
         if let Some(map) = joints {
-            let is_joint_word = w == "joint" || w == "axis";
+            let is_joint_word = *w == "joint" || *w == "axis";
             if is_joint_word && let Some(n) = ws.get(i + 1).and_then(|n| n.parse::<usize>().ok()) {
                 if let Some(&axis) = map.get(n) {
                     let letters: String = map.iter().map(|a| a.letter()).collect();
@@ -105,7 +134,7 @@ pub(crate) fn axis_of(
             }
         }
         if let Some((axis, suffix)) = axis_word(w) {
-            let token = original_word(name, i).unwrap_or_else(|| w.clone());
+            let token = cut[i].original.clone();
             note(
                 axis,
                 AxisSource::Token {
@@ -117,34 +146,6 @@ pub(crate) fn axis_of(
         }
     }
     if conflict { None } else { found }
-}
-
-/// The i-th word of `name` as written (case kept), for messages.
-fn original_word(name: &str, i: usize) -> Option<String> {
-    // Re-run the cutting without lower-casing.
-    let mut out = Vec::new();
-    let mut cur = String::new();
-    let chars: Vec<char> = name.chars().collect();
-    for (k, &c) in chars.iter().enumerate() {
-        if !c.is_alphanumeric() {
-            if !cur.is_empty() {
-                out.push(std::mem::take(&mut cur));
-            }
-            continue;
-        }
-        if !cur.is_empty() && c.is_uppercase() {
-            let prev = chars[k - 1];
-            let next_lower = chars.get(k + 1).is_some_and(|n| n.is_lowercase());
-            if prev.is_lowercase() || (prev.is_uppercase() && next_lower) {
-                out.push(std::mem::take(&mut cur));
-            }
-        }
-        cur.push(c);
-    }
-    if !cur.is_empty() {
-        out.push(cur);
-    }
-    out.into_iter().nth(i)
 }
 
 const OTHER_WORDS: &[&str] = &[
@@ -228,7 +229,11 @@ const ACTUAL_WORDS: &[&str] = &[
 
 /// The quantity `name` measures; `axis_suffix` is the suffix of its axis word (`r` of `xr`).
 pub(crate) fn quantity_of(name: &str, axis_suffix: &str) -> Quantity {
-    let ws = words(name);
+    let ws: Vec<String> = cut(name)
+        .into_iter()
+        .filter(|w| !w.prefix)
+        .map(|w| w.lower)
+        .collect();
     let has =
         |set: &[&str]| ws.iter().any(|w| set.contains(&w.as_str())) || set.contains(&axis_suffix);
     if has(OTHER_WORDS) {
@@ -341,6 +346,10 @@ mod tests {
         assert_eq!(axis("MAIN.var_REAL", false), None);
         // Two axes in one name: unknown.
         assert_eq!(axis("X-Y plot", false), None);
+        // PLC type prefixes are not axes: bEnable, fPos, nC.
+        assert_eq!(axis("bEnable", false), None);
+        assert_eq!(axis("MAIN.fActPos", false), None);
+        assert_eq!(axis("MAIN.fbAxisC.fActPos", false), Some(AxisName::C));
         let (_, src, _) = axis_of("MAIN.AxisX.ActPos", "symbol", None).unwrap();
         assert_eq!(src.to_string(), "symbol word 'X'");
     }
@@ -368,6 +377,8 @@ mod tests {
         assert_eq!(q("X_cmd"), NominalPosition);
         assert_eq!(q("qg"), Other);
         assert_eq!(q("t"), Other);
+        assert_eq!(q("sName"), Other);
+        assert_eq!(q("iCount"), Other);
     }
 
     #[test]
