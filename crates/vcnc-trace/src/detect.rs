@@ -10,8 +10,11 @@
 //! | 3 | halscope table (2.9+) | first line `# Sampling period is N ns` |
 //! | 4 | halscope pairs (before 2.9) | first line `Sampling period is N ns` |
 //! | 5 | TwinCAT Scope | first line `Name` + `;`/tab/`,`/`:`, and a row starting `SampleTime` within the first 60 lines |
-//! | 6 | halsampler | no header: the first non-comment lines are white-space separated numbers (or `overrun`), same count on each |
-//! | 7 | delimited text | a first non-comment line (header or numbers) and data rows with as many fields |
+//! | 6 | halsampler | no header: the first two lines other than `#` comments and `overrun` hold white-space separated numbers |
+//! | 7 | delimited text | a first non-comment line (header or numbers), then a line of as many fields, all numbers (or none: a header of two or more fields alone) |
+//!
+//! Signatures look at the first lines only: a fault further down (a ragged row, a NaN) is left to
+//! the reader, which reports it with its line instead of refusing the whole file.
 //!
 //! Content with NUL bytes is binary and matches none. When nothing matches, the error lists each
 //! format with what the content lacked.
@@ -85,40 +88,28 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
             }
         }
         Format::Halsampler => {
-            let mut count = None;
+            // The first two sample lines: numbers (finite or not) separated by white space.
             let mut seen = 0;
             for l in Lines::new(head) {
                 let t = text::trim(l.text);
                 if t.is_empty() || t[0] == b'#' || t.eq_ignore_ascii_case(b"overrun") {
                     continue;
                 }
-                if !l.terminated && l.next >= head.len() {
+                if !l.terminated && l.next >= head.len() && seen > 0 {
                     break; // possibly cut by the examined window
                 }
                 if t.iter().any(|&b| b == b';' || b == b',') {
                     return Err(format!("line {} has ';' or ','", l.no));
                 }
-                let fields: Vec<&[u8]> = text::split_ws(t).collect();
-                if let Some(f) = fields.iter().find(|f| text::parse_f64(f, false).is_err()) {
+                if let Some(f) = text::split_ws(t).find(|f| !text::looks_numeric(f)) {
                     return Err(format!(
                         "line {}: '{}' is not a number (halsampler output has no header)",
                         l.no,
                         text::show(f)
                     ));
                 }
-                match count {
-                    None => count = Some(fields.len()),
-                    Some(n) if n != fields.len() => {
-                        return Err(format!(
-                            "line {} has {} fields, the first sample line {n}",
-                            l.no,
-                            fields.len()
-                        ));
-                    }
-                    Some(_) => {}
-                }
                 seen += 1;
-                if seen == 50 {
+                if seen == 2 {
                     break;
                 }
             }
@@ -129,36 +120,42 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
             }
         }
         Format::Delimited => {
-            let lines: Vec<_> = Lines::new(head)
-                .filter(|l| {
-                    let t = text::trim(l.text);
-                    !(t.is_empty() || t[0] == b'#')
-                })
-                .take(21)
-                .collect();
-            let Some((first, rest)) = lines.split_first() else {
+            // A first line (header or numbers), then — if there is one — a data line with as
+            // many fields, all numbers. Later lines are left to the reader, which names the line
+            // of any fault.
+            let mut lines = Lines::new(head).filter(|l| {
+                let t = text::trim(l.text);
+                !(t.is_empty() || t[0] == b'#')
+            });
+            let Some(first) = lines.next() else {
                 return Err("no line other than blanks and '#' comments".to_string());
             };
             let delim = delimited::choose_delim(first.text);
             let n = delimited::fields(first.text, delim).len();
-            if n < 2 && rest.is_empty() {
-                return Err("one field and no data rows".to_string());
-            }
-            for l in rest {
-                if !l.terminated && l.next >= head.len() {
-                    break;
+            match lines.next() {
+                None if n >= 2 => Ok(()),
+                None => Err("one field and no data rows".to_string()),
+                Some(l) => {
+                    let f = delimited::fields(l.text, delim);
+                    if f.len() != n {
+                        Err(format!(
+                            "line {} has {} fields separated by {}, line {} has {n}",
+                            l.no,
+                            f.len(),
+                            delim.describe(),
+                            first.no
+                        ))
+                    } else if let Some(x) = f.iter().find(|x| !text::looks_numeric(x)) {
+                        Err(format!(
+                            "line {}: '{}' is not a number",
+                            l.no,
+                            text::show(x)
+                        ))
+                    } else {
+                        Ok(())
+                    }
                 }
-                let m = delimited::fields(l.text, delim).len();
-                if m != n {
-                    return Err(format!(
-                        "line {} has {m} fields separated by {}, line {} has {n}",
-                        l.no,
-                        delim.describe(),
-                        first.no
-                    ));
-                }
             }
-            Ok(())
         }
     }
 }

@@ -32,6 +32,7 @@ fn list(names: &[String]) -> String {
 
 fn describe_lost(l: &Option<usize>) -> String {
     match l {
+        Some(1) => "1 sample lost".to_string(),
         Some(n) => format!("{n} samples lost"),
         None => "an unknown number of samples lost".to_string(),
     }
@@ -90,7 +91,7 @@ pub enum Error {
     },
     /// A channel's declared sample count differs from the samples in the file.
     #[error(
-        "{file}:{line}: channel '{channel}' declares {declared} samples, the data hold {found}"
+        "{file}:{line}: channel '{channel}' holds {found} samples where {declared} are expected"
     )]
     CountMismatch {
         /// The file.

@@ -410,6 +410,12 @@ fn unit_of(
             });
         }
         (Some(f), _) => (f.clone(), UnitSource::File),
+        (None, Some(TraceUnit::Other(u))) => {
+            return Err(Error::BadOption {
+                file: trace.file.clone(),
+                what: format!("unknown unit '{u}' given for axis {axis}"),
+            });
+        }
         (None, Some(g)) => (g.clone(), UnitSource::Caller),
         (None, None) => (default, UnitSource::Assumed),
     };

@@ -96,7 +96,7 @@ pub(crate) fn uniform(times: &[f64], declared: Option<f64>) -> Result<Uniform, T
     })
 }
 
-/// Median of the steps, from at most 100 001 of them spread over the record.
+/// Lower median of the steps, from at most 100 001 of them spread over the record.
 fn median_step(times: &[f64]) -> f64 {
     let steps = times.len() - 1;
     let stride = steps.div_ceil(100_000).max(1);
@@ -104,7 +104,8 @@ fn median_step(times: &[f64]) -> f64 {
         .step_by(stride)
         .map(|k| times[k] - times[k - 1])
         .collect();
-    let mid = s.len() / 2;
+    // The lower median: of two steps, a normal one and a gap, it takes the normal one.
+    let mid = (s.len() - 1) / 2;
     *s.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 

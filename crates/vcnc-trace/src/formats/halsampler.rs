@@ -10,8 +10,9 @@
 //! [`ReadOptions::period_s`] (the sampler thread's period × decimation).
 //!
 //! Sample numbers (`-t`) are recognised when the first column of the first 200 lines holds
-//! integers that count up by one (and only jump after an `overrun`). With them an overrun's lost
-//! samples are counted; without them the gap's size is unknown.
+//! integers and the first two count up by one (or jump after an `overrun`). With them an
+//! overrun's lost samples are counted, and a number that does not increase is an error; without
+//! them the gap's size is unknown.
 //!
 //! Gap policy: an `overrun` becomes a [`crate::Gap`] of every channel. The reader does not
 //! refuse the file (`vcnc trace info` lists the gaps); pairing refuses to identify across a gap
@@ -30,11 +31,11 @@ fn parse_int(f: &[u8]) -> Option<i64> {
     std::str::from_utf8(f).ok()?.parse().ok()
 }
 
-/// Whether the first column holds sample numbers (see the module documentation).
+/// Whether the first column holds sample numbers (see the module documentation): integers in
+/// the first 200 lines, the first two of them consecutive. Later steps are checked while reading.
 fn tagged(bytes: &[u8], start: usize, line: usize) -> bool {
-    let mut prev: Option<i64> = None;
+    let mut firsts: Vec<(i64, bool)> = Vec::new();
     let mut overrun = false;
-    let mut seen = 0;
     for l in Lines::starting_at(bytes, start, line) {
         if text::is_blank(l.text) || text::trim(l.text).first() == Some(&b'#') {
             continue;
@@ -50,19 +51,17 @@ fn tagged(bytes: &[u8], start: usize, line: usize) -> bool {
         let Some(n) = parse_int(first) else {
             return false;
         };
-        if let Some(p) = prev
-            && !(n == p + 1 || (overrun && n > p))
-        {
-            return false;
-        }
-        prev = Some(n);
+        firsts.push((n, overrun));
         overrun = false;
-        seen += 1;
-        if seen == 200 {
+        if firsts.len() == 200 {
             break;
         }
     }
-    seen >= 2
+    match firsts.as_slice() {
+        [(a, _), (b, false), ..] => *b == a + 1,
+        [(a, _), (b, true), ..] => b > a,
+        _ => false,
+    }
 }
 
 pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {

@@ -138,6 +138,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     let mut times: Vec<f64> = Vec::new();
     let mut record_lines: Vec<usize> = Vec::new();
     let mut metadata = Vec::new();
+    let mut open: Vec<String> = Vec::new();
     loop {
         let pos = reader.buffer_position() as usize;
         let ev = reader.read_event().map_err(|e| Error::Xml {
@@ -146,7 +147,20 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             message: e.to_string(),
         })?;
         let e = match ev {
-            Event::Start(e) | Event::Empty(e) => e,
+            Event::Start(e) => {
+                // Element names kept for the "ends inside" message; records need none.
+                open.push(if e.local_name().as_ref() == b"rec" {
+                    String::new()
+                } else {
+                    text::decode(e.local_name().as_ref()).into_owned()
+                });
+                e
+            }
+            Event::Empty(e) => e,
+            Event::End(_) => {
+                open.pop();
+                continue;
+            }
             Event::Eof => break,
             _ => continue,
         };
@@ -254,6 +268,16 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                 }
             }
         }
+    }
+    if let Some(inside) = open.iter().rev().find(|n| !n.is_empty()).or(open.last()) {
+        return Err(Error::Truncated {
+            file: file.to_string(),
+            line: lines.at(bytes.len()),
+            what: format!(
+                "the XML ends inside <{}>",
+                if inside.is_empty() { "rec" } else { inside }
+            ),
+        });
     }
     if signals.is_empty() {
         return Err(Error::Truncated {

@@ -252,7 +252,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     for l in formats::data_lines(bytes, data_start, false) {
         fields.clear();
         fields.extend(text::split_delim(l.text, b';'));
-        if fields.len() == n + 2 && text::trim(fields[n + 1]).is_empty() {
+        if fields.len() > n + 1 && fields.last().is_some_and(|f| text::trim(f).is_empty()) {
             fields.pop();
         }
         if fields.len() != n + 1 {

@@ -149,6 +149,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     let mut meta_rows: Vec<(String, Vec<String>, usize)> = Vec::new();
     let mut data_from = None;
     for l in lines.by_ref() {
+        last = l.no;
         if text::is_blank(l.text) {
             data_from = Some(Start {
                 offset: l.next,
