@@ -130,9 +130,12 @@ pub(crate) enum NumError {
 /// Parses a decimal number from a field, white space around it ignored. With `decimal_comma` the
 /// mark is `,` (`1,5` is 1.5) — a field holding both `.` and `,` is refused rather than guessed.
 ///
-/// The standard library's parser is used on purpose: since Rust 1.55 it implements the
-/// Eisel–Lemire fast path with a correct fallback, so a third-party float parser would buy little
-/// here; the speed comes from never allocating a `String` per field.
+/// Plain decimals (`-12.345678`: at most 19 significant digits, a mantissa up to $2^{53}$ and at
+/// most 22 decimals — what scopes print) take Clinger's exact fast path, [`fast_decimal`];
+/// anything else (exponents, long mantissas, `inf`, `NaN`) goes to the standard library's
+/// parser, which is correctly rounded too. Both give the same, correctly rounded result, so the
+/// split only buys speed; together with never allocating a `String` per field it is why no
+/// third-party float parser is used.
 pub(crate) fn parse_f64(field: &[u8], decimal_comma: bool) -> Result<f64, NumError> {
     let f = trim(field);
     if f.is_empty() || f.len() > 64 {
@@ -158,7 +161,56 @@ pub(crate) fn parse_f64(field: &[u8], decimal_comma: bool) -> Result<f64, NumErr
     }
 }
 
+/// Powers of ten exactly representable in `f64`.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// Clinger's fast path (W. D. Clinger, "How to read floating point numbers accurately", PLDI
+/// 1990): for `[+-]digits[.digits]` with a mantissa $m \le 2^{53}$ and $d \le 22$ decimals, $m$
+/// and $10^d$ are exact doubles and the single IEEE division $m / 10^d$ is correctly rounded, so
+/// the result is the double nearest the decimal. `None` for anything else.
+pub(crate) fn fast_decimal(f: &[u8]) -> Option<f64> {
+    let (neg, d) = match f.first()? {
+        b'-' => (true, &f[1..]),
+        b'+' => (false, &f[1..]),
+        _ => (false, f),
+    };
+    // Wrapping arithmetic: with more than 19 digits the mantissa may wrap, and is then discarded.
+    let mut mantissa: u64 = 0;
+    let mut i = 0;
+    while i < d.len() && d[i].is_ascii_digit() {
+        mantissa = mantissa
+            .wrapping_mul(10)
+            .wrapping_add(u64::from(d[i] - b'0'));
+        i += 1;
+    }
+    let int_digits = i;
+    let mut decimals = 0;
+    if i < d.len() && d[i] == b'.' {
+        i += 1;
+        let start = i;
+        while i < d.len() && d[i].is_ascii_digit() {
+            mantissa = mantissa
+                .wrapping_mul(10)
+                .wrapping_add(u64::from(d[i] - b'0'));
+            i += 1;
+        }
+        decimals = i - start;
+    }
+    let digits = int_digits + decimals;
+    if i != d.len() || digits == 0 || digits > 19 || mantissa > 1 << 53 || decimals >= POW10.len() {
+        return None;
+    }
+    let v = mantissa as f64 / POW10[decimals];
+    Some(if neg { -v } else { v })
+}
+
 fn parse_ascii(f: &[u8]) -> Result<f64, NumError> {
+    if let Some(v) = fast_decimal(f) {
+        return Ok(v);
+    }
     let s = std::str::from_utf8(f).map_err(|_| NumError::Syntax)?;
     // Rust accepts "inf", "infinity" and "nan" in any case: those are numbers, but not finite.
     s.parse::<f64>().map_err(|_| NumError::Syntax)
@@ -212,6 +264,49 @@ mod tests {
         assert_eq!(parse_f64(b"", false), Err(NumError::Syntax));
         assert_eq!(parse_f64(b"abc", false), Err(NumError::Syntax));
         assert!(looks_numeric(b"3,25") && !looks_numeric(b"x"));
+    }
+
+    proptest::proptest! {
+        /// The fast path agrees bit for bit with the standard parser (truth: Rust's correctly
+        /// rounded `str::parse::<f64>`), on plain decimals of every length and sign.
+        #[test]
+        fn fast_path_equals_the_standard_parser(
+            neg in proptest::bool::ANY,
+            int in "[0-9]{1,12}",
+            frac in proptest::option::of("[0-9]{0,15}"),
+        ) {
+            let s = format!("{}{int}{}", if neg { "-" } else { "" }, frac.map(|f| format!(".{f}")).unwrap_or_default());
+            let std: f64 = s.parse().unwrap();
+            let fast = fast_decimal(s.as_bytes());
+            if let Some(v) = fast {
+                proptest::prop_assert_eq!(v.to_bits(), std.to_bits(), "{}", s);
+            }
+            proptest::prop_assert_eq!(parse_f64(s.as_bytes(), false).unwrap().to_bits(), std.to_bits());
+        }
+    }
+
+    #[test]
+    fn fast_path_edges() {
+        assert_eq!(fast_decimal(b"9007199254740992"), Some(9007199254740992.0));
+        assert_eq!(fast_decimal(b"9007199254740993"), None); // > 2^53: the slow path
+        assert_eq!(fast_decimal(b"0.000000000000000001"), Some(1e-18));
+        assert_eq!(fast_decimal(b"0.00000000000000000000001"), None);
+        assert_eq!(fast_decimal(b"00000000000000000001.5"), None); // 21 digits: the slow path
+        assert_eq!(parse_f64(b"00000000000000000001.5", false), Ok(1.5));
+        assert_eq!(fast_decimal(b"99999999999999999999"), None); // would wrap
+        assert_eq!(parse_f64(b"99999999999999999999", false), Ok(1e20));
+        assert_eq!(
+            fast_decimal(b"-0").map(f64::to_bits),
+            Some((-0.0f64).to_bits())
+        );
+        assert_eq!(fast_decimal(b"1e5"), None);
+        assert_eq!(fast_decimal(b"."), None);
+        assert_eq!(fast_decimal(b"1.2.3"), None);
+        assert_eq!(parse_f64(b"1e5", false), Ok(1e5));
+        assert_eq!(
+            parse_f64(b"12345678901234567890.5", false),
+            Ok(12345678901234567890.5)
+        );
     }
 
     #[test]

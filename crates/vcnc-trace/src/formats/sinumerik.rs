@@ -204,7 +204,9 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                     }
                 }
                 let mut time = None;
-                for a in e.attributes() {
+                // Duplicate-attribute checks off: a record is read once, and a repeated fN
+                // would only overwrite the value (the last one wins, as carried forward).
+                for a in e.attributes().with_checks(false) {
                     let a = a.map_err(|err| Error::Xml {
                         file: file.to_string(),
                         line,
@@ -217,10 +219,14 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                                 formats::num_error(file, line, "time", &a.value, er)
                             })?);
                     } else if let Some(num) = key.strip_prefix(b"f") {
-                        let Some(idx) = std::str::from_utf8(num)
-                            .ok()
-                            .and_then(|n| n.parse::<usize>().ok())
-                            .and_then(|n| by_number.get(n).copied().flatten())
+                        let number = (!num.is_empty() && num.iter().all(u8::is_ascii_digit))
+                            .then(|| {
+                                num.iter().try_fold(0usize, |a, d| {
+                                    a.checked_mul(10)?.checked_add(usize::from(d - b'0'))
+                                })
+                            })
+                            .flatten();
+                        let Some(idx) = number.and_then(|n| by_number.get(n).copied().flatten())
                         else {
                             return Err(Error::Header {
                                 file: file.to_string(),
