@@ -232,6 +232,25 @@ pub(crate) fn split_ws(line: &[u8]) -> impl Iterator<Item = &[u8]> {
         .filter(|f| !f.is_empty())
 }
 
+/// Appends the white-space separated fields of `line` to `out` (a reused buffer).
+pub(crate) fn split_ws_into<'a>(line: &'a [u8], out: &mut Vec<&'a [u8]>) {
+    let mut i = 0;
+    let n = line.len();
+    loop {
+        while i < n && line[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        if i == n {
+            return;
+        }
+        let start = i;
+        while i < n && !line[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        out.push(&line[start..i]);
+    }
+}
+
 /// Line number of byte `offset` in `bytes` (1-based).
 pub(crate) fn line_of_offset(bytes: &[u8], offset: usize) -> usize {
     1 + memchr::memchr_iter(b'\n', &bytes[..offset.min(bytes.len())]).count()

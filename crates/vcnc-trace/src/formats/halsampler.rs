@@ -28,7 +28,17 @@ fn is_overrun(t: &[u8]) -> bool {
 }
 
 fn parse_int(f: &[u8]) -> Option<i64> {
-    std::str::from_utf8(f).ok()?.parse().ok()
+    let (neg, digits) = match f.first()? {
+        b'-' => (true, &f[1..]),
+        _ => (false, f),
+    };
+    if digits.is_empty() || digits.len() > 18 || !digits.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    let v = digits
+        .iter()
+        .fold(0i64, |a, &d| a * 10 + i64::from(d - b'0'));
+    Some(if neg { -v } else { v })
 }
 
 /// Whether the first column holds sample numbers (see the module documentation): integers in
@@ -133,7 +143,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             continue;
         }
         fields.clear();
-        fields.extend(text::split_ws(l.text));
+        text::split_ws_into(l.text, &mut fields);
         if fields.len() != nf {
             return Err(if fields.len() < nf && !l.terminated {
                 Error::Truncated {

@@ -209,7 +209,7 @@ pub(crate) fn read_table(
         fields.clear();
         match delim {
             Delim::Byte(d) => fields.extend(text::split_delim(l.text, d)),
-            Delim::Whitespace => fields.extend(text::split_ws(l.text)),
+            Delim::Whitespace => text::split_ws_into(l.text, &mut fields),
         }
         if fields.len() == ncols + 1 && text::trim(fields[ncols]).is_empty() {
             fields.pop();

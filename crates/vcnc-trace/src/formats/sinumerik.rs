@@ -136,7 +136,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     // Attribute number N → signal index, built at the first record.
     let mut by_number: Vec<Option<usize>> = Vec::new();
     let mut times: Vec<f64> = Vec::new();
-    let mut record_lines: Vec<usize> = Vec::new();
+    let mut record_offsets: Vec<usize> = Vec::new();
     let mut metadata = Vec::new();
     let mut open: Vec<String> = Vec::new();
     loop {
@@ -164,9 +164,10 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             Event::Eof => break,
             _ => continue,
         };
-        let line = lines.at(pos);
+        // Lines are counted only where needed: a record's line only for its errors.
         match e.local_name().as_ref() {
             b"dataSignal" => {
+                let line = lines.at(pos);
                 if !times.is_empty() {
                     return Err(Error::Header {
                         file: file.to_string(),
@@ -181,7 +182,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                     if signals.is_empty() {
                         return Err(Error::Header {
                             file: file.to_string(),
-                            line,
+                            line: lines.at(pos),
                             what: "record before any dataSignal declaration".to_string(),
                         });
                     }
@@ -209,15 +210,14 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                 for a in e.attributes().with_checks(false) {
                     let a = a.map_err(|err| Error::Xml {
                         file: file.to_string(),
-                        line,
+                        line: lines.at(pos),
                         message: err.to_string(),
                     })?;
                     let key = a.key.as_ref();
                     if key == b"time" {
-                        time =
-                            Some(text::parse_f64(&a.value, false).map_err(|er| {
-                                formats::num_error(file, line, "time", &a.value, er)
-                            })?);
+                        time = Some(text::parse_f64(&a.value, false).map_err(|er| {
+                            formats::num_error(file, lines.at(pos), "time", &a.value, er)
+                        })?);
                     } else if let Some(num) = key.strip_prefix(b"f") {
                         let number = (!num.is_empty() && num.iter().all(u8::is_ascii_digit))
                             .then(|| {
@@ -230,7 +230,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                         else {
                             return Err(Error::Header {
                                 file: file.to_string(),
-                                line,
+                                line: lines.at(pos),
                                 what: format!(
                                     "record value '{}' refers to no declared dataSignal",
                                     text::show(key)
@@ -241,7 +241,13 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                         let v = match text::parse_f64(&a.value, false) {
                             Ok(v) => v,
                             Err(er) => {
-                                return Err(formats::num_error(file, line, name, &a.value, er));
+                                return Err(formats::num_error(
+                                    file,
+                                    lines.at(pos),
+                                    name,
+                                    &a.value,
+                                    er,
+                                ));
                             }
                         };
                         if v <= NO_VALUE_ABOVE {
@@ -252,13 +258,13 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                 let Some(t) = time else {
                     return Err(Error::Header {
                         file: file.to_string(),
-                        line,
+                        line: lines.at(pos),
                         what: "record without a time attribute".to_string(),
                     });
                 };
                 let r = times.len();
                 times.push(t);
-                record_lines.push(line);
+                record_offsets.push(pos);
                 for s in &mut signals {
                     if let Some(v) = s.current {
                         if s.start.is_none() {
@@ -293,9 +299,14 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         });
     }
     let u = timebase::uniform(&times, None).map_err(|f| {
-        formats::time_error(file, f, record_lines.first().copied().unwrap_or(1), |r| {
-            record_lines[r]
-        })
+        formats::time_error(
+            file,
+            f,
+            record_offsets
+                .first()
+                .map_or(1, |&o| text::line_of_offset(bytes, o)),
+            |r| text::line_of_offset(bytes, record_offsets[r]),
+        )
     })?;
     let mut channels = Vec::with_capacity(signals.len());
     for (i, s) in signals.into_iter().enumerate() {
@@ -317,7 +328,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             .filter(|&&(index, _)| index > start)
             .map(|&(index, lost)| crate::Gap {
                 index: index - start,
-                line: record_lines[index],
+                line: text::line_of_offset(bytes, record_offsets[index]),
                 lost: Some(lost),
             })
             .collect();
