@@ -1,23 +1,4 @@
-//! Which format a file is, from its content (never its name).
-//!
-//! The first 64 KiB are examined; a UTF-8 byte-order mark is skipped. Formats are tried in the
-//! order of [`Format::ALL`], most specific signature first, and the first match wins:
-//!
-//! | # | format | signature |
-//! |---|--------|-----------|
-//! | 1 | Sinumerik servo trace | first non-blank character `<`, and `<dataSignal` or `<traceData` in the examined part |
-//! | 2 | TNCscope | first non-blank line starts with `%TNCscope` (any case) |
-//! | 3 | halscope table (2.9+) | first line `# Sampling period is N ns` |
-//! | 4 | halscope pairs (before 2.9) | first line `Sampling period is N ns` |
-//! | 5 | TwinCAT Scope | first line `Name` + `;`/tab/`,`/`:`, and a row starting `SampleTime` within the first 60 lines |
-//! | 6 | halsampler | no header: the first two lines other than `#` comments and `overrun` hold white-space separated numbers |
-//! | 7 | delimited text | a first non-comment line (header or numbers), then a line of as many fields, all numbers (or none: a header of two or more fields alone) |
-//!
-//! Signatures look at the first lines only: a fault further down (a ragged row, a NaN) is left to
-//! the reader, which reports it with its line instead of refusing the whole file.
-//!
-//! Content with NUL bytes is binary and matches none. When nothing matches, the error lists each
-//! format with what the content lacked.
+//! Which format a file is, from its content (see [`detect`]).
 
 use crate::error::{Attempt, Error};
 use crate::formats::delimited;
@@ -160,7 +141,27 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
     }
 }
 
-/// The format of `bytes`, or every format tried with what the content lacked.
+/// The format of `bytes`, from its content (never a file name), or every format tried with what
+/// the content lacked.
+///
+/// The first 64 KiB are examined; a UTF-8 byte-order mark is skipped. Formats are tried in the
+/// order of [`Format::ALL`], most specific signature first, and the first match wins:
+///
+/// | # | format | signature |
+/// |---|--------|-----------|
+/// | 1 | Sinumerik servo trace | first non-blank character `<`, and `<dataSignal` or `<traceData` in the examined part |
+/// | 2 | TNCscope | first non-blank line starts with `%TNCscope` (any case) |
+/// | 3 | halscope table (2.9+) | first line `# Sampling period is N ns` |
+/// | 4 | halscope pairs (before 2.9) | first line `Sampling period is N ns` |
+/// | 5 | TwinCAT Scope | first line `Name` + `;`/tab/`,`/`:`, and a row starting `SampleTime` within the first 60 lines |
+/// | 6 | halsampler | no header: the first two lines other than `#` comments and `overrun` hold white-space separated numbers |
+/// | 7 | delimited text | a first non-comment line (header or numbers), then a line of as many fields, all numbers (or none: a header of two or more fields alone) |
+///
+/// Signatures look at the first lines only: a fault further down (a ragged row, a NaN) is left to
+/// the reader, which reports it with its line instead of refusing the whole file.
+///
+/// Content with NUL bytes is binary and matches none. When nothing matches, the error lists each
+/// format with what the content lacked.
 pub fn detect(bytes: &[u8]) -> Result<Format, Vec<Attempt>> {
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let head = &bytes[..bytes.len().min(EXAMINED_BYTES)];

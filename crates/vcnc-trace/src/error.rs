@@ -5,7 +5,7 @@ use vcnc_axis::AxisName;
 
 use crate::model::{Format, Quantity};
 
-/// One format [`crate::detect`] tried, and why it did not match.
+/// One format [`crate::detect()`] tried, and why it did not match.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Attempt {
     /// The format tried.

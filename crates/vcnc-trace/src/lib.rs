@@ -14,26 +14,25 @@
 //!            Paired { axes: AxisTrace { axis, ts_s, nominal, actual, provenance } }
 //! ```
 //!
-//! 1. [`detect`]: the format from the content, never the file name; the order and signatures are
-//!    in [`detect`]'s module table. An unrecognised file is [`Error::UnknownFormat`], listing
-//!    every format tried and what the content lacked.
-//! 2. The readers, one per [`Format`]: LinuxCNC halscope logs (2.9+ table and the older
-//!    name–value pairs), LinuxCNC halsampler output, Heidenhain TNCscope text exports, Siemens
-//!    Sinumerik Operate servo traces (XML), Beckhoff TwinCAT Scope CSV exports, and generic
-//!    delimited text. Each returns the same [`Trace`]. Data rows are parsed from byte slices into
-//!    reused buffers, without allocating per row (1 M samples × 4 channels in well under a second;
-//!    `cargo bench -p vcnc-trace`).
+//! 1. [`detect()`]: the format from the content, never the file name; its documentation has the
+//!    order and the signatures. An unrecognised file is [`Error::UnknownFormat`], listing every
+//!    format tried and what the content lacked.
+//! 2. The readers, one per [`Format`], each documented in [`formats`] with the public description
+//!    it follows: LinuxCNC halscope logs (2.9+ table and the older name–value pairs), LinuxCNC
+//!    halsampler output, Heidenhain TNCscope text exports, Siemens Sinumerik Operate servo traces
+//!    (XML), Beckhoff TwinCAT Scope CSV exports, and generic delimited text. Each returns the
+//!    same [`Trace`]. Data rows are parsed from byte slices into reused buffers, without
+//!    allocating per row (`cargo bench -p vcnc-trace`: 1 M samples × 4 channels in 0.2–0.9 s).
 //! 3. Each [`Channel`]'s axis and quantity are inferred from its name and the file's fields (the
-//!    rules are in the `infer` module: axis letters, LinuxCNC joint numbers through
+//!    rules are in [`infer`]: axis letters, LinuxCNC joint numbers through
 //!    [`ReadOptions::joints`], TNCscope `CHANNELTYPE`/`AXISTYPE`, TwinCAT symbol names, Sinumerik
-//!    descriptions), its unit from the file ([`TraceUnit`], with the conversion table of the
-//!    `units` module).
-//! 4. Time columns are checked uniform up to gaps (a step within 20 % of a whole number of
-//!    periods); lost samples (halsampler `overrun`, jumps in time) become [`Gap`]s. The readers
-//!    keep them; [`pair`] refuses to identify across them unless told to use the longest gap-free
-//!    stretch ([`GapPolicy`]).
-//! 5. [`pair`]: per axis the nominal and actual position channels, in mm or deg, on one time grid,
-//!    with their [`Provenance`].
+//!    descriptions), its unit from the file ([`TraceUnit`], with its conversion table).
+//! 4. Time columns are checked uniform up to gaps (a step within [`STEP_TOLERANCE`] of a whole
+//!    number of periods); lost samples (halsampler `overrun`, jumps in time) become [`Gap`]s. The
+//!    readers keep them, so `trace info` can list them; [`pair()`] refuses to identify across
+//!    them unless told to use the longest gap-free stretch ([`GapPolicy`]).
+//! 5. [`pair()`]: per axis the nominal and actual position channels, in mm or deg, on one time
+//!    grid, with their [`Provenance`].
 //!
 //! ```
 //! use vcnc_trace::{pair, read_bytes, Format, PairOptions, ReadOptions};
@@ -55,8 +54,8 @@
 
 mod detect;
 mod error;
-mod formats;
-mod infer;
+pub mod formats;
+pub mod infer;
 mod info;
 mod model;
 mod pair;

@@ -1,28 +1,4 @@
-//! Per axis, the nominal and actual position channels, on one time grid, in axis units: what
-//! identification takes (docs/identification.md: the reference $x_r$ and the measured $x$,
-//! sampled at $T_s$).
-//!
-//! 1. **Choose.** For each axis asked for (default: every axis with a position channel), the
-//!    [`AxisMap`] given for it, else the channels whose inferred axis is it and whose quantity is
-//!    [`Quantity::NominalPosition`] / [`Quantity::ActualPosition`]. Of several candidates the one
-//!    with the word `motor` is taken (LinuxCNC `joint.N.motor-pos-cmd` over `joint.N.pos-cmd`: the
-//!    servo loop's own signals); otherwise several are an error.
-//! 2. **Convert.** Values are multiplied by the factor of the file's unit to the axis unit, mm
-//!    (X Y Z) or deg (A B C); see `units`. Where the file states no unit, the caller's unit for
-//!    the axis kind decides ([`PairOptions::linear_unit`], [`PairOptions::rotary_unit`]), else mm
-//!    or deg is assumed; [`UnitSource`] records which.
-//! 3. **Align.** Channels on one time base (same period, first time and gaps) are taken sample by
-//!    sample. Otherwise (TNCscope curves of different cycle times, TwinCAT groups with offsets,
-//!    Sinumerik signals starting at different records) both are linearly interpolated onto the
-//!    grid of the coarser period, $T_s = \max(T_\text{nom}, T_\text{act})$, over the time span
-//!    they share:
-//!    $$ t_k = t_\text{start} + k\,T_s, \qquad v(t) = v_i + \frac{t - t_i}{T}\,(v_{i+1} - v_i). $$
-//!    Positions of a drive are smooth at the servo rate, so no anti-alias filter is applied.
-//! 4. **Gaps.** With [`GapPolicy::Refuse`] (the default) any lost samples in the chosen channels
-//!    are an error: the identification's regressors (integral of the error, derivatives) would
-//!    join the two sides of the gap as if contiguous. With [`GapPolicy::LongestSegment`] the
-//!    longest gap-free stretch both channels share is used, and [`Provenance::segment`] says
-//!    which part of how many.
+//! Pairing of nominal and actual positions per axis (see [`pair`]).
 
 use std::fmt;
 
@@ -245,11 +221,7 @@ fn resolve<'t>(trace: &'t Trace, r: &ChannelRef) -> Result<&'t Channel, Error> {
 }
 
 /// The channel of `axis` and `quantity`: `Ok(None)` when there is none.
-fn candidate<'t>(
-    trace: &'t Trace,
-    axis: AxisName,
-    quantity: Quantity,
-) -> Result<Option<&'t Channel>, Error> {
+fn candidate(trace: &Trace, axis: AxisName, quantity: Quantity) -> Result<Option<&Channel>, Error> {
     let all: Vec<&Channel> = trace
         .channels
         .iter()
@@ -274,7 +246,31 @@ fn candidate<'t>(
     })
 }
 
-/// Pairs the nominal and actual position channels of each axis (see the module documentation).
+/// Pairs the nominal and actual position channels of each axis: per axis, on one time grid, in
+/// axis units, what identification takes (docs/identification.md: the reference $x_r$ and the measured $x$,
+/// sampled at $T_s$).
+///
+/// 1. **Choose.** For each axis asked for (default: every axis with a position channel), the
+///    [`AxisMap`] given for it, else the channels whose inferred axis is it and whose quantity is
+///    [`Quantity::NominalPosition`] / [`Quantity::ActualPosition`]. Of several candidates the one
+///    with the word `motor` is taken (LinuxCNC `joint.N.motor-pos-cmd` over `joint.N.pos-cmd`: the
+///    servo loop's own signals); otherwise several are an error.
+/// 2. **Convert.** Values are multiplied by the factor of the file's unit to the axis unit, mm
+///    (X Y Z) or deg (A B C); see [`TraceUnit`]. Where the file states no unit, the caller's unit for
+///    the axis kind decides ([`PairOptions::linear_unit`], [`PairOptions::rotary_unit`]), else mm
+///    or deg is assumed; [`UnitSource`] records which.
+/// 3. **Align.** Channels on one time base (same period, first time and gaps) are taken sample by
+///    sample. Otherwise (TNCscope curves of different cycle times, TwinCAT groups with offsets,
+///    Sinumerik signals starting at different records) both are linearly interpolated onto the
+///    grid of the coarser period, $T_s = \max(T_\text{nom}, T_\text{act})$, over the time span
+///    they share:
+///    $$ t_k = t_\text{start} + k\,T_s, \qquad v(t) = v_i + \frac{t - t_i}{T}\,(v_{i+1} - v_i). $$
+///    Positions of a drive are smooth at the servo rate, so no anti-alias filter is applied.
+/// 4. **Gaps.** With [`GapPolicy::Refuse`] (the default) any lost samples in the chosen channels
+///    are an error: the identification's regressors (integral of the error, derivatives) would
+///    join the two sides of the gap as if contiguous. With [`GapPolicy::LongestSegment`] the
+///    longest gap-free stretch both channels share is used, and [`Provenance::segment`] says
+///    which part of how many.
 pub fn pair(trace: &Trace, opts: &PairOptions) -> Result<Paired, Error> {
     let explicit = !opts.axes.is_empty() || !opts.map.is_empty();
     let mut wanted: Vec<AxisName> = if explicit {

@@ -1,18 +1,20 @@
-//! Time columns checked into a uniform time base: first time, period, gaps.
-//!
-//! Scope samples are taken on the control's clock; a time column only repeats that clock, rounded
-//! to the digits printed. A column is accepted when every step $\Delta t_k$ is within
-//! [`STEP_TOLERANCE`] of a whole number $m_k \ge 1$ of periods $T$:
-//! $$ \left| \frac{\Delta t_k}{T} - m_k \right| \le 0.2 . $$
-//! $m_k = 1$ is a normal step, $m_k \ge 2$ a gap of $m_k - 1$ lost samples; anything else is an
-//! irregular step and an error, as is time that stands still or goes back. $T$ is the period the
-//! file declares, else the median step (robust to gaps); without a declaration it is then refined
-//! to the mean over the whole record,
-//! $$ T = \frac{t_{N-1} - t_0}{N - 1 + L}, $$
-//! with $L$ the lost samples, which removes the rounding of individual steps. A declared period
-//! must agree with that mean within 1 %.
+//! Time columns checked into a uniform time base: first time, period, gaps (see
+//! [`STEP_TOLERANCE`]).
 
-/// Largest distance of a step from a whole number of periods, in periods.
+/// Largest distance of a step from a whole number of periods, in periods: how time columns are
+/// checked into a uniform time base (first time, period, gaps).
+///
+/// Scope samples are taken on the control's clock; a time column only repeats that clock, rounded
+/// to the digits printed. A column is accepted when every step $\Delta t_k$ is within
+/// [`STEP_TOLERANCE`] of a whole number $m_k \ge 1$ of periods $T$:
+/// $$ \left| \frac{\Delta t_k}{T} - m_k \right| \le 0.2 . $$
+/// $m_k = 1$ is a normal step, $m_k \ge 2$ a gap of $m_k - 1$ lost samples; anything else is an
+/// irregular step and an error, as is time that stands still or goes back. $T$ is the period the
+/// file declares, else the lower median step (robust to gaps); without a declaration it is then refined
+/// to the mean over the whole record,
+/// $$ T = \frac{t_{N-1} - t_0}{N - 1 + L}, $$
+/// with $L$ the lost samples, which removes the rounding of individual steps. A declared period
+/// must agree with that mean within 1 %.
 pub const STEP_TOLERANCE: f64 = 0.2;
 
 /// Largest relative difference between a declared period and the mean step.

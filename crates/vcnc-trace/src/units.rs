@@ -1,50 +1,51 @@
-//! Units written in trace files, and their conversion to vcnc's axis units.
-//!
-//! vcnc works in mm and deg for positions, mm/s and deg/s for velocities, A for currents and s for
-//! time (docs/machine-file.md). Every unit a trace may state is one [`TraceUnit`]; its
-//! [`TraceUnit::to_base`] gives the base unit and the factor $k$ with
-//! $$ v_\text{base} = k \, v_\text{file}. $$
-//!
-//! | written (any case)                     | unit        | base   | factor $k$     |
-//! |----------------------------------------|-------------|--------|----------------|
-//! | `nm`                                   | nm          | mm     | 1e-6           |
-//! | `µm` `um` `μm` `0.001 mm`              | µm          | mm     | 1e-3           |
-//! | `mm`                                   | mm          | mm     | 1              |
-//! | `cm`                                   | cm          | mm     | 10             |
-//! | `m`                                    | m           | mm     | 1000           |
-//! | `in` `inch` `"`                        | inch        | mm     | 25.4           |
-//! | `deg` `°` `degree` `Grad`              | deg         | deg    | 1              |
-//! | `mdeg` `0.001 deg` `0.001°`            | mdeg        | deg    | 1e-3           |
-//! | `rad`                                  | rad         | deg    | 180/π          |
-//! | `mm/min`                               | mm/min      | mm/s   | 1/60           |
-//! | `mm/s` `mm/sec`                        | mm/s        | mm/s   | 1              |
-//! | `µm/s` `um/s`                          | µm/s        | mm/s   | 1e-3           |
-//! | `m/min`                                | m/min       | mm/s   | 1000/60        |
-//! | `m/s`                                  | m/s         | mm/s   | 1000           |
-//! | `in/min` `inch/min` `ipm`              | inch/min    | mm/s   | 25.4/60        |
-//! | `in/s` `inch/s` `ips`                  | inch/s      | mm/s   | 25.4           |
-//! | `deg/min` `°/min`                      | deg/min     | deg/s  | 1/60           |
-//! | `deg/s` `°/s`                          | deg/s       | deg/s  | 1              |
-//! | `rad/s`                                | rad/s       | deg/s  | 180/π          |
-//! | `rpm` `1/min` `U/min` `rev/min`        | rev/min     | deg/s  | 6              |
-//! | `A` `Ampere` `amp`                     | A           | A      | 1              |
-//! | `mA`                                   | mA          | A      | 1e-3           |
-//! | `s` `sec`                              | s           | s      | 1              |
-//! | `ms`                                   | ms          | s      | 1e-3           |
-//! | `µs` `us`                              | µs          | s      | 1e-6           |
-//! | `ns`                                   | ns          | s      | 1e-9           |
-//!
-//! `Grad` is German for degree (Heidenhain and Siemens screens in German), not the gon. A trailing
-//! description in parentheses (TwinCAT's `V (Voltage)`) and surrounding brackets (`[mm]`) are
-//! dropped before matching; `(None)`, `-` and an empty string mean "no unit". Anything else is kept
-//! as [`TraceUnit::Other`]: such a channel can be listed, but a position channel in it cannot be
-//! paired (`Error::UnknownUnit`).
+//! Units written in trace files, and their conversion to vcnc's axis units (see [`TraceUnit`]).
 
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-/// A unit stated by a trace file (or by the caller for a file that states none).
+/// A unit stated by a trace file (or by the caller for a file that states none), and its
+/// conversion to vcnc's axis units.
+///
+/// vcnc works in mm and deg for positions, mm/s and deg/s for velocities, A for currents and s for
+/// time (docs/machine-file.md). Every unit a trace may state is one [`TraceUnit`]; its
+/// [`TraceUnit::to_base`] gives the base unit and the factor $k$ with
+/// $$ v_\text{base} = k \, v_\text{file}. $$
+///
+/// | written (any case)                     | unit        | base   | factor $k$     |
+/// |----------------------------------------|-------------|--------|----------------|
+/// | `nm`                                   | nm          | mm     | 1e-6           |
+/// | `µm` `um` `μm` `0.001 mm`              | µm          | mm     | 1e-3           |
+/// | `mm`                                   | mm          | mm     | 1              |
+/// | `cm`                                   | cm          | mm     | 10             |
+/// | `m`                                    | m           | mm     | 1000           |
+/// | `in` `inch` `"`                        | inch        | mm     | 25.4           |
+/// | `deg` `°` `degree` `Grad`              | deg         | deg    | 1              |
+/// | `mdeg` `0.001 deg` `0.001°`            | mdeg        | deg    | 1e-3           |
+/// | `rad`                                  | rad         | deg    | 180/π          |
+/// | `mm/min`                               | mm/min      | mm/s   | 1/60           |
+/// | `mm/s` `mm/sec`                        | mm/s        | mm/s   | 1              |
+/// | `µm/s` `um/s`                          | µm/s        | mm/s   | 1e-3           |
+/// | `m/min`                                | m/min       | mm/s   | 1000/60        |
+/// | `m/s`                                  | m/s         | mm/s   | 1000           |
+/// | `in/min` `inch/min` `ipm`              | inch/min    | mm/s   | 25.4/60        |
+/// | `in/s` `inch/s` `ips`                  | inch/s      | mm/s   | 25.4           |
+/// | `deg/min` `°/min`                      | deg/min     | deg/s  | 1/60           |
+/// | `deg/s` `°/s`                          | deg/s       | deg/s  | 1              |
+/// | `rad/s`                                | rad/s       | deg/s  | 180/π          |
+/// | `rpm` `1/min` `U/min` `rev/min`        | rev/min     | deg/s  | 6              |
+/// | `A` `Ampere` `amp`                     | A           | A      | 1              |
+/// | `mA`                                   | mA          | A      | 1e-3           |
+/// | `s` `sec`                              | s           | s      | 1              |
+/// | `ms`                                   | ms          | s      | 1e-3           |
+/// | `µs` `us`                              | µs          | s      | 1e-6           |
+/// | `ns`                                   | ns          | s      | 1e-9           |
+///
+/// `Grad` is German for degree (Heidenhain and Siemens screens in German), not the gon. A trailing
+/// description in parentheses (TwinCAT's `V (Voltage)`) and surrounding brackets (`[mm]`) are
+/// dropped before matching; `(None)`, `-` and an empty string mean "no unit". Anything else is kept
+/// as [`TraceUnit::Other`]: such a channel can be listed, but a position channel in it cannot be
+/// paired (`Error::UnknownUnit`).
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum TraceUnit {
     /// Nanometre.
@@ -142,7 +143,7 @@ impl fmt::Display for BaseUnit {
 
 impl TraceUnit {
     /// Reads a unit as written in a file. `None` for "no unit" (empty, `(None)`, `-`, `1`);
-    /// [`TraceUnit::Other`] for a unit outside the table of the module documentation.
+    /// [`TraceUnit::Other`] for a unit outside the table above.
     pub fn parse(written: &str) -> Option<TraceUnit> {
         let raw = written.trim();
         let mut s = raw;

@@ -56,7 +56,8 @@ pub fn halscope_pairs(
     columns: &[&[f64]],
 ) -> io::Result<()> {
     check_lengths(columns)?;
-    write!(w, "Sampling period is {period_ns} ns \n")?;
+    // The trailing space is LinuxCNC's.
+    writeln!(w, "Sampling period is {period_ns} ns ")?;
     for k in 0..rows(columns) {
         writeln!(w)?;
         for (n, c) in names.iter().zip(columns) {

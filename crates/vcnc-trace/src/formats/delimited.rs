@@ -11,7 +11,7 @@
 //! * Time column: [`ReadOptions::time_column`], else the column named `t`, `time`, `zeit` or
 //!   `timestamp` (a `_s`, `_ms`, `_us` suffix gives its unit); in s unless its header or
 //!   [`ReadOptions::time_unit`] says otherwise. It must be uniform up to gaps
-//!   (see `timebase`). Without one, [`ReadOptions::period_s`] gives the period.
+//!   (see [`crate::STEP_TOLERANCE`]). Without one, [`ReadOptions::period_s`] gives the period.
 
 use crate::error::Error;
 use crate::formats::{self, Delim, Start};

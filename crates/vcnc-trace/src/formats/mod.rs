@@ -1,12 +1,13 @@
-//! One reader per format, and what they share: the row-table reader, the conversion of time
-//! faults and number faults into [`Error`]s with their line, the naming of channels.
+//! The readers, one module per format, each documenting the layout it reads and the public
+//! description it follows (the sample files and their sources are listed in
+//! `crates/vcnc-trace/tests/data/README.md`). They are used through [`crate::read_path`].
 
-pub(crate) mod delimited;
-pub(crate) mod halsampler;
-pub(crate) mod halscope;
-pub(crate) mod sinumerik;
-pub(crate) mod tncscope;
-pub(crate) mod twincat;
+pub mod delimited;
+pub mod halsampler;
+pub mod halscope;
+pub mod sinumerik;
+pub mod tncscope;
+pub mod twincat;
 
 use vcnc_axis::AxisName;
 

@@ -21,7 +21,7 @@
 //!   controller's "no value" marker, near the largest 64-bit integer 9.22e18) is treated as
 //!   absent and carried forward too. A channel starts at the first record that gives it a
 //!   value.
-//! * The record times must be uniform up to gaps (see `timebase`).
+//! * The record times must be uniform up to gaps (see [`crate::STEP_TOLERANCE`]).
 
 use quick_xml::Reader;
 use quick_xml::events::{BytesStart, Event};
