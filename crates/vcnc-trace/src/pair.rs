@@ -447,17 +447,17 @@ fn stretches(ch: &Channel, period: f64) -> Vec<Stretch> {
         out.push(Stretch {
             start,
             end: g.index,
-            t0: lost.map(|l| ch.t0_s + (start + l) as f64 * period),
+            t0: lost.map(|l| ch.t0_s + start.saturating_add(l) as f64 * period),
             line,
         });
-        lost = lost.zip(g.lost).map(|(a, b)| a + b);
+        lost = lost.zip(g.lost).map(|(a, b)| a.saturating_add(b));
         start = g.index;
         line = g.line;
     }
     out.push(Stretch {
         start,
         end: ch.samples.len(),
-        t0: lost.map(|l| ch.t0_s + (start + l) as f64 * period),
+        t0: lost.map(|l| ch.t0_s + start.saturating_add(l) as f64 * period),
         line,
     });
     out

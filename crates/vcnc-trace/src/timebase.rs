@@ -76,12 +76,13 @@ pub(crate) fn uniform(times: &[f64], declared: Option<f64>) -> Result<Uniform, T
             return Err(TimeFault::Irregular { row: k, dt, period });
         }
         if m >= 2.0 {
-            let lost = m as usize - 1;
-            lost_total += lost;
+            // Saturating: an absurd step (a time column of another unit) must not overflow.
+            let lost = (m as usize).saturating_sub(1);
+            lost_total = lost_total.saturating_add(lost);
             gaps.push((k, lost));
         }
     }
-    let mean = (times[n - 1] - t0_s) / (n - 1 + lost_total) as f64;
+    let mean = (times[n - 1] - t0_s) / (n - 1).saturating_add(lost_total) as f64;
     let period_s = match declared {
         Some(d) => {
             if (mean / d - 1.0).abs() > DECLARED_TOLERANCE {

@@ -25,6 +25,9 @@ use crate::formats::{self, Delim, Start};
 use crate::model::{Channel, Format, ReadOptions, Trace};
 use crate::text::{self, Lines};
 
+/// Channels of a halscope (16 in every LinuxCNC version).
+const MAX_CHANNELS: usize = 16;
+
 /// The period in ns of a `[# ]Sampling period is N ns` line, if it is one.
 pub(crate) fn sampling_period_ns(line: &str, hash: bool) -> Option<Result<f64, String>> {
     let mut t = line.trim();
@@ -196,6 +199,17 @@ pub(crate) fn read_pairs(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result
             } else if let Some(i) = names.iter().position(|(n, _)| n.as_bytes() == name) {
                 i
             } else {
+                if names.len() == MAX_CHANNELS {
+                    return Err(Error::Header {
+                        file: file.to_string(),
+                        line: l.no,
+                        what: format!(
+                            "channel '{}' would be number {}: halscope records at most {MAX_CHANNELS}",
+                            text::show(name),
+                            MAX_CHANNELS + 1
+                        ),
+                    });
+                }
                 names.push((text::decode(name).into_owned(), l.no));
                 cols.push(Vec::new());
                 names.len() - 1

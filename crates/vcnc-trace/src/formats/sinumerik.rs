@@ -33,6 +33,9 @@ use crate::text;
 use crate::timebase;
 use crate::units::TraceUnit;
 
+/// Largest `dataSignal` id accepted (ids index a table).
+const MAX_SIGNAL_ID: usize = 1 << 16;
+
 /// Values above this are the controller's "no value" marker.
 pub const NO_VALUE_ABOVE: f64 = 9.2e18;
 
@@ -192,6 +195,16 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                         .map(|(i, s)| s.id.unwrap_or(i + 1))
                         .collect();
                     let max = ids.iter().copied().max().unwrap_or(0);
+                    if let Some(i) = ids.iter().position(|&id| id > MAX_SIGNAL_ID) {
+                        return Err(Error::Header {
+                            file: file.to_string(),
+                            line: signals[i].line,
+                            what: format!(
+                                "dataSignal id {} is larger than {MAX_SIGNAL_ID}",
+                                ids[i]
+                            ),
+                        });
+                    }
                     by_number = vec![None; max + 1];
                     for (i, &id) in ids.iter().enumerate() {
                         if by_number[id].is_some() {

@@ -303,10 +303,10 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         if let Some(&&(index, l)) = gap_iter.peek()
             && index == r
         {
-            lost += l;
+            lost = lost.saturating_add(l);
             gap_iter.next();
         }
-        g.push(r + lost);
+        g.push(r.saturating_add(lost));
     }
 
     let mut channels = Vec::with_capacity(n);
@@ -328,7 +328,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         let k = k as usize;
         let mut ch = Channel::new(d.name.clone(), c.line, i + 1);
         ch.period_s = Some(d.cycle_s);
-        ch.samples = Vec::with_capacity(d.count);
+        ch.samples = Vec::with_capacity(d.count.min(times.len()));
         let mut prev_g: Option<usize> = None;
         // Row of the first empty on-grid cell: the channel ended there (shorter recordings end
         // before the longer ones); a later value is an error.
