@@ -22,6 +22,13 @@ fn list_attempts(tried: &[Attempt]) -> String {
         .join("; ")
 }
 
+/// A time for messages: ten significant digits, shortest form (0.0009, not 0.0009000000000000001).
+fn secs(v: &f64) -> String {
+    format!("{v:.9e}")
+        .parse::<f64>()
+        .map_or_else(|_| v.to_string(), |r| r.to_string())
+}
+
 fn list(names: &[String]) -> String {
     if names.is_empty() {
         "none".to_string()
@@ -78,7 +85,7 @@ pub enum Error {
         what: String,
     },
     /// A data row has another number of fields than the header declares.
-    #[error("{file}:{line}: {found} fields where the header declares {expected}")]
+    #[error("{file}:{line}: {found} fields where {expected} are expected")]
     FieldCount {
         /// The file.
         file: String,
@@ -130,7 +137,7 @@ pub enum Error {
         text: String,
     },
     /// Time stands still or goes back.
-    #[error("{file}:{line}: time does not increase: {t_prev_s} s, then {t_s} s")]
+    #[error("{file}:{line}: time does not increase: {} s, then {} s", secs(.t_prev_s), secs(.t_s))]
     TimeNotIncreasing {
         /// The file.
         file: String,
@@ -143,7 +150,9 @@ pub enum Error {
     },
     /// A time step is neither the sample period nor a whole multiple of it (a gap).
     #[error(
-        "{file}:{line}: irregular time step {dt_s} s: the sample period is {period_s} s (a step must be within 20 % of a whole number of periods)"
+        "{file}:{line}: irregular time step {} s: the sample period is {} s (a step must be within 20 % of a whole number of periods)",
+        secs(.dt_s),
+        secs(.period_s)
     )]
     IrregularTime {
         /// The file.
@@ -288,7 +297,9 @@ pub enum Error {
     },
     /// The period given contradicts the file's.
     #[error(
-        "{file}:{line}: channel '{channel}': the file's sample period is {file_s} s, the period given is {given_s} s"
+        "{file}:{line}: channel '{channel}': the file's sample period is {} s, the period given is {} s",
+        secs(.file_s),
+        secs(.given_s)
     )]
     PeriodConflict {
         /// The file.

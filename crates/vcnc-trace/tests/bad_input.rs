@@ -148,7 +148,7 @@ fn cases() -> Vec<Case> {
                     }
                 )
             },
-            &["h.log:6:", "3 fields where the header declares 2"],
+            &["h.log:6:", "3 fields where 2 are expected"],
         ),
         case(
             "halscope: period not a number",
@@ -247,7 +247,7 @@ fn cases() -> Vec<Case> {
             "s.txt",
             "0.1 0.2 \n0.3 0.4 0.5 \n0.6 0.7\n",
             |e| matches!(e, E::FieldCount { .. }),
-            &["s.txt:2:", "3 fields where the header declares 2"],
+            &["s.txt:2:", "3 fields where 2 are expected"],
         ),
         case(
             "halsampler: sample number goes back",
@@ -349,7 +349,7 @@ fn cases() -> Vec<Case> {
             "t.txt",
             tnc(&[("600; 0.1; 0.05;", "600; 0.1; 0.05; 7;")]),
             |e| matches!(e, E::FieldCount { .. }),
-            &["t.txt:20:", "4 fields where the header declares 3"],
+            &["t.txt:20:", "4 fields where 3 are expected"],
         ),
         case(
             "tncscope: unknown unit",
@@ -518,7 +518,7 @@ fn cases() -> Vec<Case> {
             "c.csv",
             twincat(&[("2;0.2;2;0.15", "2;0.2;2;0.15;7")]),
             |e| matches!(e, E::FieldCount { .. }),
-            &["c.csv:13:", "5 fields where the header declares 4"],
+            &["c.csv:13:", "5 fields where 4 are expected"],
         ),
         case(
             "twincat: unit row out of line",
@@ -572,7 +572,10 @@ fn cases() -> Vec<Case> {
             "c.csv",
             twincat(&[("2;0.2;2;0.15", ";0.2;2;0.15")]),
             |e| matches!(e, E::Header { .. }),
-            &["c.csv:13:", "'SetPos_X' has a value where its time column"],
+            &[
+                "c.csv:13:",
+                "'SetPos_X' has a value where its time column (column 1) has none",
+            ],
         ),
         case(
             "twincat: names that match no axis",
@@ -610,7 +613,7 @@ fn cases() -> Vec<Case> {
             "t.csv",
             "t,xr,x\n0,0,0\n0.001,1\n",
             |e| matches!(e, E::FieldCount { .. }),
-            &["t.csv:3:", "2 fields where the header declares 3"],
+            &["t.csv:3:", "2 fields where 3 are expected"],
         ),
         case(
             "delimited: NaN",

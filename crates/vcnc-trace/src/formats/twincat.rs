@@ -236,8 +236,9 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                         file,
                         l.no,
                         format!(
-                            "channel '{}' has a value where its time column '{}' has none",
-                            names[c], names[g.time_col]
+                            "channel '{}' has a value where its time column (column {}) has none",
+                            names[c],
+                            g.time_col + 1
                         ),
                     ));
                 }
