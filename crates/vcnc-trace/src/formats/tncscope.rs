@@ -67,10 +67,17 @@ fn header(file: &str, line: usize, what: String) -> Error {
     }
 }
 
-pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
+/// The header: `%[GLOBAL]` keys, `%[CURVEn]` blocks in curve order, and where `%[DATA]` rows
+/// start.
+struct Header {
+    metadata: Vec<(String, String)>,
+    curves: Vec<Curve>,
+    data: Start,
+}
+
+fn read_header(file: &str, bytes: &[u8]) -> Result<Header, Error> {
     let mut lines = Lines::new(bytes);
-    let first = lines.by_ref().find(|l| !text::is_blank(l.text));
-    match first {
+    match lines.by_ref().find(|l| !text::is_blank(l.text)) {
         Some(l)
             if text::decode(text::trim(l.text))
                 .to_ascii_lowercase()
@@ -90,18 +97,11 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             });
         }
     }
-
-    enum Section {
-        Global,
-        Curve,
-        Other,
-    }
-    let mut section = Section::Other;
+    let mut in_curve = false;
     let mut metadata = Vec::new();
     let mut curves: Vec<Curve> = Vec::new();
-    let mut data_start = None;
     let mut last = 1;
-    for l in lines.by_ref() {
+    for l in lines {
         last = l.no;
         let t = text::decode(text::trim(l.text)).into_owned();
         if t.is_empty() {
@@ -109,14 +109,18 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         }
         if let Some(name) = t.strip_prefix("%[").and_then(|r| r.strip_suffix(']')) {
             let upper = name.trim().to_ascii_uppercase();
+            in_curve = false;
             if upper == "DATA" {
-                data_start = Some(Start {
-                    offset: l.next,
-                    line: l.no + 1,
+                curves.sort_by_key(|c| c.number);
+                check_numbering(file, l.no, &curves)?;
+                return Ok(Header {
+                    metadata,
+                    curves,
+                    data: Start {
+                        offset: l.next,
+                        line: l.no + 1,
+                    },
                 });
-                break;
-            } else if upper == "GLOBAL" {
-                section = Section::Global;
             } else if let Some(n) = upper.strip_prefix("CURVE") {
                 let number = n.trim().parse::<usize>().map_err(|_| {
                     header(file, l.no, format!("curve section '{name}' has no number"))
@@ -133,9 +137,8 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                     line: l.no,
                     keys: Vec::new(),
                 });
-                section = Section::Curve;
-            } else {
-                section = Section::Other;
+                in_curve = true;
+            } else if upper != "GLOBAL" {
                 metadata.push(("section".to_string(), name.to_string()));
             }
             continue;
@@ -149,27 +152,24 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             ));
         };
         let (k, v) = (k.trim().to_ascii_uppercase(), v.trim().to_string());
-        match section {
-            Section::Global | Section::Other => metadata.push((k, v)),
-            Section::Curve => curves
-                .last_mut()
-                .expect("a curve section is open")
-                .keys
-                .push((k, v, l.no)),
+        match curves.last_mut() {
+            Some(c) if in_curve => c.keys.push((k, v, l.no)),
+            _ => metadata.push((k, v)),
         }
     }
-    let Some(data_start) = data_start else {
-        return Err(Error::Truncated {
-            file: file.to_string(),
-            line: last,
-            what: "no %[DATA] section".to_string(),
-        });
-    };
-    curves.sort_by_key(|c| c.number);
+    Err(Error::Truncated {
+        file: file.to_string(),
+        line: last,
+        what: "no %[DATA] section".to_string(),
+    })
+}
+
+/// Curves must be numbered 1, 2, … without holes.
+fn check_numbering(file: &str, data_line: usize, curves: &[Curve]) -> Result<(), Error> {
     if curves.is_empty() {
         return Err(header(
             file,
-            data_start.line - 1,
+            data_line,
             "no %[CURVEn] block before %[DATA]".to_string(),
         ));
     }
@@ -185,71 +185,79 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             ));
         }
     }
+    Ok(())
+}
 
-    // Per-curve declarations.
-    struct Decl {
-        name: String,
-        count: usize,
-        count_line: usize,
-        cycle_s: f64,
-        cycle_line: usize,
-    }
-    let mut decls = Vec::with_capacity(curves.len());
-    for c in &curves {
-        let name = c
-            .get("NAME")
-            .map(|(v, _)| v.to_string())
-            .unwrap_or_else(|| format!("CURVE{}", c.number));
-        let (count, count_line) = match c.get("COUNT") {
-            Some((v, l)) => (
-                v.parse::<usize>().map_err(|_| {
-                    header(
-                        file,
-                        l,
-                        format!("COUNT '{v}' of curve '{name}' is not a sample count"),
-                    )
-                })?,
-                l,
-            ),
-            None => return Err(header(file, c.line, format!("curve '{name}' has no COUNT"))),
-        };
-        let (cycle_s, cycle_line) = match c.get("CYCLETIME") {
-            Some((v, l)) => match text::parse_f64(v.as_bytes(), true) {
-                Ok(us) if us > 0.0 => (us * 1e-6, l),
-                _ => {
-                    return Err(header(
-                        file,
-                        l,
-                        format!("CYCLETIME '{v}' of curve '{name}' is not a positive number of µs"),
-                    ));
-                }
-            },
-            None => {
+/// A curve's required declarations.
+struct Decl {
+    name: String,
+    count: usize,
+    count_line: usize,
+    cycle_s: f64,
+    cycle_line: usize,
+}
+
+fn declaration(file: &str, c: &Curve) -> Result<Decl, Error> {
+    let name = c
+        .get("NAME")
+        .map(|(v, _)| v.to_string())
+        .unwrap_or_else(|| format!("CURVE{}", c.number));
+    let (count, count_line) = match c.get("COUNT") {
+        Some((v, l)) => (
+            v.parse::<usize>().map_err(|_| {
+                header(
+                    file,
+                    l,
+                    format!("COUNT '{v}' of curve '{name}' is not a sample count"),
+                )
+            })?,
+            l,
+        ),
+        None => return Err(header(file, c.line, format!("curve '{name}' has no COUNT"))),
+    };
+    let (cycle_s, cycle_line) = match c.get("CYCLETIME") {
+        Some((v, l)) => match text::parse_f64(v.as_bytes(), true) {
+            Ok(us) if us > 0.0 => (us * 1e-6, l),
+            _ => {
                 return Err(header(
                     file,
-                    c.line,
-                    format!("curve '{name}' has no CYCLETIME"),
+                    l,
+                    format!("CYCLETIME '{v}' of curve '{name}' is not a positive number of µs"),
                 ));
             }
-        };
-        decls.push(Decl {
-            name,
-            count,
-            count_line,
-            cycle_s,
-            cycle_line,
-        });
-    }
-    let n = curves.len();
+        },
+        None => {
+            return Err(header(
+                file,
+                c.line,
+                format!("curve '{name}' has no CYCLETIME"),
+            ));
+        }
+    };
+    Ok(Decl {
+        name,
+        count,
+        count_line,
+        cycle_s,
+        cycle_line,
+    })
+}
 
-    // Data rows: time in µs, then one cell per curve (empty: no sample on this row).
-    let decimal_comma = formats::data_lines(bytes, data_start, false)
+/// The data rows: time (s) and one cell per curve, NaN where a cell is empty.
+fn read_rows(
+    file: &str,
+    bytes: &[u8],
+    start: Start,
+    decls: &[Decl],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>), Error> {
+    let n = decls.len();
+    let decimal_comma = formats::data_lines(bytes, start, false)
         .take(20)
         .any(|l| l.text.contains(&b','));
     let mut times: Vec<f64> = Vec::new();
     let mut cells: Vec<Vec<f64>> = vec![Vec::new(); n];
     let mut fields: Vec<&[u8]> = Vec::with_capacity(n + 2);
-    for l in formats::data_lines(bytes, data_start, false) {
+    for l in formats::data_lines(bytes, start, false) {
         fields.clear();
         fields.extend(text::split_delim(l.text, b';'));
         if fields.len() > n + 1 && fields.last().is_some_and(|f| text::trim(f).is_empty()) {
@@ -284,7 +292,122 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             cells[i].push(v);
         }
     }
-    let line_of = |row: usize| formats::row_line(bytes, data_start, false, row);
+    Ok((times, cells))
+}
+
+/// The row grid: global sample index of every row (lost rows counted), first time and the
+/// shortest cycle, s.
+struct Grid<'a> {
+    g: &'a [usize],
+    t0_s: f64,
+    base_s: f64,
+}
+
+/// The channel of curve `c` (file column `column`): its samples on every k-th row of the grid,
+/// its gaps, unit, quantity and axis.
+fn channel(
+    file: &str,
+    (c, d, column): (&Curve, &Decl, usize),
+    cells: &[f64],
+    grid: &Grid<'_>,
+    line_of: &dyn Fn(usize) -> usize,
+) -> Result<Channel, Error> {
+    let (g, t0_s, base_s) = (grid.g, grid.t0_s, grid.base_s);
+    let ratio = d.cycle_s / base_s;
+    let k = ratio.round();
+    if (ratio - k).abs() > 1e-6 * ratio {
+        return Err(header(
+            file,
+            d.cycle_line,
+            format!(
+                "CYCLETIME of curve '{}' ({} µs) is not a whole multiple of the shortest cycle ({} µs)",
+                d.name,
+                d.cycle_s * 1e6,
+                base_s * 1e6
+            ),
+        ));
+    }
+    let k = k as usize;
+    let mut ch = Channel::new(d.name.clone(), c.line, column);
+    ch.period_s = Some(d.cycle_s);
+    ch.samples = Vec::with_capacity(d.count.min(cells.len()));
+    let mut prev_g: Option<usize> = None;
+    // Row of the first empty on-grid cell: the channel ended there (shorter recordings end
+    // before the longer ones); a later value is an error.
+    let mut ended: Option<usize> = None;
+    for (r, &gr) in g.iter().enumerate() {
+        if gr % k != 0 {
+            continue;
+        }
+        let v = cells[r];
+        if v.is_nan() {
+            ended.get_or_insert(r);
+            continue;
+        }
+        if let Some(e) = ended {
+            return Err(Error::NotANumber {
+                file: file.to_string(),
+                line: line_of(e),
+                column: d.name.clone(),
+                text: String::new(),
+            });
+        }
+        match prev_g {
+            Some(p) if gr - p > k => ch.gaps.push(Gap {
+                index: ch.samples.len(),
+                line: line_of(r),
+                lost: Some((gr - p) / k - 1),
+            }),
+            Some(_) => {}
+            None => ch.t0_s = t0_s + gr as f64 * base_s,
+        }
+        prev_g = Some(gr);
+        ch.samples.push(v);
+    }
+    if ch.samples.len() != d.count {
+        return Err(Error::CountMismatch {
+            file: file.to_string(),
+            line: d.count_line,
+            channel: d.name.clone(),
+            declared: d.count,
+            found: ch.samples.len(),
+        });
+    }
+    if let Some((dim, _)) = c.get("DIMENSION") {
+        ch.unit = TraceUnit::parse(dim);
+    }
+    let channel_type = c.get("CHANNELTYPE").map(|(v, _)| v.to_string());
+    ch.description = channel_type.clone().unwrap_or_default();
+    formats::infer_channel(&mut ch, &[("NAME", &d.name)], None);
+    if let Some(q) = channel_type.as_deref().and_then(infer::tnc_channel_type) {
+        ch.quantity = q;
+    }
+    if let Some((at, _)) = c.get("AXISTYPE") {
+        let declared = at
+            .parse::<AxisName>()
+            .ok()
+            .or_else(|| infer::axis_of(at, "AXISTYPE", None).map(|(a, _, _)| a));
+        if let Some(axis) = declared {
+            ch.axis = Some(axis);
+            ch.axis_source = Some(AxisSource::Declared {
+                key: "AXISTYPE".to_string(),
+                value: at.to_string(),
+            });
+        }
+    }
+    Ok(ch)
+}
+
+pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
+    let h = read_header(file, bytes)?;
+    let decls = h
+        .curves
+        .iter()
+        .map(|c| declaration(file, c))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (times, cells) = read_rows(file, bytes, h.data, &decls)?;
+    // Rows come at the shortest cycle; the time column must be uniform at it, up to gaps.
+    let line_of = |row: usize| formats::row_line(bytes, h.data, false, row);
     let base_s = decls
         .iter()
         .map(|d| d.cycle_s)
@@ -292,109 +415,30 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     let base_line = decls
         .iter()
         .find(|d| d.cycle_s == base_s)
-        .map_or(data_start.line, |d| d.cycle_line);
+        .map_or(h.data.line, |d| d.cycle_line);
     let u = timebase::uniform(&times, Some(base_s))
         .map_err(|f| formats::time_error(file, f, base_line, line_of))?;
     // Global sample index of every row (rows lost in gaps counted).
     let mut g = Vec::with_capacity(times.len());
     let mut lost = 0usize;
-    let mut gap_iter = u.gaps.iter().peekable();
+    let mut gaps = u.gaps.iter().peekable();
     for r in 0..times.len() {
-        if let Some(&&(index, l)) = gap_iter.peek()
+        if let Some(&&(index, l)) = gaps.peek()
             && index == r
         {
             lost = lost.saturating_add(l);
-            gap_iter.next();
+            gaps.next();
         }
         g.push(r.saturating_add(lost));
     }
-
-    let mut channels = Vec::with_capacity(n);
-    for (i, (c, d)) in curves.iter().zip(&decls).enumerate() {
-        let ratio = d.cycle_s / base_s;
-        let k = ratio.round();
-        if (ratio - k).abs() > 1e-6 * ratio {
-            return Err(header(
-                file,
-                d.cycle_line,
-                format!(
-                    "CYCLETIME of curve '{}' ({} µs) is not a whole multiple of the shortest cycle ({} µs)",
-                    d.name,
-                    d.cycle_s * 1e6,
-                    base_s * 1e6
-                ),
-            ));
-        }
-        let k = k as usize;
-        let mut ch = Channel::new(d.name.clone(), c.line, i + 1);
-        ch.period_s = Some(d.cycle_s);
-        ch.samples = Vec::with_capacity(d.count.min(times.len()));
-        let mut prev_g: Option<usize> = None;
-        // Row of the first empty on-grid cell: the channel ended there (shorter recordings end
-        // before the longer ones); a later value is an error.
-        let mut ended: Option<usize> = None;
-        for (r, &gr) in g.iter().enumerate() {
-            if gr % k != 0 {
-                continue;
-            }
-            let v = cells[i][r];
-            if v.is_nan() {
-                ended.get_or_insert(r);
-                continue;
-            }
-            if let Some(e) = ended {
-                return Err(Error::NotANumber {
-                    file: file.to_string(),
-                    line: line_of(e),
-                    column: d.name.clone(),
-                    text: String::new(),
-                });
-            }
-            if let Some(p) = prev_g {
-                if gr - p > k {
-                    ch.gaps.push(Gap {
-                        index: ch.samples.len(),
-                        line: line_of(r),
-                        lost: Some((gr - p) / k - 1),
-                    });
-                }
-            } else {
-                ch.t0_s = u.t0_s + gr as f64 * base_s;
-            }
-            prev_g = Some(gr);
-            ch.samples.push(v);
-        }
-        if ch.samples.len() != d.count {
-            return Err(Error::CountMismatch {
-                file: file.to_string(),
-                line: d.count_line,
-                channel: d.name.clone(),
-                declared: d.count,
-                found: ch.samples.len(),
-            });
-        }
-        if let Some((dim, _)) = c.get("DIMENSION") {
-            ch.unit = TraceUnit::parse(dim);
-        }
-        let channel_type = c.get("CHANNELTYPE").map(|(v, _)| v.to_string());
-        ch.description = channel_type.clone().unwrap_or_default();
-        formats::infer_channel(&mut ch, &[("NAME", &d.name)], None);
-        if let Some(q) = channel_type.as_deref().and_then(infer::tnc_channel_type) {
-            ch.quantity = q;
-        }
-        if let Some((at, _)) = c.get("AXISTYPE") {
-            let declared = at
-                .parse::<AxisName>()
-                .ok()
-                .or_else(|| infer::axis_of(at, "AXISTYPE", None).map(|(a, _, _)| a));
-            if let Some(axis) = declared {
-                ch.axis = Some(axis);
-                ch.axis_source = Some(AxisSource::Declared {
-                    key: "AXISTYPE".to_string(),
-                    value: at.to_string(),
-                });
-            }
-        }
+    let mut channels = Vec::with_capacity(decls.len());
+    let grid = Grid {
+        g: &g,
+        t0_s: u.t0_s,
+        base_s,
+    };
+    for (i, (c, d)) in h.curves.iter().zip(&decls).enumerate() {
+        let mut ch = channel(file, (c, d, i + 1), &cells[i], &grid, &line_of)?;
         formats::apply_period_option(file, opts, &mut ch)?;
         channels.push(ch);
     }
@@ -402,6 +446,6 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         file: file.to_string(),
         format: Format::TncScope,
         channels,
-        metadata,
+        metadata: h.metadata,
     })
 }

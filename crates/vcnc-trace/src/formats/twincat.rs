@@ -37,7 +37,7 @@
 use crate::error::Error;
 use crate::formats::{self, Start};
 use crate::model::{Channel, Format, ReadOptions, Trace};
-use crate::text::{self, Lines};
+use crate::text::{self, Line, Lines};
 use crate::timebase;
 use crate::units::TraceUnit;
 
@@ -62,8 +62,14 @@ fn cells(line: &[u8], sep: u8) -> Vec<String> {
         .collect()
 }
 
-pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
-    let mut lines = Lines::new(bytes).peekable();
+/// The header block: its separator, its fields, and the channel block's `Name` row.
+struct Header<'a> {
+    sep: u8,
+    metadata: Vec<(String, String)>,
+    block: Line<'a>,
+}
+
+fn read_header<'a>(file: &str, lines: &mut Lines<'a>) -> Result<Header<'a>, Error> {
     let first = lines.next().ok_or_else(|| Error::Truncated {
         file: file.to_string(),
         line: 1,
@@ -82,16 +88,13 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             ));
         }
     };
-    // Header block.
     let mut metadata = Vec::new();
     let mut push_meta = |t: &[u8]| {
-        let c = cells(t, sep);
-        if let Some((k, v)) = c.split_first() {
+        if let Some((k, v)) = cells(t, sep).split_first() {
             metadata.push((k.clone(), v.join(" ").trim().to_string()));
         }
     };
     push_meta(first.text);
-    let mut block = None;
     let mut seen_blank = false;
     let mut last = first.no;
     for l in lines.by_ref() {
@@ -101,21 +104,23 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             continue;
         }
         if seen_blank && l.text.starts_with(b"Name") && l.text.get(4) == Some(&sep) {
-            block = Some(l);
-            break;
+            return Ok(Header {
+                sep,
+                metadata,
+                block: l,
+            });
         }
         push_meta(l.text);
     }
-    let Some(block) = block else {
-        return Err(Error::Truncated {
-            file: file.to_string(),
-            line: last,
-            what: "no channel block (a 'Name' row after a blank line)".to_string(),
-        });
-    };
+    Err(Error::Truncated {
+        file: file.to_string(),
+        line: last,
+        what: "no channel block (a 'Name' row after a blank line)".to_string(),
+    })
+}
 
-    // Channel block: groups.
-    let names = cells(block.text, sep);
+/// The column groups of the channel block: every `Name` cell starts one.
+fn groups(file: &str, line: usize, names: &[String]) -> Result<Vec<Group>, Error> {
     let mut groups: Vec<Group> = Vec::new();
     for (c, cell) in names.iter().enumerate() {
         if cell == "Name" {
@@ -125,90 +130,85 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             });
         } else if cell.is_empty() && c + 1 == names.len() {
             // A trailing separator.
-        } else {
-            groups
-                .last_mut()
-                .expect("the row starts with Name")
-                .cols
-                .push(c);
+        } else if let Some(g) = groups.last_mut() {
+            g.cols.push(c);
         }
     }
     if let Some(g) = groups.iter().find(|g| g.cols.is_empty()) {
         return Err(header(
             file,
-            block.no,
+            line,
             format!(
                 "the 'Name' in column {} is followed by no channel",
                 g.time_col + 1
             ),
         ));
     }
-    let ncols = names.len();
+    Ok(groups)
+}
 
-    // Metadata rows.
-    let mut meta_rows: Vec<(String, Vec<String>, usize)> = Vec::new();
-    let mut data_from = None;
+/// A metadata row: key, cells, line.
+type MetaRow = (String, Vec<String>, usize);
+
+/// The metadata rows up to the blank line, and where the data may start.
+fn read_metadata(
+    file: &str,
+    lines: &mut Lines<'_>,
+    sep: u8,
+    groups: &[Group],
+    block_line: usize,
+) -> Result<(Vec<MetaRow>, Start), Error> {
+    let mut rows = Vec::new();
+    let mut last = block_line;
     for l in lines.by_ref() {
         last = l.no;
         if text::is_blank(l.text) {
-            data_from = Some(Start {
+            let start = Start {
                 offset: l.next,
                 line: l.no + 1,
-            });
-            break;
+            };
+            return Ok((rows, start));
         }
         let c = cells(l.text, sep);
         let key = c.first().cloned().unwrap_or_default();
-        let aligned = groups.iter().all(|g| c.get(g.time_col) == Some(&key));
-        if !aligned {
-            if USED_KEYS.contains(&key.as_str()) {
-                return Err(header(
-                    file,
-                    l.no,
-                    format!("metadata row '{key}' does not line up with the channel block"),
-                ));
-            }
-            continue;
+        if groups.iter().all(|g| c.get(g.time_col) == Some(&key)) {
+            rows.push((key, c, l.no));
+        } else if USED_KEYS.contains(&key.as_str()) {
+            return Err(header(
+                file,
+                l.no,
+                format!("metadata row '{key}' does not line up with the channel block"),
+            ));
         }
-        meta_rows.push((key, c, l.no));
     }
-    let Some(data_from) = data_from else {
-        return Err(Error::Truncated {
-            file: file.to_string(),
-            line: last,
-            what: "no data after the channel block".to_string(),
-        });
-    };
-    let meta = |key: &str| meta_rows.iter().find(|(k, _, _)| k == key);
-    let sample_times = meta("SampleTime[ms]").or_else(|| meta("SampleTime"));
+    Err(Error::Truncated {
+        file: file.to_string(),
+        line: last,
+        what: "no data after the channel block".to_string(),
+    })
+}
 
-    // First data row: the first line whose first cell is a number.
-    let data_start = formats::data_lines(bytes, data_from, false)
-        .find(|l| {
-            text::split_delim(l.text, sep)
-                .next()
-                .is_some_and(text::looks_numeric)
-        })
-        .map(|l| Start {
-            offset: l.offset,
-            line: l.no,
-        })
-        .unwrap_or(Start {
-            offset: bytes.len(),
-            line: last + 1,
-        });
-    let decimal_comma = sep != b','
-        && (sample_times.is_some_and(|(_, c, _)| c.iter().any(|v| v.contains(',')))
-            || formats::data_lines(bytes, data_start, false)
-                .take(50)
-                .any(|l| text::split_delim(l.text, sep).any(|f| f.contains(&b','))));
+/// Per group its times (s), per column its values.
+struct Data {
+    times: Vec<Vec<f64>>,
+    values: Vec<Vec<f64>>,
+}
 
-    // Data.
+/// The data rows. A group ends at its first empty (or `EOF`) time cell.
+fn read_data(
+    file: &str,
+    bytes: &[u8],
+    start: Start,
+    (sep, decimal_comma): (u8, bool),
+    groups: &[Group],
+    names: &[String],
+) -> Result<Data, Error> {
+    let ncols = names.len();
     let mut times: Vec<Vec<f64>> = vec![Vec::new(); groups.len()];
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); ncols];
     let mut ended = vec![false; groups.len()];
     let mut row: Vec<&[u8]> = Vec::with_capacity(ncols + 1);
-    for l in formats::data_lines(bytes, data_start, false) {
+    for l in formats::data_lines(bytes, start, false) {
         row.clear();
         row.extend(text::split_delim(l.text, sep));
         if row.len() > ncols && row[ncols..].iter().all(|c| text::trim(c).is_empty()) {
@@ -263,36 +263,95 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             }
         }
     }
+    Ok(Data { times, values })
+}
 
+/// The sample time a group's channels declare (s) and its line; they must agree.
+fn declared_period(
+    file: &str,
+    sample_times: Option<&MetaRow>,
+    g: &Group,
+    names: &[String],
+    decimal_comma: bool,
+) -> Result<Option<(f64, usize)>, Error> {
+    let Some((_, cells, line)) = sample_times else {
+        return Ok(None);
+    };
+    let mut declared: Option<(f64, usize)> = None;
+    for &c in &g.cols {
+        let v = cells.get(c).map(String::as_str).unwrap_or("");
+        let ms = text::parse_f64(v.as_bytes(), decimal_comma).map_err(|_| {
+            header(
+                file,
+                *line,
+                format!("SampleTime '{v}' of '{}' is not a number", names[c]),
+            )
+        })?;
+        match declared {
+            Some((d, _)) if (d - ms * 1e-3).abs() > 1e-12 => {
+                return Err(header(
+                    file,
+                    *line,
+                    format!(
+                        "channels sharing time column {} declare different sample times",
+                        g.time_col + 1
+                    ),
+                ));
+            }
+            _ => declared = Some((ms * 1e-3, *line)),
+        }
+    }
+    Ok(declared)
+}
+
+pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
+    let mut lines = Lines::new(bytes);
+    let Header {
+        sep,
+        metadata,
+        block,
+    } = read_header(file, &mut lines)?;
+    let names = cells(block.text, sep);
+    let groups = groups(file, block.no, &names)?;
+    let (meta_rows, data_from) = read_metadata(file, &mut lines, sep, &groups, block.no)?;
+    let meta = |key: &str| meta_rows.iter().find(|(k, _, _)| k == key);
+    let sample_times = meta("SampleTime[ms]").or_else(|| meta("SampleTime"));
+
+    // First data row: the first line whose first cell is a number.
+    let data_start = formats::data_lines(bytes, data_from, false)
+        .find(|l| {
+            text::split_delim(l.text, sep)
+                .next()
+                .is_some_and(text::looks_numeric)
+        })
+        .map_or(
+            Start {
+                offset: bytes.len(),
+                line: data_from.line,
+            },
+            |l| Start {
+                offset: l.offset,
+                line: l.no,
+            },
+        );
+    let decimal_comma = sep != b','
+        && (sample_times.is_some_and(|(_, c, _)| c.iter().any(|v| v.contains(',')))
+            || formats::data_lines(bytes, data_start, false)
+                .take(50)
+                .any(|l| text::split_delim(l.text, sep).any(|f| f.contains(&b','))));
+    let Data { times, mut values } = read_data(
+        file,
+        bytes,
+        data_start,
+        (sep, decimal_comma),
+        &groups,
+        &names,
+    )?;
+
+    let line_of = |r: usize| formats::row_line(bytes, data_start, false, r);
     let mut channels = Vec::new();
     for (gi, g) in groups.iter().enumerate() {
-        let mut declared: Option<(f64, usize)> = None;
-        if let Some((_, cells, line)) = sample_times {
-            for &c in &g.cols {
-                let v = cells.get(c).map(String::as_str).unwrap_or("");
-                let ms = text::parse_f64(v.as_bytes(), decimal_comma).map_err(|_| {
-                    header(
-                        file,
-                        *line,
-                        format!("SampleTime '{v}' of '{}' is not a number", names[c]),
-                    )
-                })?;
-                match declared {
-                    Some((d, _)) if (d - ms * 1e-3).abs() > 1e-12 => {
-                        return Err(header(
-                            file,
-                            *line,
-                            format!(
-                                "channels sharing time column {} declare different sample times",
-                                g.time_col + 1
-                            ),
-                        ));
-                    }
-                    _ => declared = Some((ms * 1e-3, *line)),
-                }
-            }
-        }
-        let line_of = |r: usize| formats::row_line(bytes, data_start, false, r);
+        let declared = declared_period(file, sample_times, g, &names, decimal_comma)?;
         let u = timebase::uniform(&times[gi], declared.map(|d| d.0)).map_err(|f| {
             formats::time_error(file, f, declared.map_or(block.no, |d| d.1), line_of)
         })?;
