@@ -132,3 +132,15 @@ proptest! {
         exercise(&bytes);
     }
 }
+
+#[test]
+fn signal_id_zero_and_huge_numbers_are_no_panic() {
+    let xml = "<traceData><dataFrame>\
+        <dataSignal id=\"0\" name=\"a\" description=\"Position setpoint X1\"/>\
+        <dataSignal id=\"1\" name=\"b\" description=\"Position actual value X1\"/>\
+        <rec time=\"0\" f0=\"1\" f1=\"1\"/><rec time=\"0.001\" f0=\"2\" f1=\"2\"/>\
+        <rec time=\"1e300\" f0=\"3\" f1=\"3\"/></dataFrame></traceData>";
+    exercise(xml.as_bytes());
+    let halscope = "# Sampling period is 1e-300 ns\nx-pos-cmd;x-pos-fb\n0;0\n1;1\n";
+    exercise(halscope.as_bytes());
+}

@@ -128,6 +128,161 @@ fn signal(
     Ok(s)
 }
 
+/// Attribute number N → signal index: the signal with `id="N"`, or the N-th declared.
+fn id_table(file: &str, signals: &[Signal]) -> Result<Vec<Option<usize>>, Error> {
+    let ids: Vec<usize> = signals
+        .iter()
+        .enumerate()
+        .map(|(i, s)| s.id.unwrap_or(i + 1))
+        .collect();
+    if let Some(i) = ids.iter().position(|&id| id > MAX_SIGNAL_ID) {
+        return Err(Error::Header {
+            file: file.to_string(),
+            line: signals[i].line,
+            what: format!("dataSignal id {} is larger than {MAX_SIGNAL_ID}", ids[i]),
+        });
+    }
+    let mut table = vec![None; ids.iter().copied().max().unwrap_or(0) + 1];
+    for (i, &id) in ids.iter().enumerate() {
+        if table[id].is_some() {
+            return Err(Error::Header {
+                file: file.to_string(),
+                line: signals[i].line,
+                what: format!("dataSignal id {id} is declared twice"),
+            });
+        }
+        table[id] = Some(i);
+    }
+    Ok(table)
+}
+
+/// The records read so far: their times (s) and byte offsets (for lines, counted on demand).
+#[derive(Default)]
+struct Records {
+    times: Vec<f64>,
+    offsets: Vec<usize>,
+}
+
+/// Reads one `rec` element at byte `pos`: updates the signals' current values (carried forward)
+/// and appends a sample to every signal that has one.
+fn record(
+    file: &str,
+    e: &BytesStart<'_>,
+    pos: usize,
+    lines: &mut LineCounter<'_>,
+    (table, signals): (&[Option<usize>], &mut [Signal]),
+    records: &mut Records,
+) -> Result<(), Error> {
+    let mut time = None;
+    // Duplicate-attribute checks off: a record is read once, and a repeated fN would only
+    // overwrite the value (the last one wins, as carried forward).
+    for a in e.attributes().with_checks(false) {
+        let a = a.map_err(|err| Error::Xml {
+            file: file.to_string(),
+            line: lines.at(pos),
+            message: err.to_string(),
+        })?;
+        let key = a.key.as_ref();
+        if key == b"time" {
+            time = Some(
+                text::parse_f64(&a.value, false)
+                    .map_err(|er| formats::num_error(file, lines.at(pos), "time", &a.value, er))?,
+            );
+            continue;
+        }
+        let Some(num) = key.strip_prefix(b"f") else {
+            continue;
+        };
+        let number = (!num.is_empty() && num.iter().all(u8::is_ascii_digit))
+            .then(|| {
+                num.iter().try_fold(0usize, |a, d| {
+                    a.checked_mul(10)?.checked_add(usize::from(d - b'0'))
+                })
+            })
+            .flatten();
+        let Some(idx) = number.and_then(|n| table.get(n).copied().flatten()) else {
+            return Err(Error::Header {
+                file: file.to_string(),
+                line: lines.at(pos),
+                what: format!(
+                    "record value '{}' refers to no declared dataSignal",
+                    text::show(key)
+                ),
+            });
+        };
+        let v = text::parse_f64(&a.value, false).map_err(|er| {
+            formats::num_error(file, lines.at(pos), &signals[idx].description, &a.value, er)
+        })?;
+        if v <= NO_VALUE_ABOVE {
+            signals[idx].current = Some(v);
+        }
+    }
+    let Some(t) = time else {
+        return Err(Error::Header {
+            file: file.to_string(),
+            line: lines.at(pos),
+            what: "record without a time attribute".to_string(),
+        });
+    };
+    let r = records.times.len();
+    records.times.push(t);
+    records.offsets.push(pos);
+    for s in signals.iter_mut() {
+        if let Some(v) = s.current {
+            s.start.get_or_insert(r);
+            s.samples.push(v);
+        }
+    }
+    Ok(())
+}
+
+/// The channels of the signals, on the checked record time base.
+fn channels(
+    file: &str,
+    bytes: &[u8],
+    opts: &ReadOptions,
+    signals: Vec<Signal>,
+    records: &Records,
+) -> Result<Vec<Channel>, Error> {
+    let line_of = |r: usize| text::line_of_offset(bytes, records.offsets[r]);
+    let first_line = records
+        .offsets
+        .first()
+        .map_or(1, |&o| text::line_of_offset(bytes, o));
+    let u = timebase::uniform(&records.times, None)
+        .map_err(|f| formats::time_error(file, f, first_line, line_of))?;
+    let mut channels = Vec::with_capacity(signals.len());
+    for (i, s) in signals.into_iter().enumerate() {
+        let name = if s.description.is_empty() {
+            s.name.clone()
+        } else {
+            s.description.clone()
+        };
+        let mut ch = Channel::new(name, s.line, s.id.map_or(i, |id| id.saturating_sub(1)));
+        ch.description = s.name;
+        ch.unit = s.unit;
+        let start = s.start.unwrap_or(records.times.len());
+        ch.samples = s.samples;
+        ch.period_s = u.period_s;
+        ch.t0_s = records.times.get(start).copied().unwrap_or(0.0);
+        ch.gaps = u
+            .gaps
+            .iter()
+            .filter(|&&(index, _)| index > start)
+            .map(|&(index, lost)| crate::Gap {
+                index: index - start,
+                line: line_of(index),
+                lost: Some(lost),
+            })
+            .collect();
+        formats::apply_period_option(file, opts, &mut ch)?;
+        let (d, p) = (ch.name.clone(), ch.description.clone());
+        formats::infer_channel(&mut ch, &[("description", &d), ("path", &p)], None);
+        channels.push(ch);
+    }
+    Ok(channels)
+}
+
 pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
     let mut reader = Reader::from_reader(bytes);
     let mut lines = LineCounter {
@@ -136,11 +291,11 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         line: 1,
     };
     let mut signals: Vec<Signal> = Vec::new();
-    // Attribute number N → signal index, built at the first record.
-    let mut by_number: Vec<Option<usize>> = Vec::new();
-    let mut times: Vec<f64> = Vec::new();
-    let mut record_offsets: Vec<usize> = Vec::new();
+    // Built at the first record, when every signal is declared.
+    let mut table: Option<Vec<Option<usize>>> = None;
+    let mut records = Records::default();
     let mut metadata = Vec::new();
+    // Names of the open elements, for the "ends inside" message ("" for records).
     let mut open: Vec<String> = Vec::new();
     loop {
         let pos = reader.buffer_position() as usize;
@@ -151,11 +306,11 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         })?;
         let e = match ev {
             Event::Start(e) => {
-                // Element names kept for the "ends inside" message; records need none.
-                open.push(if e.local_name().as_ref() == b"rec" {
+                let name = e.local_name();
+                open.push(if name.as_ref() == b"rec" {
                     String::new()
                 } else {
-                    text::decode(e.local_name().as_ref()).into_owned()
+                    text::decode(name.as_ref()).into_owned()
                 });
                 e
             }
@@ -167,11 +322,10 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             Event::Eof => break,
             _ => continue,
         };
-        // Lines are counted only where needed: a record's line only for its errors.
         match e.local_name().as_ref() {
             b"dataSignal" => {
                 let line = lines.at(pos);
-                if !times.is_empty() {
+                if table.is_some() {
                     return Err(Error::Header {
                         file: file.to_string(),
                         line,
@@ -181,7 +335,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                 signals.push(signal(file, line, &reader, &e)?);
             }
             b"rec" => {
-                if times.is_empty() {
+                if table.is_none() {
                     if signals.is_empty() {
                         return Err(Error::Header {
                             file: file.to_string(),
@@ -189,106 +343,13 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                             what: "record before any dataSignal declaration".to_string(),
                         });
                     }
-                    let ids: Vec<usize> = signals
-                        .iter()
-                        .enumerate()
-                        .map(|(i, s)| s.id.unwrap_or(i + 1))
-                        .collect();
-                    let max = ids.iter().copied().max().unwrap_or(0);
-                    if let Some(i) = ids.iter().position(|&id| id > MAX_SIGNAL_ID) {
-                        return Err(Error::Header {
-                            file: file.to_string(),
-                            line: signals[i].line,
-                            what: format!(
-                                "dataSignal id {} is larger than {MAX_SIGNAL_ID}",
-                                ids[i]
-                            ),
-                        });
-                    }
-                    by_number = vec![None; max + 1];
-                    for (i, &id) in ids.iter().enumerate() {
-                        if by_number[id].is_some() {
-                            return Err(Error::Header {
-                                file: file.to_string(),
-                                line: signals[i].line,
-                                what: format!("dataSignal id {id} is declared twice"),
-                            });
-                        }
-                        by_number[id] = Some(i);
-                    }
+                    table = Some(id_table(file, &signals)?);
                 }
-                let mut time = None;
-                // Duplicate-attribute checks off: a record is read once, and a repeated fN
-                // would only overwrite the value (the last one wins, as carried forward).
-                for a in e.attributes().with_checks(false) {
-                    let a = a.map_err(|err| Error::Xml {
-                        file: file.to_string(),
-                        line: lines.at(pos),
-                        message: err.to_string(),
-                    })?;
-                    let key = a.key.as_ref();
-                    if key == b"time" {
-                        time = Some(text::parse_f64(&a.value, false).map_err(|er| {
-                            formats::num_error(file, lines.at(pos), "time", &a.value, er)
-                        })?);
-                    } else if let Some(num) = key.strip_prefix(b"f") {
-                        let number = (!num.is_empty() && num.iter().all(u8::is_ascii_digit))
-                            .then(|| {
-                                num.iter().try_fold(0usize, |a, d| {
-                                    a.checked_mul(10)?.checked_add(usize::from(d - b'0'))
-                                })
-                            })
-                            .flatten();
-                        let Some(idx) = number.and_then(|n| by_number.get(n).copied().flatten())
-                        else {
-                            return Err(Error::Header {
-                                file: file.to_string(),
-                                line: lines.at(pos),
-                                what: format!(
-                                    "record value '{}' refers to no declared dataSignal",
-                                    text::show(key)
-                                ),
-                            });
-                        };
-                        let name = &signals[idx].description;
-                        let v = match text::parse_f64(&a.value, false) {
-                            Ok(v) => v,
-                            Err(er) => {
-                                return Err(formats::num_error(
-                                    file,
-                                    lines.at(pos),
-                                    name,
-                                    &a.value,
-                                    er,
-                                ));
-                            }
-                        };
-                        if v <= NO_VALUE_ABOVE {
-                            signals[idx].current = Some(v);
-                        }
-                    }
-                }
-                let Some(t) = time else {
-                    return Err(Error::Header {
-                        file: file.to_string(),
-                        line: lines.at(pos),
-                        what: "record without a time attribute".to_string(),
-                    });
-                };
-                let r = times.len();
-                times.push(t);
-                record_offsets.push(pos);
-                for s in &mut signals {
-                    if let Some(v) = s.current {
-                        if s.start.is_none() {
-                            s.start = Some(r);
-                        }
-                        s.samples.push(v);
-                    }
-                }
+                let t = table.as_deref().unwrap_or_default();
+                record(file, &e, pos, &mut lines, (t, &mut signals), &mut records)?;
             }
             other => {
-                if times.is_empty() && signals.is_empty() && metadata.is_empty() {
+                if table.is_none() && signals.is_empty() && metadata.is_empty() {
                     metadata.push(("root".to_string(), text::decode(other).into_owned()));
                 }
             }
@@ -311,45 +372,7 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             what: "no dataSignal declaration".to_string(),
         });
     }
-    let u = timebase::uniform(&times, None).map_err(|f| {
-        formats::time_error(
-            file,
-            f,
-            record_offsets
-                .first()
-                .map_or(1, |&o| text::line_of_offset(bytes, o)),
-            |r| text::line_of_offset(bytes, record_offsets[r]),
-        )
-    })?;
-    let mut channels = Vec::with_capacity(signals.len());
-    for (i, s) in signals.into_iter().enumerate() {
-        let name = if s.description.is_empty() {
-            s.name.clone()
-        } else {
-            s.description.clone()
-        };
-        let mut ch = Channel::new(name, s.line, s.id.map_or(i, |id| id - 1));
-        ch.description = s.name;
-        ch.unit = s.unit;
-        let start = s.start.unwrap_or(times.len());
-        ch.samples = s.samples;
-        ch.period_s = u.period_s;
-        ch.t0_s = times.get(start).copied().unwrap_or(0.0);
-        ch.gaps = u
-            .gaps
-            .iter()
-            .filter(|&&(index, _)| index > start)
-            .map(|&(index, lost)| crate::Gap {
-                index: index - start,
-                line: text::line_of_offset(bytes, record_offsets[index]),
-                lost: Some(lost),
-            })
-            .collect();
-        formats::apply_period_option(file, opts, &mut ch)?;
-        let (d, p) = (ch.name.clone(), ch.description.clone());
-        formats::infer_channel(&mut ch, &[("description", &d), ("path", &p)], None);
-        channels.push(ch);
-    }
+    let channels = channels(file, bytes, opts, signals, &records)?;
     Ok(Trace {
         file: file.to_string(),
         format: Format::SinumerikTrace,
