@@ -473,6 +473,163 @@ fn gap_error(trace: &Trace, ch: &Channel) -> Error {
     }
 }
 
+/// One of the two channels of an axis, with what pairing needs of it.
+struct Side<'c> {
+    ch: &'c Channel,
+    /// Sample period, s.
+    period: f64,
+    /// Factor to the axis unit.
+    factor: f64,
+    /// Gap-free stretches.
+    stretches: Vec<Stretch>,
+}
+
+/// The two channels on one grid.
+struct Aligned {
+    ts_s: f64,
+    t0_s: f64,
+    nominal: Vec<f64>,
+    actual: Vec<f64>,
+    resampled: bool,
+    segment: Option<Segment>,
+}
+
+/// Channels on one time base: the longest stretch, sample by sample (ties go to the earliest).
+fn same_base(nom: &Side<'_>, act: &Side<'_>) -> Aligned {
+    let sn = &nom.stretches;
+    let (i, s) = sn
+        .iter()
+        .enumerate()
+        .max_by(|(i, a), (j, b)| (a.end - a.start).cmp(&(b.end - b.start)).then(j.cmp(i)))
+        .expect("a channel has at least one stretch");
+    let scale = |side: &Side<'_>| {
+        side.ch.samples[s.start..s.end]
+            .iter()
+            .map(|v| v * side.factor)
+            .collect()
+    };
+    Aligned {
+        ts_s: nom.period,
+        t0_s: s.t0.unwrap_or(nom.ch.t0_s),
+        nominal: scale(nom),
+        actual: scale(act),
+        resampled: false,
+        segment: (sn.len() > 1).then_some(Segment {
+            index: i,
+            of: sn.len(),
+            line: s.line,
+        }),
+    }
+}
+
+/// `count` samples of a stretch at $t_k = t_\text{start} + k\,T_s$, linearly interpolated, in
+/// the axis unit.
+fn interpolate(side: &Side<'_>, s: &Stretch, start: f64, ts: f64, count: usize) -> Vec<f64> {
+    let v = &side.ch.samples[s.start..s.end];
+    let t0 = s.t0.unwrap_or(side.ch.t0_s);
+    (0..count)
+        .map(|n| {
+            let x = (start + n as f64 * ts - t0) / side.period;
+            let i = (x.floor().max(0.0) as usize).min(v.len() - 1);
+            let frac = (x - i as f64).clamp(0.0, 1.0);
+            let y = if i + 1 < v.len() {
+                v[i] + frac * (v[i + 1] - v[i])
+            } else {
+                v[i]
+            };
+            y * side.factor
+        })
+        .collect()
+}
+
+/// Channels on different time bases: the longest time span one stretch of each shares, on the
+/// coarser period's grid.
+fn resample(
+    trace: &Trace,
+    axis: AxisName,
+    nom: &Side<'_>,
+    act: &Side<'_>,
+) -> Result<Aligned, Error> {
+    let (sn, sa) = (&nom.stretches, &act.stretches);
+    for side in [nom, act] {
+        if side.stretches.iter().any(|s| s.t0.is_none()) {
+            // Samples of unknown count were lost: the times after the gap are unknown.
+            return Err(gap_error(trace, side.ch));
+        }
+    }
+    let no_overlap = || Error::NoOverlap {
+        file: trace.file.clone(),
+        axis,
+        nominal: nom.ch.name.clone(),
+        actual: act.ch.name.clone(),
+    };
+    let ts = nom.period.max(act.period);
+    let mut best: Option<(f64, f64, usize, usize)> = None;
+    for (i, a) in sn.iter().enumerate() {
+        for (j, b) in sa.iter().enumerate() {
+            let (Some(ta), Some(tb)) = (a.t0, b.t0) else {
+                continue;
+            };
+            if a.end <= a.start || b.end <= b.start {
+                continue;
+            }
+            let start = ta.max(tb);
+            let end = (ta + (a.end - a.start - 1) as f64 * nom.period)
+                .min(tb + (b.end - b.start - 1) as f64 * act.period);
+            if end > start && best.is_none_or(|(s, e, _, _)| end - start > e - s) {
+                best = Some((start, end, i, j));
+            }
+        }
+    }
+    let (start, end, i, j) = best.ok_or_else(no_overlap)?;
+    let count = ((end - start) / ts + 1e-9).floor() as usize + 1;
+    if count < 2 {
+        return Err(no_overlap());
+    }
+    let segment = (sn.len() > 1 || sa.len() > 1).then(|| {
+        let (index, of) = if sn.len() >= sa.len() {
+            (i, sn.len())
+        } else {
+            (j, sa.len())
+        };
+        Segment {
+            index,
+            of,
+            line: sn[i].line.max(sa[j].line),
+        }
+    });
+    Ok(Aligned {
+        ts_s: ts,
+        t0_s: start,
+        nominal: interpolate(nom, &sn[i], start, ts, count),
+        actual: interpolate(act, &sa[j], start, ts, count),
+        resampled: true,
+        segment,
+    })
+}
+
+/// A channel's period and stretches; with [`GapPolicy::Refuse`], refused if it has gaps.
+fn side<'c>(
+    trace: &Trace,
+    opts: &PairOptions,
+    c: &'c Channel,
+    factor: f64,
+) -> Result<Side<'c>, Error> {
+    let period = c.period_s.ok_or_else(|| Error::MissingPeriod {
+        file: trace.file.clone(),
+        channel: c.name.clone(),
+    })?;
+    if opts.gaps == GapPolicy::Refuse && !c.gaps.is_empty() {
+        return Err(gap_error(trace, c));
+    }
+    Ok(Side {
+        ch: c,
+        period,
+        factor,
+        stretches: stretches(c, period),
+    })
+}
+
 fn pair_axis(
     trace: &Trace,
     opts: &PairOptions,
@@ -483,150 +640,145 @@ fn pair_axis(
 ) -> Result<AxisTrace, Error> {
     let (nu, nsrc, nk) = unit_of(trace, opts, axis, nom)?;
     let (au, asrc, ak) = unit_of(trace, opts, axis, act)?;
-    let period = |c: &Channel| {
-        c.period_s.ok_or_else(|| Error::MissingPeriod {
-            file: trace.file.clone(),
-            channel: c.name.clone(),
-        })
+    let (n, a) = (side(trace, opts, nom, nk)?, side(trace, opts, act, ak)?);
+    let one_base = (n.period - a.period).abs() <= 1e-9 * n.period
+        && (nom.t0_s - act.t0_s).abs() <= 1e-6 * n.period
+        && nom.gaps == act.gaps
+        && nom.samples.len() == act.samples.len();
+    let aligned = if one_base {
+        same_base(&n, &a)
+    } else {
+        resample(trace, axis, &n, &a)?
     };
-    let (pn, pa) = (period(nom)?, period(act)?);
-    let use_of = |c: &Channel, unit: TraceUnit, unit_source, factor, period_s| ChannelUse {
-        name: c.name.clone(),
-        line: c.line,
-        column: c.column,
+    let use_of = |s: &Side<'_>, unit: TraceUnit, unit_source| ChannelUse {
+        name: s.ch.name.clone(),
+        line: s.ch.line,
+        column: s.ch.column,
         axis_source: if caller_map {
             AxisSource::Caller
         } else {
-            c.axis_source.clone().unwrap_or(AxisSource::Caller)
+            s.ch.axis_source.clone().unwrap_or(AxisSource::Caller)
         },
         unit,
         unit_source,
-        factor,
-        period_s,
-        t0_s: c.t0_s,
-        samples: c.samples.len(),
-    };
-    let same_base = (pn - pa).abs() <= 1e-9 * pn
-        && (nom.t0_s - act.t0_s).abs() <= 1e-6 * pn
-        && nom.gaps == act.gaps
-        && nom.samples.len() == act.samples.len();
-    if opts.gaps == GapPolicy::Refuse {
-        for c in [nom, act] {
-            if !c.gaps.is_empty() {
-                return Err(gap_error(trace, c));
-            }
-        }
-    }
-    let sn = stretches(nom, pn);
-    let sa = stretches(act, pa);
-    let (ts_s, t0_s, nominal, actual, resampled, segment) = if same_base {
-        // Longest stretch (the only one without gaps); ties go to the earliest.
-        let (i, s) = sn
-            .iter()
-            .enumerate()
-            .max_by(|(i, a), (j, b)| (a.end - a.start).cmp(&(b.end - b.start)).then(j.cmp(i)))
-            .expect("at least one stretch");
-        let t0 = s.t0.unwrap_or(nom.t0_s);
-        let scale = |c: &Channel, k: f64| c.samples[s.start..s.end].iter().map(|v| v * k).collect();
-        let segment = (sn.len() > 1).then_some(Segment {
-            index: i,
-            of: sn.len(),
-            line: s.line,
-        });
-        (pn, t0, scale(nom, nk), scale(act, ak), false, segment)
-    } else {
-        if sn.iter().chain(&sa).any(|s| s.t0.is_none()) {
-            let c = if sn.iter().any(|s| s.t0.is_none()) {
-                nom
-            } else {
-                act
-            };
-            return Err(gap_error(trace, c));
-        }
-        let ts = pn.max(pa);
-        // The longest shared time span of one stretch of each.
-        let mut best: Option<(f64, f64, usize, usize)> = None;
-        for (i, a) in sn.iter().enumerate() {
-            for (j, b) in sa.iter().enumerate() {
-                let (Some(ta), Some(tb)) = (a.t0, b.t0) else {
-                    continue;
-                };
-                if a.end <= a.start || b.end <= b.start {
-                    continue;
-                }
-                let start = ta.max(tb);
-                let end = (ta + (a.end - a.start - 1) as f64 * pn)
-                    .min(tb + (b.end - b.start - 1) as f64 * pa);
-                if end > start && best.is_none_or(|(s, e, _, _)| end - start > e - s) {
-                    best = Some((start, end, i, j));
-                }
-            }
-        }
-        let Some((start, end, i, j)) = best else {
-            return Err(Error::NoOverlap {
-                file: trace.file.clone(),
-                axis,
-                nominal: nom.name.clone(),
-                actual: act.name.clone(),
-            });
-        };
-        // Samples on the grid t_k = start + k ts, k = 0..=K.
-        let count = ((end - start) / ts + 1e-9).floor() as usize + 1;
-        if count < 2 {
-            return Err(Error::NoOverlap {
-                file: trace.file.clone(),
-                axis,
-                nominal: nom.name.clone(),
-                actual: act.name.clone(),
-            });
-        }
-        let sample = |c: &Channel, s: &Stretch, p: f64, k: f64| -> Vec<f64> {
-            let v = &c.samples[s.start..s.end];
-            let t0 = s.t0.expect("checked above");
-            (0..count)
-                .map(|n| {
-                    let x = (start + n as f64 * ts - t0) / p;
-                    let i = (x.floor().max(0.0) as usize).min(v.len() - 1);
-                    let frac = (x - i as f64).clamp(0.0, 1.0);
-                    let y = if i + 1 < v.len() {
-                        v[i] + frac * (v[i + 1] - v[i])
-                    } else {
-                        v[i]
-                    };
-                    y * k
-                })
-                .collect()
-        };
-        let nominal = sample(nom, &sn[i], pn, nk);
-        let actual = sample(act, &sa[j], pa, ak);
-        let segment = (sn.len() > 1 || sa.len() > 1).then(|| {
-            let (s, of) = if sn.len() >= sa.len() {
-                (i, sn.len())
-            } else {
-                (j, sa.len())
-            };
-            Segment {
-                index: s,
-                of,
-                line: sn[i].line.max(sa[j].line),
-            }
-        });
-        (ts, start, nominal, actual, true, segment)
+        factor: s.factor,
+        period_s: s.period,
+        t0_s: s.ch.t0_s,
+        samples: s.ch.samples.len(),
     };
     Ok(AxisTrace {
         axis,
         unit: axis.unit(),
-        ts_s,
-        t0_s,
-        nominal,
-        actual,
+        ts_s: aligned.ts_s,
+        t0_s: aligned.t0_s,
+        nominal: aligned.nominal,
+        actual: aligned.actual,
         provenance: Provenance {
             file: trace.file.clone(),
             format: trace.format,
-            nominal: use_of(nom, nu, nsrc, nk, pn),
-            actual: use_of(act, au, asrc, ak, pa),
-            resampled,
-            segment,
+            nominal: use_of(&n, nu, nsrc),
+            actual: use_of(&a, au, asrc),
+            resampled: aligned.resampled,
+            segment: aligned.segment,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Gap;
+
+    fn channel(name: &str, quantity: Quantity, period: f64, t0: f64, samples: Vec<f64>) -> Channel {
+        let mut c = Channel::new(name, 1, 0);
+        c.axis = Some(AxisName::X);
+        c.quantity = quantity;
+        c.unit = Some(TraceUnit::Mm);
+        c.period_s = Some(period);
+        c.t0_s = t0;
+        c.samples = samples;
+        c
+    }
+
+    /// Truth: linear signals, which linear interpolation reproduces exactly, so every aligned
+    /// sample is known in closed form.
+    #[test]
+    fn different_time_bases_with_a_gap_use_the_longest_shared_span() {
+        let nominal = channel(
+            "X nominal",
+            Quantity::NominalPosition,
+            2e-3,
+            0.0,
+            (0..51).map(|k| 10.0 * (k as f64 * 2e-3)).collect(),
+        );
+        // Actual at 1 ms from 0.5 ms; 5 samples lost before its 41st sample.
+        let t_act = |k: usize| 0.5e-3 + (if k < 40 { k } else { k + 5 }) as f64 * 1e-3;
+        let mut actual = channel(
+            "X actual",
+            Quantity::ActualPosition,
+            1e-3,
+            0.5e-3,
+            (0..100).map(|k| 10.0 * t_act(k) + 1.0).collect(),
+        );
+        actual.gaps = vec![Gap {
+            index: 40,
+            line: 42,
+            lost: Some(5),
+        }];
+        let trace = Trace {
+            file: "t".into(),
+            format: Format::TncScope,
+            channels: vec![nominal, actual],
+            metadata: Vec::new(),
+        };
+        let refused = pair(&trace, &PairOptions::default()).unwrap_err();
+        assert!(
+            matches!(
+                refused,
+                Error::Gap {
+                    line: 42,
+                    lost: Some(5),
+                    ..
+                }
+            ),
+            "{refused:?}"
+        );
+        let opts = PairOptions {
+            gaps: GapPolicy::LongestSegment,
+            ..PairOptions::default()
+        };
+        let x = &pair(&trace, &opts).unwrap().axes[0];
+        // The stretch after the gap, 45.5 ms … 100 ms, beats 0.5 … 39.5 ms.
+        assert!(x.provenance.resampled);
+        assert_eq!(x.ts_s, 2e-3);
+        assert!((x.t0_s - 45.5e-3).abs() < 1e-15);
+        assert_eq!(x.nominal.len(), 28);
+        for k in 0..28 {
+            let t = x.t0_s + k as f64 * 2e-3;
+            assert!((x.nominal[k] - 10.0 * t).abs() < 1e-12, "{k}");
+            assert!((x.actual[k] - (10.0 * t + 1.0)).abs() < 1e-12, "{k}");
+        }
+        let seg = x.provenance.segment.unwrap();
+        assert_eq!((seg.index, seg.of, seg.line), (1, 2, 42));
+    }
+
+    #[test]
+    fn motor_channels_win_and_two_others_are_ambiguous() {
+        let c = |n: &str, q| channel(n, q, 1e-3, 0.0, vec![0.0; 3]);
+        let mut trace = Trace {
+            file: "t".into(),
+            format: Format::HalscopeTable,
+            channels: vec![
+                c("joint.0.pos-cmd", Quantity::NominalPosition),
+                c("joint.0.motor-pos-cmd", Quantity::NominalPosition),
+                c("joint.0.motor-pos-fb", Quantity::ActualPosition),
+            ],
+            metadata: Vec::new(),
+        };
+        let p = pair(&trace, &PairOptions::default()).unwrap();
+        assert_eq!(p.axes[0].provenance.nominal.name, "joint.0.motor-pos-cmd");
+        trace.channels[0].name = "joint.0.motor-pos-cmd-2".into();
+        let e = pair(&trace, &PairOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Ambiguous { .. }), "{e:?}");
+    }
 }
