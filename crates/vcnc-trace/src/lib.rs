@@ -22,7 +22,7 @@
 //!    halsampler output, Heidenhain TNCscope text exports, Siemens Sinumerik Operate servo traces
 //!    (XML), Beckhoff TwinCAT Scope CSV exports, and generic delimited text. Each returns the
 //!    same [`Trace`]. Data rows are parsed from byte slices into reused buffers, without
-//!    allocating per row (`cargo bench -p vcnc-trace`: 1 M samples × 4 channels in 0.2–0.9 s).
+//!    allocating per row (`cargo bench -p vcnc-trace`: 1 M samples × 4 channels in 0.2–0.6 s on a shared 2-core VM).
 //! 3. Each [`Channel`]'s axis and quantity are inferred from its name and the file's fields (the
 //!    rules are in [`infer`]: axis letters, LinuxCNC joint numbers through
 //!    [`ReadOptions::joints`], TNCscope `CHANNELTYPE`/`AXISTYPE`, TwinCAT symbol names, Sinumerik
