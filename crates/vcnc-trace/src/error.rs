@@ -1,0 +1,370 @@
+//! The crate's error type: every variant names the file, the line where the file says it (when
+//! one does) and the offending value.
+
+use vcnc_axis::AxisName;
+
+use crate::model::{Format, Quantity};
+
+/// One format [`crate::detect()`] tried, and why it did not match.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Attempt {
+    /// The format tried.
+    pub format: Format,
+    /// What the content lacked.
+    pub reason: String,
+}
+
+fn list_attempts(tried: &[Attempt]) -> String {
+    tried
+        .iter()
+        .map(|a| format!("{} ({}): {}", a.format.key(), a.format, a.reason))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// A time for messages: ten significant digits, shortest form (0.0009, not 0.0009000000000000001).
+fn secs(v: &f64) -> String {
+    format!("{v:.9e}")
+        .parse::<f64>()
+        .map_or_else(|_| v.to_string(), |r| r.to_string())
+}
+
+fn list(names: &[String]) -> String {
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+fn describe_lost(l: &Option<usize>) -> String {
+    match l {
+        Some(1) => "1 sample lost".to_string(),
+        Some(n) => format!("{n} samples lost"),
+        None => "an unknown number of samples lost".to_string(),
+    }
+}
+
+/// Errors of trace reading and pairing.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// The file cannot be read.
+    #[error("{file}: cannot read: {message}")]
+    Io {
+        /// The file.
+        file: String,
+        /// The operating system's message.
+        message: String,
+    },
+    /// No reader recognises the content.
+    #[error("{file}: not a trace format vcnc reads; tried {}", list_attempts(.tried))]
+    UnknownFormat {
+        /// The file.
+        file: String,
+        /// Every format tried, in order, with what the content lacked.
+        tried: Vec<Attempt>,
+    },
+    /// A header, metadata block or declaration is malformed.
+    #[error("{file}:{line}: {what}")]
+    Header {
+        /// The file.
+        file: String,
+        /// The line.
+        line: usize,
+        /// What is wrong, with the text found.
+        what: String,
+    },
+    /// The file ends before its structure is complete.
+    #[error("{file}:{line}: the file ends early: {what}")]
+    Truncated {
+        /// The file.
+        file: String,
+        /// The last line.
+        line: usize,
+        /// What is missing.
+        what: String,
+    },
+    /// A data row has another number of fields than the header declares.
+    #[error("{file}:{line}: {found} fields where {expected} are expected")]
+    FieldCount {
+        /// The file.
+        file: String,
+        /// The row's line.
+        line: usize,
+        /// Fields declared.
+        expected: usize,
+        /// Fields found.
+        found: usize,
+    },
+    /// A channel's declared sample count differs from the samples in the file.
+    #[error(
+        "{file}:{line}: channel '{channel}' holds {found} samples where {declared} are expected"
+    )]
+    CountMismatch {
+        /// The file.
+        file: String,
+        /// The line of the declaration.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// Samples declared (TNCscope `COUNT`, or the other channels' count).
+        declared: usize,
+        /// Samples found.
+        found: usize,
+    },
+    /// A field is not a number.
+    #[error("{file}:{line}: {column}: '{text}' is not a number")]
+    NotANumber {
+        /// The file.
+        file: String,
+        /// The line.
+        line: usize,
+        /// The column's or attribute's name.
+        column: String,
+        /// The field as written.
+        text: String,
+    },
+    /// A field is NaN or infinite.
+    #[error("{file}:{line}: {column} is {text}: not a finite number")]
+    NotFinite {
+        /// The file.
+        file: String,
+        /// The line.
+        line: usize,
+        /// The column's or attribute's name.
+        column: String,
+        /// The field as written.
+        text: String,
+    },
+    /// Time stands still or goes back.
+    #[error("{file}:{line}: time does not increase: {} s, then {} s", secs(.t_prev_s), secs(.t_s))]
+    TimeNotIncreasing {
+        /// The file.
+        file: String,
+        /// The line of the later sample.
+        line: usize,
+        /// Time of the sample before, s.
+        t_prev_s: f64,
+        /// Time of this sample, s.
+        t_s: f64,
+    },
+    /// A time step is neither the sample period nor a whole multiple of it (a gap).
+    #[error(
+        "{file}:{line}: irregular time step {} s: the sample period is {} s (a step must be within 20 % of a whole number of periods)",
+        secs(.dt_s),
+        secs(.period_s)
+    )]
+    IrregularTime {
+        /// The file.
+        file: String,
+        /// The line of the later sample.
+        line: usize,
+        /// The step, s.
+        dt_s: f64,
+        /// The sample period, s.
+        period_s: f64,
+    },
+    /// Samples were lost where the pairing needs contiguous ones (gap policy `Refuse`).
+    #[error(
+        "{file}:{line}: channel '{channel}': {} here; identification across lost samples is refused (choose the longest gap-free stretch instead, or record again)",
+        describe_lost(.lost)
+    )]
+    Gap {
+        /// The file.
+        file: String,
+        /// The line where the gap shows.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// Samples lost, when known.
+        lost: Option<usize>,
+    },
+    /// A position channel's unit is none vcnc knows.
+    #[error(
+        "{file}:{line}: channel '{channel}': unknown unit '{unit}' (known: nm µm mm cm m inch deg mdeg rad, and their /s and /min rates)"
+    )]
+    UnknownUnit {
+        /// The file.
+        file: String,
+        /// The line where the unit is stated.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// The unit as written.
+        unit: String,
+    },
+    /// A unit of the wrong kind for the channel's axis (a velocity unit for a position, mm for a
+    /// rotary axis, …).
+    #[error("{file}:{line}: channel '{channel}' is in {unit}: axis {axis} needs {expected}")]
+    WrongUnit {
+        /// The file.
+        file: String,
+        /// The line where the unit is stated.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// The unit.
+        unit: String,
+        /// The axis.
+        axis: AxisName,
+        /// The kind of unit needed.
+        expected: String,
+    },
+    /// The caller's units contradict the file's.
+    #[error(
+        "{file}:{line}: channel '{channel}' is in {file_unit} according to the file, but the units given are {given_unit}"
+    )]
+    UnitConflict {
+        /// The file.
+        file: String,
+        /// The line where the file states its unit.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// The file's unit.
+        file_unit: String,
+        /// The caller's unit.
+        given_unit: String,
+    },
+    /// An axis lacks a nominal or an actual position channel.
+    #[error("{file}: no {quantity} channel for axis {axis}; channels: {}", list(.channels))]
+    MissingChannel {
+        /// The file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// The quantity looked for.
+        quantity: Quantity,
+        /// Every channel of the file, with its axis and quantity.
+        channels: Vec<String>,
+    },
+    /// The file has no pair of nominal and actual position channels of one axis.
+    #[error(
+        "{file}: no axis has both a nominal and an actual position channel; channels: {}; name them explicitly",
+        list(.channels)
+    )]
+    NoPositions {
+        /// The file.
+        file: String,
+        /// Every channel of the file, with its axis and quantity.
+        channels: Vec<String>,
+    },
+    /// A position channel whose name matches no axis, and no axis was found.
+    #[error(
+        "{file}:{line}: channel '{channel}' ({quantity}) matches no axis: its name holds no axis letter (X Y Z A B C) or joint number; assign it to an axis explicitly"
+    )]
+    NoAxis {
+        /// The file.
+        file: String,
+        /// The line of the channel's declaration.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// Its quantity.
+        quantity: Quantity,
+    },
+    /// Several channels qualify for one role.
+    #[error("{file}: axis {axis} has several {quantity} channels: {}; assign one explicitly", list(.channels))]
+    Ambiguous {
+        /// The file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// The role.
+        quantity: Quantity,
+        /// The candidates.
+        channels: Vec<String>,
+    },
+    /// The caller named a channel the file does not have.
+    #[error("{file}: no channel {reference}; channels: {}", list(.channels))]
+    UnknownChannel {
+        /// The file.
+        file: String,
+        /// The reference as given.
+        reference: String,
+        /// The file's channels.
+        channels: Vec<String>,
+    },
+    /// A channel has no sample period and none was given.
+    #[error(
+        "{file}: channel '{channel}' has no sample period (the file states none): give the period"
+    )]
+    MissingPeriod {
+        /// The file.
+        file: String,
+        /// The channel.
+        channel: String,
+    },
+    /// The period given contradicts the file's.
+    #[error(
+        "{file}:{line}: channel '{channel}': the file's sample period is {} s, the period given is {} s",
+        secs(.file_s),
+        secs(.given_s)
+    )]
+    PeriodConflict {
+        /// The file.
+        file: String,
+        /// The line stating the period.
+        line: usize,
+        /// The channel.
+        channel: String,
+        /// The file's period, s.
+        file_s: f64,
+        /// The caller's period, s.
+        given_s: f64,
+    },
+    /// The nominal and actual channels of an axis do not overlap in time.
+    #[error("{file}: axis {axis}: '{nominal}' and '{actual}' share fewer than two sample times")]
+    NoOverlap {
+        /// The file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// The nominal channel.
+        nominal: String,
+        /// The actual channel.
+        actual: String,
+    },
+    /// The XML is not well formed.
+    #[error("{file}:{line}: XML: {message}")]
+    Xml {
+        /// The file.
+        file: String,
+        /// The line.
+        line: usize,
+        /// The parser's message.
+        message: String,
+    },
+    /// An option is invalid (a non-positive period, a wrong number of channel names, …).
+    #[error("{file}: {what}")]
+    BadOption {
+        /// The file being read.
+        file: String,
+        /// What is wrong.
+        what: String,
+    },
+}
+
+impl Error {
+    /// The line the error points at, when it points at one.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            Error::Header { line, .. }
+            | Error::Truncated { line, .. }
+            | Error::FieldCount { line, .. }
+            | Error::CountMismatch { line, .. }
+            | Error::NotANumber { line, .. }
+            | Error::NotFinite { line, .. }
+            | Error::TimeNotIncreasing { line, .. }
+            | Error::IrregularTime { line, .. }
+            | Error::Gap { line, .. }
+            | Error::UnknownUnit { line, .. }
+            | Error::WrongUnit { line, .. }
+            | Error::UnitConflict { line, .. }
+            | Error::NoAxis { line, .. }
+            | Error::PeriodConflict { line, .. }
+            | Error::Xml { line, .. } => Some(*line),
+            _ => None,
+        }
+    }
+}

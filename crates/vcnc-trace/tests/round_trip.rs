@@ -1,0 +1,192 @@
+//! Round trips through the simple formats: written by `vcnc_trace::write`, read back, every
+//! sample bit for bit, names, periods and gaps as written; and every format detected from its
+//! content whatever the file is called.
+
+use proptest::prelude::*;
+use vcnc_axis::AxisName;
+use vcnc_trace::{Format, Quantity, ReadOptions, TraceUnit, detect, read_bytes, write};
+
+fn values(n: usize) -> impl Strategy<Value = Vec<Vec<f64>>> {
+    let v = prop_oneof![
+        -1e6f64..1e6,
+        -1e-3f64..1e-3,
+        Just(0.0),
+        Just(-0.0),
+        (-1000i32..1000).prop_map(f64::from),
+    ];
+    prop::collection::vec(prop::collection::vec(v, n..=n), 1..5)
+}
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+fn joint_names(k: usize) -> Vec<String> {
+    (0..k)
+        .map(|i| {
+            let side = if i % 2 == 0 { "cmd" } else { "fb" };
+            format!("joint.{}.motor-pos-{side}", i / 2)
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 24,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn halscope_table_round_trip(cols in values(40), period_ns in 1u64..10_000_000) {
+        let names = joint_names(cols.len());
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let slices: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+        let mut buf = Vec::new();
+        write::halscope_table(&mut buf, period_ns, &refs, &slices).unwrap();
+        let t = read_bytes("rt.log", &buf, &ReadOptions::default()).unwrap();
+        prop_assert_eq!(t.format, Format::HalscopeTable);
+        prop_assert_eq!(t.channels.len(), cols.len());
+        for (c, (ch, col)) in t.channels.iter().zip(&cols).enumerate() {
+            prop_assert_eq!(&ch.name, &names[c]);
+            prop_assert_eq!(bits(&ch.samples), bits(col));
+            prop_assert_eq!(ch.period_s, Some(period_ns as f64 * 1e-9));
+            prop_assert_eq!(ch.axis, AxisName::from_index(c / 2));
+            let q = if c % 2 == 0 { Quantity::NominalPosition } else { Quantity::ActualPosition };
+            prop_assert_eq!(ch.quantity, q);
+        }
+    }
+
+    #[test]
+    fn halscope_pairs_round_trip(cols in values(30)) {
+        let names = joint_names(cols.len());
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let slices: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+        let mut buf = Vec::new();
+        write::halscope_pairs(&mut buf, 250_000, &refs, &slices).unwrap();
+        let t = read_bytes("rt.log", &buf, &ReadOptions::default()).unwrap();
+        prop_assert_eq!(t.format, Format::HalscopeInterlaced);
+        for (ch, col) in t.channels.iter().zip(&cols) {
+            prop_assert_eq!(bits(&ch.samples), bits(col));
+            prop_assert_eq!(ch.period_s, Some(2.5e-4));
+        }
+    }
+
+    #[test]
+    fn halsampler_round_trip(cols in values(50), tagged in any::<bool>(), at in 1usize..49, lost in 1usize..5) {
+        let slices: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+        let mut buf = Vec::new();
+        write::halsampler(&mut buf, tagged, &slices, &[(at, lost)]).unwrap();
+        let opts = ReadOptions { period_s: Some(1e-3), ..ReadOptions::default() };
+        let t = read_bytes("rt.txt", &buf, &opts).unwrap();
+        prop_assert_eq!(t.format, Format::Halsampler);
+        prop_assert_eq!(t.channels.len(), cols.len());
+        for (ch, col) in t.channels.iter().zip(&cols) {
+            prop_assert_eq!(bits(&ch.samples), bits(col));
+            prop_assert_eq!(ch.gaps.len(), 1);
+            prop_assert_eq!(ch.gaps[0].index, at);
+            prop_assert_eq!(ch.gaps[0].lost, tagged.then_some(lost));
+        }
+    }
+
+    #[test]
+    fn delimited_round_trip(cols in values(25), sep in prop::sample::select(vec![b',', b';', b'\t', b' ']), comma in any::<bool>()) {
+        let comma = comma && sep != b',';
+        let n = cols[0].len();
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.5e-3).collect();
+        let mut names = vec!["t[s]".to_string()];
+        names.extend((0..cols.len()).map(|i| format!("c{i}[mm]")));
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let mut slices: Vec<&[f64]> = vec![&t];
+        slices.extend(cols.iter().map(Vec::as_slice));
+        let mut buf = Vec::new();
+        write::delimited(&mut buf, sep, comma, Some(&refs), &slices).unwrap();
+        let tr = read_bytes("rt.csv", &buf, &ReadOptions::default()).unwrap();
+        prop_assert_eq!(tr.format, Format::Delimited);
+        prop_assert_eq!(tr.channels.len(), cols.len());
+        for (i, (ch, col)) in tr.channels.iter().zip(&cols).enumerate() {
+            prop_assert_eq!(&ch.name, &format!("c{i}"));
+            prop_assert_eq!(&ch.unit, &Some(TraceUnit::Mm));
+            prop_assert_eq!(bits(&ch.samples), bits(col));
+            prop_assert!((ch.period_s.unwrap() - 0.5e-3).abs() < 1e-15);
+        }
+    }
+}
+
+#[test]
+fn tncscope_round_trip_with_two_cycle_times() {
+    let fine: Vec<f64> = (0..12).map(|k| k as f64 * 0.125).collect();
+    let coarse: Vec<f64> = (0..4).map(|k| -(k as f64) * 1.5).collect();
+    let curves = [
+        write::TncCurve {
+            name: "Z s soll",
+            channel_type: "s soll",
+            axis_type: "Z",
+            dimension: "mm",
+            cycle_us: 1800,
+            samples: &coarse,
+        },
+        write::TncCurve {
+            name: "Z s ist",
+            channel_type: "s ist",
+            axis_type: "Z",
+            dimension: "mm",
+            cycle_us: 600,
+            samples: &fine,
+        },
+    ];
+    let mut buf = Vec::new();
+    write::tncscope(&mut buf, "TNC 640", &curves).unwrap();
+    let t = read_bytes("rt.DTA", &buf, &ReadOptions::default()).unwrap();
+    assert_eq!(t.format, Format::TncScope);
+    assert_eq!(t.channels[0].samples, coarse);
+    assert_eq!(t.channels[1].samples, fine);
+    assert_eq!(t.channels[0].period_s, Some(1.8e-3));
+    assert_eq!(t.channels[1].period_s, Some(0.6e-3));
+    assert_eq!(t.channels[0].axis, Some(AxisName::Z));
+}
+
+#[test]
+fn every_sample_file_is_detected_by_content_whatever_its_name() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let cases = [
+        ("halscope/xyzac-2.9.log", Format::HalscopeTable),
+        ("halscope/xy-pre2.9.log", Format::HalscopeInterlaced),
+        ("halsampler/xz-tagged.txt", Format::Halsampler),
+        ("halsampler/plain.txt", Format::Halsampler),
+        ("tncscope/xyzc.txt", Format::TncScope),
+        ("sinumerik/x1-y1.xml", Format::SinumerikTrace),
+        ("twincat/nc-axes_semicolon.csv", Format::TwinCatScope),
+        (
+            "twincat/nc-axes_tab-decimal-comma_shared-time.csv",
+            Format::TwinCatScope,
+        ),
+        (
+            "twincat/tc3_scope_3_4_3145_3_noOS.csv",
+            Format::TwinCatScope,
+        ),
+        (
+            "twincat/tc3_scope_3_4_3145_3-DecimalMark_comma.csv",
+            Format::TwinCatScope,
+        ),
+        ("delimited/t-xr-x.csv", Format::Delimited),
+        ("delimited/semicolon-decimal-comma.csv", Format::Delimited),
+        ("delimited/whitespace-rad.txt", Format::Delimited),
+    ];
+    for (rel, format) in cases {
+        let bytes = std::fs::read(dir.join(rel)).unwrap();
+        assert_eq!(detect(&bytes), Ok(format), "{rel}");
+        // A byte-order mark and CRLF line ends change nothing.
+        let mut bom = b"\xEF\xBB\xBF".to_vec();
+        for (i, &b) in bytes.iter().enumerate() {
+            if b == b'\n' && (i == 0 || bytes[i - 1] != b'\r') {
+                bom.push(b'\r');
+            }
+            bom.push(b);
+        }
+        assert_eq!(detect(&bom), Ok(format), "{rel} with BOM and CRLF");
+        let a = read_bytes(rel, &bytes, &ReadOptions::default());
+        let b = read_bytes(rel, &bom, &ReadOptions::default());
+        assert_eq!(a, b, "{rel}");
+    }
+}
