@@ -332,7 +332,7 @@ fn cases() -> Vec<Case> {
         t(
             "missing column",
             "t,ref,x\n0,0,0\n",
-            &["t.csv", "missing column 'xr'"],
+            &["t.csv", "no nominal position channel for axis X"],
         ),
         t(
             "not a number",
@@ -341,6 +341,73 @@ fn cases() -> Vec<Case> {
         ),
         t("ragged row", "t,xr,x\n0,0,0\n0.001,1\n", &["t.csv:3:"]),
         t("empty trace", "t,xr,x\n", &["t.csv", "too few samples"]),
+        Case {
+            name: "one column of a pair given",
+            files: &[("t.csv", "t,xr,x\n0,0,0\n0.001,1,1\n")],
+            args: &[
+                "identify", "--trace", "t.csv", "--xr-col", "xr", "--out", "out",
+            ],
+            expect: &["--xr-col and --x-col go together"],
+        },
+        // --- scope-file importers (issue 12): every format's faults name the file and line --
+        Case {
+            name: "halscope log truncated",
+            files: &[(
+                "h.log",
+                "# Sampling period is 1000000 ns\njoint.0.motor-pos-cmd;joint.0.motor-pos-fb\n0.0;0.0\n0.5\n",
+            )],
+            args: &["identify", "--trace", "h.log", "--out", "out"],
+            expect: &["h.log:4:", "fields"],
+        },
+        Case {
+            name: "TNCscope curve count does not match its data",
+            files: &[(
+                "s.txt",
+                "%TNCscopeNT data file\n%[GLOBAL]\nCURVES=2\n%[CURVE1]\nNAME=X s soll\nCHANNELTYPE=s soll\nAXISTYPE=X\nDIMENSION=mm\nCOUNT=3\nCYCLETIME=1000\n%[CURVE2]\nNAME=X s ist\nCHANNELTYPE=s ist\nAXISTYPE=X\nDIMENSION=mm\nCOUNT=3\nCYCLETIME=1000\n%[DATA]\n0;0.0;0.0;\n1000;0.1;0.0;\n",
+            )],
+            args: &["identify", "--trace", "s.txt", "--out", "out"],
+            expect: &["s.txt", "3", "2"],
+        },
+        Case {
+            name: "unknown unit in a TNCscope file",
+            files: &[(
+                "s.txt",
+                "%TNCscopeNT data file\n%[GLOBAL]\nCURVES=2\n%[CURVE1]\nNAME=X s soll\nCHANNELTYPE=s soll\nAXISTYPE=X\nDIMENSION=furlong\nCOUNT=2\nCYCLETIME=1000\n%[CURVE2]\nNAME=X s ist\nCHANNELTYPE=s ist\nAXISTYPE=X\nDIMENSION=mm\nCOUNT=2\nCYCLETIME=1000\n%[DATA]\n0;0.0;0.0;\n1000;0.1;0.0;\n",
+            )],
+            args: &["identify", "--trace", "s.txt", "--out", "out"],
+            expect: &["s.txt:", "unknown unit 'furlong'"],
+        },
+        Case {
+            name: "halsampler overrun (lost samples)",
+            files: &[("h.txt", "GEN_OVERRUN")],
+            args: &[
+                "identify", "--trace", "h.txt", "--ts", "0.001", "--out", "out",
+            ],
+            expect: &["h.txt:", "lost", "refused"],
+        },
+        Case {
+            name: "a channel that matches no axis",
+            files: &[(
+                "h.log",
+                "# Sampling period is 1000000 ns\npid.pos-cmd;pid.pos-fb\n0.0;0.0\n0.5;0.1\n",
+            )],
+            args: &["identify", "--trace", "h.log", "--out", "out"],
+            expect: &["h.log", "matches no axis"],
+        },
+        Case {
+            name: "not a trace format",
+            files: &[("notes.txt", "dear diary,\ntoday the machine ran\n")],
+            args: &["trace", "info", "notes.txt"],
+            expect: &["notes.txt", "not a trace format vcnc reads"],
+        },
+        Case {
+            name: "--ts contradicts the time column",
+            files: &[("t.csv", "GEN_STILL")],
+            args: &[
+                "identify", "--trace", "t.csv", "--ts", "0.002", "--out", "out",
+            ],
+            expect: &["t.csv", "the period given is 0.002 s"],
+        },
         // --- identifier options file (identify --trace --options) -----------------------------
         opts(
             "options: unknown key",
@@ -395,13 +462,13 @@ fn cases() -> Vec<Case> {
             name: "non-monotonic time",
             files: &[("t.csv", "GEN_NONMONOTONIC")],
             args: &["identify", "--trace", "t.csv", "--out", "out"],
-            expect: &["t.csv", "time does not increase", "row"],
+            expect: &["t.csv:1002:", "time does not increase"],
         },
         Case {
             name: "non-uniform time",
             files: &[("t.csv", "GEN_NONUNIFORM")],
             args: &["identify", "--trace", "t.csv", "--out", "out"],
-            expect: &["t.csv", "not uniformly sampled"],
+            expect: &["t.csv:1002:", "irregular time step"],
         },
         Case {
             name: "too few samples",
@@ -549,6 +616,18 @@ fn generated(marker: &str) -> Option<Vec<u8>> {
                 let x = k as f64 * 0.05;
                 row(&mut s, k as f64 * 1e-3, x, x);
             }
+        }
+        "GEN_OVERRUN" => {
+            // halsampler output (`-t`: sample number first) that lost samples after row 1500.
+            let mut h = String::from("# x-pos-cmd x-pos-fb\n");
+            for k in 0..3000usize {
+                if k == 1500 {
+                    h.push_str("overrun\n");
+                }
+                let xr = (k as f64 * 0.003).sin();
+                h.push_str(&format!("{k} {xr} {}\n", 0.9 * xr));
+            }
+            return Some(h.into_bytes());
         }
         _ => return None,
     }

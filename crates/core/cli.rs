@@ -118,6 +118,11 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Read scope files (`vcnc trace info FILE`).
+    Trace {
+        #[command(subcommand)]
+        what: TraceCommand,
+    },
     /// Generate G-code programs on standard output.
     Gen {
         #[command(subcommand)]
@@ -156,16 +161,6 @@ pub enum Direction {
     Inverse,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum TraceUnits {
-    /// metres (converted to mm)
-    M,
-    /// millimetres
-    Mm,
-    /// degrees
-    Deg,
-}
-
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
     /// Machine file (simulated machine). Not with --trace.
@@ -177,27 +172,29 @@ pub struct IdentifyArgs {
     /// Seed of the identification program and the PSO (default: the machine file's).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Measured trace CSV with time, reference and actual position columns.
+    /// Measured trace: a scope file of any supported format (LinuxCNC halscope/halsampler,
+    /// Heidenhain TNCscope, Siemens Sinumerik trace XML, Beckhoff TwinCAT Scope CSV, delimited
+    /// text), detected from its content. Every axis with a nominal and an actual position is
+    /// identified (or the ones named with --axis).
     #[arg(long)]
     pub trace: Option<PathBuf>,
-    /// Sample period of the trace in seconds (default: from its time column).
-    #[arg(long, requires = "trace")]
-    pub ts: Option<f64>,
-    // The trace options below have no clap defaults (the defaults are applied in
-    // `cmd_identify`), so that giving one next to a machine file can be refused instead of
-    // ignored.
-    /// Units of the trace's positions [default: mm].
-    #[arg(long, value_enum, requires = "trace")]
-    pub units: Option<TraceUnits>,
-    /// Name of the time column [default: t].
+    #[command(flatten)]
+    pub read: TraceReadArgs,
+    // The column options below have no clap defaults, so that giving one next to a machine file
+    // can be refused instead of ignored.
+    /// Delimited text: name of the time column [default: t, time, zeit or timestamp].
     #[arg(long, requires = "trace")]
     pub t_col: Option<String>,
-    /// Name of the reference-position column [default: xr].
+    /// Delimited text: the reference (nominal) position column of the (first) --axis.
     #[arg(long, requires = "trace")]
     pub xr_col: Option<String>,
-    /// Name of the actual-position column [default: x].
+    /// Delimited text: the actual position column of the (first) --axis.
     #[arg(long, requires = "trace")]
     pub x_col: Option<String>,
+    /// Lost samples in the trace (halsampler overruns, jumps in time): refuse to identify
+    /// across them, or identify on the longest stretch without any.
+    #[arg(long, value_enum, requires = "trace")]
+    pub gaps: Option<GapsArg>,
     /// Identifier options for the trace: a TOML file with the keys of a machine file's
     /// `[identification.options]` table (deadband, bounds, prefilter, pso, refine, seed, ...).
     #[arg(long, value_name = "OPTIONS.toml", requires = "trace")]
@@ -205,6 +202,50 @@ pub struct IdentifyArgs {
     /// Output folder (summary.json, model.toml, plots).
     #[arg(long, default_value = "vcnc-identify")]
     pub out: PathBuf,
+}
+
+/// How a trace file is read (shared by `identify --trace` and `trace info`).
+#[derive(Debug, Clone, Args)]
+pub struct TraceReadArgs {
+    /// Sample period in seconds, for files that carry none (halsampler output, delimited text
+    /// without a time column). A file's own time column or period is always checked and wins;
+    /// a different --ts is an error.
+    #[arg(long)]
+    pub ts: Option<f64>,
+    /// Unit of positions where the file states none: m, mm, um, inch (linear axes), deg, rad
+    /// (rotary axes). A file that states a unit keeps it [default: mm, deg].
+    #[arg(long, value_name = "UNIT")]
+    pub units: Option<String>,
+    /// Read as this format instead of detecting it: sinumerik, tncscope, halscope,
+    /// halscope-pairs, twincat, halsampler, delimited.
+    #[arg(long, value_name = "FORMAT")]
+    pub trace_format: Option<String>,
+    /// LinuxCNC joint-to-axis map, e.g. XYZAC for a table-tilting machine [default: XYZABC].
+    #[arg(long, value_name = "AXES")]
+    pub joints: Option<String>,
+}
+
+/// `--gaps`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GapsArg {
+    /// Refuse to identify across lost samples.
+    Refuse,
+    /// Identify on the longest stretch without lost samples.
+    Longest,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum TraceCommand {
+    /// The format found and every channel: axis, quantity, unit, period, samples, gaps.
+    Info {
+        /// The trace file.
+        file: PathBuf,
+        #[command(flatten)]
+        read: TraceReadArgs,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Debug, Args)]
@@ -259,4 +300,55 @@ pub enum GenCommand {
         #[arg(long, default_value_t = 0.5)]
         segment: f64,
     },
+}
+
+impl TraceReadArgs {
+    /// The reader's options and the caller's position unit.
+    pub fn options(
+        &self,
+    ) -> anyhow::Result<(vcnc_trace::ReadOptions, Option<vcnc_trace::TraceUnit>)> {
+        let mut read = vcnc_trace::ReadOptions::default();
+        if let Some(ts) = self.ts {
+            if !(ts.is_finite() && ts > 0.0) {
+                return Err(crate::bad_input(format!(
+                    "--ts {ts}: the sample period must be a positive number of seconds"
+                )));
+            }
+            read.period_s = Some(ts);
+        }
+        if let Some(f) = &self.trace_format {
+            read.format = Some(vcnc_trace::Format::from_key(f).ok_or_else(|| {
+                crate::bad_input(format!(
+                    "--trace-format {f}: expected one of {}",
+                    vcnc_trace::Format::ALL.map(|f| f.key()).join(", ")
+                ))
+            })?);
+        }
+        if let Some(j) = &self.joints {
+            read.joints = j
+                .chars()
+                .map(|c| {
+                    vcnc_axis::AxisName::from_letter(c).ok_or_else(|| {
+                        crate::bad_input(format!(
+                            "--joints {j}: '{c}' is not an axis letter (X Y Z A B C)"
+                        ))
+                    })
+                })
+                .collect::<anyhow::Result<_>>()?;
+        }
+        let unit = self
+            .units
+            .as_deref()
+            .map(|u| {
+                vcnc_trace::TraceUnit::parse(u)
+                    .filter(|t| t.to_base().is_some())
+                    .ok_or_else(|| {
+                        crate::bad_input(format!(
+                            "--units {u}: expected a length (m, mm, um, inch) or an angle (deg, rad)"
+                        ))
+                    })
+            })
+            .transpose()?;
+        Ok((read, unit))
+    }
 }

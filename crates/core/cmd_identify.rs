@@ -4,12 +4,13 @@
 use std::path::Path;
 
 use anyhow::Result;
-use vcnc_identify::Trace;
-use vcnc_machine::{Machine, OptionsFile, Unit};
+use vcnc_axis::AxisName;
+use vcnc_machine::{Machine, OptionsFile};
 use vcnc_pipeline::identify::{self, IdentifySummary};
-use vcnc_pipeline::table::read_columns;
+use vcnc_pipeline::traces;
+use vcnc_trace::{AxisMap, ChannelRef, GapPolicy, PairOptions};
 
-use crate::cli::{IdentifyArgs, TraceUnits};
+use crate::cli::{GapsArg, IdentifyArgs};
 use crate::output::ensure_dir;
 use crate::table::table;
 use crate::writers::{MACHINE_MODELS, fmt_poles, identification_table, write_identification};
@@ -20,16 +21,20 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         // clap's `requires = "trace"` on these does not fire next to the positional MACHINE
         // (which conflicts with --trace), so say it here rather than ignore them silently.
         (Some(_), None)
-            if args.ts.is_some()
+            if args.read.ts.is_some()
                 || args.options.is_some()
-                || args.units.is_some()
+                || args.read.units.is_some()
+                || args.read.trace_format.is_some()
+                || args.read.joints.is_some()
+                || args.gaps.is_some()
                 || args.t_col.is_some()
                 || args.xr_col.is_some()
                 || args.x_col.is_some() =>
         {
             Err(bad_input(
-                "--ts, --units, --t-col, --xr-col, --x-col and --options apply to --trace only; \
-                 a machine file sets its identifier options in [identification.options]",
+                "--ts, --units, --trace-format, --joints, --gaps, --t-col, --xr-col, --x-col and \
+                 --options apply to --trace only; a machine file sets its identifier options in \
+                 [identification.options]",
             ))
         }
         (Some(m), None) => identify_machine(m, args, ctx),
@@ -64,77 +69,98 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         Some(p) => OptionsFile::load(p)?,
         None => OptionsFile::default(),
     };
-    let cols = [
-        args.t_col.as_deref().unwrap_or("t"),
-        args.xr_col.as_deref().unwrap_or("xr"),
-        args.x_col.as_deref().unwrap_or("x"),
-    ];
-    let c = read_columns(
-        path,
-        &cols,
-        "; choose columns with --t-col, --xr-col, --x-col",
-    )?;
-    let (unit, scale) = match args.units.unwrap_or(TraceUnits::Mm) {
-        TraceUnits::M => (Unit::Mm, 1000.0),
-        TraceUnits::Mm => (Unit::Mm, 1.0),
-        TraceUnits::Deg => (Unit::Deg, 1.0),
-    };
-    let xr: Vec<f64> = c[1].iter().map(|v| v * scale).collect();
-    let x: Vec<f64> = c[2].iter().map(|v| v * scale).collect();
-    let trace = match args.ts {
-        Some(ts) => Trace::new(ts, xr, x),
-        None => Trace::from_columns(&c[0], &xr, &x),
+    let (mut read, unit) = args.read.options()?;
+    if let Some(t) = &args.t_col {
+        read.time_column = Some(ChannelRef::Name(t.clone()));
     }
-    .map_err(|e| bad_input(format!("{file}: {e}")))?;
-    let axis = args.axes.first().copied().unwrap_or(vcnc_axis::AxisName::X);
-    let id = identify::identify_trace(trace, &file, axis, unit, &options, args.seed)?;
+    let mut pair = PairOptions {
+        axes: args.axes.clone(),
+        gaps: match args.gaps {
+            Some(GapsArg::Longest) => GapPolicy::LongestSegment,
+            _ => GapPolicy::Refuse,
+        },
+        ..PairOptions::default()
+    };
+    if let Some(u) = unit
+        && !pair.set_unit(u)
+    {
+        return Err(bad_input(format!(
+            "--units {}: not a position unit",
+            args.read.units.as_deref().unwrap_or_default()
+        )));
+    }
+    match (&args.xr_col, &args.x_col) {
+        (Some(xr), Some(x)) => pair.map.push(AxisMap {
+            axis: args.axes.first().copied().unwrap_or(AxisName::X),
+            nominal: ChannelRef::Name(xr.clone()),
+            actual: ChannelRef::Name(x.clone()),
+        }),
+        (None, None) => {}
+        _ => {
+            return Err(bad_input(
+                "--xr-col and --x-col go together: they name one axis' nominal and actual columns",
+            ));
+        }
+    }
+    let measured = traces::read_trace(path, &read, &pair)?;
+    for s in &measured.paired.skipped {
+        eprintln!(
+            "{file}: warning: axis {} not identified: {}",
+            s.axis, s.reason
+        );
+    }
+    let ids = traces::identify_measured(&measured, &options, args.seed)?;
     ensure_dir(&args.out)?;
     write_identification(
         &args.out,
-        &IdentifySummary::trace(&file, &id),
+        &IdentifySummary::trace(&file, measured.paired.format, &ids),
         &format!("trace {file}"),
         "identified by vcnc from a measured trace",
-        std::slice::from_ref(&id),
+        &ids,
     )?;
     if !ctx.quiet {
-        let (k, l) = (unit.micro_factor(), unit.micro_label());
-        let r = &id.result;
-        let rows: Vec<Vec<String>> = [
-            ("identified", &r.identified, Some(&r.fit_estimation)),
-            ("paper PSO", &r.paper_pso, Some(&r.fit_estimation_paper)),
-            ("unconstrained LS", &r.unconstrained_ls.model, None),
-        ]
-        .iter()
-        .map(|(n, m, f)| {
-            vec![
-                n.to_string(),
-                fmt_poles(m),
-                format!("{:.1}", m.dc),
-                if m.is_stable() {
-                    "yes".into()
-                } else if m.is_marginally_stable() {
-                    "marginal".into()
-                } else {
-                    "NO".into()
-                },
-                f.map_or("-".into(), |f| format!("{:.2} {l}", f.freerun_rms * k)),
+        println!("{file}: {}", measured.paired.format);
+        for id in &ids {
+            let (k, l) = (id.unit.micro_factor(), id.unit.micro_label());
+            let r = &id.result;
+            let rows: Vec<Vec<String>> = [
+                ("identified", &r.identified, Some(&r.fit_estimation)),
+                ("paper PSO", &r.paper_pso, Some(&r.fit_estimation_paper)),
+                ("unconstrained LS", &r.unconstrained_ls.model, None),
             ]
-        })
-        .collect();
-        let t = &id.validation_trace;
-        println!(
-            "{file}: {} samples at {} s, tracking error {:.1} {l} RMS",
-            t.len(),
-            t.ts,
-            t.tracking_rms() * k
-        );
-        print!(
-            "{}",
-            table(
-                &["model", "wn/zeta/p [Hz]", "dc", "stable", "free-run RMS"],
-                &rows
-            )
-        );
+            .iter()
+            .map(|(n, m, f)| {
+                vec![
+                    n.to_string(),
+                    fmt_poles(m),
+                    format!("{:.1}", m.dc),
+                    if m.is_stable() {
+                        "yes".into()
+                    } else if m.is_marginally_stable() {
+                        "marginal".into()
+                    } else {
+                        "NO".into()
+                    },
+                    f.map_or("-".into(), |f| format!("{:.2} {l}", f.freerun_rms * k)),
+                ]
+            })
+            .collect();
+            let t = &id.validation_trace;
+            println!(
+                "axis {}: {} samples at {} s, tracking error {:.1} {l} RMS",
+                id.axis,
+                t.len(),
+                t.ts,
+                t.tracking_rms() * k
+            );
+            print!(
+                "{}",
+                table(
+                    &["model", "wn/zeta/p [Hz]", "dc", "stable", "free-run RMS"],
+                    &rows
+                )
+            );
+        }
         println!("-> {}", args.out.display());
     }
     Ok(())

@@ -15,6 +15,7 @@ mod cmd_kinematics;
 mod cmd_predict;
 mod cmd_simulate;
 mod cmd_sweep;
+mod cmd_trace;
 mod figures;
 mod output;
 mod plot;
@@ -139,6 +140,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
         } => cmd_frf::frf(&machine, model.as_deref(), &out, ctx),
         Command::Sweep(args) => cmd_sweep::sweep(&args, ctx),
         Command::SweepMerge { dirs, out } => cmd_sweep::merge(&dirs, &out, ctx),
+        Command::Trace { what } => cmd_trace::trace(&what, ctx),
         Command::Gen { what } => cmd_gen::generate(&what),
     }
 }

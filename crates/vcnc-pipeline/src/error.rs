@@ -90,6 +90,9 @@ pub enum Error {
     /// Contour errors could not be evaluated.
     #[error("contour error evaluation failed: {0}")]
     Contour(#[from] vcnc_contour::Error),
+    /// A trace file cannot be read or paired (format, units, channels, time base).
+    #[error(transparent)]
+    Trace(#[from] vcnc_trace::Error),
     /// A table file (CSV) is malformed.
     #[error("{file}:{line}: {message}")]
     Table {
@@ -133,6 +136,7 @@ impl Error {
             | Error::Program { .. }
             | Error::Travel { .. }
             | Error::Table { .. }
+            | Error::Trace(_)
             | Error::Usage(_) => true,
             Error::SweepFailed { .. } | Error::Internal(_) => false,
         }

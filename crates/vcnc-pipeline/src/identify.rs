@@ -163,6 +163,8 @@ pub enum IdentificationSource {
     Measured {
         /// The trace's path.
         file: String,
+        /// Which channels, units and alignment the axis' samples come from.
+        provenance: Box<vcnc_trace::Provenance>,
     },
 }
 
@@ -256,22 +258,24 @@ pub fn identify_axes(
         .collect()
 }
 
-/// Identifies the axis `axis` (in `unit`) from a measured trace read from `file`.
+/// Identifies one axis of a measured trace: `trace` holds its samples (from `axis`, which
+/// says where they came from).
 pub fn identify_trace(
     trace: Trace,
-    file: &str,
-    axis: AxisName,
-    unit: Unit,
+    axis: &vcnc_trace::AxisTrace,
     options: &OptionsFile,
     seed: Option<u64>,
 ) -> Result<AxisIdentification, Error> {
+    let file = &axis.provenance.file;
     let opts = identifier_options(options, seed);
-    let result = vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(file, e))?;
+    let result = vcnc_identify::identify(&trace, &opts)
+        .map_err(|e| Error::identify(format!("{file} axis {}", axis.axis), e))?;
     Ok(AxisIdentification {
-        axis,
-        unit,
+        axis: axis.axis,
+        unit: axis.unit,
         source: IdentificationSource::Measured {
             file: file.to_string(),
+            provenance: Box::new(axis.provenance.clone()),
         },
         options: opts,
         validation: result.fit_estimation.clone(),
@@ -353,6 +357,21 @@ pub struct AxisIdentifySummary {
     /// Whether the trace was treated as starting in motion (measured traces).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub moving_start: Option<bool>,
+    /// Where a measured axis' samples come from (measured traces).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace: Option<AxisTraceSummary>,
+}
+
+/// The samples of a measured axis: how many, their period, and their channels.
+#[derive(Debug, Clone, Serialize)]
+pub struct AxisTraceSummary {
+    /// Samples identified on.
+    pub samples: usize,
+    /// Sample period, s.
+    pub ts_s: f64,
+    /// Channels, units (and where each unit came from), alignment, segment used.
+    #[serde(flatten)]
+    pub provenance: vcnc_trace::Provenance,
 }
 
 impl AxisIdentifySummary {
@@ -385,6 +404,14 @@ impl AxisIdentifySummary {
             },
             regressor_condition: id.condition_number,
             moving_start: (!simulated).then_some(id.moving_start),
+            trace: match &r.source {
+                IdentificationSource::Measured { provenance, .. } => Some(AxisTraceSummary {
+                    samples: r.validation_trace.len(),
+                    ts_s: r.validation_trace.ts,
+                    provenance: (**provenance).clone(),
+                }),
+                IdentificationSource::Simulated { .. } => None,
+            },
         }
     }
 }
@@ -398,13 +425,16 @@ pub struct IdentifySummary {
     /// The trace's path (measured traces).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub trace: Option<String>,
-    /// Samples of the trace.
+    /// The trace's format (measured traces).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub format: Option<vcnc_trace::Format>,
+    /// Samples of the trace (its first axis; every axis in `axes.<A>.trace`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub samples: Option<usize>,
-    /// Sample period of the trace, s.
+    /// Sample period of the trace (its first axis), s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ts_s: Option<f64>,
-    /// Unit of the trace's positions after conversion.
+    /// Unit of the trace's positions after conversion (its first axis).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub units: Option<Unit>,
     /// Per axis.
@@ -421,6 +451,7 @@ impl IdentifySummary {
         IdentifySummary {
             machine: Some(machine.to_string()),
             trace: None,
+            format: None,
             samples: None,
             ts_s: None,
             units: None,
@@ -429,16 +460,22 @@ impl IdentifySummary {
         }
     }
 
-    /// The summary of a trace's identification.
-    pub fn trace(file: &str, id: &AxisIdentification) -> IdentifySummary {
+    /// The summary of a trace's identifications (one per axis, at least one).
+    pub fn trace(
+        file: &str,
+        format: vcnc_trace::Format,
+        ids: &[AxisIdentification],
+    ) -> IdentifySummary {
+        let first = ids.first();
         IdentifySummary {
             machine: None,
             trace: Some(file.to_string()),
-            samples: Some(id.validation_trace.len()),
-            ts_s: Some(id.validation_trace.ts),
-            units: Some(id.unit),
-            axes: axes_summary(std::slice::from_ref(id)),
-            identify_options: Some(id.options.clone()),
+            format: Some(format),
+            samples: first.map(|id| id.validation_trace.len()),
+            ts_s: first.map(|id| id.validation_trace.ts),
+            units: first.map(|id| id.unit),
+            axes: axes_summary(ids),
+            identify_options: first.map(|id| id.options.clone()),
         }
     }
 }

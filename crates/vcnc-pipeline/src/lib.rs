@@ -24,6 +24,7 @@
 //! | [`simulate`] | references → true drives, models; tracking figures | [`Simulation`], [`AxisTracking`] |
 //! | [`predict`] | contour and orientation errors, true vs models | [`Prediction`], [`ContourFigures`] |
 //! | [`identify`] | identification of machine axes and traces (one route) | [`AxisIdentification`] |
+//! | [`traces`] | scope files of every format → paired axes → identification | [`traces::MeasuredTrace`] |
 //! | [`frf`] | Bode data and bandwidth of models | [`BodeData`] |
 //! | [`kinematics`] | forward/inverse kinematics of tables | — |
 //! | [`sweep`] | configuration sweeps, shards, merge | [`Sweep`], [`SweepRow`] |
@@ -45,6 +46,7 @@ pub mod stats;
 pub mod summary;
 pub mod sweep;
 pub mod table;
+pub mod traces;
 
 pub use error::Error;
 pub use frf::BodeData;

@@ -615,6 +615,18 @@ fn side<'c>(
     c: &'c Channel,
     factor: f64,
 ) -> Result<Side<'c>, Error> {
+    // An empty channel has no period to state; say what is really wrong.
+    if c.samples.len() < 2 {
+        return Err(Error::Truncated {
+            file: trace.file.clone(),
+            line: c.line,
+            what: format!(
+                "channel '{}' has {} sample(s); too few samples to pair",
+                c.name,
+                c.samples.len()
+            ),
+        });
+    }
     let period = c.period_s.ok_or_else(|| Error::MissingPeriod {
         file: trace.file.clone(),
         channel: c.name.clone(),

@@ -182,6 +182,15 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
                         line: pending_overrun.unwrap_or(l.no),
                         lost: Some((n - p - 1) as usize),
                     });
+                } else if let Some(line) = pending_overrun {
+                    // halsampler numbers the samples it writes, not the ones the realtime
+                    // sampler took, so an overrun need not make the numbers jump: the samples
+                    // lost there are not counted.
+                    gaps.push(Gap {
+                        index,
+                        line,
+                        lost: None,
+                    });
                 }
             }
             prev_tag = Some(n);

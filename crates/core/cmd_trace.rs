@@ -1,0 +1,23 @@
+//! `vcnc trace info FILE`: what a scope file holds.
+
+use anyhow::Result;
+
+use crate::Ctx;
+use crate::cli::TraceCommand;
+
+pub fn trace(what: &TraceCommand, _ctx: &Ctx) -> Result<()> {
+    match what {
+        TraceCommand::Info { file, read, json } => {
+            let (opts, _) = read.options()?;
+            let info = vcnc_trace::read_path(file, &opts)
+                .map_err(vcnc_pipeline::Error::from)?
+                .info();
+            if *json {
+                println!("{}", serde_json::to_string_pretty(&info)?);
+            } else {
+                print!("{info}");
+            }
+            Ok(())
+        }
+    }
+}
