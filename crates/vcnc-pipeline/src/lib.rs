@@ -34,6 +34,7 @@
 //! results are collected in a fixed order, and every random number comes from a seeded
 //! generator. Errors keep their kind ([`Error::is_bad_input`]).
 
+pub mod compensate;
 mod error;
 pub mod frf;
 pub mod identify;
