@@ -39,6 +39,20 @@ fn drive(c: &mut Criterion) {
             black_box(&trace);
         })
     });
+    let realistic = common::realistic_table1()
+        .validate()
+        .expect("the realistic Table 1 drive is valid");
+    group.bench_function(
+        "realistic drive P-PI (two-mass, Maxwell-slip Stribeck friction, current loop, noise, dead time, filters), 30 s at 20 kHz",
+        |b| {
+            b.iter(|| {
+                realistic
+                    .simulate_into(black_box(prog.reference()), 1e-3, &mut trace)
+                    .expect("simulates");
+                black_box(&trace);
+            })
+        },
+    );
     let model = table1.closed_loop_model();
     group.bench_function(
         "ClosedLoopModel::simulate, 30 000 samples (exact FOH)",

@@ -34,12 +34,19 @@
 //! ```
 
 pub mod design;
+pub mod effects;
 pub mod model;
+mod noise;
 pub mod params;
 pub mod presets;
+mod real_sim;
 pub mod sim;
 
 pub use design::{design_pid, design_ppi, design_smc};
+pub use effects::{
+    Compliance, CurrentLoop, CurrentLoopOrder, Effects, Feedback, FeedbackSource, Friction,
+    FrictionLocation, ReferenceFilter, ReferenceShaping,
+};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
 pub use params::{
     Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,
@@ -204,12 +211,49 @@ pub enum Error {
         /// Largest |eigenvalue| of the sampled loop's transition matrix.
         radius: f64,
     },
+    /// Two keys that are alternatives (e.g. `compliance.stiffness` and `compliance.mode_hz`) were
+    /// both given, or neither.
+    #[error("{}", alternatives_message(name, other, *both))]
+    Alternatives {
+        /// Key path of the first alternative (the one the error points at).
+        name: &'static str,
+        /// Key path of the other.
+        other: &'static str,
+        /// Both given (true) or neither (false).
+        both: bool,
+    },
+    /// The ideal loop is stable but the loop with the drive's effects (compliance, current loop,
+    /// dead time, velocity filter), linearised at rest, is not.
+    #[error(
+        "the closed loop with its compliance, current loop, dead time and velocity filter is \
+         unstable at {servo_rate_hz} Hz: sampled spectral radius {radius:.6} > 1 (a mode at \
+         {mode_hz:.1} Hz grows at {growth_per_s:.3} 1/s); lower the gains, stiffen or damp the transmission, shorten the dead \
+         time or widen the filters"
+    )]
+    EffectsUnstable {
+        /// Servo rate, Hz.
+        servo_rate_hz: f64,
+        /// Largest |eigenvalue| of the linearised sampled loop.
+        radius: f64,
+        /// Frequency of that eigenvalue as a continuous mode $|\Im \ln z| / (2\pi h)$, Hz.
+        mode_hz: f64,
+        /// Its growth rate $\Re \ln z / h$, 1/s.
+        growth_per_s: f64,
+    },
     /// No preset for this axis name.
     #[error("no NMV5000 design for axis {axis}: expected one of X, Y, Z, A, C")]
     UnknownAxis {
         /// The axis asked for.
         axis: AxisName,
     },
+}
+
+fn alternatives_message(name: &str, other: &str, both: bool) -> String {
+    if both {
+        format!("`{name}` and `{other}` are alternatives: give one of them, not both")
+    } else {
+        format!("give `{name}` or `{other}`")
+    }
 }
 
 fn unstable_message(model: &ClosedLoopModel, poles: &Option<Poles>) -> String {
