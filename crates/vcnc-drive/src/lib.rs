@@ -35,6 +35,7 @@
 
 pub mod design;
 pub mod effects;
+pub mod frf;
 pub mod model;
 mod noise;
 pub mod params;
@@ -47,6 +48,7 @@ pub use effects::{
     Compliance, CurrentLoop, CurrentLoopOrder, Effects, Feedback, FeedbackSource, Friction,
     FrictionLocation, ReferenceFilter, ReferenceShaping,
 };
+pub use frf::{Frf, FrfKind, FrfOptions};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
 pub use params::{
     Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,

@@ -370,6 +370,11 @@ impl Reader {
         }
     }
 
+    /// Quantisation only (the reading of a position at rest before the first tick).
+    pub(crate) fn quantise(&self, x: f64) -> f64 {
+        quantise_to(x, self.q, self.inv_q)
+    }
+
     #[inline(always)]
     fn read(&mut self, x: f64) -> f64 {
         let y = if self.std > 0.0 {
@@ -796,6 +801,26 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             xp,
             u_in,
         }
+    }
+
+    /// Load position, axis units.
+    pub(crate) fn load_position(&self, st: &RState<N>) -> f64 {
+        st.z[Self::XL]
+    }
+
+    /// Load velocity, axis units/s.
+    pub(crate) fn load_velocity(&self, st: &RState<N>) -> f64 {
+        st.z[Self::VL]
+    }
+
+    /// Motor velocity, axis units/s.
+    pub(crate) fn motor_velocity(&self, st: &RState<N>) -> f64 {
+        st.z[1]
+    }
+
+    /// The mechanical and current-loop state $z$.
+    pub(crate) fn state(&self, st: &RState<N>) -> [f64; N] {
+        st.z
     }
 
     /// Motor torque at the start of a tick whose command is `u_in`, N·m: $K_aK_t u$, or the
@@ -1448,4 +1473,170 @@ pub(crate) fn check_effects_stability(drive: &Drive) -> Result<(), Error> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::{CurrentDynamics, Shaping, bandwidth_factor};
+    use crate::presets::table1_drive;
+
+    /// The current-loop block of the discretised linear part, driven by a unit step of the
+    /// command from rest: its output at every tick.
+    fn current_step(order: CurrentLoopOrder, bw_hz: f64, zeta: f64, h: f64, n: usize) -> Vec<f64> {
+        let plant = table1_drive().plant;
+        let w = match order {
+            CurrentLoopOrder::FirstOrder => TAU_LOCAL * bw_hz,
+            CurrentLoopOrder::SecondOrder => TAU_LOCAL * bw_hz / bandwidth_factor(zeta),
+        };
+        let e = Effects {
+            current: Some(CurrentDynamics { order, w, zeta }),
+            ..Effects::default()
+        };
+        let lay = layout(&e);
+        let (a, b) = continuous(&plant, &e, lay, true, true);
+        let lin = discretise::<4>(&a, &b, h, lay.vl()).unwrap();
+        let mut z = [0.0; 4];
+        let mut out = vec![0.0];
+        for _ in 0..n {
+            let mut next = [0.0; 4];
+            for i in 0..4 {
+                next[i] = lin.g_u[i];
+                for j in 0..4 {
+                    next[i] += lin.phi[i][j] * z[j];
+                }
+            }
+            z = next;
+            out.push(z[2]);
+        }
+        out
+    }
+
+    const TAU_LOCAL: f64 = std::f64::consts::TAU;
+
+    #[test]
+    fn current_loop_step_response_has_its_time_constant() {
+        // Truth: the step response of 1/(1 + s/wc), 1 - exp(-t/tau), tau = 1/(2 pi f_bw); and of
+        // wn²/(s² + 2 zeta wn s + wn²), 1 - exp(-zeta wn t)(cos wd t + zeta/sqrt(1-zeta²) sin wd t),
+        // whose -3 dB frequency is f_bw (checked on the continuous transfer function). A step
+        // held over each tick is exactly what the zero-order-hold discretisation assumes, so the
+        // ticks must agree to rounding.
+        let h = 5e-5;
+        let bw = 1500.0;
+        let tau = 1.0 / (TAU_LOCAL * bw);
+        let y = current_step(CurrentLoopOrder::FirstOrder, bw, 1.0, h, 200);
+        for (k, yk) in y.iter().enumerate() {
+            let t = k as f64 * h;
+            assert!((yk - (1.0 - (-t / tau).exp())).abs() < 1e-12, "tick {k}: {yk}");
+        }
+        // The time constant read off the response, -t / ln(1 - y(t)), at 1, 2 and 4 tau.
+        for k in [2, 4, 8] {
+            let t = k as f64 * h;
+            let tau_hat = -t / (1.0 - y[k]).ln();
+            assert!((tau_hat / tau - 1.0).abs() < 1e-9, "tau {tau_hat} vs {tau}");
+        }
+        for zeta in [0.5, std::f64::consts::FRAC_1_SQRT_2, 0.9] {
+            let wn = TAU_LOCAL * bw / bandwidth_factor(zeta);
+            let g = |w: f64| {
+                let s = Complex::new(0.0, w);
+                (wn * wn / (s * s + 2.0 * zeta * wn * s + wn * wn)).norm()
+            };
+            assert!((g(TAU_LOCAL * bw) - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-12);
+            let y = current_step(CurrentLoopOrder::SecondOrder, bw, zeta, h, 400);
+            let wd = wn * (1.0 - zeta * zeta).sqrt();
+            for (k, yk) in y.iter().enumerate() {
+                let t = k as f64 * h;
+                let exact = 1.0
+                    - (-zeta * wn * t).exp()
+                        * ((wd * t).cos() + zeta / (1.0 - zeta * zeta).sqrt() * (wd * t).sin());
+                assert!((yk - exact).abs() < 1e-11, "zeta {zeta}, tick {k}: {yk} vs {exact}");
+            }
+        }
+    }
+
+    /// The shaper's position output for a nominal position that ramps from 0 to 1 over one
+    /// tick (a step, as the fine interpolation sees it) starting at tick 5.
+    fn shaped_step(filter: ReferenceFilter, h: f64, n: usize) -> Vec<f64> {
+        let r = |x: f64| RefSample {
+            xr: x,
+            vr: 0.0,
+            ar: 0.0,
+        };
+        let mut s = Shaper::new(
+            Some(Shaping {
+                filter: Some(filter),
+                delay_ticks: 0,
+            }),
+            h,
+            r(0.0),
+        )
+        .unwrap();
+        (0..n)
+            .map(|k| s.shape(r(if k >= 6 { 1.0 } else { 0.0 })).xr)
+            .collect()
+    }
+
+    #[test]
+    fn reference_filters_follow_their_analytic_step_responses() {
+        // Truth: the continuous filters' responses to the input the servo loop sees, a ramp
+        // from 0 to 1 over one tick h starting at t0 = 5h (the fine interpolation is linear
+        // between ticks), in closed form: with S the filter's ramp response (integral of its
+        // step response), y(t) = (S(t - t0) - S(t - t0 - h)) / h.
+        let h = 5e-5;
+        let t0 = 5.0 * h;
+        let check = |filter, s_ramp: &dyn Fn(f64) -> f64, what: &str| {
+            let y = shaped_step(filter, h, 2000);
+            for (k, yk) in y.iter().enumerate() {
+                let t = k as f64 * h - t0;
+                let s = |t: f64| if t <= 0.0 { 0.0 } else { s_ramp(t) };
+                let exact = (s(t) - s(t - h)) / h;
+                // 1e-10 of the step: the closed forms themselves lose ~1e-12 to cancellation.
+                assert!((yk - exact).abs() < 1e-10, "{what}, tick {k}: {yk} vs {exact}");
+            }
+        };
+        let tf = 2e-3;
+        check(
+            ReferenceFilter::FirstOrder {
+                time_constant_s: tf,
+            },
+            &|t| t - tf * (1.0 - (-t / tf).exp()),
+            "first order",
+        );
+        // Critically damped second order: step 1 - e^{-t/T}(1 + t/T), ramp
+        // t - 2T + e^{-t/T}(2T + t).
+        check(
+            ReferenceFilter::SecondOrder {
+                time_constant_s: tf,
+                zeta: 1.0,
+            },
+            &|t| t - 2.0 * tf + (-t / tf).exp() * (2.0 * tf + t),
+            "second order, zeta 1",
+        );
+        // Underdamped: ramp response t - 2 zeta/wn + e^{-zeta wn t}(2 zeta/wn cos wd t
+        // + (2 zeta² - 1)/wd sin wd t).
+        let (zeta, wn) = (0.4, 1.0 / tf);
+        let wd = wn * (1.0f64 - zeta * zeta).sqrt();
+        check(
+            ReferenceFilter::SecondOrder {
+                time_constant_s: tf,
+                zeta,
+            },
+            &|t| {
+                t - 2.0 * zeta / wn
+                    + (-zeta * wn * t).exp()
+                        * (2.0 * zeta / wn * (wd * t).cos()
+                            + (2.0 * zeta * zeta - 1.0) / wd * (wd * t).sin())
+            },
+            "second order, zeta 0.4",
+        );
+        // Moving average over Tw: y(t) = (U(t) - U(t - Tw)) / Tw with U the input's integral;
+        // for the unit ramp-step, S(t) = (Sr(t) - Sr(t - Tw)) / Tw with Sr(t) = t²/2.
+        let tw = 80.0 * h;
+        let sr = |t: f64| if t <= 0.0 { 0.0 } else { 0.5 * t * t };
+        check(
+            ReferenceFilter::MovingAverage { window_s: tw },
+            &|t| (sr(t) - sr(t - tw)) / tw,
+            "moving average",
+        );
+    }
 }
