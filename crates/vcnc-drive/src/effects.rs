@@ -479,6 +479,21 @@ pub struct Effects {
     pub shaping: Option<Shaping>,
 }
 
+/// The five raw effect tables, owned (see [`Effects::tables`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawEffects {
+    /// `compliance`.
+    pub compliance: Option<Compliance>,
+    /// `friction`.
+    pub friction: Option<Friction>,
+    /// `current_loop`.
+    pub current_loop: Option<CurrentLoop>,
+    /// `feedback`.
+    pub feedback: Option<Feedback>,
+    /// `reference`.
+    pub reference: Option<ReferenceShaping>,
+}
+
 /// The raw effect tables of one axis, as [`crate::DriveParams`] holds them.
 #[derive(Debug, Clone, Copy)]
 pub struct EffectTables<'a> {
@@ -514,10 +529,7 @@ impl Effects {
             .compliance
             .map(|c| check_compliance(c, plant, nyquist))
             .transpose()?;
-        let friction = t
-            .friction
-            .map(|f| check_friction(f, plant))
-            .transpose()?;
+        let friction = t.friction.map(|f| check_friction(f, plant)).transpose()?;
         let (current, torque_max) = match t.current_loop {
             Some(c) => check_current(c, nyquist)?,
             None => (None, None),
@@ -548,18 +560,7 @@ impl Effects {
 
     /// Back to raw tables (for writing a checked drive out): stiffness and damping rather than
     /// mode frequency and damping ratio; delays in seconds at `servo_rate_hz`.
-    pub fn tables(
-        &self,
-        plant: &Plant,
-        encoder: &Encoder,
-        servo_rate_hz: f64,
-    ) -> (
-        Option<Compliance>,
-        Option<Friction>,
-        Option<CurrentLoop>,
-        Option<Feedback>,
-        Option<ReferenceShaping>,
-    ) {
+    pub fn tables(&self, plant: &Plant, encoder: &Encoder, servo_rate_hz: f64) -> RawEffects {
         let compliance = self.compliance.map(|c| Compliance {
             j_motor: c.j_motor,
             stiffness: Some(c.stiffness),
@@ -625,7 +626,13 @@ impl Effects {
             filter: s.filter,
             interpolation_delay_s: s.delay_ticks as f64 / servo_rate_hz,
         });
-        (compliance, friction, current_loop, feedback, reference)
+        RawEffects {
+            compliance,
+            friction,
+            current_loop,
+            feedback,
+            reference,
+        }
     }
 }
 
@@ -656,7 +663,11 @@ fn non_negative(name: &'static str, v: f64) -> Result<f64, Error> {
     if v.is_finite() && v >= 0.0 && (v == 0.0 || (1e-12..=1e12).contains(&v)) {
         Ok(v)
     } else {
-        Err(bad(name, v, "non-negative, finite and 0 or between 1e-12 and 1e12"))
+        Err(bad(
+            name,
+            v,
+            "non-negative, finite and 0 or between 1e-12 and 1e12",
+        ))
     }
 }
 
@@ -692,8 +703,18 @@ fn check_compliance(c: &Compliance, plant: &Plant, nyquist: f64) -> Result<TwoMa
     }
     let jl = plant.j - jm;
     let jr = jm * jl / (jm + jl);
-    one_of("compliance.stiffness", "compliance.mode_hz", c.stiffness, c.mode_hz)?;
-    one_of("compliance.damping", "compliance.mode_zeta", c.damping, c.mode_zeta)?;
+    one_of(
+        "compliance.stiffness",
+        "compliance.mode_hz",
+        c.stiffness,
+        c.mode_hz,
+    )?;
+    one_of(
+        "compliance.damping",
+        "compliance.mode_zeta",
+        c.damping,
+        c.mode_zeta,
+    )?;
     let stiffness = match (c.stiffness, c.mode_hz) {
         (Some(k), _) => positive("compliance.stiffness", k)?,
         (_, Some(f)) => {
@@ -897,9 +918,13 @@ fn check_presliding_rate(
         (Some(t), FrictionLocation::Load) => t.j_load,
         (Some(t), FrictionLocation::Motor) => t.j_motor,
     };
-    let k0 = maxwell_slip_stiffness(f.coulomb[0].max(f.coulomb[1]), elements, presliding_displacement)
-        .iter()
-        .sum::<f64>();
+    let k0 = maxwell_slip_stiffness(
+        f.coulomb[0].max(f.coulomb[1]),
+        elements,
+        presliding_displacement,
+    )
+    .iter()
+    .sum::<f64>();
     let w = (plant.rg * k0 / j_body).sqrt();
     if w / servo_rate_hz > MAX_PRESLIDING_WH {
         return Err(bad(
@@ -1040,9 +1065,7 @@ fn check_feedback(
         && f.motor_noise_std == 0.0;
     // A load sensor on a rigid drive is the ideal encoder; a semi-closed loop on a rigid drive
     // reads the same position.
-    let rigid_neutral = !two_mass
-        && f.dead_time_cycles == 0
-        && f.velocity_filter_hz.is_none();
+    let rigid_neutral = !two_mass && f.dead_time_cycles == 0 && f.velocity_filter_hz.is_none();
     Ok((!(neutral || rigid_neutral)).then_some(path))
 }
 

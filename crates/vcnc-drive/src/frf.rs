@@ -162,7 +162,11 @@ impl Plan {
             ));
         }
         if !(o.bias_velocity.is_finite() && o.bias_velocity > 0.0) {
-            return Err(bad("frf.bias_velocity", o.bias_velocity, "positive and finite"));
+            return Err(bad(
+                "frf.bias_velocity",
+                o.bias_velocity,
+                "positive and finite",
+            ));
         }
         if !(amplitude.is_finite() && amplitude > 0.0) {
             return Err(bad("frf.amplitude", amplitude, "positive and finite"));
@@ -176,7 +180,7 @@ impl Plan {
         if k_hi < k_lo {
             return Err(bad("frf.f_max_hz", o.f_max_hz, "leaving at least one line"));
         }
-        let mut harmonics: Vec<usize> = if o.lines == 0 || o.lines >= k_hi - k_lo + 1 {
+        let mut harmonics: Vec<usize> = if o.lines == 0 || o.lines > k_hi - k_lo {
             (k_lo..=k_hi).collect()
         } else {
             let m = o.lines.max(2);
@@ -307,7 +311,11 @@ impl Job for FrfJob<'_> {
             } else {
                 0.0
             };
-            let (xl, vl, vm) = (e.load_position(&st), e.load_velocity(&st), e.motor_velocity(&st));
+            let (xl, vl, vm) = (
+                e.load_position(&st),
+                e.load_velocity(&st),
+                e.motor_velocity(&st),
+            );
             let z_before = e.state(&st);
             let out = e.tick(&mut st, r, inject, &mut pr, &mut mr);
             if i < first {

@@ -8,6 +8,13 @@
 //! - [`sim`]: the drive in the time domain at the servo rate ([`Drive::simulate`] →
 //!   [`DriveTrace`]) and the effective poles of the sampled loop.
 //! - [`model`]: the closed-loop model ([`ClosedLoopModel`]) with poles, FRFs and simulation.
+//! - [`effects`]: what real drives add to the rigid plant, each an optional table with physical
+//!   units (crates/vcnc-drive/REALISM.md): two-mass compliance and backlash ([`Compliance`]),
+//!   Stribeck and pre-sliding friction ([`Friction`]), current loop and torque limit
+//!   ([`CurrentLoop`]), feedback sensor, dead time and velocity filter ([`Feedback`]), the
+//!   control's reference filter and interpolation delay ([`ReferenceShaping`]). Absent tables
+//!   leave the ideal drive bit for bit.
+//! - [`frf`]: the true drive's frequency response measured by simulation ([`Drive::measure_frf`]).
 //! - [`presets`]: the paper's Table 1 drive and the NMV5000 axes designed from Table 3.
 //!
 //! ```

@@ -166,8 +166,14 @@ mod tests {
         let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64;
         let kurt = v.iter().map(|x| (x - mean).powi(4)).sum::<f64>() / (n as f64 * var * var);
         assert!(mean.abs() < 5.0 / (n as f64).sqrt(), "mean {mean}");
-        assert!((var - 1.0).abs() < 5.0 * (2.0 / n as f64).sqrt(), "variance {var}");
-        assert!((kurt - 3.0).abs() < 5.0 * (24.0 / n as f64).sqrt(), "kurtosis {kurt}");
+        assert!(
+            (var - 1.0).abs() < 5.0 * (2.0 / n as f64).sqrt(),
+            "variance {var}"
+        );
+        assert!(
+            (kurt - 3.0).abs() < 5.0 * (24.0 / n as f64).sqrt(),
+            "kurtosis {kurt}"
+        );
         v.sort_by(f64::total_cmp);
         // Φ by the complementary error function's continued fraction-free series is not in
         // std; use the Abramowitz–Stegun 7.1.26 erf (|error| < 1.5e-7, far below the KS bound).

@@ -17,7 +17,8 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 use crate::design::{design_pid, design_ppi, design_smc};
 use crate::effects::{
-    Compliance, CurrentLoop, EffectTables, Effects, Feedback, Friction, ReferenceShaping,
+    Compliance, CurrentLoop, EffectTables, Effects, Feedback, Friction, RawEffects,
+    ReferenceShaping,
 };
 use crate::model::{ClosedLoopModel, Poles};
 
@@ -855,9 +856,15 @@ impl Drive {
 
     /// Back to plain parameters, with the controller as gains (designs resolved).
     pub fn params(&self) -> DriveParams {
-        let (compliance, friction, current_loop, feedback, reference) =
-            self.effects
-                .tables(&self.plant, &self.encoder, self.servo_rate_hz);
+        let RawEffects {
+            compliance,
+            friction,
+            current_loop,
+            feedback,
+            reference,
+        } = self
+            .effects
+            .tables(&self.plant, &self.encoder, self.servo_rate_hz);
         DriveParams {
             plant: self.plant.clone(),
             controller: self.controller.into(),

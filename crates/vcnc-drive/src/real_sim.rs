@@ -112,17 +112,11 @@ impl RLaw for PidR {
     #[inline(always)]
     fn terms0(&self, r: RefSample, _xr1: f64, e1: f64, xf1: f64, xf2: f64) -> (f64, f64) {
         let v0 = (xf2 - 4.0 * xf1) * self.inv_2h;
-        let direct0 =
-            self.kp * r.xr + self.kd * (r.vr - v0) + self.ff_a * r.ar + self.ff_v * r.vr;
+        let direct0 = self.kp * r.xr + self.kd * (r.vr - v0) + self.ff_a * r.ar + self.ff_v * r.vr;
         (direct0, self.half_h * (r.xr + e1))
     }
     fn slopes(&self) -> [f64; 4] {
-        [
-            -self.kp,
-            -self.kd * 3.0 * self.inv_2h,
-            -self.half_h,
-            0.0,
-        ]
+        [-self.kp, -self.kd * 3.0 * self.inv_2h, -self.half_h, 0.0]
     }
     fn k_int(&self) -> f64 {
         self.ki
@@ -281,6 +275,7 @@ fn continuous(
     (a, b)
 }
 
+#[allow(clippy::needless_range_loop)] // copying matrix blocks: indices read best
 /// $\Phi = e^{Ah}$ and $\Gamma = \int_0^h e^{As}ds\,B$ from one exponential of the augmented
 /// matrix $\begin{bmatrix}A & B\\ 0 & 0\end{bmatrix}h$.
 fn discretise<const N: usize>(
@@ -330,8 +325,10 @@ fn discretise<const N: usize>(
 // ---------------------------------------------------------------------------------------------
 // Friction.
 
-/// Friction of the engine: the table's law, or the plant's symmetric Coulomb friction.
+/// Friction of the engine: the table's law, or the plant's symmetric Coulomb friction. One per
+/// engine, never in a collection: the Maxwell-slip variant's arrays stay inline.
 #[derive(Clone, Copy)]
+#[allow(clippy::large_enum_variant)]
 enum Fric {
     None,
     SetValued(FrictionLaw),
@@ -473,7 +470,11 @@ impl Shaper {
                 ShapeFilter::Avg {
                     ring: vec![u0; m + 1],
                     pos: 0,
-                    sum: [u0[0] * (m + 1) as f64, u0[1] * (m + 1) as f64, u0[2] * (m + 1) as f64],
+                    sum: [
+                        u0[0] * (m + 1) as f64,
+                        u0[1] * (m + 1) as f64,
+                        u0[2] * (m + 1) as f64,
+                    ],
                     inv_m: 1.0 / m as f64,
                 }
             }
@@ -501,6 +502,7 @@ impl Shaper {
 
     /// The loop's reference for this tick, from the nominal one.
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // three channels side by side
     pub(crate) fn shape(&mut self, r: RefSample) -> RefSample {
         let n = self.delay.len();
         let r = if n > 1 {
@@ -552,8 +554,8 @@ impl Shaper {
                 let mut y = [0.0; 3];
                 for c in 0..3 {
                     sum[c] += u[c] - oldest[c];
-                    ring[*pos][c] = u[c];
                 }
+                ring[*pos] = u;
                 *pos += 1;
                 if *pos == m1 {
                     *pos = 0;
@@ -572,6 +574,7 @@ impl Shaper {
     }
 }
 
+#[allow(clippy::needless_range_loop)] // 2×2 blocks: indices read best
 /// FOH discretisation of $\dot s = A s + B u$ (REALISM.md §6): with $u$ linear between ticks,
 /// $s^+ = \Phi s + \Gamma_a u_k + \Gamma_l (u_{k+1} - u_k)$ where the exponential of
 /// $\begin{bmatrix}A & B & 0\\0 & 0 & 1\\0 & 0 & 0\end{bmatrix}h$ holds $\Phi$,
@@ -843,6 +846,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
     ///
     /// `IX`, `IV`: index of the friction body's position and velocity in $z$.
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // small dense kernel on z, p and Γ: indices read best
     fn plant_step<const IX: usize, const IV: usize>(&self, st: &mut RState<N>, ub: f64, w: f64) {
         let (lin, o) = if self.half_backlash > 0.0 {
             let d = st.z[0] - st.z[2];
@@ -1113,12 +1117,16 @@ pub(crate) enum Build {
 /// A job run on the monomorphised engine.
 pub(crate) trait Job {
     type Out;
-    fn run<L: RLaw, const N: usize, const TM: bool>(self, engine: &Engine<L, N, TM>)
-    -> Self::Out;
+    fn run<L: RLaw, const N: usize, const TM: bool>(self, engine: &Engine<L, N, TM>) -> Self::Out;
 }
 
 /// Builds the engine of `drive` at servo period `h` and runs `job` on it.
-pub(crate) fn with_engine<J: Job>(drive: &Drive, h: f64, build: Build, job: J) -> Result<J::Out, Error> {
+pub(crate) fn with_engine<J: Job>(
+    drive: &Drive,
+    h: f64,
+    build: Build,
+    job: J,
+) -> Result<J::Out, Error> {
     let plant = drive.plant();
     let (j, b, rg, k) = (plant.j, plant.b, plant.rg, plant.ka_kt());
     let ff = |jff: f64, bff: f64| (jff * j / (rg * k), bff * b / (rg * k));
@@ -1274,7 +1282,9 @@ fn engine<L: RLaw, const N: usize, const TM: bool>(
                     *wi = 1.0 / (elements as f64 * k);
                 }
                 let w_max = w[..elements].iter().fold(0.0, |m: f64, v| m.max(*v));
-                let w_min = w[..elements].iter().fold(f64::INFINITY, |m: f64, v| m.min(*v));
+                let w_min = w[..elements]
+                    .iter()
+                    .fold(f64::INFINITY, |m: f64, v| m.min(*v));
                 Fric::Maxwell {
                     law: f,
                     n: elements,
@@ -1332,7 +1342,7 @@ fn engine<L: RLaw, const N: usize, const TM: bool>(
         lin,
         gap,
         half_backlash,
-        fric: fric.clone(),
+        fric,
         fric_motor: lay.two_mass && !on_load,
         u_lim,
         k_int,
@@ -1483,6 +1493,7 @@ mod tests {
 
     /// The current-loop block of the discretised linear part, driven by a unit step of the
     /// command from rest: its output at every tick.
+    #[allow(clippy::needless_range_loop)] // 4×4 matrix-vector product
     fn current_step(order: CurrentLoopOrder, bw_hz: f64, zeta: f64, h: f64, n: usize) -> Vec<f64> {
         let plant = table1_drive().plant;
         let w = match order {
@@ -1527,7 +1538,10 @@ mod tests {
         let y = current_step(CurrentLoopOrder::FirstOrder, bw, 1.0, h, 200);
         for (k, yk) in y.iter().enumerate() {
             let t = k as f64 * h;
-            assert!((yk - (1.0 - (-t / tau).exp())).abs() < 1e-12, "tick {k}: {yk}");
+            assert!(
+                (yk - (1.0 - (-t / tau).exp())).abs() < 1e-12,
+                "tick {k}: {yk}"
+            );
         }
         // The time constant read off the response, -t / ln(1 - y(t)), at 1, 2 and 4 tau.
         for k in [2, 4, 8] {
@@ -1549,7 +1563,10 @@ mod tests {
                 let exact = 1.0
                     - (-zeta * wn * t).exp()
                         * ((wd * t).cos() + zeta / (1.0 - zeta * zeta).sqrt() * (wd * t).sin());
-                assert!((yk - exact).abs() < 1e-11, "zeta {zeta}, tick {k}: {yk} vs {exact}");
+                assert!(
+                    (yk - exact).abs() < 1e-11,
+                    "zeta {zeta}, tick {k}: {yk} vs {exact}"
+                );
             }
         }
     }
@@ -1591,7 +1608,10 @@ mod tests {
                 let s = |t: f64| if t <= 0.0 { 0.0 } else { s_ramp(t) };
                 let exact = (s(t) - s(t - h)) / h;
                 // 1e-10 of the step: the closed forms themselves lose ~1e-12 to cancellation.
-                assert!((yk - exact).abs() < 1e-10, "{what}, tick {k}: {yk} vs {exact}");
+                assert!(
+                    (yk - exact).abs() < 1e-10,
+                    "{what}, tick {k}: {yk} vs {exact}"
+                );
             }
         };
         let tf = 2e-3;

@@ -11,7 +11,10 @@ use vcnc_drive::{
 const TS: f64 = 1e-3;
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
 
 #[test]
@@ -21,13 +24,27 @@ fn neutral_effects_reproduce_the_ideal_drive() {
     // effects engine with the same physics.
     let prog = common::standard_program();
     for enc in [Encoder::ideal(), Encoder::default()] {
-        let ideal = DriveParams { encoder: enc.clone(), ..table1_drive() };
+        let ideal = DriveParams {
+            encoder: enc.clone(),
+            ..table1_drive()
+        };
         let neutral = DriveParams {
-            friction: Some(Friction::Coulomb { coulomb_torque_negative: None, location: FrictionLocation::Load }),
+            friction: Some(Friction::Coulomb {
+                coulomb_torque_negative: None,
+                location: FrictionLocation::Load,
+            }),
             ..ideal.clone()
         };
-        let a = ideal.validate().unwrap().simulate(prog.reference(), TS).unwrap();
-        let b = neutral.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+        let a = ideal
+            .validate()
+            .unwrap()
+            .simulate(prog.reference(), TS)
+            .unwrap();
+        let b = neutral
+            .validate()
+            .unwrap()
+            .simulate(prog.reference(), TS)
+            .unwrap();
         let d = max_abs_diff(&a.true_position, &b.true_position);
         eprintln!(
             "neutral effects vs ideal (encoder step {} mm): max |dx| = {d:e} mm",
@@ -35,7 +52,11 @@ fn neutral_effects_reproduce_the_ideal_drive() {
         );
         // Without quantisation the two differ by rounding only; with it, a rounding difference
         // can flip an encoder count, so they agree to within one count.
-        let tol = if enc.resolution == 0.0 { 1e-9 } else { enc.resolution };
+        let tol = if enc.resolution == 0.0 {
+            1e-9
+        } else {
+            enc.resolution
+        };
         assert!(d < tol, "{d}");
     }
 }
@@ -135,11 +156,20 @@ fn drives_without_effects_are_bit_identical_to_the_simulator_before_them() {
             let t = drive.simulate(prog.reference(), TS).unwrap();
             let (name, want) = golden[k];
             assert_eq!(name, format!("{pn}/{dn}"));
-            assert_eq!(fingerprint(&t), want, "{name}: trace differs from the unmodified simulator");
+            assert_eq!(
+                fingerprint(&t),
+                want,
+                "{name}: trace differs from the unmodified simulator"
+            );
             // The new fields: the rigid drive's motor is its load, its torque Ka Kt u.
             assert_eq!(t.motor_position, t.true_position);
             let kakt = d.plant.ka * d.plant.kt;
-            assert!(t.control.iter().zip(&t.motor_torque).all(|(u, tq)| *tq == kakt * u));
+            assert!(
+                t.control
+                    .iter()
+                    .zip(&t.motor_torque)
+                    .all(|(u, tq)| *tq == kakt * u)
+            );
             k += 1;
         }
     }
@@ -150,8 +180,8 @@ fn drives_without_effects_are_bit_identical_to_the_simulator_before_them() {
 
 use std::f64::consts::TAU;
 use vcnc_drive::{
-    Compliance, CurrentLoop, CurrentLoopOrder, Error, Feedback, FeedbackSource,
-    FrfKind, FrfOptions, ReferenceFilter, ReferenceShaping,
+    Compliance, CurrentLoop, CurrentLoopOrder, Error, Feedback, FeedbackSource, FrfKind,
+    FrfOptions, ReferenceFilter, ReferenceShaping,
 };
 
 /// Samples at TS of a piecewise-constant-velocity path: `(duration s, velocity units/s)`
@@ -178,7 +208,11 @@ fn velocity_profile(x0: f64, segments: &[(f64, f64)], accel: f64) -> common::Pro
             }
             prog.pos.push(x);
             prog.vel.push(v);
-            prog.acc.push(if (target - v).abs() > 1e-12 { a_avg } else { 0.0 });
+            prog.acc.push(if (target - v).abs() > 1e-12 {
+                a_avg
+            } else {
+                0.0
+            });
         }
     }
     prog
@@ -335,7 +369,11 @@ fn lost_motion_at_reversal_is_the_backlash_plus_the_elastic_windup() {
             windup * 1e3,
             expect * 1e3
         );
-        assert!((pos - neg - expect).abs() < 2e-5, "{} vs {expect}", pos - neg);
+        assert!(
+            (pos - neg - expect).abs() < 2e-5,
+            "{} vs {expect}",
+            pos - neg
+        );
         assert!((pos - (0.5 * b + windup)).abs() < 2e-5);
     }
 }
@@ -470,7 +508,11 @@ fn presliding_after_a_reversal_follows_masings_rule() {
     };
     let v = 0.02;
     let prog = velocity_profile(1.0, &[(0.05, 0.0), (1.5, v), (1.5, -v)], 0.2);
-    let t = p.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+    let t = p
+        .validate()
+        .unwrap()
+        .simulate(prog.reference(), TS)
+        .unwrap();
     let virgin = |x: f64| {
         (1..=n_el)
             .map(|i| {
@@ -531,7 +573,11 @@ fn torque_limit_is_respected_and_the_axis_still_settles() {
         prog.vel.push(0.0);
         prog.acc.push(0.0);
     }
-    let t = p.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+    let t = p
+        .validate()
+        .unwrap()
+        .simulate(prog.reference(), TS)
+        .unwrap();
     let peak_cmd = t.control.iter().fold(0.0f64, |m, u| m.max(u.abs()));
     let peak_torque = t.motor_torque.iter().fold(0.0f64, |m, u| m.max(u.abs()));
     let n = t.len();
@@ -612,7 +658,10 @@ fn same_seed_same_trace_and_another_seed_another() {
     let run = |seed: u64| {
         let mut p = common::realistic_table1();
         p.encoder.seed = seed;
-        p.validate().unwrap().simulate(prog.reference(), TS).unwrap()
+        p.validate()
+            .unwrap()
+            .simulate(prog.reference(), TS)
+            .unwrap()
     };
     let (a, b, c) = (run(1), run(1), run(2));
     assert_eq!(a, b);
@@ -634,7 +683,11 @@ fn interpolation_delay_of_whole_samples_shifts_the_response_exactly() {
         }),
         ..table1_drive()
     };
-    let t0 = base.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+    let t0 = base
+        .validate()
+        .unwrap()
+        .simulate(prog.reference(), TS)
+        .unwrap();
     for samples in [1usize, 2] {
         let p = DriveParams {
             reference: Some(ReferenceShaping {
@@ -643,7 +696,11 @@ fn interpolation_delay_of_whole_samples_shifts_the_response_exactly() {
             }),
             ..base.clone()
         };
-        let t = p.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+        let t = p
+            .validate()
+            .unwrap()
+            .simulate(prog.reference(), TS)
+            .unwrap();
         let n = t.len();
         assert_eq!(t.true_position[samples..], t0.true_position[..n - samples]);
         assert_eq!(t.position[samples..], t0.position[..n - samples]);
@@ -670,7 +727,11 @@ fn dead_time_and_velocity_filter_match_a_plainly_written_loop() {
         ..Feedback::default()
     });
     let prog = common::identification_program(8, 2.0, TS, 10.0, 20.0, 150.0, 2500.0);
-    let t = p.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+    let t = p
+        .validate()
+        .unwrap()
+        .simulate(prog.reference(), TS)
+        .unwrap();
 
     let (kv, kp, ki, vff, bff) = (70.0, 2.342478, 223.252126, 0.5, 0.1);
     let (j, b, rg) = (p.plant.j, p.plant.b, p.plant.rg);
@@ -812,7 +873,11 @@ fn the_loop_sees_the_shaped_reference_but_the_trace_logs_the_nominal() {
             }),
             ..base.clone()
         };
-        let t = p.validate().unwrap().simulate(prog.reference(), TS).unwrap();
+        let t = p
+            .validate()
+            .unwrap()
+            .simulate(prog.reference(), TS)
+            .unwrap();
         let n = t.len();
         let e = prog.pos[n - 1] - t.true_position[n - 1];
         let expect = follow + (lag + td) * v;

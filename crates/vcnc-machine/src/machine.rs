@@ -200,6 +200,11 @@ impl Machine {
                 controller: a.controller.clone(),
                 encoder: a.encoder.clone(),
                 servo_rate_hz: a.servo_rate_hz,
+                compliance: a.compliance.clone(),
+                friction: a.friction.clone(),
+                current_loop: a.current_loop.clone(),
+                feedback: a.feedback.clone(),
+                reference: a.reference.clone(),
             };
             let drive = params.validate().map_err(|e| {
                 let field = drive_error_key(&e);
@@ -459,7 +464,7 @@ fn parse_file(src: &str, source: &str) -> Result<MachineFile, Error> {
 fn drive_error_key(e: &vcnc_drive::Error) -> &'static str {
     use vcnc_drive::Error as E;
     match e {
-        E::BadParameter { name, .. } => name,
+        E::BadParameter { name, .. } | E::Alternatives { name, .. } => name,
         E::Unstable { .. } | E::MissingGain { .. } | E::GainsAndDesign { .. } => "controller",
         E::BadDesign { .. } => "controller.design",
         _ => "controller",
