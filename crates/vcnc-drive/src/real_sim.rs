@@ -892,8 +892,11 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 // The sliding level either way, from the speed the step starts with (the
                 // static level when the step reverses the motion): known before the readings.
                 let v0 = z[IV];
-                let f_pos = law.level(0, v0.max(0.0));
-                let f_neg = -law.level(1, (-v0).max(0.0));
+                let (f_pos, f_neg) = if law.static_ == law.coulomb {
+                    (law.coulomb[0], -law.coulomb[1])
+                } else {
+                    (law.level(0, v0.max(0.0)), -law.level(1, (-v0).max(0.0)))
+                };
                 let v_star = p[IV] + lin.g_u[IV] * w;
                 if v_star <= lin.stick_lim[0] && v_star >= -lin.stick_lim[1] {
                     // Stuck at the end of the step (|v*| within g T_s): the friction is
@@ -1022,7 +1025,8 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         let mut saturated_ticks = 0u64;
         let (pr, mr) = (&mut readers.0, &mut readers.1);
         // The loop's reference for the ticks of one sample, shaped ahead of them (it does not
-        // depend on the loop).
+        // depend on the loop); without shaping, the fine interpolation itself.
+        let shaped = shaping.is_some();
         let mut refs = vec![r0; n_sub];
         for k in 0..n {
             let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
@@ -1032,18 +1036,24 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             } else {
                 (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
             };
-            let ticks = if last { 1 } else { n_sub };
-            for (j, r) in refs.iter_mut().enumerate().take(ticks) {
+            let fine = |j: usize| {
                 let w = j as f64 * inv_sub;
-                *r = shaper.shape(RefSample {
+                RefSample {
                     xr: p0 + w * dp,
                     vr: v0 + w * dv,
                     ar: a0 + w * da,
-                });
+                }
+            };
+            let ticks = if last { 1 } else { n_sub };
+            if shaped {
+                for (j, r) in refs.iter_mut().enumerate().take(ticks) {
+                    *r = shaper.shape(fine(j));
+                }
             }
+            let r_at = |j: usize| if shaped { refs[j] } else { fine(j) };
             let (xl, vl, xm) = (st.z[Self::XL], st.z[Self::VL], st.z[0]);
             let z_before = st.z;
-            let out = self.tick(&mut st, refs[0], 0.0, pr, mr);
+            let out = self.tick(&mut st, r_at(0), 0.0, pr, mr);
             saturated_ticks += out.saturated as u64;
             trace.position.push(out.xp);
             trace.true_position.push(xl);
@@ -1051,8 +1061,8 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             trace.control.push(out.u);
             trace.motor_position.push(xm);
             trace.motor_torque.push(self.torque(&z_before, out.u_in));
-            for r in &refs[1..ticks] {
-                let out = self.tick(&mut st, *r, 0.0, pr, mr);
+            for j in 1..ticks {
+                let out = self.tick(&mut st, r_at(j), 0.0, pr, mr);
                 saturated_ticks += out.saturated as u64;
             }
         }
