@@ -708,7 +708,8 @@ impl Drive {
     }
 
     /// Transition matrix $M$ of the sampled linear closed loop at the servo rate (friction,
-    /// quantisation, noise and saturation off, zero reference): $z_{k+1} = M z_k$ with
+    /// quantisation, noise and saturation off, zero reference) of the ideal drive (for a drive
+    /// with effects, of its rigid ideal part: see [`Drive::effects_transition_matrix`]): $z_{k+1} = M z_k$ with
     /// $z = [x, \dot x, \text{integrator}, \hat x_{k-1}, \hat x_{k-2}]$. Built column by column by
     /// running the simulator's own servo tick on unit states, so it is the matrix of the code,
     /// not of a separate derivation.

@@ -1219,3 +1219,67 @@ fn checked_effects_round_trip_through_parameters() {
         })
     ));
 }
+
+#[test]
+fn load_tracking_of_a_rigid_drive_is_its_tracking_and_bad_frf_options_are_named() {
+    // Truth: on a rigid drive with an ideal encoder and no dead time the measured position is
+    // the load position, so the two responses are one.
+    let drive = DriveParams {
+        encoder: Encoder::ideal(),
+        ..table1_drive()
+    }
+    .validate()
+    .unwrap();
+    let opts = FrfOptions {
+        f_min_hz: 2.0,
+        f_max_hz: 200.0,
+        lines: 20,
+        ..FrfOptions::default()
+    };
+    let a = drive.measure_frf(&opts).unwrap();
+    let b = drive
+        .measure_frf(&FrfOptions {
+            kind: FrfKind::LoadTracking,
+            ..opts.clone()
+        })
+        .unwrap();
+    assert_eq!(a.freq_hz, b.freq_hz);
+    for (x, y) in a.response.iter().zip(&b.response) {
+        assert!((x - y).norm() < 1e-9, "{x} vs {y}");
+    }
+    for (bad, key) in [
+        (
+            FrfOptions {
+                resolution_hz: Some(0.3),
+                ..opts.clone()
+            },
+            "frf.resolution_hz",
+        ),
+        (
+            FrfOptions {
+                f_max_hz: 15_000.0,
+                ..opts.clone()
+            },
+            "frf.f_max_hz",
+        ),
+        (
+            FrfOptions {
+                bias_velocity: 0.0,
+                ..opts.clone()
+            },
+            "frf.bias_velocity",
+        ),
+        (
+            FrfOptions {
+                periods: 0,
+                ..opts.clone()
+            },
+            "frf.periods",
+        ),
+    ] {
+        match drive.measure_frf(&bad) {
+            Err(Error::BadParameter { name, .. }) => assert_eq!(name, key),
+            other => panic!("{key}: {other:?}"),
+        }
+    }
+}
