@@ -278,11 +278,15 @@ fn continuous(
 #[allow(clippy::needless_range_loop)] // copying matrix blocks: indices read best
 /// $\Phi = e^{Ah}$ and $\Gamma = \int_0^h e^{As}ds\,B$ from one exponential of the augmented
 /// matrix $\begin{bmatrix}A & B\\ 0 & 0\end{bmatrix}h$.
+///
+/// The current loop's states (from `i_cur` on) do not depend on the mechanics: that block of
+/// $\Phi$ is zero in exact arithmetic and is set so (the tick skips it).
 fn discretise<const N: usize>(
     a: &SMatrix<f64, 6, 6>,
     b: &SMatrix<f64, 6, 3>,
     h: f64,
     vf: usize,
+    i_cur: usize,
 ) -> Result<Lin<N>, Error> {
     let mut m = SMatrix::<f64, 9, 9>::zeros();
     m.fixed_view_mut::<6, 6>(0, 0).copy_from(&(a * h));
@@ -302,7 +306,11 @@ fn discretise<const N: usize>(
     };
     for i in 0..N {
         for j in 0..N {
-            lin.phi[i][j] = e[(i, j)];
+            lin.phi[i][j] = if i >= i_cur && j < i_cur {
+                0.0
+            } else {
+                e[(i, j)]
+            };
         }
         lin.g_u[i] = e[(i, 6)];
         lin.g_f[i] = e[(i, 7)];
@@ -867,13 +875,18 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         // Fewer products, and the large absolute position only passes through one addition.
         let d = if TM { z[0] - z[Self::XL] } else { 0.0 };
         let mut p = [0.0; N];
+        // The current loop's states do not depend on the mechanics: their rows skip them.
         for i in 0..N {
-            let mut acc = lin.g_u[i] * ub + lin.g_o[i] * o;
-            if TM {
+            let mut acc = lin.g_u[i] * ub;
+            if self.half_backlash > 0.0 {
+                acc += lin.g_o[i] * o;
+            }
+            let mech_row = i < Self::ICUR;
+            if TM && mech_row {
                 acc += lin.phi[i][0] * d;
             }
             for j in 1..N {
-                if !(TM && j == Self::XL) {
+                if !(TM && j == Self::XL) && (mech_row || j >= Self::ICUR) {
                     acc += lin.phi[i][j] * z[j];
                 }
             }
@@ -1307,9 +1320,9 @@ fn engine<L: RLaw, const N: usize, const TM: bool>(
         },
     };
     let (a, b) = continuous(plant, e, lay, on_load, true);
-    let mut lin = discretise::<N>(&a, &b, h, i_fv)?;
+    let mut lin = discretise::<N>(&a, &b, h, i_fv, lay.i_cur)?;
     let (a_gap, b_gap) = continuous(plant, e, lay, on_load, false);
-    let mut gap = discretise::<N>(&a_gap, &b_gap, h, i_fv)?;
+    let mut gap = discretise::<N>(&a_gap, &b_gap, h, i_fv, lay.i_cur)?;
     let half_backlash = match (e.compliance, linear) {
         (Some(c), false) => 0.5 * c.backlash,
         _ => 0.0,
@@ -1516,7 +1529,7 @@ mod tests {
         };
         let lay = layout(&e);
         let (a, b) = continuous(&plant, &e, lay, true, true);
-        let lin = discretise::<4>(&a, &b, h, lay.vl()).unwrap();
+        let lin = discretise::<4>(&a, &b, h, lay.vl(), lay.i_cur).unwrap();
         let mut z = [0.0; 4];
         let mut out = vec![0.0];
         for _ in 0..n {
