@@ -5,7 +5,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use vcnc_drive::{DriveTrace, SimOptions, table1_drive};
+use vcnc_drive::{AxisName, DriveTrace, SimOptions, nmv5000_axis_design, table1_drive};
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -17,28 +17,37 @@ fn drive(c: &mut Criterion) {
     let mut noisy = table1_drive();
     noisy.encoder.noise_std = 1e-4;
     let noisy = noisy.validate().expect("valid");
+    let ideal_x = nmv5000_axis_design(AxisName::X)
+        .and_then(|p| p.validate())
+        .expect("NMV5000 X is valid");
+    let realistic_x = common::realistic_nmv5000_x()
+        .validate()
+        .expect("realistic NMV5000 X is valid");
     let mut group = c.benchmark_group("drive");
     group.sample_size(30);
     let mut trace = DriveTrace::default();
-    group.bench_function(
-        "true drive P-PI, 30 s at 20 kHz (600 000 servo ticks)",
-        |b| {
+    let mut case = |name: &str, d: &vcnc_drive::Drive| {
+        group.bench_function(name, |b| {
             b.iter(|| {
-                table1
-                    .simulate_into(black_box(prog.reference()), 1e-3, &mut trace)
+                d.simulate_into(black_box(prog.reference()), 1e-3, &mut trace)
                     .expect("simulates");
                 black_box(&trace);
             })
-        },
+        });
+    };
+    case(
+        "true drive P-PI, 30 s at 20 kHz (600 000 servo ticks)",
+        &table1,
     );
-    group.bench_function("true drive P-PI with encoder noise, 30 s at 20 kHz", |b| {
-        b.iter(|| {
-            noisy
-                .simulate_into(black_box(prog.reference()), 1e-3, &mut trace)
-                .expect("simulates");
-            black_box(&trace);
-        })
-    });
+    case("true drive P-PI with encoder noise, 30 s at 20 kHz", &noisy);
+    case(
+        "NMV5000 X ideal (machines/nmv5000.toml), 30 s at 20 kHz",
+        &ideal_x,
+    );
+    case(
+        "NMV5000 X realistic (machines/nmv5000-realistic.toml: every effect), 30 s at 20 kHz",
+        &realistic_x,
+    );
     let model = table1.closed_loop_model();
     group.bench_function(
         "ClosedLoopModel::simulate, 30 000 samples (exact FOH)",

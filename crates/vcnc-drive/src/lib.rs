@@ -8,6 +8,13 @@
 //! - [`sim`]: the drive in the time domain at the servo rate ([`Drive::simulate`] →
 //!   [`DriveTrace`]) and the effective poles of the sampled loop.
 //! - [`model`]: the closed-loop model ([`ClosedLoopModel`]) with poles, FRFs and simulation.
+//! - [`effects`]: what real drives add to the rigid plant, each an optional table with physical
+//!   units (crates/vcnc-drive/REALISM.md): two-mass compliance and backlash ([`Compliance`]),
+//!   Stribeck and pre-sliding friction ([`Friction`]), current loop and torque limit
+//!   ([`CurrentLoop`]), feedback sensor, dead time and velocity filter ([`Feedback`]), the
+//!   control's reference filter and interpolation delay ([`ReferenceShaping`]). Absent tables
+//!   leave the ideal drive bit for bit.
+//! - [`frf`]: the true drive's frequency response measured by simulation ([`Drive::measure_frf`]).
 //! - [`presets`]: the paper's Table 1 drive and the NMV5000 axes designed from Table 3.
 //!
 //! ```
@@ -34,12 +41,21 @@
 //! ```
 
 pub mod design;
+pub mod effects;
+pub mod frf;
 pub mod model;
+mod noise;
 pub mod params;
 pub mod presets;
+mod real_sim;
 pub mod sim;
 
 pub use design::{design_pid, design_ppi, design_smc};
+pub use effects::{
+    Compliance, CurrentLoop, CurrentLoopOrder, Effects, Feedback, FeedbackSource, Friction,
+    FrictionLocation, ReferenceFilter, ReferenceShaping,
+};
+pub use frf::{Frf, FrfKind, FrfOptions};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
 pub use params::{
     Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,
@@ -204,6 +220,35 @@ pub enum Error {
         /// Largest |eigenvalue| of the sampled loop's transition matrix.
         radius: f64,
     },
+    /// Two keys that are alternatives (e.g. `compliance.stiffness` and `compliance.mode_hz`) were
+    /// both given, or neither.
+    #[error("{}", alternatives_message(name, other, *both))]
+    Alternatives {
+        /// Key path of the first alternative (the one the error points at).
+        name: &'static str,
+        /// Key path of the other.
+        other: &'static str,
+        /// Both given (true) or neither (false).
+        both: bool,
+    },
+    /// The ideal loop is stable but the loop with the drive's effects (compliance, current loop,
+    /// dead time, velocity filter), linearised at rest, is not.
+    #[error(
+        "the closed loop with its compliance, current loop, dead time and velocity filter is \
+         unstable at {servo_rate_hz} Hz: sampled spectral radius {radius:.6} > 1 (a mode at \
+         {mode_hz:.1} Hz grows at {growth_per_s:.3} 1/s); lower the gains, stiffen or damp the transmission, shorten the dead \
+         time or widen the filters"
+    )]
+    EffectsUnstable {
+        /// Servo rate, Hz.
+        servo_rate_hz: f64,
+        /// Largest |eigenvalue| of the linearised sampled loop.
+        radius: f64,
+        /// Frequency of that eigenvalue as a continuous mode $|\Im \ln z| / (2\pi h)$, Hz.
+        mode_hz: f64,
+        /// Its growth rate $\Re \ln z / h$, 1/s.
+        growth_per_s: f64,
+    },
     /// No preset for this axis name.
     #[error("no NMV5000 design for axis {axis}: expected one of X, Y, Z, A, C")]
     UnknownAxis {
@@ -228,13 +273,23 @@ impl Error {
             | Error::ServoRate { .. }
             | Error::TooStiff { .. }
             | Error::SampledUnstable { .. }
-            | Error::UnknownAxis { .. } => true,
+            | Error::UnknownAxis { .. }
+            | Error::Alternatives { .. }
+            | Error::EffectsUnstable { .. } => true,
             Error::EmptySignal
             | Error::LengthMismatch { .. }
             | Error::NonFinite { .. }
             | Error::BadSamplePeriod { .. }
             | Error::NonFiniteModel => false,
         }
+    }
+}
+
+fn alternatives_message(name: &str, other: &str, both: bool) -> String {
+    if both {
+        format!("`{name}` and `{other}` are alternatives: give one of them, not both")
+    } else {
+        format!("give `{name}` or `{other}`")
     }
 }
 

@@ -16,6 +16,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::design::{design_pid, design_ppi, design_smc};
+use crate::effects::{
+    Compliance, CurrentLoop, EffectTables, Effects, Feedback, Friction, RawEffects,
+    ReferenceShaping,
+};
 use crate::model::{ClosedLoopModel, Poles};
 
 /// The mechanical plant and amplifier of one axis (docs/drive-model.md):
@@ -648,6 +652,25 @@ pub struct DriveParams {
     /// the logging rate $1/T_s$ when simulating.
     #[serde(default = "default_servo_rate_hz")]
     pub servo_rate_hz: f64,
+    /// Two-mass transmission and backlash (default: rigid). See [`Compliance`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compliance: Option<Compliance>,
+    /// Stribeck, direction-dependent and pre-sliding friction (default: the plant's symmetric
+    /// Coulomb friction). See [`Friction`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<Friction>,
+    /// Current-loop dynamics and torque limit (default: ideal current loop, no limit). See
+    /// [`CurrentLoop`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_loop: Option<CurrentLoop>,
+    /// Feedback sensor, dead time and velocity filter (default: encoder on the load, no delay,
+    /// no filter). See [`Feedback`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feedback: Option<Feedback>,
+    /// The control's reference filter and interpolation delay (default: none). See
+    /// [`ReferenceShaping`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<ReferenceShaping>,
 }
 
 impl DriveParams {
@@ -655,17 +678,51 @@ impl DriveParams {
     /// rejects unstable closed loops ([`Error::Unstable`] names the poles). A drive without
     /// integral action ($a_3 = 0$: a single pole at the origin cancelled by the numerator, with
     /// the other two stable) is accepted.
+    ///
+    /// The effect tables are checked against the plant, encoder and servo rate
+    /// ([`Effects::check`]); a drive with effects must also be stable as linearised at rest with
+    /// them ([`Error::EffectsUnstable`]).
     pub fn validate(&self) -> Result<Drive, Error> {
         self.plant.validate()?;
         self.encoder.validate()?;
         positive("servo_rate_hz", self.servo_rate_hz)?;
         let controller = self.controller.resolve(&self.plant)?;
-        Drive::new(
+        let drive = Drive::new(
             self.plant.clone(),
             controller,
             self.encoder.clone(),
             self.servo_rate_hz,
-        )
+        )?;
+        let effects = Effects::check(
+            self.effect_tables(),
+            &self.plant,
+            &self.encoder,
+            self.servo_rate_hz,
+        )?;
+        drive.with_effects(effects)
+    }
+
+    /// The five effect tables, borrowed.
+    pub fn effect_tables(&self) -> EffectTables<'_> {
+        EffectTables {
+            compliance: self.compliance.as_ref(),
+            friction: self.friction.as_ref(),
+            current_loop: self.current_loop.as_ref(),
+            feedback: self.feedback.as_ref(),
+            reference: self.reference.as_ref(),
+        }
+    }
+
+    /// The drive without any effect table (the rigid ideal drive of the same plant and gains).
+    pub fn ideal(&self) -> DriveParams {
+        DriveParams {
+            compliance: None,
+            friction: None,
+            current_loop: None,
+            feedback: None,
+            reference: None,
+            ..self.clone()
+        }
     }
 
     /// The closed-loop model of these parameters (validates first: a design may be impossible,
@@ -684,6 +741,7 @@ pub struct Drive {
     encoder: Encoder,
     servo_rate_hz: f64,
     model: ClosedLoopModel,
+    effects: Effects,
 }
 
 impl Drive {
@@ -721,9 +779,30 @@ impl Drive {
             encoder,
             servo_rate_hz,
             model,
+            effects: Effects::default(),
         };
         drive.check_sampled_stability()?;
         Ok(drive)
+    }
+
+    /// The same drive with checked `effects` (see [`Effects::check`], which must have been run
+    /// against this drive's plant, encoder and servo rate). Rejects a loop that the effects
+    /// destabilise ([`Error::EffectsUnstable`]: the spectral radius of
+    /// [`Drive::effects_transition_matrix`] exceeds 1).
+    pub fn with_effects(&self, effects: Effects) -> Result<Drive, Error> {
+        let drive = Drive {
+            effects,
+            ..self.clone()
+        };
+        if !effects.is_ideal() {
+            crate::real_sim::check_effects_stability(&drive)?;
+        }
+        Ok(drive)
+    }
+
+    /// The drive's effects (`Effects::default()`: the ideal rigid drive).
+    pub fn effects(&self) -> &Effects {
+        &self.effects
     }
 
     /// Rejects a loop that is stable in continuous time but not as sampled at the servo rate
@@ -777,15 +856,30 @@ impl Drive {
 
     /// Back to plain parameters, with the controller as gains (designs resolved).
     pub fn params(&self) -> DriveParams {
+        let RawEffects {
+            compliance,
+            friction,
+            current_loop,
+            feedback,
+            reference,
+        } = self
+            .effects
+            .tables(&self.plant, &self.encoder, self.servo_rate_hz);
         DriveParams {
             plant: self.plant.clone(),
             controller: self.controller.into(),
             encoder: self.encoder.clone(),
             servo_rate_hz: self.servo_rate_hz,
+            compliance,
+            friction,
+            current_loop,
+            feedback,
+            reference,
         }
     }
 
-    /// The same drive with another encoder (e.g. to switch quantisation off).
+    /// The same drive with another encoder (e.g. to switch quantisation off). The effects are
+    /// kept as checked (a closed-loop two-mass drive's motor encoder keeps its resolution).
     pub fn with_encoder(&self, encoder: Encoder) -> Result<Drive, Error> {
         encoder.validate()?;
         Ok(Drive {
@@ -794,15 +888,13 @@ impl Drive {
         })
     }
 
-    /// The same drive at another servo rate, Hz.
+    /// The same drive at another servo rate, Hz (effects re-checked: delays must stay whole
+    /// servo periods).
     pub fn with_servo_rate_hz(&self, servo_rate_hz: f64) -> Result<Drive, Error> {
         positive("servo_rate_hz", servo_rate_hz)?;
-        Drive::new(
-            self.plant.clone(),
-            self.controller,
-            self.encoder.clone(),
-            servo_rate_hz,
-        )
+        let mut p = self.params();
+        p.servo_rate_hz = servo_rate_hz;
+        p.validate()
     }
 }
 

@@ -36,6 +36,11 @@ pub fn table1_drive() -> DriveParams {
         },
         encoder: Encoder::default(),
         servo_rate_hz: DEFAULT_SERVO_RATE_HZ,
+        compliance: None,
+        friction: None,
+        current_loop: None,
+        feedback: None,
+        reference: None,
     }
 }
 
@@ -139,5 +144,10 @@ pub fn nmv5000_axis_design(axis: AxisName) -> Result<DriveParams, Error> {
         },
         encoder: Encoder::default(),
         servo_rate_hz: DEFAULT_SERVO_RATE_HZ,
+        compliance: None,
+        friction: None,
+        current_loop: None,
+        feedback: None,
+        reference: None,
     })
 }

@@ -74,6 +74,12 @@ pub struct DriveTrace {
     pub control: Vec<f64>,
     /// Servo ticks at which $u$ was saturated (0 without a limit).
     pub saturated_ticks: u64,
+    /// True motor-side position $r_g\theta_m$, axis units: equal to `true_position` for a rigid
+    /// drive, different with a compliant transmission or backlash (crates/vcnc-drive/REALISM.md).
+    pub motor_position: Vec<f64>,
+    /// Motor torque at the sample instant, N·m: $K_aK_t u$, or the current loop's output when
+    /// the drive has one.
+    pub motor_torque: Vec<f64>,
 }
 
 impl DriveTrace {
@@ -99,11 +105,30 @@ pub fn simulate_drive(
 }
 
 /// One reference sample seen by the servo loop.
-#[derive(Debug, Clone, Copy)]
-struct RefSample {
-    xr: f64,
-    vr: f64,
-    ar: f64,
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RefSample {
+    pub(crate) xr: f64,
+    pub(crate) vr: f64,
+    pub(crate) ar: f64,
+}
+
+/// $q\,\mathrm{round}(x/q)$ (ties to even), or $x$ when $q = 0$ (`inv_q` = $1/q$).
+#[inline(always)]
+pub(crate) fn quantise_to(x: f64, q: f64, inv_q: f64) -> f64 {
+    // 1.5 * 2^52: adding and subtracting it rounds to an integer (ties to even) for
+    // |y| < 2^51, without a libm call.
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    if q > 0.0 {
+        let y = x * inv_q;
+        let n = if y.abs() < 2_251_799_813_685_248.0 {
+            (y + MAGIC) - MAGIC
+        } else {
+            y.round()
+        };
+        n * q
+    } else {
+        x
+    }
 }
 
 /// Controller history and integrator, common to every law.
@@ -329,20 +354,7 @@ impl EncoderReader {
     /// $q\,\mathrm{round}(x/q)$ (ties to even), or $x$ when $q = 0$.
     #[inline(always)]
     fn quantise(&self, x: f64) -> f64 {
-        // 1.5 * 2^52: adding and subtracting it rounds to an integer (ties to even) for
-        // |y| < 2^51, without a libm call.
-        const MAGIC: f64 = 6_755_399_441_055_744.0;
-        if self.q > 0.0 {
-            let y = x * self.inv_q;
-            let n = if y.abs() < 2_251_799_813_685_248.0 {
-                (y + MAGIC) - MAGIC
-            } else {
-                y.round()
-            };
-            n * self.q
-        } else {
-            x
-        }
+        quantise_to(x, self.q, self.inv_q)
     }
 
     #[inline(never)]
@@ -383,6 +395,8 @@ struct Servo<L> {
     law: L,
     plant: PlantStep,
     u_max: f64,
+    /// $K_aK_t$, N·m/V (for logging the torque).
+    ka_kt: f64,
     /// Slopes of the law in the reading: direct part, integrator increment, and of $u$.
     gd: f64,
     gi: f64,
@@ -397,7 +411,7 @@ struct Servo<L> {
 }
 
 impl<L: Law> Servo<L> {
-    fn new(law: L, plant: PlantStep, u_max: f64) -> Servo<L> {
+    fn new(law: L, plant: PlantStep, u_max: f64, ka_kt: f64) -> Servo<L> {
         let (gd, gi, k_int) = law.slopes();
         let gu = gd + k_int * gi;
         let (phi1_c, phi2_c) = (plant.phi1 * plant.c, plant.phi2 * plant.c);
@@ -405,6 +419,7 @@ impl<L: Law> Servo<L> {
             law,
             plant,
             u_max,
+            ka_kt,
             gd,
             gi,
             k_int,
@@ -496,6 +511,7 @@ impl<L: Law> Servo<L> {
             let xm = enc.read(st.x);
             trace.position.push(xm);
             trace.true_position.push(st.x);
+            trace.motor_position.push(st.x);
             trace.velocity.push(st.v);
             let r = RefSample {
                 xr: p0,
@@ -505,6 +521,7 @@ impl<L: Law> Servo<L> {
             let (u, sat) = self.tick(&mut st, xm, r);
             saturated_ticks += sat as u64;
             trace.control.push(u);
+            trace.motor_torque.push(self.ka_kt * u);
             if last {
                 break;
             }
@@ -570,6 +587,7 @@ fn with_servo<R>(
             },
             plant_step,
             u_max,
+            k,
         ))),
         Controller::Pid(PidGains {
             kp,
@@ -589,6 +607,7 @@ fn with_servo<R>(
             },
             plant_step,
             u_max,
+            k,
         ))),
         Controller::Smc(SmcGains {
             lambda,
@@ -608,6 +627,7 @@ fn with_servo<R>(
             },
             plant_step,
             u_max,
+            k,
         ))),
     })
 }
@@ -669,11 +689,16 @@ impl Drive {
             &mut trace.true_position,
             &mut trace.velocity,
             &mut trace.control,
+            &mut trace.motor_position,
+            &mut trace.motor_torque,
         ] {
             v.clear();
             v.reserve(n);
         }
         trace.saturated_ticks = 0;
+        if !self.effects().is_ideal() {
+            return crate::real_sim::simulate_effects(self, reference, n_sub, h, trace);
+        }
         let mut enc = EncoderReader::new(self.encoder());
         with_servo(self, h, None, |servo| match servo {
             ServoRef::PPi(s) => s.run(reference, n_sub, &mut enc, trace),
@@ -683,7 +708,8 @@ impl Drive {
     }
 
     /// Transition matrix $M$ of the sampled linear closed loop at the servo rate (friction,
-    /// quantisation, noise and saturation off, zero reference): $z_{k+1} = M z_k$ with
+    /// quantisation, noise and saturation off, zero reference) of the ideal drive (for a drive
+    /// with effects, of its rigid ideal part: see [`Drive::effects_transition_matrix`]): $z_{k+1} = M z_k$ with
     /// $z = [x, \dot x, \text{integrator}, \hat x_{k-1}, \hat x_{k-2}]$. Built column by column by
     /// running the simulator's own servo tick on unit states, so it is the matrix of the code,
     /// not of a separate derivation.

@@ -75,6 +75,11 @@ fn params(d: &RandomDrive) -> DriveParams {
             seed: 0,
         },
         servo_rate_hz: 20_000.0,
+        compliance: None,
+        friction: None,
+        current_loop: None,
+        feedback: None,
+        reference: None,
     }
 }
 

@@ -186,6 +186,21 @@ pub struct AxisFile {
     /// Controller rate, Hz (default 20 000).
     #[serde(default = "default_servo_rate")]
     pub servo_rate_hz: f64,
+    /// `[axes.<letter>.compliance]`: two-mass transmission and backlash (default: rigid).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compliance: Option<vcnc_drive::Compliance>,
+    /// `[axes.<letter>.friction]`: Stribeck, direction-dependent, pre-sliding friction.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<vcnc_drive::Friction>,
+    /// `[axes.<letter>.current_loop]`: current-loop dynamics and torque limit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_loop: Option<vcnc_drive::CurrentLoop>,
+    /// `[axes.<letter>.feedback]`: position sensor, dead time, velocity filter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feedback: Option<vcnc_drive::Feedback>,
+    /// `[axes.<letter>.reference]`: nominal-position filter and interpolation delay.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<vcnc_drive::ReferenceShaping>,
     /// Identification-program half-range for this axis (default: `[identification.program]`'s).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub identification_range: Option<f64>,

@@ -434,6 +434,11 @@ impl Checker<'_> {
             controller: a.controller.clone(),
             encoder: a.encoder.clone(),
             servo_rate_hz: a.servo_rate_hz,
+            compliance: a.compliance.clone(),
+            friction: a.friction.clone(),
+            current_loop: a.current_loop.clone(),
+            feedback: a.feedback.clone(),
+            reference: a.reference.clone(),
         };
         let drive = params
             .validate()
@@ -625,7 +630,7 @@ fn table_has(table: &toml::Table, path: &[&str]) -> bool {
 fn drive_error_key(e: &vcnc_drive::Error) -> &'static str {
     use vcnc_drive::Error as E;
     match e {
-        E::BadParameter { name, .. } => name,
+        E::BadParameter { name, .. } | E::Alternatives { name, .. } => name,
         E::Unstable { .. } | E::MissingGain { .. } | E::GainsAndDesign { .. } => "controller",
         E::BadDesign { .. } => "controller.design",
         _ => "controller",

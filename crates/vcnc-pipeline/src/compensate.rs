@@ -447,7 +447,7 @@ mod spiral_experiment {
         let ids = crate::identify::identify_axes(&machine, &axes, None).unwrap();
         let models: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
         for (label, ms) in [("identified", models.clone()), ("true", machine.axes.iter().map(|a| a.true_model()).collect())] {
-            let (comp, margins) = compensate_run(&machine, &run, &ms).unwrap();
+            let (comp, _margins) = compensate_run(&machine, &run, &ms).unwrap();
             let mut crun = run.clone();
             crun.axes = comp;
             let traces = crate::simulate::simulate_true(&machine, &crun).unwrap();
@@ -500,10 +500,6 @@ mod tests {
             }
         }
         s
-    }
-
-    pub(super) fn quintic_pub(len: f64, t_move: f64, ts: f64, n: usize) -> AxisSignals {
-        quintic(len, t_move, ts, n)
     }
 
     fn model(b0: f64, dc: f64) -> ClosedLoopModel {

@@ -133,3 +133,108 @@ pub fn identification_program(
 pub fn standard_program() -> Program {
     identification_program(7, 30.0, 1e-3, 0.0, 50.0, 250.0, 2500.0)
 }
+
+/// The Table 1 drive with every effect at a value typical of a ball-screw axis of its class
+/// (the same kinds of values as machines/nmv5000-realistic.toml's X axis): two-mass screw with a
+/// 120 Hz first mode, Stribeck friction with pre-sliding, a 1.5 kHz current loop and torque
+/// limit, linear scale with 50 nm noise, one cycle of dead time, a 2 kHz velocity filter, a 4 ms
+/// moving-average nominal filter and a 2 ms interpolation delay.
+pub fn realistic_table1() -> vcnc_drive::DriveParams {
+    use vcnc_drive::{
+        Compliance, CurrentLoop, CurrentLoopOrder, Feedback, FeedbackSource, Friction,
+        FrictionLocation, ReferenceFilter, ReferenceShaping,
+    };
+    let mut p = vcnc_drive::table1_drive();
+    p.encoder.noise_std = 5e-5;
+    p.encoder.seed = 3;
+    p.compliance = Some(Compliance {
+        j_motor: 0.005,
+        stiffness: None,
+        mode_hz: Some(120.0),
+        damping: None,
+        mode_zeta: Some(0.05),
+        backlash: 0.0,
+    });
+    p.friction = Some(Friction::MaxwellSlip {
+        presliding_displacement: 0.002,
+        elements: 4,
+        static_torque: Some(0.4),
+        stribeck_velocity: Some(2.0),
+        stribeck_exponent: 2.0,
+        coulomb_torque_negative: Some(0.28),
+        static_torque_negative: None,
+        location: FrictionLocation::Load,
+    });
+    p.current_loop = Some(CurrentLoop {
+        order: CurrentLoopOrder::FirstOrder,
+        bandwidth_hz: Some(1500.0),
+        zeta: None,
+        torque_max: Some(20.0),
+    });
+    p.feedback = Some(Feedback {
+        source: FeedbackSource::Load,
+        dead_time_cycles: 1,
+        velocity_filter_hz: Some(2000.0),
+        motor_resolution: None,
+        motor_noise_std: 0.0,
+    });
+    p.reference = Some(ReferenceShaping {
+        filter: Some(ReferenceFilter::MovingAverage { window_s: 0.004 }),
+        interpolation_delay_s: 0.002,
+    });
+    p
+}
+
+/// The X axis of machines/nmv5000-realistic.toml (same values; the drive crate does not read
+/// TOML): the NMV5000 X drive of `nmv5000_axis_design` with a 110 Hz two-mass screw,
+/// Maxwell-slip Stribeck friction, a 1.5 kHz current loop, a linear scale with 10 nm steps and
+/// 20 nm noise, two cycles of dead time, a 1 kHz velocity filter, a 2 ms moving-average nominal
+/// filter and a 2 ms interpolation delay.
+pub fn realistic_nmv5000_x() -> vcnc_drive::DriveParams {
+    use vcnc_drive::{
+        Compliance, CurrentLoop, CurrentLoopOrder, Encoder, Feedback, FeedbackSource, Friction,
+        FrictionLocation, ReferenceFilter, ReferenceShaping,
+    };
+    let mut p = vcnc_drive::nmv5000_axis_design(vcnc_drive::AxisName::X).expect("X exists");
+    p.encoder = Encoder {
+        resolution: 1e-5,
+        noise_std: 2e-5,
+        seed: 11,
+    };
+    p.compliance = Some(Compliance {
+        j_motor: 0.007,
+        stiffness: None,
+        mode_hz: Some(110.0),
+        damping: None,
+        mode_zeta: Some(0.03),
+        backlash: 0.0,
+    });
+    p.friction = Some(Friction::MaxwellSlip {
+        presliding_displacement: 0.002,
+        elements: 4,
+        static_torque: Some(0.42),
+        stribeck_velocity: Some(2.0),
+        stribeck_exponent: 2.0,
+        coulomb_torque_negative: None,
+        static_torque_negative: None,
+        location: FrictionLocation::Load,
+    });
+    p.current_loop = Some(CurrentLoop {
+        order: CurrentLoopOrder::FirstOrder,
+        bandwidth_hz: Some(1500.0),
+        zeta: None,
+        torque_max: Some(60.0),
+    });
+    p.feedback = Some(Feedback {
+        source: FeedbackSource::Load,
+        dead_time_cycles: 2,
+        velocity_filter_hz: Some(1000.0),
+        motor_resolution: Some(1e-5),
+        motor_noise_std: 0.0,
+    });
+    p.reference = Some(ReferenceShaping {
+        filter: Some(ReferenceFilter::MovingAverage { window_s: 0.002 }),
+        interpolation_delay_s: 0.002,
+    });
+    p
+}
