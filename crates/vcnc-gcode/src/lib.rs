@@ -26,19 +26,22 @@ pub mod generate;
 pub mod interp;
 pub mod interpolate;
 pub mod syntax;
+pub mod tables;
 
-pub use diag::{Diagnostic, Severity, Span};
+pub use diag::{Diagnostic, DiagnosticKind, Severity, Span};
 pub use generate::{
     IdentificationOptions, SpiralOptions, TcpProgramOptions, TipPose, identification,
     spiral_points, tcp_program,
 };
 pub use interp::{ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, Toolpath, interpret};
+pub use tables::{LengthUnit, ParameterTable, Tool, ToolTable, parse_parameter_file, parse_tool_table};
 pub use interpolate::{
-    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, InverseTimePolicy, Limits, Trajectory,
+    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,
     interpolate,
 };
 pub use syntax::{
-    Block, Comment, CommentKind, LineNumber, ParseOptions, Program, Word, parse, parse_bytes,
+    Assignment, BinOp, Block, Comment, CommentKind, Expr, ExprId, ExprKind, Func, LineNumber,
+    NameId, OLabel, OStatement, OWord, ParamRef, ParseOptions, Program, Word, parse, parse_bytes,
     parse_with,
 };
 
@@ -97,18 +100,6 @@ pub enum Error {
         /// Duration reached, s.
         duration_s: f64,
     },
-    /// A `G93` block cannot last 1/F within the limits.
-    #[error(
-        "line {line}: inverse-time feed asks for {requested_s:.6} s but the axis limits need at least {min_s:.6} s"
-    )]
-    InverseTimeInfeasible {
-        /// Source line.
-        line: u32,
-        /// 1/F, s.
-        requested_s: f64,
-        /// Shortest feasible time, s.
-        min_s: f64,
-    },
     /// A computed quantity is not finite (degenerate input).
     #[error("line {line}: {what} is not finite or not positive")]
     NonFinite {
@@ -116,6 +107,30 @@ pub enum Error {
         line: u32,
         /// What was computed.
         what: &'static str,
+    },
+    /// A line of a LinuxCNC parameter file (`.var`) is wrong.
+    #[error("{file}:{line}: {reason}: '{text}'")]
+    ParameterFile {
+        /// The file's name, as given.
+        file: String,
+        /// Line number, 1-based.
+        line: u32,
+        /// The offending line (trimmed).
+        text: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A line of a LinuxCNC tool table (`.tbl`) is wrong.
+    #[error("{file}:{line}: {reason}: '{text}'")]
+    ToolTable {
+        /// The file's name, as given.
+        file: String,
+        /// Line number, 1-based.
+        line: u32,
+        /// The offending word or line.
+        text: String,
+        /// What is wrong.
+        reason: String,
     },
     /// A generator option is out of range.
     #[error("generator option {name} = {value:?} is invalid: expected {expected}")]

@@ -6,7 +6,7 @@
 use proptest::prelude::*;
 use std::fmt::Write;
 use vcnc_gcode::{
-    AxisName, Feed, InterpOptions, InterpolateOptions, InverseTimePolicy, Limits, Move, MoveKind,
+    AxisName, Feed, InterpOptions, InterpolateOptions, Limits, Move, MoveKind,
     ParseOptions, Trajectory, interpolate, interpret, load, parse_bytes, parse_with,
 };
 
@@ -198,7 +198,6 @@ fn render(ops: &[Op], style: Style) -> String {
 fn all_axes() -> InterpolateOptions {
     InterpolateOptions {
         axes: Some(AxisName::ALL.to_vec()),
-        inverse_time: InverseTimePolicy::Stretch,
         ..InterpolateOptions::default()
     }
 }
