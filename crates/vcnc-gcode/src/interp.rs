@@ -27,8 +27,9 @@
 //! $\mathbf{o}_{5x}$ its offset (G54–G59.3) and $\mathbf{t}$ the tool offset (G43). Every
 //! length in the [`Toolpath`] is in mm and every angle in degrees.
 //!
-//! **Start.** The machine rests at [`InterpOptions::start_position`] (default: every axis at 0,
-//! as after homing) and the first block moves from there, as on a control.
+//! **Start.** The machine rests at [`InterpOptions::start`] (default: every axis at 0, as after
+//! homing) and the first block moves from there, as on a control. ([`StartPosition::FirstMove`]
+//! keeps the behaviour of vcnc before this rule, for callers that have no start position yet.)
 //!
 //! **Feed rule** (docs/gcode.md, NIST RS274NGC v3 section 2.1.2.5): under `G94` the feed `F`
 //! applies to the XYZ path length (in TCP mode that *is* the tool-tip path) whenever it is
@@ -66,10 +67,9 @@ pub struct InterpOptions {
     /// user M-codes `M100`–`M199` (and the parser's dialect problems, in [`crate::load`]).
     /// Default `false`.
     pub lenient: bool,
-    /// Machine position X Y Z A B C before the first block (mm, mm, mm, deg, deg, deg, machine
-    /// coordinates). Default all 0, as after homing. In tool-centre-point mode the interpreter
-    /// reads X Y Z as the tool tip (it has no kinematics).
-    pub start_position: [f64; 6],
+    /// Where the machine rests before the first block. Default
+    /// [`StartPosition::Machine`] with every axis at 0, as after homing.
+    pub start: StartPosition,
     /// Block-delete switch: when `true`, lines starting with `/` are skipped. Default `false`
     /// (switch off: they run), as on LinuxCNC and Fanuc controls at power-up.
     pub block_delete: bool,
@@ -113,7 +113,7 @@ impl Default for InterpOptions {
     fn default() -> Self {
         InterpOptions {
             lenient: false,
-            start_position: [0.0; 6],
+            start: StartPosition::default(),
             block_delete: false,
             tcp_on_mcodes: Vec::new(),
             tcp_off_mcodes: Vec::new(),
@@ -128,6 +128,26 @@ impl Default for InterpOptions {
             max_call_depth: 10,
             max_moves: 10_000_000,
         }
+    }
+}
+
+/// Where the machine rests before the first block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StartPosition {
+    /// At X Y Z A B C (mm, mm, mm, deg, deg, deg, machine coordinates); the first block moves
+    /// from there, as on a control. In tool-centre-point mode the interpreter reads X Y Z as the
+    /// tool tip (it has no kinematics).
+    Machine([f64; 6]),
+    /// vcnc's behaviour before issue 13, for callers without a start position: the machine
+    /// rests at the target of the first straight motion (axes it does not name at 0), so that
+    /// motion costs nothing; a first arc starts from all-zero axes, with a warning. A control
+    /// does not do this: it hides the program's first move.
+    FirstMove,
+}
+
+impl Default for StartPosition {
+    fn default() -> Self {
+        StartPosition::Machine([0.0; 6])
     }
 }
 
@@ -233,7 +253,7 @@ pub struct Move {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Toolpath {
     /// X Y Z A B C where the machine rests before the first move (mm, mm, mm, deg, deg, deg):
-    /// [`InterpOptions::start_position`].
+    /// [`InterpOptions::start`].
     pub start: [f64; 6],
     /// Moves in program order (zero-length motions are dropped).
     pub moves: Vec<Move>,
@@ -352,6 +372,8 @@ struct State {
     cycle: CycleMemory,
     /// Line being executed.
     line: u32,
+    /// `false` until the first motion under [`StartPosition::FirstMove`].
+    started: bool,
 }
 
 /// One subroutine call (the main program is the first frame).
@@ -411,7 +433,10 @@ enum Next {
 impl<'a> Interp<'a> {
     fn new(prog: &'a Program, opts: &'a InterpOptions) -> Self {
         let params = Params::new(&opts.parameters);
-        let start = opts.start_position;
+        let (start, started) = match opts.start {
+            StartPosition::Machine(p) => (p, true),
+            StartPosition::FirstMove => ([0.0; 6], false),
+        };
         let mut it = Interp {
             opts,
             prog,
@@ -439,6 +464,7 @@ impl<'a> Interp<'a> {
                 retract_r_plane: true,
                 cycle: CycleMemory::default(),
                 line: 0,
+                started,
             },
             params,
             tools: opts.tools.clone(),

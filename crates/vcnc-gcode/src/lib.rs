@@ -33,7 +33,9 @@ pub use generate::{
     IdentificationOptions, SpiralOptions, TcpProgramOptions, TipPose, identification,
     spiral_points, tcp_program,
 };
-pub use interp::{ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, Toolpath, interpret};
+pub use interp::{
+    ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath, interpret,
+};
 pub use tables::{LengthUnit, ParameterTable, Tool, ToolTable, parse_parameter_file, parse_tool_table};
 pub use interpolate::{
     AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,

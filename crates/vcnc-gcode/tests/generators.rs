@@ -177,7 +177,7 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
     let (first, _) = vcnc_gcode::interpret(&program, &InterpOptions::default()).unwrap();
     assert_eq!(first.moves[0].kind, MoveKind::Rapid);
     let opts = InterpOptions {
-        start_position: first.moves[0].end,
+        start: vcnc_gcode::StartPosition::Machine(first.moves[0].end),
         ..InterpOptions::default()
     };
     let run = load(&text, &opts, &limits, &InterpolateOptions::default()).unwrap();

@@ -111,6 +111,7 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
                         line: m.line,
                         col: m.col,
                         severity: Severity::Error,
+                        kind: vcnc_gcode::DiagnosticKind::Motion,
                         message: format!(
                             "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
                             machine.name,

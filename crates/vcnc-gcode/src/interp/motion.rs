@@ -167,6 +167,24 @@ impl Interp<'_> {
             });
             return;
         }
+        if !self.st.started && !matches!(kind, MoveKind::Dwell { .. }) {
+            self.st.started = true;
+            if let MoveKind::Arc(_) = kind {
+                self.sink.push(crate::diag::Diagnostic::warning(
+                    span,
+                    "the first motion is an arc: it starts from all axes at 0",
+                ));
+            } else {
+                // StartPosition::FirstMove: the opening motion defines the start.
+                self.tp.start = end;
+                for mv in &mut self.tp.moves {
+                    mv.start = end;
+                    mv.end = end;
+                }
+                self.st.pos = end;
+                return;
+            }
+        }
         self.st.pos = end;
         for i in 0..6 {
             if end[i] != start[i] {

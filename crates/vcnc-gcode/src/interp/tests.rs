@@ -73,7 +73,7 @@ fn the_machine_starts_at_the_start_position() {
     assert_eq!(tp.moves[1].end, xyz(10.0, 5.0, 0.0));
     assert_eq!(tp.moves[2].feed, Some(Feed::UnitsPerMin(600.0)));
     let opts = InterpOptions {
-        start_position: [1.0; 6],
+        start: StartPosition::Machine([1.0; 6]),
         ..InterpOptions::default()
     };
     let (tp, _) = run_with("G0 X10 Y5", &opts).unwrap();
@@ -82,6 +82,23 @@ fn the_machine_starts_at_the_start_position() {
     assert_eq!(tp.moves[0].end, [10.0, 5.0, 1.0, 1.0, 1.0, 1.0]);
     // A first move to where the machine already is costs nothing.
     assert!(ok("G0 X0").moves.is_empty());
+}
+
+#[test]
+fn legacy_start_at_the_first_move() {
+    let opts = InterpOptions {
+        start: StartPosition::FirstMove,
+        ..InterpOptions::default()
+    };
+    let (tp, _) = run_with("G4 P1\nG0 X10 Y5\nG1 X20 F600", &opts).unwrap();
+    assert_eq!(tp.start, xyz(10.0, 5.0, 0.0));
+    assert_eq!(tp.moves.len(), 2);
+    // The dwell before the first motion holds at the start.
+    assert_eq!(tp.moves[0].start, tp.start);
+    assert_eq!(tp.moves[1].end, xyz(20.0, 5.0, 0.0));
+    let (tp, w) = run_with("G2 X0 Y0 I1 F10", &opts).unwrap();
+    assert_eq!(tp.start, [0.0; 6]);
+    assert!(w[0].message.contains("first motion is an arc"));
 }
 
 #[test]
