@@ -453,9 +453,9 @@ impl Interp<'_> {
     /// Decide the motion of the block (LinuxCNC `enhance_block`).
     fn check_motion(&mut self, k: &mut Checked) -> bool {
         let axes = k.w.has_axis_words();
-        // G10, G28, G30, G52, G92, G43.1 and G43.2 take the axis words themselves.
+        // G10, G28, G30, G52, G92 and G43.1 take the axis words themselves.
         let nonmodal_uses_axes = matches!(k.nonmodal, Some((100 | 280 | 300 | 520 | 920, _)))
-            || matches!(k.tool_length, Some((431 | 432, _)));
+            || matches!(k.tool_length, Some((431, _)));
         let ijk = ['I', 'J', 'K'].iter().any(|&c| k.w.get(c).is_some());
         match k.motion_code {
             Some((800, s)) => {

@@ -254,11 +254,16 @@ impl Interp<'_> {
     fn cycle_move(&mut self, aa: f64, bb: f64, cc: f64, rapid: bool, feed: Feed, span: Span) {
         let (u, v, w) = self.st.plane.axes();
         let s = self.lscale();
-        let mut p = self.to_program(self.st.pos);
-        p[u] = aa * s;
-        p[v] = bb * s;
-        p[w] = cc * s;
-        let m = self.to_machine(p);
+        let cur = self.to_program(self.st.pos);
+        let cur_units = self.program_position_in_units();
+        let mut p = cur;
+        for (i, x) in [(u, aa), (v, bb), (w, cc)] {
+            // An unchanged coordinate stays exactly where it is (no unit round trip).
+            if x != cur_units[i] {
+                p[i] = x * s;
+            }
+        }
+        let m = self.to_machine_from(p, cur);
         let exact = self.st.exact_stop;
         self.st.exact_stop = true;
         if rapid {

@@ -261,6 +261,38 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
                 });
                 match target {
                     Some(Frame {
+                        open:
+                            Open::Loop {
+                                kind: LoopKind::Repeat,
+                                ..
+                            },
+                        ..
+                    }) => err(
+                        sink,
+                        span,
+                        DiagnosticKind::ControlFlow,
+                        format!(
+                            "{} {kw} in a repeat loop: as in LinuxCNC, break and continue apply to while and do loops only",
+                            label_text(label)
+                        ),
+                    ),
+                    Some(Frame {
+                        open:
+                            Open::Loop {
+                                kind: LoopKind::Do,
+                                ..
+                            },
+                        ..
+                    }) if kw == "continue" => err(
+                        sink,
+                        span,
+                        DiagnosticKind::ControlFlow,
+                        format!(
+                            "{} continue in a do … while loop is refused: LinuxCNC 2.9 does not continue such a loop (it leaves it), so the program would not run as written; use while … endwhile",
+                            label_text(label)
+                        ),
+                    ),
+                    Some(Frame {
                         open: Open::Loop { exits, .. },
                         ..
                     }) => exits.push(i),

@@ -45,6 +45,20 @@ impl Interp<'_> {
         p
     }
 
+    /// Machine coordinates of program point `p`, where `cur` is the current position's program
+    /// coordinates: an axis whose program coordinate does not change keeps its machine
+    /// coordinate exactly (converting back and forth would move it by rounding).
+    pub(super) fn to_machine_from(&self, p: [f64; 6], cur: [f64; 6]) -> [f64; 6] {
+        let mut m = self.to_machine(p);
+        let keep_xy = self.st.rotation_deg == 0.0 || (p[0] == cur[0] && p[1] == cur[1]);
+        for (i, v) in m.iter_mut().enumerate() {
+            if p[i] == cur[i] && (i >= 2 || keep_xy) {
+                *v = self.st.pos[i];
+            }
+        }
+        m
+    }
+
     /// mm (or deg) per unit of the machine's tables, for axis `i`.
     fn table_unit(&self, i: usize) -> f64 {
         if i < 3 { self.opts.machine_units.mm() } else { 1.0 }
@@ -147,7 +161,7 @@ impl Interp<'_> {
             return Some(m);
         }
         let p = self.program_target(k)?;
-        Some(self.to_machine(p))
+        Some(self.to_machine_from(p, self.to_program(self.st.pos)))
     }
 
     fn mark_axes(&mut self, k: &Checked) {
@@ -292,7 +306,7 @@ impl Interp<'_> {
             centre: [cm[u], cm[v]],
             ..geom
         };
-        let end = self.to_machine(end_p);
+        let end = self.to_machine_from(end_p, start_p);
         if let Some(feed) = self.feed_for(span, f_block, false) {
             self.emit(MoveKind::Arc(arc), end, span, Some(feed));
         } else {
@@ -458,10 +472,12 @@ impl Interp<'_> {
     pub(super) fn tool_length(&mut self, code: u32, k: &Checked, span: Span) -> bool {
         match code {
             430 | 432 => {
-                let from_axes = code == 432 && k.w.get('H').is_none();
-                let add: [f64; 6] = if from_axes {
-                    std::array::from_fn(|i| self.axis_value(k, i).unwrap_or(0.0))
-                } else {
+                if code == 432 && k.w.get('H').is_none() {
+                    // LinuxCNC 2.9 adds a tool's offset only ("Requested tool -1 not found").
+                    self.err(span, DiagnosticKind::Block, "G43.2 needs H<tool number> (the offset of that tool is added)");
+                    return false;
+                }
+                let add: [f64; 6] = {
                     let tool = match k.w.get('H') {
                         Some((h, _)) => h as u32,
                         None => self.st.current_tool,
@@ -575,7 +591,7 @@ impl Interp<'_> {
             return;
         };
         self.mark_axes(k);
-        let mid = self.to_machine(p);
+        let mid = self.to_machine_from(p, self.to_program(self.st.pos));
         self.emit(MoveKind::Rapid, mid, span, None);
         let base = if g28 { 5161 } else { 5181 };
         let any = (0..6).any(|i| k.w.get(AXES[i]).is_some());

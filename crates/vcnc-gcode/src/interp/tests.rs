@@ -378,9 +378,13 @@ fn loops_and_conditions() {
          o1 break\no2 else\nG0 X#1\no2 endif\no1 endwhile\nG0 Y#1",
     );
     assert_eq!(ends(&tp), vec![xyz(1.0, 0.0, 0.0), xyz(3.0, 0.0, 0.0), xyz(3.0, 4.0, 0.0)]);
-    // Nested repeats and a break out of the inner one.
-    let tp = ok("#1=0\no1 repeat [3]\no2 repeat [5]\n#1=[#1+1]\no3 if [#1 MOD 2 EQ 0]\no2 break\no3 endif\no2 endrepeat\no1 endrepeat\nG0 X#1");
+    // A break out of an inner while nested in a repeat.
+    let tp = ok("#1=0\no1 repeat [3]\no2 while [1]\n#1=[#1+1]\no3 if [#1 MOD 2 EQ 0]\no2 break\no3 endif\no2 endwhile\no1 endrepeat\nG0 X#1");
     assert_eq!(ends(&tp), vec![xyz(6.0, 0.0, 0.0)]);
+    // rs274: "no matching while/do label" for break/continue in a repeat; continue in a do
+    // loop leaves the loop in LinuxCNC 2.9, so vcnc refuses it.
+    assert_eq!(first_error("o1 repeat [2]\no1 break\no1 endrepeat").2, DiagnosticKind::ControlFlow);
+    assert_eq!(first_error("o1 do\no1 continue\no1 while [0]").2, DiagnosticKind::ControlFlow);
 }
 
 #[test]
