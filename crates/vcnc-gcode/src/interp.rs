@@ -574,6 +574,12 @@ impl<'a> Interp<'a> {
             }
         }
         let Some(end_line) = ended_at else {
+            if let Some(last) = blocks.last() {
+                self.sink.push(Diagnostic::warning(
+                    last.span,
+                    "the program ends without M2, M30 or a closing %: LinuxCNC refuses such a file (\"File ended with no percent sign or program end\")",
+                ));
+            }
             return;
         };
         // Code after the end (subroutine definitions aside) never runs: say so.

@@ -131,17 +131,15 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
                 _ => unmatched(sink, &stack, &label_text, line_of, label, span, "endsub", "sub"),
             },
             OStatement::Return(_) => {
-                let inside = stack
-                    .iter()
-                    .any(|f| matches!(f.open, Open::Sub) && f.label == label);
+                // As in LinuxCNC, a return leaves the subroutine it is in, whatever its label.
+                let inside = stack.iter().any(|f| matches!(f.open, Open::Sub));
                 if !inside {
                     err(
                         sink,
                         span,
                         DiagnosticKind::ControlFlow,
                         format!(
-                            "{} return outside the subroutine {} (a return must be inside its own sub … endsub)",
-                            label_text(label),
+                            "{} return outside a subroutine definition (sub … endsub)",
                             label_text(label)
                         ),
                     );

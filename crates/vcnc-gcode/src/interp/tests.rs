@@ -169,7 +169,7 @@ fn feeds_must_be_set() {
 
 #[test]
 fn lenient_only_downgrades_what_cannot_change_the_path() {
-    let src = "G0 X0\nG1 X1 F100 E5 M101";
+    let src = "G0 X0\nG1 X1 F100 E5 M101\nM2";
     assert_eq!(errors(src), vec![(2, 12), (2, 15)]);
     let opts = InterpOptions {
         lenient: true,
