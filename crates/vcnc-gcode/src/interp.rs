@@ -494,7 +494,9 @@ impl<'a> Interp<'a> {
 
     fn frame(&self) -> &Frame {
         // The main frame is never popped.
-        self.frames.last().unwrap_or_else(|| unreachable!("the main frame is never popped"))
+        self.frames
+            .last()
+            .unwrap_or_else(|| unreachable!("the main frame is never popped"))
     }
 
     fn frame_mut(&mut self) -> &mut Frame {
@@ -799,7 +801,10 @@ impl<'a> Interp<'a> {
             self.err(
                 span,
                 DiagnosticKind::Block,
-                format!("{} arguments: a call takes at most 30 (#1 … #30)", args.len()),
+                format!(
+                    "{} arguments: a call takes at most 30 (#1 … #30)",
+                    args.len()
+                ),
             );
             return Next::End;
         }

@@ -1324,15 +1324,27 @@ mod tests {
         let src = "G0 X0\nG93 G1 X100 F600\nG1 X0 F300\nG94 G1 X10 F60000";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
         let d: Vec<f64> = t.blocks.iter().map(|b| b.t_end_s - b.t_start_s).collect();
-        assert!((d[0] - 1.1).abs() < 1e-12 && (d[1] - 1.1).abs() < 1e-12, "{d:?}");
+        assert!(
+            (d[0] - 1.1).abs() < 1e-12 && (d[1] - 1.1).abs() < 1e-12,
+            "{d:?}"
+        );
         assert_eq!(t.warnings.len(), 1);
         assert_eq!(t.warnings[0].line, 2);
-        assert!(t.warnings[0].message.starts_with("3 feed block(s)"), "{}", t.warnings[0].message);
+        assert!(
+            t.warnings[0].message.starts_with("3 feed block(s)"),
+            "{}",
+            t.warnings[0].message
+        );
         let s = t.slowdown.unwrap();
         assert_eq!((s.blocks, s.worst_line), (3, 2));
         assert!((s.worst_factor - 11.0).abs() < 1e-9);
         // Within the limits: no warning.
-        let t = traj("G0 X0\nG1 X10 F600", &limits, &InterpolateOptions::default()).unwrap();
+        let t = traj(
+            "G0 X0\nG1 X10 F600",
+            &limits,
+            &InterpolateOptions::default(),
+        )
+        .unwrap();
         assert!(t.warnings.is_empty() && t.slowdown.is_none());
     }
 
@@ -1346,7 +1358,13 @@ mod tests {
         let classes: Vec<MoveClass> = t.blocks.iter().map(|b| b.class).collect();
         assert_eq!(
             classes,
-            vec![MoveClass::Rapid, MoveClass::Feed, MoveClass::Feed, MoveClass::Dwell, MoveClass::Feed]
+            vec![
+                MoveClass::Rapid,
+                MoveClass::Feed,
+                MoveClass::Feed,
+                MoveClass::Dwell,
+                MoveClass::Feed
+            ]
         );
         assert_eq!(t.blocks[0].first_sample, 0);
         assert_eq!(t.blocks.last().unwrap().end_sample, t.len());
@@ -1359,7 +1377,10 @@ mod tests {
             assert!(b.first_sample <= k && k < b.end_sample);
             assert_eq!(t.span_at(k), Some(b));
             let tk = k as f64 * t.ts;
-            assert!(tk <= b.t_end_s + 1e-9 && (k == 0 || tk > b.t_start_s - 1e-9), "k {k}");
+            assert!(
+                tk <= b.t_end_s + 1e-9 && (k == 0 || tk > b.t_start_s - 1e-9),
+                "k {k}"
+            );
         }
         // The rapid ends exactly on a sample, which belongs to it.
         let k = (t.blocks[0].t_end_s / t.ts).round() as usize;

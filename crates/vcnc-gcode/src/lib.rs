@@ -1,13 +1,17 @@
-//! G-code front end of vcnc: parsing, modal interpretation, trapezoidal interpolation at the
-//! sample period, and the program generators (docs/gcode.md).
+//! G-code front end of vcnc: parsing, interpretation, trapezoidal interpolation at the sample
+//! period, and the program generators (docs/gcode.md). The language — RS274/NGC as LinuxCNC
+//! runs it, with parameters, expressions, O-word control flow, offsets and canned cycles — is
+//! described in this crate's `LANGUAGE.md`, and checked against LinuxCNC's own interpreter
+//! (`tests/linuxcnc.rs`).
 //!
 //! The stages are kept apart (STYLE, the gcode-rs model):
 //!
 //! | module | input → output | main type |
 //! |---|---|---|
-//! | [`syntax`] | text → blocks, words, comments with spans; every diagnostic | [`Program`] |
-//! | [`interp`] | blocks → moves in mm and degrees (modal state, units, arcs, feeds) | [`Toolpath`] |
-//! | [`interpolate`](mod@interpolate) | moves + limits → samples of position, velocity, acceleration | [`Trajectory`] |
+//! | [`syntax`] | text → blocks, words, expressions, O-words, comments with spans; every diagnostic | [`Program`] |
+//! | [`interp`] | blocks → moves in mm and degrees, machine coordinates (parameters, control flow, modal state, offsets, cycles, arcs, feeds) | [`Toolpath`] |
+//! | [`tables`] | LinuxCNC parameter file and tool table → typed tables | [`ParameterTable`], [`ToolTable`] |
+//! | [`interpolate`](mod@interpolate) | moves + limits → samples of position, velocity, acceleration, with each sample's source line and move class | [`Trajectory`] |
 //! | [`generate`] | options → G-code text (identification excitation, 5-axis spiral) | `String` |
 //!
 //! ```
@@ -36,7 +40,6 @@ pub use generate::{
 pub use interp::{
     ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath, interpret,
 };
-pub use tables::{LengthUnit, ParameterTable, Tool, ToolTable, parse_parameter_file, parse_tool_table};
 pub use interpolate::{
     AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,
     interpolate,
@@ -45,6 +48,9 @@ pub use syntax::{
     Assignment, BinOp, Block, Comment, CommentKind, Expr, ExprId, ExprKind, Func, LineNumber,
     NameId, OLabel, OStatement, OWord, ParamRef, ParseOptions, Program, Word, parse, parse_bytes,
     parse_with,
+};
+pub use tables::{
+    LengthUnit, ParameterTable, Tool, ToolTable, parse_parameter_file, parse_tool_table,
 };
 
 /// Axis names; their order ([`AxisName::ALL`]) is that of every `[f64; 6]` position: X Y Z

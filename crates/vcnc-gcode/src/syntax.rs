@@ -40,8 +40,8 @@ mod lexer;
 
 use std::collections::HashMap;
 
-pub use expr::{BinOp, Expr, ExprId, ExprKind, Func, MAX_PARAMETER, NameId, ParamRef};
 pub(crate) use expr::parameter_number;
+pub use expr::{BinOp, Expr, ExprId, ExprKind, Func, MAX_PARAMETER, NameId, ParamRef};
 
 use crate::diag::{Diagnostic, DiagnosticKind, Severity, Sink, Span};
 use expr::{Abandon, Value};
@@ -78,8 +78,8 @@ impl Default for ParseOptions {
 /// A parsed program: its lines that hold syntax, in order, and the expressions and names they
 /// refer to.
 ///
-/// Memory is about 190 bytes per block plus 40 per word (a word whose value is an expression
-/// costs the same, plus about 48 bytes per expression node); [`ParseOptions::max_blocks`] and
+/// Memory is about 150 bytes per block plus 40 per word (a word whose value is an expression
+/// costs the same 40 bytes, plus 40 per expression node); [`ParseOptions::max_blocks`] and
 /// [`ParseOptions::max_line_bytes`] bound it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Program {
@@ -378,7 +378,8 @@ impl<'a, 's> LineParser<'a, 's> {
 
     /// An error that is never downgraded.
     fn error(&mut self, span: Span, kind: DiagnosticKind, msg: String) {
-        self.sink.push(Diagnostic::new(span, Severity::Error, kind, msg));
+        self.sink
+            .push(Diagnostic::new(span, Severity::Error, kind, msg));
     }
 
     /// A dialect problem: an error, or a warning under `lenient`.
@@ -501,8 +502,7 @@ impl<'a, 's> LineParser<'a, 's> {
                 self.error(
                     span,
                     DiagnosticKind::Syntax,
-                    "'=' without a parameter before it (assignments are written #n = value)"
-                        .into(),
+                    "'=' without a parameter before it (assignments are written #n = value)".into(),
                 );
                 return Err(Abandon);
             }
@@ -574,8 +574,7 @@ impl<'a, 's> LineParser<'a, 's> {
             });
             return Ok(());
         }
-        let what = format!("word '{letter}'");
-        let (value, vspan) = self.real_value(0, &what)?;
+        let (value, vspan) = self.real_value(0, expr::Ctx::Word(letter))?;
         let wspan = Span {
             end: vspan.end,
             ..span
@@ -617,7 +616,9 @@ impl<'a, 's> LineParser<'a, 's> {
                 format!("line number N{value} is not a whole number in 0..=4294967295"),
             );
         } else if was_content || self.block.line_number.is_some() {
-            self.dialect(span, &|| format!("line number N{value} must start the block"));
+            self.dialect(span, &|| {
+                format!("line number N{value} must start the block")
+            });
         } else {
             self.block.line_number = Some(LineNumber {
                 // Checked above to be a whole number in range.
@@ -643,7 +644,7 @@ impl<'a, 's> LineParser<'a, 's> {
             return Err(Abandon);
         }
         self.lx.bump();
-        let (value, vspan) = self.real_value(0, "the assignment")?;
+        let (value, vspan) = self.real_value(0, expr::Ctx::Assignment)?;
         let value = match value {
             Value::Expr(id) => id,
             Value::Number(x) => self
@@ -692,7 +693,9 @@ impl<'a, 's> LineParser<'a, 's> {
             Some(b'0'..=b'9') => {
                 let (tok, nspan) = self.lx.number();
                 match tok {
-                    Tok::Number(Some(v), _) if v >= 0.0 && v.fract() == 0.0 && v <= f64::from(u32::MAX) => {
+                    Tok::Number(Some(v), _)
+                        if v >= 0.0 && v.fract() == 0.0 && v <= f64::from(u32::MAX) =>
+                    {
                         OLabel::Number(v as u32)
                     }
                     _ => {
@@ -807,7 +810,7 @@ impl<'a, 's> LineParser<'a, 's> {
 
     /// A `[ … ]` argument as an expression node.
     fn bracket_arg(&mut self) -> Result<ExprId, Abandon> {
-        let (v, span) = self.real_value(0, "the O-word argument")?;
+        let (v, span) = self.real_value(0, expr::Ctx::OArgument)?;
         match v {
             Value::Expr(id) => Ok(id),
             Value::Number(x) => self
@@ -1005,7 +1008,9 @@ mod tests {
 
     #[test]
     fn assignments_and_o_words() {
-        let (p, d) = parse("#1 = 5 #<a>=[#1*2] G0 X#1\no<lp> while [#1 LT 3]\nO100 call [1] [2]\nO1234 (prog)");
+        let (p, d) = parse(
+            "#1 = 5 #<a>=[#1*2] G0 X#1\no<lp> while [#1 LT 3]\nO100 call [1] [2]\nO1234 (prog)",
+        );
         assert!(d.is_empty(), "{d:?}");
         assert_eq!(p.blocks[0].assignments.len(), 2);
         assert_eq!(p.blocks[0].assignments[0].target, ParamRef::Numbered(1));

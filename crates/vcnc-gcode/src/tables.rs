@@ -110,12 +110,20 @@ pub fn parse_parameter_file(text: &str, file: &str) -> Result<ParameterTable, Er
             .parse()
             .ok()
             .filter(|n| (1..=MAX_PARAMETER).contains(n))
-            .ok_or_else(|| bad(format!("parameter number '{n}' is not a whole number in 1..={MAX_PARAMETER}")))?;
+            .ok_or_else(|| {
+                bad(format!(
+                    "parameter number '{n}' is not a whole number in 1..={MAX_PARAMETER}"
+                ))
+            })?;
         let v: f64 = v
             .parse()
             .ok()
             .filter(|v: &f64| v.is_finite())
-            .ok_or_else(|| bad(format!("value '{v}' of parameter {n} is not a finite number")))?;
+            .ok_or_else(|| {
+                bad(format!(
+                    "value '{v}' of parameter {n} is not a finite number"
+                ))
+            })?;
         if let Some((prev, prev_line)) = last
             && n <= prev
         {
@@ -169,12 +177,17 @@ pub fn parse_tool_table(text: &str, file: &str) -> Result<ToolTable, Error> {
                     .parse::<f64>()
                     .ok()
                     .filter(|v| v.is_finite())
-                    .ok_or_else(|| bad(word, "expected a letter followed by a finite number".into()))
+                    .ok_or_else(|| {
+                        bad(word, "expected a letter followed by a finite number".into())
+                    })
             };
             let whole = || -> Result<u32, Error> {
-                value
-                    .parse::<u32>()
-                    .map_err(|_| bad(word, "expected a letter followed by a whole number ≥ 0".into()))
+                value.parse::<u32>().map_err(|_| {
+                    bad(
+                        word,
+                        "expected a letter followed by a whole number ≥ 0".into(),
+                    )
+                })
             };
             match letter {
                 Some('T') => number = Some(whole()?),
@@ -211,7 +224,10 @@ pub fn parse_tool_table(text: &str, file: &str) -> Result<ToolTable, Error> {
             }
         }
         let Some(t) = number else {
-            return Err(bad(body.trim(), "tool line without a T<tool number> word".into()));
+            return Err(bad(
+                body.trim(),
+                "tool line without a T<tool number> word".into(),
+            ));
         };
         if let Some(first) = seen.insert(t, line) {
             return Err(bad(
@@ -249,7 +265,10 @@ mod tests {
         for (text, line, needle) in cases {
             match parse_parameter_file(text, "p.var") {
                 Err(Error::ParameterFile {
-                    file, line: l, reason, ..
+                    file,
+                    line: l,
+                    reason,
+                    ..
                 }) => {
                     assert_eq!(file, "p.var");
                     assert_eq!(l, line, "{text}");
@@ -286,7 +305,10 @@ mod tests {
         for (text, line, needle) in cases {
             match parse_tool_table(text, "t.tbl") {
                 Err(Error::ToolTable {
-                    file, line: l, reason, ..
+                    file,
+                    line: l,
+                    reason,
+                    ..
                 }) => {
                     assert_eq!(file, "t.tbl");
                     assert_eq!(l, line, "{text}");

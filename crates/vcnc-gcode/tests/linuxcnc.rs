@@ -103,9 +103,16 @@ fn read_canon(text: &str) -> (Vec<Canon>, Vec<String>) {
             }
             continue;
         }
-        let cmd_start = line.find(|c: char| c.is_ascii_uppercase() && c != 'N').unwrap_or(0);
-        let rest = &line[cmd_start..];
-        let rest = rest.trim_start_matches(|c: char| c == '.' || c == ' ');
+        // "<sequence> N<line or .....> COMMAND(args)": the command follows the second token.
+        let rest = line.trim_start();
+        let rest = rest
+            .split_once(char::is_whitespace)
+            .map_or("", |r| r.1)
+            .trim_start();
+        let rest = rest
+            .split_once(char::is_whitespace)
+            .map_or("", |r| r.1)
+            .trim_start();
         let Some((name, args)) = rest.split_once('(') else {
             continue;
         };
@@ -145,7 +152,12 @@ fn read_canon(text: &str) -> (Vec<Canon>, Vec<String>) {
                 centre[u] = v[2];
                 centre[w2] = v[3];
                 let cm = r.machine(r.mm6(&centre));
-                out.push(Canon::Arc(r.machine(end_p), [cm[u], cm[w2]], v[4] as i32, r.feed));
+                out.push(Canon::Arc(
+                    r.machine(end_p),
+                    [cm[u], cm[w2]],
+                    v[4] as i32,
+                    r.feed,
+                ));
             }
             "DWELL" => out.push(Canon::Dwell(v[0])),
             _ => {}
@@ -156,8 +168,14 @@ fn read_canon(text: &str) -> (Vec<Canon>, Vec<String>) {
 
 /// LinuxCNC's equivalent feed rate of a vcnc move: F, or for inverse time F × length.
 fn rate(m: &Move) -> f64 {
-    let xyz = (0..3).map(|i| (m.end[i] - m.start[i]).powi(2)).sum::<f64>().sqrt();
-    let rot = (3..6).map(|i| (m.end[i] - m.start[i]).powi(2)).sum::<f64>().sqrt();
+    let xyz = (0..3)
+        .map(|i| (m.end[i] - m.start[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let rot = (3..6)
+        .map(|i| (m.end[i] - m.start[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
     let len = match m.kind {
         MoveKind::Arc(a) => {
             let (_, _, w) = a.plane.axes();
@@ -203,7 +221,10 @@ fn compare(name: &str, src: &str, canon: &str) -> usize {
     let tol = if src.contains("(golden: exact)") {
         1e-6
     } else {
-        assert!(src.contains("(golden: rounded)"), "{name}: no golden tolerance tag");
+        assert!(
+            src.contains("(golden: rounded)"),
+            "{name}: no golden tolerance tag"
+        );
         // Half the last printed digit, in inches for inch programs.
         5e-5 * if src.contains("G20") { 25.4 } else { 1.0 } + 1e-9
     };
@@ -230,7 +251,9 @@ fn compare(name: &str, src: &str, canon: &str) -> usize {
     let got: Vec<&Move> = tp
         .moves
         .iter()
-        .filter(|m| !matches!(m.kind, MoveKind::Rapid | MoveKind::Linear) || length(m.end, m.start) > 1e-7)
+        .filter(|m| {
+            !matches!(m.kind, MoveKind::Rapid | MoveKind::Linear) || length(m.end, m.start) > 1e-7
+        })
         .collect();
     assert_eq!(
         got.len(),
@@ -243,7 +266,10 @@ fn compare(name: &str, src: &str, canon: &str) -> usize {
     let near = |a: [f64; 6], b: [f64; 6]| (0..6).all(|i| (a[i] - b[i]).abs() <= tol);
     let rate_ok = |a: f64, b: f64| (a - b).abs() <= 5e-5 * 25.4 + 1e-9 * b.abs();
     for (k, (m, c)) in got.iter().zip(&want).enumerate() {
-        let ctx = format!("{name}: move {k} (line {}): vcnc {m:?}\nrs274 {c:?}", m.line);
+        let ctx = format!(
+            "{name}: move {k} (line {}): vcnc {m:?}\nrs274 {c:?}",
+            m.line
+        );
         match (m.kind, c) {
             (MoveKind::Rapid, Canon::Traverse(e)) => assert!(near(m.end, *e), "{ctx}"),
             (MoveKind::Linear, Canon::Feed(e, f)) => {
@@ -253,7 +279,8 @@ fn compare(name: &str, src: &str, canon: &str) -> usize {
             (MoveKind::Arc(a), Canon::Arc(e, centre, turns, f)) => {
                 assert!(near(m.end, *e), "{ctx}");
                 assert!(
-                    (a.centre[0] - centre[0]).abs() <= tol && (a.centre[1] - centre[1]).abs() <= tol,
+                    (a.centre[0] - centre[0]).abs() <= tol
+                        && (a.centre[1] - centre[1]).abs() <= tol,
                     "{ctx}: centre"
                 );
                 let signed = a.turns as i32 * a.sweep_rad.signum() as i32;
@@ -279,8 +306,11 @@ fn corpus_matches_linuxcnc_rs274() {
             continue;
         }
         let src = std::fs::read_to_string(&p).unwrap();
-        let canon = std::fs::read_to_string(dir().join("canon").join(name.replace(".ngc", ".canon")))
-            .unwrap_or_else(|_| panic!("{name}: no golden; run tests/data/linuxcnc/generate.sh"));
+        let canon =
+            std::fs::read_to_string(dir().join("canon").join(name.replace(".ngc", ".canon")))
+                .unwrap_or_else(|_| {
+                    panic!("{name}: no golden; run tests/data/linuxcnc/generate.sh")
+                });
         let n = compare(&name, &src, &canon);
         println!("{name}: {n} motions match rs274");
         total += n;
@@ -299,15 +329,19 @@ fn bad_programs_are_rejected_at_the_line_rs274_names() {
             continue;
         }
         let src = std::fs::read_to_string(&p).unwrap();
-        let canon = std::fs::read_to_string(dir().join("canon").join(name.replace(".ngc", ".canon"))).unwrap();
+        let canon =
+            std::fs::read_to_string(dir().join("canon").join(name.replace(".ngc", ".canon")))
+                .unwrap();
         let (_, errors) = read_canon(&canon);
-        assert_eq!(errors.len(), 2, "{name}: rs274 should stop with an error: {errors:?}");
+        assert_eq!(
+            errors.len(),
+            2,
+            "{name}: rs274 should stop with an error: {errors:?}"
+        );
         // rs274 prints the message and the offending line's text (or "from line: N").
         let line = match errors[0].split_once("from line: ") {
             Some((_, n)) => n.trim().parse::<u32>().unwrap(),
-            None => {
-                src.lines().position(|l| l.trim() == errors[1]).unwrap() as u32 + 1
-            }
+            None => src.lines().position(|l| l.trim() == errors[1]).unwrap() as u32 + 1,
         };
         let (program, mut diags) = parse(&src);
         if !diags.iter().any(|d| d.is_error())
@@ -315,8 +349,14 @@ fn bad_programs_are_rejected_at_the_line_rs274_names() {
         {
             diags.extend(d);
         }
-        let first = diags.iter().find(|d| d.is_error()).unwrap_or_else(|| panic!("{name}: vcnc accepts it"));
-        assert_eq!(first.line, line, "{name}: vcnc says {first}, rs274 says {errors:?}");
+        let first = diags
+            .iter()
+            .find(|d| d.is_error())
+            .unwrap_or_else(|| panic!("{name}: vcnc accepts it"));
+        assert_eq!(
+            first.line, line,
+            "{name}: vcnc says {first}, rs274 says {errors:?}"
+        );
         println!("{name}: rs274 '{}', vcnc '{first}'", errors[0]);
         checked += 1;
     }

@@ -135,10 +135,20 @@ fn g_group(c: u32) -> Result<Group, (DiagnosticKind, &'static str)> {
                  post the program with compensation applied (CAM 'computer' compensation)",
             ));
         }
-        50 | 51 | 52 | 53 => return Err((Unsupported, "splines (G5 G5.1 G5.2 G5.3) are not supported")),
-        70 | 80 => return Err((Unsupported, "lathe diameter/radius mode (G7 G8) is not supported")),
+        50..=53 => {
+            return Err((Unsupported, "splines (G5 G5.1 G5.2 G5.3) are not supported"));
+        }
+        70 | 80 => {
+            return Err((
+                Unsupported,
+                "lathe diameter/radius mode (G7 G8) is not supported",
+            ));
+        }
         330 | 331 | 760 => {
-            return Err((Unsupported, "spindle-synchronised motion (G33 G33.1 G76) is not supported"));
+            return Err((
+                Unsupported,
+                "spindle-synchronised motion (G33 G33.1 G76) is not supported",
+            ));
         }
         382..=385 => return Err((Unsupported, "probing (G38.x) is not supported")),
         740 | 840 | 860 | 870 | 880 => {
@@ -147,8 +157,15 @@ fn g_group(c: u32) -> Result<Group, (DiagnosticKind, &'static str)> {
                 "this canned cycle is not supported (supported: G73 G81 G82 G83 G85 G89)",
             ));
         }
-        700 | 710 | 720 => return Err((Unsupported, "lathe cycles (G70 G71 G72) are not supported")),
-        171 | 181 | 191 => return Err((Unsupported, "U V W planes (G17.1 G18.1 G19.1) are not supported")),
+        700 | 710 | 720 => {
+            return Err((Unsupported, "lathe cycles (G70 G71 G72) are not supported"));
+        }
+        171 | 181 | 191 => {
+            return Err((
+                Unsupported,
+                "U V W planes (G17.1 G18.1 G19.1) are not supported",
+            ));
+        }
         950 => return Err((Unsupported, "feed per revolution (G95) is not supported")),
         _ => return Err((Unsupported, "unknown or unsupported G-code")),
     })
@@ -261,14 +278,13 @@ impl Interp<'_> {
                 }
                 'U' | 'V' | 'W' => {
                     self.err(w.span, DiagnosticKind::Unsupported, || {
-                        format!(
-                            "axis {} is not supported (vcnc has X Y Z A B C)",
-                            w.letter
-                        )
+                        format!("axis {} is not supported (vcnc has X Y Z A B C)", w.letter)
                     });
                     ok = false;
                 }
-                'E' | 'O' | 'N' => self.harmless(w.span, || format!("unsupported word '{}'", w.letter)),
+                'E' | 'O' | 'N' => {
+                    self.harmless(w.span, || format!("unsupported word '{}'", w.letter))
+                }
                 letter => {
                     let Some(i) = letter_index(letter) else {
                         self.harmless(w.span, || format!("unsupported word '{letter}'"));
@@ -378,7 +394,10 @@ impl Interp<'_> {
             if on || self.opts.tcp_off_mcodes.contains(&c) {
                 if let Some((_, s)) = k.m_tcp {
                     self.err(span, DiagnosticKind::Block, || {
-                        format!("M{c} and the tool-centre-point M-code at column {} in one block", s.col)
+                        format!(
+                            "M{c} and the tool-centre-point M-code at column {} in one block",
+                            s.col
+                        )
                     });
                     ok = false;
                 } else {
@@ -395,7 +414,9 @@ impl Interp<'_> {
                     let clash = m_coolant.iter().find(|(p, _)| *p == c || *p == 9 || c == 9);
                     if let Some(&(p, _)) = clash {
                         self.err(span, DiagnosticKind::Block, || {
-                            format!("M{p} and M{c} in one block: both belong to the coolant modal group")
+                            format!(
+                                "M{p} and M{c} in one block: both belong to the coolant modal group"
+                            )
                         });
                         ok = false;
                     } else {
@@ -407,7 +428,9 @@ impl Interp<'_> {
                 19 | 48..=53 | 62..=68 => continue,
                 70..=73 => {
                     self.err(span, DiagnosticKind::Unsupported, || {
-                        format!("M{c}: saving and restoring the modal state (M70–M73) is not supported")
+                        format!(
+                            "M{c}: saving and restoring the modal state (M70–M73) is not supported"
+                        )
                     });
                     ok = false;
                     continue;
@@ -461,17 +484,23 @@ impl Interp<'_> {
             Some((800, s)) => {
                 if axes && !nonmodal_uses_axes {
                     let span = k.w.first_axis_span().unwrap_or(s);
-                    self.err(span, DiagnosticKind::Block, "axis words with G80 (G80 cancels the motion mode)");
+                    self.err(
+                        span,
+                        DiagnosticKind::Block,
+                        "axis words with G80 (G80 cancels the motion mode)",
+                    );
                     return false;
                 }
                 k.motion_to_be = None;
             }
             Some((code, s)) => {
-                if nonmodal_uses_axes
-                    && let Some((g0, s0)) = k.nonmodal.or(k.tool_length)
-                {
+                if nonmodal_uses_axes && let Some((g0, s0)) = k.nonmodal.or(k.tool_length) {
                     self.err(s0, DiagnosticKind::Block, || {
-                        format!("{} and {} in one block: both use the axis words", gname(code), gname(g0))
+                        format!(
+                            "{} and {} in one block: both use the axis words",
+                            gname(code),
+                            gname(g0)
+                        )
                     });
                     let _ = s;
                     return false;
@@ -482,11 +511,14 @@ impl Interp<'_> {
             None => {
                 let arc_mode = matches!(self.st.motion, Some(Motion::Cw | Motion::Ccw));
                 if axes || (ijk && arc_mode) {
-                    let span = k
-                        .w
-                        .first_axis_span()
-                        .or_else(|| ['I', 'J', 'K'].iter().find_map(|&c| k.w.get(c).map(|v| v.1)))
-                        .unwrap_or_default();
+                    let span =
+                        k.w.first_axis_span()
+                            .or_else(|| {
+                                ['I', 'J', 'K']
+                                    .iter()
+                                    .find_map(|&c| k.w.get(c).map(|v| v.1))
+                            })
+                            .unwrap_or_default();
                     match self.st.motion {
                         Some(m) => k.motion_to_be = Some((m, span)),
                         None => {
@@ -504,7 +536,11 @@ impl Interp<'_> {
         if let Some((530, s)) = k.nonmodal
             && !matches!(k.motion_to_be, Some((Motion::Rapid | Motion::Linear, _)))
         {
-            self.err(s, DiagnosticKind::Block, "G53 needs G0 or G1 (machine coordinates for one straight move)");
+            self.err(
+                s,
+                DiagnosticKind::Block,
+                "G53 needs G0 or G1 (machine coordinates for one straight move)",
+            );
             return false;
         }
         true
@@ -523,7 +559,9 @@ impl Interp<'_> {
         let tlo = k.tool_length.map(|t| t.0);
         let mut no_user = |it: &mut Self, c: char, users: &str| {
             if let Some((_, s)) = k.w.get(c) {
-                it.err(s, DiagnosticKind::Block, || format!("'{c}' word with no {users} to use it"));
+                it.err(s, DiagnosticKind::Block, || {
+                    format!("'{c}' word with no {users} to use it")
+                });
                 ok = false;
             }
         };
@@ -560,51 +598,77 @@ impl Interp<'_> {
             && arc
             && dwell
         {
-            self.err(s, DiagnosticKind::Block, "'P' word is ambiguous: G4 dwell and G2/G3 turns in one block");
+            self.err(
+                s,
+                DiagnosticKind::Block,
+                "'P' word is ambiguous: G4 dwell and G2/G3 turns in one block",
+            );
             let _ = p;
             ok = false;
         }
         if let Some((v, s)) = k.w.get('H')
             && (v < 0.0 || v.fract() != 0.0)
         {
-            self.err(s, DiagnosticKind::Block, || format!("H{v} is not a tool number (a whole number ≥ 0)"));
+            self.err(s, DiagnosticKind::Block, || {
+                format!("H{v} is not a tool number (a whole number ≥ 0)")
+            });
             ok = false;
         }
         if let Some((v, s)) = k.w.get('T')
             && (v < 0.0 || v.fract() != 0.0 || v > f64::from(u32::MAX))
         {
-            self.err(s, DiagnosticKind::Block, || format!("T{v} is not a tool number (a whole number ≥ 0)"));
+            self.err(s, DiagnosticKind::Block, || {
+                format!("T{v} is not a tool number (a whole number ≥ 0)")
+            });
             ok = false;
         }
         if let Some((v, s)) = k.w.get('S')
             && v < 0.0
         {
-            self.err(s, DiagnosticKind::Block, || format!("spindle speed S{v} is negative"));
+            self.err(s, DiagnosticKind::Block, || {
+                format!("spindle speed S{v} is negative")
+            });
             ok = false;
         }
         if let Some((v, s)) = k.w.get('F')
             && v < 0.0
         {
-            self.err(s, DiagnosticKind::Block, || format!("feed rate F{v} is negative"));
+            self.err(s, DiagnosticKind::Block, || {
+                format!("feed rate F{v} is negative")
+            });
             ok = false;
         }
         let polar = k.w.get('@').or(k.w.get('^'));
         if let Some((_, s)) = polar {
             if matches!(k.nonmodal, Some((530, _))) {
-                self.err(s, DiagnosticKind::Block, "polar coordinates (@ ^) cannot be used with G53");
+                self.err(
+                    s,
+                    DiagnosticKind::Block,
+                    "polar coordinates (@ ^) cannot be used with G53",
+                );
                 ok = false;
             } else if k.w.get('X').is_some() || k.w.get('Y').is_some() {
-                self.err(s, DiagnosticKind::Block, "polar coordinates (@ ^) and X or Y words in one block");
+                self.err(
+                    s,
+                    DiagnosticKind::Block,
+                    "polar coordinates (@ ^) and X or Y words in one block",
+                );
                 ok = false;
             } else if motion.is_none() {
-                self.err(s, DiagnosticKind::Block, "polar coordinates (@ ^) need a motion (G0, G1, G2, G3 or a cycle)");
+                self.err(
+                    s,
+                    DiagnosticKind::Block,
+                    "polar coordinates (@ ^) need a motion (G0, G1, G2, G3 or a cycle)",
+                );
                 ok = false;
             }
         }
-        if cycle
-            && let Some((_, s)) = ['A', 'B', 'C'].iter().find_map(|&c| k.w.get(c))
-        {
-            self.err(s, DiagnosticKind::Block, "rotary axes cannot move in a canned cycle");
+        if cycle && let Some((_, s)) = ['A', 'B', 'C'].iter().find_map(|&c| k.w.get(c)) {
+            self.err(
+                s,
+                DiagnosticKind::Block,
+                "rotary axes cannot move in a canned cycle",
+            );
             ok = false;
         }
         ok
@@ -617,7 +681,9 @@ impl Interp<'_> {
             self.assign(t, v);
         }
         if let Some((msg, s)) = &k.w.abort {
-            self.err(*s, DiagnosticKind::Abort, || format!("program aborted: {msg}"));
+            self.err(*s, DiagnosticKind::Abort, || {
+                format!("program aborted: {msg}")
+            });
             return true;
         }
         let scale_before = self.lscale();
@@ -698,7 +764,9 @@ impl Interp<'_> {
                 && let Some((p, s)) = k.w.get('P')
             {
                 if p < 0.0 {
-                    self.err(s, DiagnosticKind::Block, || format!("G64 tolerance P{p} is negative"));
+                    self.err(s, DiagnosticKind::Block, || {
+                        format!("G64 tolerance P{p} is negative")
+                    });
                 } else if p > 0.0 {
                     self.st.blend_tol = Some(p * self.lscale());
                 }

@@ -40,9 +40,14 @@ struct Plan {
 impl Interp<'_> {
     /// Run cycle `c`; `prev` is the motion mode before this block.
     pub(super) fn cycle(&mut self, c: Cycle, k: &Checked, span: Span, prev: Option<Motion>) {
-        let err = |it: &mut Self, s: Span, msg: &str| it.err(s, DiagnosticKind::Block, msg.to_string());
+        let err =
+            |it: &mut Self, s: Span, msg: &str| it.err(s, DiagnosticKind::Block, msg.to_string());
         if self.st.inverse_time {
-            err(self, span, "canned cycles cannot run under G93 inverse-time feed");
+            err(
+                self,
+                span,
+                "canned cycles cannot run under G93 inverse-time feed",
+            );
             return;
         }
         let feed = match self.st.feed {
@@ -59,7 +64,11 @@ impl Interp<'_> {
             Some((r, _)) => r,
             None if same => self.st.cycle.r,
             None => {
-                err(self, span, "R clearance plane unspecified in the canned cycle");
+                err(
+                    self,
+                    span,
+                    "R clearance plane unspecified in the canned cycle",
+                );
                 return;
             }
         };
@@ -67,7 +76,10 @@ impl Interp<'_> {
             Some((z, _)) => z,
             None if same => self.st.cycle.z,
             None => {
-                let msg = format!("{} (the cycle's depth) is unspecified in the canned cycle", names[w]);
+                let msg = format!(
+                    "{} (the cycle's depth) is unspecified in the canned cycle",
+                    names[w]
+                );
                 self.err(span, DiagnosticKind::Block, msg);
                 return;
             }
@@ -79,32 +91,46 @@ impl Interp<'_> {
                 l as u64
             }
             Some((l, s)) => {
-                self.err(s, DiagnosticKind::Block, || format!("L{l}: a canned cycle repeats a whole number ≥ 1 of times"));
+                self.err(s, DiagnosticKind::Block, || {
+                    format!("L{l}: a canned cycle repeats a whole number ≥ 1 of times")
+                });
                 return;
             }
         };
         let p = match (c, k.w.get('P')) {
             (Cycle::G82 | Cycle::G89, Some((p, s))) if p < 0.0 => {
-                self.err(s, DiagnosticKind::Block, || format!("dwell time P{p} is negative"));
+                self.err(s, DiagnosticKind::Block, || {
+                    format!("dwell time P{p} is negative")
+                });
                 return;
             }
             (Cycle::G82 | Cycle::G89, Some((p, _))) => p,
             (Cycle::G82 | Cycle::G89, None) if same => self.st.cycle.p,
             (Cycle::G82 | Cycle::G89, None) => {
-                err(self, span, "the dwell time P is missing in the G82/G89 cycle");
+                err(
+                    self,
+                    span,
+                    "the dwell time P is missing in the G82/G89 cycle",
+                );
                 return;
             }
             _ => self.st.cycle.p,
         };
         let q = match (c, k.w.get('Q')) {
             (Cycle::G73 | Cycle::G83, Some((q, s))) if q <= 0.0 => {
-                self.err(s, DiagnosticKind::Block, || format!("peck depth Q{q} must be positive"));
+                self.err(s, DiagnosticKind::Block, || {
+                    format!("peck depth Q{q} must be positive")
+                });
                 return;
             }
             (Cycle::G73 | Cycle::G83, Some((q, _))) => q,
             (Cycle::G73 | Cycle::G83, None) if same => self.st.cycle.q,
             (Cycle::G73 | Cycle::G83, None) => {
-                err(self, span, "the peck depth Q is missing in the G73/G83 cycle");
+                err(
+                    self,
+                    span,
+                    "the peck depth Q is missing in the G73/G83 cycle",
+                );
                 return;
             }
             _ => self.st.cycle.q,
@@ -176,7 +202,11 @@ impl Interp<'_> {
             bb += bb_inc;
             if rad_inc != 0.0 || ang_inc != 0.0 {
                 if aa == 0.0 && bb == 0.0 {
-                    self.err(span, DiagnosticKind::Motion, "incremental polar cycle at the origin: the direction is undefined");
+                    self.err(
+                        span,
+                        DiagnosticKind::Motion,
+                        "incremental polar cycle at the origin: the direction is undefined",
+                    );
                     return;
                 }
                 let radius = bb.hypot(aa) + rad_inc;
@@ -202,7 +232,9 @@ impl Interp<'_> {
     }
 
     fn cycle_body(&mut self, c: Cycle, aa: f64, bb: f64, plan: &Plan, feed: Feed, span: Span) {
-        let at = |it: &mut Self, depth: f64, rapid: bool| it.cycle_move(aa, bb, depth, rapid, feed, span);
+        let at = |it: &mut Self, depth: f64, rapid: bool| {
+            it.cycle_move(aa, bb, depth, rapid, feed, span)
+        };
         // 0.010 in, in program units.
         let delta = if self.st.inch {
             RAPID_DELTA_INCH

@@ -11,7 +11,9 @@ use std::collections::HashMap;
 
 use super::{Interp, MM_PER_INCH};
 use crate::diag::{DiagnosticKind, Span};
-use crate::syntax::{BinOp, ExprId, ExprKind, Func, MAX_PARAMETER, NameId, ParamRef, parameter_number};
+use crate::syntax::{
+    BinOp, ExprId, ExprKind, Func, MAX_PARAMETER, NameId, ParamRef, parameter_number,
+};
 
 /// LinuxCNC's `TOLERANCE_EQUAL` for `EQ` and `NE` (2.9: 0.0001).
 const TOLERANCE_EQUAL: f64 = 1e-4;
@@ -409,7 +411,11 @@ mod tests {
         assert_eq!(binary(BinOp::Eq, 1.0, 1.00001), Ok(1.0));
         assert_eq!(binary(BinOp::Ne, 1.0, 1.001), Ok(1.0));
         assert_eq!(binary(BinOp::Xor, 1.0, 3.0), Ok(0.0));
-        assert!(binary(BinOp::Div, 1.0, 0.0).unwrap_err().contains("division by zero"));
+        assert!(
+            binary(BinOp::Div, 1.0, 0.0)
+                .unwrap_err()
+                .contains("division by zero")
+        );
         assert!(binary(BinOp::Pow, -2.0, 0.5).is_err());
         assert_eq!(binary(BinOp::Pow, -2.0, 3.0), Ok(-8.0));
     }

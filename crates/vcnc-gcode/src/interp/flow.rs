@@ -49,8 +49,14 @@ pub(super) struct Flow {
 #[derive(Debug)]
 enum Open {
     Sub,
-    If { branches: Vec<usize>, has_else: bool },
-    Loop { kind: LoopKind, exits: Vec<usize> },
+    If {
+        branches: Vec<usize>,
+        has_else: bool,
+    },
+    Loop {
+        kind: LoopKind,
+        exits: Vec<usize>,
+    },
 }
 
 #[derive(Debug)]
@@ -128,7 +134,16 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
                     flow.jumps.insert(*index, Jump::Sub { end: i });
                     stack.pop();
                 }
-                _ => unmatched(sink, &stack, &label_text, line_of, label, span, "endsub", "sub"),
+                _ => unmatched(
+                    sink,
+                    &stack,
+                    &label_text,
+                    line_of,
+                    label,
+                    span,
+                    "endsub",
+                    "sub",
+                ),
             },
             OStatement::Return(_) => {
                 // As in LinuxCNC, a return leaves the subroutine it is in, whatever its label.
@@ -196,14 +211,24 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
                     }
                     stack.pop();
                 }
-                _ => unmatched(sink, &stack, &label_text, line_of, label, span, "endif", "if"),
+                _ => unmatched(
+                    sink,
+                    &stack,
+                    &label_text,
+                    line_of,
+                    label,
+                    span,
+                    "endif",
+                    "if",
+                ),
             },
             OStatement::While(_) => {
                 // A `while` with the label of an open `do` closes it; otherwise it opens a loop.
                 if let Some(Frame {
-                    open: Open::Loop {
-                        kind: LoopKind::Do, ..
-                    },
+                    open:
+                        Open::Loop {
+                            kind: LoopKind::Do, ..
+                        },
                     ..
                 }) = stack.last()
                     && top_matches(&stack)
@@ -254,9 +279,11 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
                 } else {
                     "continue"
                 };
-                let target = stack.iter_mut().rev().take_while(|f| !matches!(f.open, Open::Sub)).find(|f| {
-                    f.label == label && matches!(f.open, Open::Loop { .. })
-                });
+                let target = stack
+                    .iter_mut()
+                    .rev()
+                    .take_while(|f| !matches!(f.open, Open::Sub))
+                    .find(|f| f.label == label && matches!(f.open, Open::Loop { .. }));
                 match target {
                     Some(Frame {
                         open:
@@ -277,8 +304,7 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
                     Some(Frame {
                         open:
                             Open::Loop {
-                                kind: LoopKind::Do,
-                                ..
+                                kind: LoopKind::Do, ..
                             },
                         ..
                     }) if kw == "continue" => err(

@@ -37,7 +37,8 @@ impl Interp<'_> {
 
     /// Program coordinates of machine point `m` (the inverse of [`Interp::to_machine`]).
     pub(super) fn to_program(&self, m: [f64; 6]) -> [f64; 6] {
-        let mut p: [f64; 6] = std::array::from_fn(|i| m[i] - self.st.g5x[i] - self.st.tool_offset[i]);
+        let mut p: [f64; 6] =
+            std::array::from_fn(|i| m[i] - self.st.g5x[i] - self.st.tool_offset[i]);
         (p[0], p[1]) = rotate(p[0], p[1], -self.st.rotation_deg);
         for (i, v) in p.iter_mut().enumerate() {
             *v -= self.st.g92[i];
@@ -61,7 +62,11 @@ impl Interp<'_> {
 
     /// mm (or deg) per unit of the machine's tables, for axis `i`.
     fn table_unit(&self, i: usize) -> f64 {
-        if i < 3 { self.opts.machine_units.mm() } else { 1.0 }
+        if i < 3 {
+            self.opts.machine_units.mm()
+        } else {
+            1.0
+        }
     }
 
     /// The block's value of axis `i` in mm or deg.
@@ -76,7 +81,8 @@ impl Interp<'_> {
         self.st.coord_index = index;
         self.params.set(5220, index as f64);
         let base = coord_base(index);
-        self.st.g5x = std::array::from_fn(|i| self.params.get(base + i as u32) * self.table_unit(i));
+        self.st.g5x =
+            std::array::from_fn(|i| self.params.get(base + i as u32) * self.table_unit(i));
         self.st.rotation_deg = self.params.get(base + 9);
     }
 
@@ -90,7 +96,8 @@ impl Interp<'_> {
         };
         self.select_coordinate_system(index);
         if self.params.get(5210) == 1.0 {
-            self.st.g92 = std::array::from_fn(|i| self.params.get(5211 + i as u32) * self.table_unit(i));
+            self.st.g92 =
+                std::array::from_fn(|i| self.params.get(5211 + i as u32) * self.table_unit(i));
         }
     }
 
@@ -136,7 +143,11 @@ impl Interp<'_> {
             }
         } else {
             if at_origin {
-                self.err(span, DiagnosticKind::Motion, "incremental polar move (G91 @ ^) at the origin: the direction is undefined");
+                self.err(
+                    span,
+                    DiagnosticKind::Motion,
+                    "incremental polar move (G91 @ ^) at the origin: the direction is undefined",
+                );
                 return None;
             }
             let r = r0 + radius.map_or(0.0, |(v, _)| v * s);
@@ -166,7 +177,9 @@ impl Interp<'_> {
 
     fn mark_axes(&mut self, k: &Checked) {
         for (i, used) in self.tp.axes_used.iter_mut().enumerate() {
-            if k.w.get(AXES[i]).is_some() || (i < 2 && (k.w.letters[AT].is_some() || k.w.letters[CARET].is_some())) {
+            if k.w.get(AXES[i]).is_some()
+                || (i < 2 && (k.w.letters[AT].is_some() || k.w.letters[CARET].is_some()))
+            {
                 *used = true;
             }
         }
@@ -177,7 +190,10 @@ impl Interp<'_> {
         let start = self.st.pos;
         if let Some(i) = (0..6).find(|&i| !end[i].is_finite()) {
             self.err(span, DiagnosticKind::Motion, || {
-                format!("{} target is out of range after unit conversion and offsets", AXES[i])
+                format!(
+                    "{} target is out of range after unit conversion and offsets",
+                    AXES[i]
+                )
             });
             return;
         }
@@ -229,23 +245,37 @@ impl Interp<'_> {
             match f_block {
                 Some((f, _)) if f > 0.0 => Some(Feed::InverseTime(f)),
                 Some((_, s)) => {
-                    self.err(s, DiagnosticKind::Motion, "G93 inverse-time feed F0: the move would take forever");
+                    self.err(
+                        s,
+                        DiagnosticKind::Motion,
+                        "G93 inverse-time feed F0: the move would take forever",
+                    );
                     None
                 }
                 None => {
-                    self.err(span, DiagnosticKind::Motion, "G93 inverse-time mode needs an F word on every feed block");
+                    self.err(
+                        span,
+                        DiagnosticKind::Motion,
+                        "G93 inverse-time mode needs an F word on every feed block",
+                    );
                     None
                 }
             }
         } else {
             match self.st.feed {
-                Some((mm, raw)) if mm > 0.0 => Some(Feed::UnitsPerMin(if pure_rotary { raw } else { mm })),
+                Some((mm, raw)) if mm > 0.0 => {
+                    Some(Feed::UnitsPerMin(if pure_rotary { raw } else { mm }))
+                }
                 Some(_) => {
                     self.err(span, DiagnosticKind::Motion, "feed move with feed rate F0");
                     None
                 }
                 None => {
-                    self.err(span, DiagnosticKind::Motion, "feed move with no feed rate set (F)");
+                    self.err(
+                        span,
+                        DiagnosticKind::Motion,
+                        "feed move with no feed rate set (F)",
+                    );
                     None
                 }
             }
@@ -273,13 +303,19 @@ impl Interp<'_> {
     pub(super) fn dwell(&mut self, k: &Checked, span: Span) {
         match k.w.get('P') {
             Some((p, s)) if p < 0.0 => {
-                self.err(s, DiagnosticKind::Block, || format!("dwell time P{p} is negative"));
+                self.err(s, DiagnosticKind::Block, || {
+                    format!("dwell time P{p} is negative")
+                });
             }
             Some((p, _)) => {
                 let pos = self.st.pos;
                 self.emit(MoveKind::Dwell { seconds: p }, pos, span, None);
             }
-            None => self.err(span, DiagnosticKind::Block, "G4 dwell without a P word (seconds)"),
+            None => self.err(
+                span,
+                DiagnosticKind::Block,
+                "G4 dwell without a P word (seconds)",
+            ),
         }
     }
 
@@ -287,7 +323,11 @@ impl Interp<'_> {
     pub(super) fn arc_block(&mut self, ccw: bool, k: &Checked, span: Span, f_block: Val) {
         self.mark_axes(k);
         if self.st.rotation_deg != 0.0 && self.st.plane != Plane::XY {
-            self.err(span, DiagnosticKind::Motion, "G18/G19 arcs in a rotated coordinate system (G10 L2 R) are not supported");
+            self.err(
+                span,
+                DiagnosticKind::Motion,
+                "G18/G19 arcs in a rotated coordinate system (G10 L2 R) are not supported",
+            );
             return;
         }
         let start_p = self.to_program(self.st.pos);
@@ -333,7 +373,9 @@ impl Interp<'_> {
             None => 1,
             Some((p, s)) => {
                 if p < 1.0 || p.fract() != 0.0 || p > 1e6 {
-                    self.err(s, DiagnosticKind::Block, || format!("arc turns P{p} must be a whole number ≥ 1"));
+                    self.err(s, DiagnosticKind::Block, || {
+                        format!("arc turns P{p} must be a whole number ≥ 1")
+                    });
                     return None;
                 }
                 p as u32
@@ -348,14 +390,22 @@ impl Interp<'_> {
         let has_offsets = offset_letters.iter().any(|&c| k.w.get(c).is_some());
         let (cu, cv) = if let Some((r, rs)) = r_word {
             if has_offsets {
-                self.err(rs, DiagnosticKind::Block, "arc with both R and I/J/K: use one form");
+                self.err(
+                    rs,
+                    DiagnosticKind::Block,
+                    "arc with both R and I/J/K: use one form",
+                );
                 return None;
             }
             let r = r * lscale;
             let (du, dv) = (eu - su, ev - sv);
             let chord = du.hypot(dv);
             if chord == 0.0 {
-                self.err(rs, DiagnosticKind::Motion, "R-form arc with the end point equal to the start: a full circle needs I/J/K");
+                self.err(
+                    rs,
+                    DiagnosticKind::Motion,
+                    "R-form arc with the end point equal to the start: a full circle needs I/J/K",
+                );
                 return None;
             }
             if r == 0.0 {
@@ -416,7 +466,11 @@ impl Interp<'_> {
         let r0 = (su - cu).hypot(sv - cv);
         let r1 = (eu - cu).hypot(ev - cv);
         if r0.is_nan() || r0 <= 0.0 || !r0.is_finite() || !r1.is_finite() {
-            self.err(span, DiagnosticKind::Motion, "arc centre coincides with the start point");
+            self.err(
+                span,
+                DiagnosticKind::Motion,
+                "arc centre coincides with the start point",
+            );
             return None;
         }
         if r_word.is_none() {
@@ -474,7 +528,11 @@ impl Interp<'_> {
             430 | 432 => {
                 if code == 432 && k.w.get('H').is_none() {
                     // LinuxCNC 2.9 adds a tool's offset only ("Requested tool -1 not found").
-                    self.err(span, DiagnosticKind::Block, "G43.2 needs H<tool number> (the offset of that tool is added)");
+                    self.err(
+                        span,
+                        DiagnosticKind::Block,
+                        "G43.2 needs H<tool number> (the offset of that tool is added)",
+                    );
                     return false;
                 }
                 let add: [f64; 6] = {
@@ -549,14 +607,18 @@ impl Interp<'_> {
             }
             920 => {
                 if !(0..6).any(|i| k.w.get(AXES[i]).is_some()) {
-                    self.err(span, DiagnosticKind::Block, "G92 needs at least one axis word");
+                    self.err(
+                        span,
+                        DiagnosticKind::Block,
+                        "G92 needs at least one axis word",
+                    );
                     return false;
                 }
                 // New offsets so that the current point gets the given coordinates.
                 let q = self.to_program(self.st.pos);
-                for i in 0..6 {
+                for (i, qi) in q.iter().enumerate() {
                     if let Some(v) = self.axis_value(k, i) {
-                        self.st.g92[i] += q[i] - v;
+                        self.st.g92[i] += qi - v;
                     }
                 }
                 self.store_g92();
@@ -577,7 +639,8 @@ impl Interp<'_> {
             }
             _ => {
                 // G92.3: restore the offsets from the parameters.
-                self.st.g92 = std::array::from_fn(|i| self.params.get(5211 + i as u32) * self.table_unit(i));
+                self.st.g92 =
+                    std::array::from_fn(|i| self.params.get(5211 + i as u32) * self.table_unit(i));
                 self.params.set(5210, 1.0);
                 true
             }
@@ -607,7 +670,11 @@ impl Interp<'_> {
     /// `G10 L1/L2/L10/L20`.
     fn g10(&mut self, k: &Checked, span: Span) -> bool {
         let Some((l, ls)) = k.w.get('L') else {
-            self.err(span, DiagnosticKind::Block, "G10 needs an L word (L1, L2, L10 or L20)");
+            self.err(
+                span,
+                DiagnosticKind::Block,
+                "G10 needs an L word (L1, L2, L10 or L20)",
+            );
             return false;
         };
         let Some((p, ps)) = k.w.get('P') else {
@@ -615,16 +682,24 @@ impl Interp<'_> {
             return false;
         };
         if p < 0.0 || p.fract() != 0.0 {
-            self.err(ps, DiagnosticKind::Block, || format!("G10 P{p} is not a whole number ≥ 0"));
+            self.err(ps, DiagnosticKind::Block, || {
+                format!("G10 P{p} is not a whole number ≥ 0")
+            });
             return false;
         }
         match l {
             2.0 | 20.0 => {
                 if p > 9.0 {
-                    self.err(ps, DiagnosticKind::Block, || format!("G10 L{l} P{p}: the coordinate system must be P0 (current) … P9"));
+                    self.err(ps, DiagnosticKind::Block, || {
+                        format!("G10 L{l} P{p}: the coordinate system must be P0 (current) … P9")
+                    });
                     return false;
                 }
-                let index = if p == 0.0 { self.st.coord_index } else { p as usize };
+                let index = if p == 0.0 {
+                    self.st.coord_index
+                } else {
+                    p as usize
+                };
                 self.set_coordinate_system(index, l == 20.0, k);
                 true
             }
@@ -633,7 +708,9 @@ impl Interp<'_> {
                 true
             }
             _ => {
-                self.err(ls, DiagnosticKind::Unsupported, || format!("G10 L{l} is not supported (L1, L2, L10, L20)"));
+                self.err(ls, DiagnosticKind::Unsupported, || {
+                    format!("G10 L{l} is not supported (L1, L2, L10, L20)")
+                });
                 false
             }
         }
@@ -643,7 +720,8 @@ impl Interp<'_> {
     /// coordinates) for coordinate system `index`.
     fn set_coordinate_system(&mut self, index: usize, l20: bool, k: &Checked) {
         let base = coord_base(index);
-        let mut o: [f64; 6] = std::array::from_fn(|i| self.params.get(base + i as u32) * self.table_unit(i));
+        let mut o: [f64; 6] =
+            std::array::from_fn(|i| self.params.get(base + i as u32) * self.table_unit(i));
         let mut rot = self.params.get(base + 9);
         if let Some((r, _)) = k.w.get('R') {
             rot = r;
@@ -692,7 +770,8 @@ impl Interp<'_> {
         let mut off: [f64; 6] = std::array::from_fn(|i| entry.offset[i] * unit[i]);
         if l10 {
             let m = self.st.pos;
-            let mut q: [f64; 6] = std::array::from_fn(|i| m[i] - self.st.g5x[i] - self.st.tool_offset[i]);
+            let mut q: [f64; 6] =
+                std::array::from_fn(|i| m[i] - self.st.g5x[i] - self.st.tool_offset[i]);
             (q[0], q[1]) = rotate(q[0], q[1], -self.st.rotation_deg);
             let mut p: [f64; 6] = std::array::from_fn(|i| q[i] - self.st.g92[i]);
             for (i, v) in p.iter_mut().enumerate() {

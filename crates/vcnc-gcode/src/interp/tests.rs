@@ -10,7 +10,10 @@ fn run(src: &str) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
     run_with(src, &InterpOptions::default())
 }
 
-fn run_with(src: &str, opts: &InterpOptions) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
+fn run_with(
+    src: &str,
+    opts: &InterpOptions,
+) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
     let (p, d) = parse(src);
     assert!(d.is_empty(), "{d:?}");
     interpret(&p, opts)
@@ -258,7 +261,11 @@ fn arcs_that_do_not_fit_are_errors() {
     // A 1.27 µm shortfall is tolerated (LinuxCNC RADIUS_TOLERANCE_MM): a half circle.
     let tp = ok("G0 X0 Y0\nG2 X10 Y0 R4.999 F100");
     assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 R4.99 F100"), vec![(2, 11)]);
-    assert!(tp.moves.iter().any(|m| matches!(m.kind, MoveKind::Arc(a) if (a.sweep_rad + PI).abs() < 1e-12)));
+    assert!(
+        tp.moves
+            .iter()
+            .any(|m| matches!(m.kind, MoveKind::Arc(a) if (a.sweep_rad + PI).abs() < 1e-12))
+    );
     // R and I together; no offsets at all.
     assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 R5 I5 F100"), vec![(2, 11)]);
     assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 F100"), vec![(2, 1)]);
@@ -340,7 +347,10 @@ fn arithmetic_errors_name_the_operator() {
     assert!(m.contains("division by zero"), "{m}");
     assert_eq!(first_error("G0 X[SQRT[-1]]").2, DiagnosticKind::Arithmetic);
     assert_eq!(first_error("G0 X[ACOS[2]]").2, DiagnosticKind::Arithmetic);
-    assert_eq!(first_error("G0 X#[3000 * 3]").2, DiagnosticKind::ParameterNumber);
+    assert_eq!(
+        first_error("G0 X#[3000 * 3]").2,
+        DiagnosticKind::ParameterNumber
+    );
 }
 
 #[test]
@@ -371,20 +381,40 @@ fn loops_and_conditions() {
         "#1=0\no1 do\n#1=[#1+1]\nG0 X#1\no1 while [#1 LT 3]\no2 repeat [2]\nG0 Y#1\n#1=[#1+1]\no2 endrepeat",
     );
     let e = ends(&tp);
-    assert_eq!(e, vec![xyz(1.0, 0.0, 0.0), xyz(2.0, 0.0, 0.0), xyz(3.0, 0.0, 0.0), xyz(3.0, 3.0, 0.0), xyz(3.0, 4.0, 0.0)]);
+    assert_eq!(
+        e,
+        vec![
+            xyz(1.0, 0.0, 0.0),
+            xyz(2.0, 0.0, 0.0),
+            xyz(3.0, 0.0, 0.0),
+            xyz(3.0, 3.0, 0.0),
+            xyz(3.0, 4.0, 0.0)
+        ]
+    );
     // rs274: continue at 2, break at 4 → X1 X3 then Y4.
     let tp = ok(
         "#1=0\no1 while [#1 LT 10]\n#1=[#1+1]\no2 if [#1 EQ 2]\no1 continue\no2 elseif [#1 EQ 4]\n\
          o1 break\no2 else\nG0 X#1\no2 endif\no1 endwhile\nG0 Y#1",
     );
-    assert_eq!(ends(&tp), vec![xyz(1.0, 0.0, 0.0), xyz(3.0, 0.0, 0.0), xyz(3.0, 4.0, 0.0)]);
+    assert_eq!(
+        ends(&tp),
+        vec![xyz(1.0, 0.0, 0.0), xyz(3.0, 0.0, 0.0), xyz(3.0, 4.0, 0.0)]
+    );
     // A break out of an inner while nested in a repeat.
-    let tp = ok("#1=0\no1 repeat [3]\no2 while [1]\n#1=[#1+1]\no3 if [#1 MOD 2 EQ 0]\no2 break\no3 endif\no2 endwhile\no1 endrepeat\nG0 X#1");
+    let tp = ok(
+        "#1=0\no1 repeat [3]\no2 while [1]\n#1=[#1+1]\no3 if [#1 MOD 2 EQ 0]\no2 break\no3 endif\no2 endwhile\no1 endrepeat\nG0 X#1",
+    );
     assert_eq!(ends(&tp), vec![xyz(6.0, 0.0, 0.0)]);
     // rs274: "no matching while/do label" for break/continue in a repeat; continue in a do
     // loop leaves the loop in LinuxCNC 2.9, so vcnc refuses it.
-    assert_eq!(first_error("o1 repeat [2]\no1 break\no1 endrepeat").2, DiagnosticKind::ControlFlow);
-    assert_eq!(first_error("o1 do\no1 continue\no1 while [0]").2, DiagnosticKind::ControlFlow);
+    assert_eq!(
+        first_error("o1 repeat [2]\no1 break\no1 endrepeat").2,
+        DiagnosticKind::ControlFlow
+    );
+    assert_eq!(
+        first_error("o1 do\no1 continue\no1 while [0]").2,
+        DiagnosticKind::ControlFlow
+    );
 }
 
 #[test]
@@ -404,10 +434,22 @@ fn endless_loops_stop_at_the_budget() {
 fn control_flow_errors_name_the_statement() {
     let (l, c, k, _) = first_error("G0 X1\no100 endsub");
     assert_eq!((l, c, k), (2, 6, DiagnosticKind::ControlFlow));
-    assert_eq!(first_error("o1 if [1]\nG0 X1").2, DiagnosticKind::ControlFlow);
-    assert_eq!(first_error("o1 if [1]\no2 endif").2, DiagnosticKind::ControlFlow);
-    assert_eq!(first_error("o1 while [1]\no2 break\no1 endwhile").2, DiagnosticKind::ControlFlow);
-    assert_eq!(first_error("o1 sub\no1 endsub\no1 sub\no1 endsub").2, DiagnosticKind::ControlFlow);
+    assert_eq!(
+        first_error("o1 if [1]\nG0 X1").2,
+        DiagnosticKind::ControlFlow
+    );
+    assert_eq!(
+        first_error("o1 if [1]\no2 endif").2,
+        DiagnosticKind::ControlFlow
+    );
+    assert_eq!(
+        first_error("o1 while [1]\no2 break\no1 endwhile").2,
+        DiagnosticKind::ControlFlow
+    );
+    assert_eq!(
+        first_error("o1 sub\no1 endsub\no1 sub\no1 endsub").2,
+        DiagnosticKind::ControlFlow
+    );
     // A bare program number is ignored, as by LinuxCNC.
     assert_eq!(ends(&ok("O1234\nG0 X1")), vec![xyz(1.0, 0.0, 0.0)]);
 }
@@ -416,7 +458,9 @@ fn control_flow_errors_name_the_statement() {
 fn work_offsets_g92_g52_and_g53() {
     // rs274: G10 L2 P1 X10 Y20 Z5 then G54 G0 X1 Y2 Z3 → machine (11, 22, 8); G92 X0 Y0 there
     // gives offsets (1, 2); G53 G0 X0 Y0 Z0 goes to machine 0.
-    let tp = ok("G10 L2 P1 X10 Y20 Z5\nG54 G0 X1 Y2 Z3\nG92 X0 Y0\nG0 X1 Y1\nG53 G0 X0 Y0 Z0\nG92.1\nG0 X0 Y0 Z0");
+    let tp = ok(
+        "G10 L2 P1 X10 Y20 Z5\nG54 G0 X1 Y2 Z3\nG92 X0 Y0\nG0 X1 Y1\nG53 G0 X0 Y0 Z0\nG92.1\nG0 X0 Y0 Z0",
+    );
     let e = ends(&tp);
     assert!(close(e[0], xyz(11.0, 22.0, 8.0)), "{e:?}");
     assert!(close(e[1], xyz(12.0, 23.0, 8.0)), "{e:?}");

@@ -25,7 +25,10 @@ impl ExprId {
     }
 
     pub(crate) fn from_index(i: usize) -> Option<ExprId> {
-        u32::try_from(i + 1).ok().and_then(NonZeroU32::new).map(ExprId)
+        u32::try_from(i + 1)
+            .ok()
+            .and_then(NonZeroU32::new)
+            .map(ExprId)
     }
 }
 
@@ -262,6 +265,28 @@ pub(super) enum Value {
     Expr(ExprId),
 }
 
+/// What a value belongs to, for messages (built only when an error is reported).
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Ctx {
+    Word(char),
+    Assignment,
+    ParameterNumber,
+    Expression,
+    OArgument,
+}
+
+impl std::fmt::Display for Ctx {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Ctx::Word(c) => write!(f, "word '{c}'"),
+            Ctx::Assignment => f.write_str("the assignment"),
+            Ctx::ParameterNumber => f.write_str("parameter number"),
+            Ctx::Expression => f.write_str("the expression"),
+            Ctx::OArgument => f.write_str("the O-word argument"),
+        }
+    }
+}
+
 /// A syntax error inside a value: reported, and the rest of the line is abandoned.
 #[derive(Debug)]
 pub(super) struct Abandon;
@@ -269,12 +294,16 @@ pub(super) struct Abandon;
 impl LineParser<'_, '_> {
     fn push_expr(&mut self, kind: ExprKind, span: Span) -> Result<ExprId, Abandon> {
         self.builder.push_expr(Expr { kind, span }).ok_or_else(|| {
-            self.error(span, DiagnosticKind::Syntax, "too many expression nodes".into());
+            self.error(
+                span,
+                DiagnosticKind::Syntax,
+                "too many expression nodes".into(),
+            );
             Abandon
         })
     }
 
-    fn to_expr(&mut self, v: Value, span: Span) -> Result<ExprId, Abandon> {
+    fn as_expr(&mut self, v: Value, span: Span) -> Result<ExprId, Abandon> {
         match v {
             Value::Expr(id) => Ok(id),
             Value::Number(x) => self.push_expr(ExprKind::Number(x), span),
@@ -282,7 +311,7 @@ impl LineParser<'_, '_> {
     }
 
     /// A real value (see the module doc). `what` names the context for messages.
-    pub(super) fn real_value(&mut self, depth: usize, what: &str) -> Result<(Value, Span), Abandon> {
+    pub(super) fn real_value(&mut self, depth: usize, what: Ctx) -> Result<(Value, Span), Abandon> {
         if depth > MAX_DEPTH {
             let m = self.lx.mark();
             let span = self.lx.span_from(m);
@@ -311,7 +340,7 @@ impl LineParser<'_, '_> {
                 if sign == Some(b'+') {
                     return Ok((v, span));
                 }
-                let arg = self.to_expr(v, vspan)?;
+                let arg = self.as_expr(v, vspan)?;
                 let id = self.push_expr(ExprKind::Neg(arg), span)?;
                 Ok((Value::Expr(id), span))
             }
@@ -353,7 +382,7 @@ impl LineParser<'_, '_> {
         }
     }
 
-    fn number_value(&mut self, m: Mark, what: &str) -> Result<(Value, Span), Abandon> {
+    fn number_value(&mut self, m: Mark, what: Ctx) -> Result<(Value, Span), Abandon> {
         let (tok, span) = self.lx.number();
         match tok {
             Tok::Number(Some(v), _) => Ok((Value::Number(v), span)),
@@ -406,8 +435,8 @@ impl LineParser<'_, '_> {
             );
             return Err(Abandon);
         }
-        let (v, vspan) = self.real_value(depth + 1, "the expression")?;
-        let mut lhs = self.to_expr(v, vspan)?;
+        let (v, vspan) = self.real_value(depth + 1, Ctx::Expression)?;
+        let mut lhs = self.as_expr(v, vspan)?;
         loop {
             self.lx.skip_ws();
             let before = self.lx.mark();
@@ -461,7 +490,10 @@ impl LineParser<'_, '_> {
                         self.error(
                             span,
                             DiagnosticKind::Syntax,
-                            format!("unknown operator '{name}' in the expression opened at column {}", open.col),
+                            format!(
+                                "unknown operator '{name}' in the expression opened at column {}",
+                                open.col
+                            ),
                         );
                         return Err(Abandon);
                     }
@@ -482,14 +514,16 @@ impl LineParser<'_, '_> {
     }
 
     /// `NAME[…]`, `ATAN[…]/[…]` or `EXISTS[#<name>]`; the cursor is on the first letter.
-    fn function(&mut self, m: Mark, depth: usize, what: &str) -> Result<(Value, Span), Abandon> {
+    fn function(&mut self, m: Mark, depth: usize, what: Ctx) -> Result<(Value, Span), Abandon> {
         let (_, name) = self.lx.alpha_run();
         let name_span = self.lx.span_from(m);
         if self.lx.peek_non_ws() != Some(b'[') {
             self.error(
                 name_span,
                 DiagnosticKind::Syntax,
-                format!("{what} needs a value, found '{name}' (a function needs its argument in [ ])"),
+                format!(
+                    "{what} needs a value, found '{name}' (a function needs its argument in [ ])"
+                ),
             );
             return Err(Abandon);
         }
@@ -579,7 +613,7 @@ impl LineParser<'_, '_> {
         if self.lx.peek() == Some(b'<') {
             return self.name(hash).map(ParamRef::Named);
         }
-        let (v, vspan) = self.real_value(depth, "parameter number")?;
+        let (v, vspan) = self.real_value(depth, Ctx::ParameterNumber)?;
         match v {
             Value::Number(x) => {
                 let span = self.lx.span_from(hash);
@@ -589,14 +623,16 @@ impl LineParser<'_, '_> {
                         self.error(
                             span,
                             DiagnosticKind::ParameterNumber,
-                            format!("parameter number #{x} is not a whole number in 1..={MAX_PARAMETER}"),
+                            format!(
+                                "parameter number #{x} is not a whole number in 1..={MAX_PARAMETER}"
+                            ),
                         );
                         Err(Abandon)
                     }
                 }
             }
             Value::Expr(_) => {
-                let id = self.to_expr(v, vspan)?;
+                let id = self.as_expr(v, vspan)?;
                 Ok(ParamRef::Indirect(id))
             }
         }

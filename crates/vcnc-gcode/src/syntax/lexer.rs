@@ -340,9 +340,6 @@ impl<'a> Lexer<'a> {
         } else {
             Flaw::None
         };
-        (
-            Tok::Comment(text, super::CommentKind::Paren, flaw),
-            span,
-        )
+        (Tok::Comment(text, super::CommentKind::Paren, flaw), span)
     }
 }
