@@ -6,7 +6,7 @@
 //! Stages, in the order LinuxCNC's interpreter uses for each block (`Interp::read` →
 //! `check_items` → `execute_block`):
 //!
-//! 1. **collect** ([`block`]): evaluate every word's value and every parameter assignment with
+//! 1. **collect** (module `block`): evaluate every word's value and every parameter assignment with
 //!    the parameter values from *before* the line, and sort the words into G-codes, M-codes
 //!    and letter values;
 //! 2. **check**: modal-group conflicts, repeated words, words no code uses, missing words;
@@ -16,7 +16,7 @@
 //!    path mode, distance modes, retract mode, `G10`/`G28`/`G30`/`G52`/`G92`, motion, stops.
 //!
 //! O-word statements (subroutines, conditions, loops) are matched once before the run
-//! ([`flow`]), so the run is linear in the program length apart from the loops themselves. A
+//! (module `flow`), so the run is linear in the program length apart from the loops themselves. A
 //! program that does not end is stopped by [`InterpOptions::max_loop_iterations`].
 //!
 //! **Coordinates.** The interpreter keeps the machine position (machine coordinates, mm and

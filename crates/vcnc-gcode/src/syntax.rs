@@ -13,7 +13,7 @@
 //!   LinuxCNC blanks may appear inside: `X - 1 2.5` is `X-12.5`), or an expression: `[ … ]`,
 //!   a parameter `#…`, a function `SIN[…]`, or a signed one of those (`X-#1`). Plain numbers are
 //!   stored in [`Word::value`]; anything else becomes an expression tree in
-//!   [`Program::exprs`] ([`expr`] module);
+//!   [`Program::exprs`] ([`Expr`]);
 //! - `#n = value`, `#<name> = value` assign parameters (several per line; their effect comes at
 //!   the end of the line, which the interpreter handles);
 //! - `O<label> keyword …` is an O-word statement (subroutines, conditions, loops); it must be
