@@ -802,37 +802,57 @@ fn continuous(mv: &Move) -> bool {
         && matches!(mv.kind, MoveKind::Linear | MoveKind::Arc(_))
 }
 
-/// Blocks slowed to the limits: the count and the worst.
+/// Why a block was slowed (numbers only: the message is built once, for the worst block).
+#[derive(Clone, Copy)]
+enum Cause {
+    /// `G94`: programmed speed and the cap, along s (mm/s or deg/s).
+    Feed { v_feed: f64, v_lim: f64, deg: bool },
+    /// `G93`: requested and shortest durations, s, and F (1/min).
+    InverseTime { want_s: f64, min_s: f64, f: f64 },
+}
+
+/// Blocks slowed to the limits: the count and the worst (factor, line, column, cause).
 #[derive(Default)]
 struct Slowed {
     count: usize,
-    worst: Option<(f64, u32, u32, String)>,
+    worst: Option<(f64, u32, u32, Cause)>,
 }
 
 impl Slowed {
     /// Note a `G94` segment whose feed is above its speed cap.
     fn feed(&mut self, seg: &Seg, mv: &Move) {
         if seg.vfeed.is_finite() && seg.vfeed > seg.vlim * (1.0 + 1e-9) {
-            let unit = if seg.xyz_basis { "mm" } else { "deg" };
-            let detail = format!(
-                "F{} asks for {:.3} {unit}/s, the limits allow {:.3} {unit}/s",
-                fmt_num(seg.vfeed * 60.0),
-                seg.vfeed,
-                seg.vlim
-            );
-            self.note(seg.vfeed / seg.vlim, mv, detail);
+            let cause = Cause::Feed {
+                v_feed: seg.vfeed,
+                v_lim: seg.vlim,
+                deg: !seg.xyz_basis,
+            };
+            self.note(seg.vfeed / seg.vlim, mv, cause);
         }
     }
 
-    fn note(&mut self, factor: f64, mv: &Move, detail: String) {
+    fn note(&mut self, factor: f64, mv: &Move, cause: Cause) {
         self.count += 1;
-        if self.worst.as_ref().is_none_or(|w| factor > w.0) {
-            self.worst = Some((factor, mv.line, mv.col, detail));
+        if self.worst.is_none_or(|w| factor > w.0) {
+            self.worst = Some((factor, mv.line, mv.col, cause));
         }
     }
 
     fn finish(self, warnings: &mut Vec<Diagnostic>) -> Option<Slowdown> {
-        let (factor, line, col, detail) = self.worst?;
+        let (factor, line, col, cause) = self.worst?;
+        let detail = match cause {
+            Cause::Feed { v_feed, v_lim, deg } => {
+                let unit = if deg { "deg" } else { "mm" };
+                format!(
+                    "F{} asks for {v_feed:.3} {unit}/s, the limits allow {v_lim:.3} {unit}/s",
+                    fmt_num(v_feed * 60.0)
+                )
+            }
+            Cause::InverseTime { want_s, min_s, f } => format!(
+                "inverse time F{} asks for {want_s:.4} s, the limits need {min_s:.4} s",
+                fmt_num(f)
+            ),
+        };
         warnings.push(Diagnostic::warning(
             Span {
                 line,
@@ -949,10 +969,11 @@ pub fn interpolate(
                         slowed.note(
                             t_min / want,
                             mv,
-                            format!(
-                                "inverse time F{} asks for {want:.4} s, the limits need {t_min:.4} s",
-                                fmt_num(f)
-                            ),
+                            Cause::InverseTime {
+                                want_s: want,
+                                min_s: t_min,
+                                f,
+                            },
                         );
                     }
                     // The feed cap does not apply: the duration does (at least T*).

@@ -538,6 +538,28 @@ impl<'a, 's> LineParser<'a, 's> {
 
     /// The value of the word whose letter is at `span`.
     fn word(&mut self, letter: char, span: Span, was_content: bool) -> Result<(), Abandon> {
+        // Fast path: a plain number (by far the most common value).
+        if let Some((tok, nspan)) = self.plain_number() {
+            if let Tok::Number(Some(v), _) = tok {
+                let wspan = Span {
+                    end: nspan.end,
+                    ..span
+                };
+                if letter == 'N' {
+                    self.line_number(v, wspan, was_content);
+                } else {
+                    self.block.words.push(Word {
+                        letter,
+                        value: v,
+                        expr: None,
+                        span: wspan,
+                    });
+                }
+                return Ok(());
+            }
+            // A malformed number: the general path reports it.
+            self.lx.reset(self.lx.mark_at(nspan));
+        }
         let save = self.lx.mark();
         let next = self.lx.peek_non_ws();
         let starts_value = match next {
@@ -605,6 +627,32 @@ impl<'a, 's> LineParser<'a, 's> {
             }
         }
         Ok(())
+    }
+
+    /// The number that starts here (after blanks), if the value is a plain number: digits or a
+    /// point, or a sign directly followed by them.
+    fn plain_number(&mut self) -> Option<(Tok<'a>, Span)> {
+        let start = self.lx.mark();
+        self.lx.skip_ws();
+        match self.lx.peek() {
+            Some(b'0'..=b'9' | b'.') => Some(self.lx.number()),
+            Some(b'+' | b'-') => {
+                let m = self.lx.mark();
+                self.lx.bump();
+                let digit = matches!(self.lx.peek_non_ws(), Some(b'0'..=b'9' | b'.'));
+                self.lx.reset(m);
+                if digit {
+                    Some(self.lx.number())
+                } else {
+                    self.lx.reset(start);
+                    None
+                }
+            }
+            _ => {
+                self.lx.reset(start);
+                None
+            }
+        }
     }
 
     fn line_number(&mut self, value: f64, span: Span, was_content: bool) {

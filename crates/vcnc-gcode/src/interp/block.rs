@@ -172,8 +172,8 @@ fn g_group(c: u32) -> Result<Group, (DiagnosticKind, &'static str)> {
 }
 
 /// A block after **check**: codes sorted by group, the motion to run decided.
-pub(super) struct Checked {
-    pub(super) w: Collected,
+pub(super) struct Checked<'c> {
+    pub(super) w: &'c Collected,
     pub(super) nonmodal: Option<(u32, Span)>,
     motion_code: Option<(u32, Span)>,
     plane: Option<(u32, Span)>,
@@ -218,10 +218,10 @@ impl Interp<'_> {
         let Some(collected) = self.collect(block) else {
             return false;
         };
-        let Some(checked) = self.check(collected) else {
+        let Some(checked) = self.check(&collected) else {
             return false;
         };
-        self.apply(checked, block.span)
+        self.apply(&checked, block.span)
     }
 
     /// **Collect**: evaluate the words and assignments (with the parameters as they were before
@@ -322,7 +322,7 @@ impl Interp<'_> {
 
     /// **Check**: sort the codes into their modal groups (one per group), refuse unsupported
     /// ones, decide the motion, and check that every word has a code that uses it.
-    fn check(&mut self, w: Collected) -> Option<Checked> {
+    fn check<'c>(&mut self, w: &'c Collected) -> Option<Checked<'c>> {
         let mut k = Checked {
             nonmodal: None,
             motion_code: None,
@@ -339,11 +339,7 @@ impl Interp<'_> {
             m_tool: None,
             m_tcp: None,
             motion_to_be: None,
-            w: Collected {
-                g: Vec::new(),
-                m: Vec::new(),
-                ..w
-            },
+            w,
         };
         let mut ok = true;
         for &(code, span) in &w.g {
@@ -458,8 +454,6 @@ impl Interp<'_> {
                 *slot = Some((c, span));
             }
         }
-        k.w.g = w.g;
-        k.w.m = w.m;
         if let (Some(_), Some((_, s))) = (k.m_tcp, k.tool_length) {
             self.err(
                 s,
@@ -676,7 +670,7 @@ impl Interp<'_> {
 
     /// **Apply**: store the assignments, then execute in LinuxCNC's order (parent module doc).
     /// `true` at a program end.
-    fn apply(&mut self, k: Checked, span: Span) -> bool {
+    fn apply(&mut self, k: &Checked<'_>, span: Span) -> bool {
         for &(t, v) in &k.w.assigns {
             self.assign(t, v);
         }
@@ -731,7 +725,7 @@ impl Interp<'_> {
         }
         // G-codes.
         if let Some((40, s)) = k.nonmodal {
-            self.dwell(&k, s);
+            self.dwell(k, s);
         }
         if let Some((c, _)) = k.plane {
             self.st.plane = match c {
@@ -744,7 +738,7 @@ impl Interp<'_> {
             self.st.inch = c == 200;
         }
         if let Some((c, s)) = k.tool_length
-            && !self.tool_length(c, &k, s)
+            && !self.tool_length(c, k, s)
         {
             return false;
         }
@@ -784,7 +778,7 @@ impl Interp<'_> {
         if let Some((c, s)) = k.nonmodal
             && c != 40
             && c != 530
-            && !self.nonmodal(c, &k, s)
+            && !self.nonmodal(c, k, s)
         {
             return false;
         }
@@ -806,9 +800,9 @@ impl Interp<'_> {
         if let Some((m, s)) = k.motion_to_be {
             let f_block = k.w.get('F');
             match m {
-                Motion::Rapid | Motion::Linear => self.straight(m, &k, s, f_block),
-                Motion::Cw | Motion::Ccw => self.arc_block(m == Motion::Ccw, &k, s, f_block),
-                Motion::Cycle(c) => self.cycle(c, &k, s, prev),
+                Motion::Rapid | Motion::Linear => self.straight(m, k, s, f_block),
+                Motion::Cw | Motion::Ccw => self.arc_block(m == Motion::Ccw, k, s, f_block),
+                Motion::Cycle(c) => self.cycle(c, k, s, prev),
             }
         }
         let _ = span;

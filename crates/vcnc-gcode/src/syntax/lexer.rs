@@ -60,11 +60,13 @@ impl<'a> Lexer<'a> {
         }
     }
 
+    #[inline]
     pub(super) fn peek(&self) -> Option<u8> {
         self.bytes.get(self.pos).copied()
     }
 
     /// Advance one byte, counting a column for each byte that starts a character.
+    #[inline]
     pub(super) fn bump(&mut self) {
         if let Some(&b) = self.bytes.get(self.pos) {
             self.pos += 1;
@@ -82,6 +84,7 @@ impl<'a> Lexer<'a> {
         Some(c)
     }
 
+    #[inline]
     pub(super) fn skip_ws(&mut self) {
         while matches!(self.peek(), Some(b' ' | b'\t' | b'\r' | 0x0B | 0x0C)) {
             self.bump();
@@ -89,6 +92,7 @@ impl<'a> Lexer<'a> {
     }
 
     /// The next byte after blanks, without consuming anything.
+    #[inline]
     pub(super) fn peek_non_ws(&self) -> Option<u8> {
         self.bytes[self.pos..]
             .iter()
@@ -96,6 +100,7 @@ impl<'a> Lexer<'a> {
             .find(|b| !matches!(b, b' ' | b'\t' | b'\r' | 0x0B | 0x0C))
     }
 
+    #[inline]
     pub(super) fn mark(&self) -> Mark {
         Mark {
             pos: self.pos,
@@ -103,16 +108,19 @@ impl<'a> Lexer<'a> {
         }
     }
 
+    #[inline]
     pub(super) fn reset(&mut self, m: Mark) {
         self.pos = m.pos;
         self.col = m.col;
     }
 
     /// The span from `m` to the current position.
+    #[inline]
     pub(super) fn span_from(&self, m: Mark) -> Span {
         self.span_between(m, self.pos)
     }
 
+    #[inline]
     pub(super) fn span_between(&self, m: Mark, end: usize) -> Span {
         Span {
             line: self.line,
