@@ -221,7 +221,7 @@ impl Interp<'_> {
         let Some(checked) = self.check(&collected) else {
             return false;
         };
-        self.apply(&checked, block.span)
+        self.apply(&checked)
     }
 
     /// **Collect**: evaluate the words and assignments (with the parameters as they were before
@@ -341,8 +341,25 @@ impl Interp<'_> {
             motion_to_be: None,
             w,
         };
+        let mut ok = self.check_g_groups(&mut k);
+        ok &= self.check_m_groups(&mut k);
+        if let (Some(_), Some((_, s))) = (k.m_tcp, k.tool_length) {
+            self.err(
+                s,
+                DiagnosticKind::Block,
+                "G43.4/G49 and a tool-centre-point M-code in one block",
+            );
+            ok = false;
+        }
+        ok &= self.check_motion(&mut k);
+        ok &= self.check_words(&k);
+        ok.then_some(k)
+    }
+
+    /// One G-code per modal group; unsupported codes refused.
+    fn check_g_groups(&mut self, k: &mut Checked<'_>) -> bool {
         let mut ok = true;
-        for &(code, span) in &w.g {
+        for &(code, span) in &k.w.g {
             let group = match g_group(code) {
                 Ok(g) => g,
                 Err((kind, why)) => {
@@ -383,9 +400,15 @@ impl Interp<'_> {
                 *slot = Some((code, span));
             }
         }
+        ok
+    }
+
+    /// One M-code per modal group (M7 with M8 allowed); unsupported codes refused.
+    fn check_m_groups(&mut self, k: &mut Checked<'_>) -> bool {
+        let mut ok = true;
         let mut m_spindle: Option<(u32, Span)> = None;
         let mut m_coolant: Vec<(u32, Span)> = Vec::new();
-        for &(c, span) in &w.m {
+        for &(c, span) in &k.w.m {
             let on = self.opts.tcp_on_mcodes.contains(&c);
             if on || self.opts.tcp_off_mcodes.contains(&c) {
                 if let Some((_, s)) = k.m_tcp {
@@ -454,17 +477,7 @@ impl Interp<'_> {
                 *slot = Some((c, span));
             }
         }
-        if let (Some(_), Some((_, s))) = (k.m_tcp, k.tool_length) {
-            self.err(
-                s,
-                DiagnosticKind::Block,
-                "G43.4/G49 and a tool-centre-point M-code in one block",
-            );
-            ok = false;
-        }
-        ok &= self.check_motion(&mut k);
-        ok &= self.check_words(&k);
-        ok.then_some(k)
+        ok
     }
 
     /// Decide the motion of the block (LinuxCNC `enhance_block`).
@@ -670,7 +683,7 @@ impl Interp<'_> {
 
     /// **Apply**: store the assignments, then execute in LinuxCNC's order (parent module doc).
     /// `true` at a program end.
-    fn apply(&mut self, k: &Checked<'_>, span: Span) -> bool {
+    fn apply(&mut self, k: &Checked<'_>) -> bool {
         for &(t, v) in &k.w.assigns {
             self.assign(t, v);
         }
@@ -680,8 +693,31 @@ impl Interp<'_> {
             });
             return true;
         }
-        let scale_before = self.lscale();
-        // Feed mode, F, S, T.
+        if !(self.apply_settings(k) && self.apply_modes(k)) {
+            return false;
+        }
+        if let Some((c, s)) = k.nonmodal
+            && c != 40
+            && c != 530
+            && !self.nonmodal(c, k, s)
+        {
+            return false;
+        }
+        self.apply_motion(k);
+        // Stops.
+        match k.m_stop {
+            Some((0 | 1 | 60, _)) => {
+                self.stop_after_last();
+                false
+            }
+            Some(_) => true,
+            None => false,
+        }
+    }
+
+    /// Feed mode, `F`, `S`, `T`, tool change and tool-centre-point M-codes. `F` is read in the
+    /// units in force before this block's `G20`/`G21`, which come later.
+    fn apply_settings(&mut self, k: &Checked<'_>) -> bool {
         if let Some((c, _)) = k.feed_mode {
             let inverse = c == 930;
             if inverse != self.st.inverse_time {
@@ -693,7 +729,7 @@ impl Interp<'_> {
         if let Some((f, _)) = k.w.get('F')
             && !self.st.inverse_time
         {
-            self.st.feed = Some((f * scale_before, f));
+            self.st.feed = Some((f * self.lscale(), f));
         }
         if let Some((s, _)) = k.w.get('S') {
             self.st.spindle_rpm = s;
@@ -702,9 +738,9 @@ impl Interp<'_> {
             // Checked to be a whole number in range.
             self.st.selected_tool = t as u32;
         }
-        // M-codes: tool change (the machine must be at rest), tool-centre point.
         match k.m_tool {
             Some((6, _)) => {
+                // The machine must be at rest for a tool change.
                 self.st.current_tool = self.st.selected_tool;
                 self.stop_after_last();
             }
@@ -723,7 +759,12 @@ impl Interp<'_> {
                 self.st.tool_offset = [0.0; 6];
             }
         }
-        // G-codes.
+        true
+    }
+
+    /// `G4`, then the modal groups in LinuxCNC's order: plane, units, tool length offset,
+    /// coordinate system, path control, distance modes, canned-cycle return.
+    fn apply_modes(&mut self, k: &Checked<'_>) -> bool {
         if let Some((40, s)) = k.nonmodal {
             self.dwell(k, s);
         }
@@ -775,14 +816,12 @@ impl Interp<'_> {
         if let Some((c, _)) = k.retract {
             self.st.retract_r_plane = c == 990;
         }
-        if let Some((c, s)) = k.nonmodal
-            && c != 40
-            && c != 530
-            && !self.nonmodal(c, k, s)
-        {
-            return false;
-        }
-        // Motion. Any motion but a cycle ends a series of cycles (LinuxCNC `cycle_il_flag`).
+        true
+    }
+
+    /// The motion mode and the block's motion. Any motion but a cycle ends a series of cycles
+    /// (LinuxCNC's `cycle_il_flag`).
+    fn apply_motion(&mut self, k: &Checked<'_>) {
         let prev = self.st.motion;
         let runs = match (k.motion_code, k.motion_to_be) {
             (Some((c, _)), _) => Some(motion_of(c)),
@@ -804,16 +843,6 @@ impl Interp<'_> {
                 Motion::Cw | Motion::Ccw => self.arc_block(m == Motion::Ccw, k, s, f_block),
                 Motion::Cycle(c) => self.cycle(c, k, s, prev),
             }
-        }
-        let _ = span;
-        // Stops.
-        match k.m_stop {
-            Some((0 | 1 | 60, _)) => {
-                self.stop_after_last();
-                false
-            }
-            Some(_) => true,
-            None => false,
         }
     }
 

@@ -28,7 +28,31 @@ use crate::diag::{DiagnosticKind, Span};
 /// LinuxCNC `G83_RAPID_DELTA`: how far above the last depth a peck restarts, inches.
 const RAPID_DELTA_INCH: f64 = 0.010;
 
-/// Parameters of one cycle block, program units.
+/// The words of one cycle block, sticky values filled in (program units, as written).
+struct Words {
+    r: f64,
+    z: f64,
+    repeats: u64,
+    p: f64,
+    q: f64,
+}
+
+/// Where the repeats start (program units): the first point in the plane and the increments
+/// before each repeat, R and the depth along the normal, the initial level and the height.
+struct Start {
+    aa: f64,
+    bb: f64,
+    aa_inc: f64,
+    bb_inc: f64,
+    radius_inc: f64,
+    angle_inc: f64,
+    r: f64,
+    z: f64,
+    old_cc: f64,
+    current_cc: f64,
+}
+
+/// Parameters of one cycle, program units.
 struct Plan {
     r: f64,
     z: f64,
@@ -38,170 +62,181 @@ struct Plan {
 }
 
 impl Interp<'_> {
+    fn cycle_err(&mut self, span: Span, msg: impl crate::diag::Message) {
+        self.err(span, DiagnosticKind::Block, msg);
+    }
+
     /// Run cycle `c`; `prev` is the motion mode before this block.
     pub(super) fn cycle(&mut self, c: Cycle, k: &Checked, span: Span, prev: Option<Motion>) {
-        let err =
-            |it: &mut Self, s: Span, msg: &str| it.err(s, DiagnosticKind::Block, msg.to_string());
         if self.st.inverse_time {
-            err(
-                self,
-                span,
-                "canned cycles cannot run under G93 inverse-time feed",
-            );
+            self.cycle_err(span, "canned cycles cannot run under G93 inverse-time feed");
             return;
         }
         let feed = match self.st.feed {
-            Some((mm, _)) if mm > 0.0 => mm,
+            Some((mm, _)) if mm > 0.0 => Feed::UnitsPerMin(mm),
             _ => {
-                err(self, span, "canned cycle with no feed rate set (F)");
+                self.cycle_err(span, "canned cycle with no feed rate set (F)");
                 return;
             }
         };
         let same = prev == Some(Motion::Cycle(c));
-        let (u, v, w) = self.st.plane.axes();
-        let names = ['X', 'Y', 'Z'];
-        let r_word = match k.w.get('R') {
+        let Some(words) = self.cycle_words(c, k, span, same) else {
+            return;
+        };
+        let Some(start) = self.cycle_start(k, &words, span) else {
+            return;
+        };
+        self.cycle_repeats(c, start, &words, feed, span);
+        self.st.cycle.r = words.r;
+        self.st.cycle.z = words.z;
+        self.st.cycle.p = words.p;
+        self.st.cycle.q = words.q;
+    }
+
+    /// R, the depth, L, P and Q of the block, or their sticky values when the cycle continues.
+    fn cycle_words(&mut self, c: Cycle, k: &Checked, span: Span, same: bool) -> Option<Words> {
+        let (_, _, w) = self.st.plane.axes();
+        let normal = ['X', 'Y', 'Z'][w];
+        let r = match k.w.get('R') {
             Some((r, _)) => r,
             None if same => self.st.cycle.r,
             None => {
-                err(
-                    self,
-                    span,
-                    "R clearance plane unspecified in the canned cycle",
-                );
-                return;
+                self.cycle_err(span, "R clearance plane unspecified in the canned cycle");
+                return None;
             }
         };
-        let z_word = match k.w.get(names[w]) {
+        let z = match k.w.get(normal) {
             Some((z, _)) => z,
             None if same => self.st.cycle.z,
             None => {
-                let msg = format!(
-                    "{} (the cycle's depth) is unspecified in the canned cycle",
-                    names[w]
-                );
-                self.err(span, DiagnosticKind::Block, msg);
-                return;
+                self.cycle_err(span, || {
+                    format!("{normal} (the cycle's depth) is unspecified in the canned cycle")
+                });
+                return None;
             }
         };
         let repeats = match k.w.get('L') {
             None => 1,
-            Some((l, s)) if l >= 1.0 && l.fract() == 0.0 && l <= 1e6 => {
-                let _ = s;
-                l as u64
-            }
+            Some((l, _)) if l >= 1.0 && l.fract() == 0.0 && l <= 1e6 => l as u64,
             Some((l, s)) => {
-                self.err(s, DiagnosticKind::Block, || {
+                self.cycle_err(s, || {
                     format!("L{l}: a canned cycle repeats a whole number ≥ 1 of times")
                 });
-                return;
+                return None;
             }
         };
-        let p = match (c, k.w.get('P')) {
-            (Cycle::G82 | Cycle::G89, Some((p, s))) if p < 0.0 => {
-                self.err(s, DiagnosticKind::Block, || {
-                    format!("dwell time P{p} is negative")
-                });
-                return;
+        let dwell = matches!(c, Cycle::G82 | Cycle::G89);
+        let p = match k.w.get('P') {
+            Some((p, s)) if dwell && p < 0.0 => {
+                self.cycle_err(s, || format!("dwell time P{p} is negative"));
+                return None;
             }
-            (Cycle::G82 | Cycle::G89, Some((p, _))) => p,
-            (Cycle::G82 | Cycle::G89, None) if same => self.st.cycle.p,
-            (Cycle::G82 | Cycle::G89, None) => {
-                err(
-                    self,
-                    span,
-                    "the dwell time P is missing in the G82/G89 cycle",
-                );
-                return;
+            Some((p, _)) if dwell => p,
+            None if dwell && !same => {
+                self.cycle_err(span, "the dwell time P is missing in the G82/G89 cycle");
+                return None;
             }
             _ => self.st.cycle.p,
         };
-        let q = match (c, k.w.get('Q')) {
-            (Cycle::G73 | Cycle::G83, Some((q, s))) if q <= 0.0 => {
-                self.err(s, DiagnosticKind::Block, || {
-                    format!("peck depth Q{q} must be positive")
-                });
-                return;
+        let peck = matches!(c, Cycle::G73 | Cycle::G83);
+        let q = match k.w.get('Q') {
+            Some((q, s)) if peck && q <= 0.0 => {
+                self.cycle_err(s, || format!("peck depth Q{q} must be positive"));
+                return None;
             }
-            (Cycle::G73 | Cycle::G83, Some((q, _))) => q,
-            (Cycle::G73 | Cycle::G83, None) if same => self.st.cycle.q,
-            (Cycle::G73 | Cycle::G83, None) => {
-                err(
-                    self,
-                    span,
-                    "the peck depth Q is missing in the G73/G83 cycle",
-                );
-                return;
+            Some((q, _)) if peck => q,
+            None if peck && !same => {
+                self.cycle_err(span, "the peck depth Q is missing in the G73/G83 cycle");
+                return None;
             }
             _ => self.st.cycle.q,
         };
-        // Program coordinates in program units.
+        Some(Words {
+            r,
+            z,
+            repeats,
+            p,
+            q,
+        })
+    }
+
+    /// The first point, increments, R and depth (LinuxCNC `convert_cycle_xy`), and the rapid
+    /// up to R when the initial level is below it.
+    fn cycle_start(&mut self, k: &Checked, words: &Words, span: Span) -> Option<Start> {
+        let (u, v, w) = self.st.plane.axes();
+        let names = ['X', 'Y', 'Z'];
         let cur = self.program_position_in_units();
-        let mut current_cc = cur[w];
-        let mut old_cc = match self.st.cycle.il {
-            Some(il) => il,
-            None => {
-                self.st.cycle.il = Some(current_cc);
-                current_cc
-            }
-        };
+        let current_cc = cur[w];
+        let old_cc = *self.st.cycle.il.get_or_insert(current_cc);
         let word = |i: usize| k.w.get(names[i]).map(|x| x.0);
-        let (mut aa, mut bb, aa_inc, bb_inc, r, z);
-        let (mut rad_inc, mut ang_inc) = (0.0, 0.0);
+        let mut st = Start {
+            aa: cur[u],
+            bb: cur[v],
+            aa_inc: 0.0,
+            bb_inc: 0.0,
+            radius_inc: 0.0,
+            angle_inc: 0.0,
+            r: words.r,
+            z: words.z,
+            old_cc,
+            current_cc,
+        };
         if self.st.absolute {
-            r = r_word;
-            z = z_word;
-            let polar = k.w.letters[AT].or(k.w.letters[CARET]);
-            if polar.is_some() {
+            if k.w.letters[AT].is_some() || k.w.letters[CARET].is_some() {
                 let radius = k.w.letters[AT].map_or(cur[1].hypot(cur[0]), |x| x.0);
                 let theta = k.w.letters[CARET].map_or(cur[1].atan2(cur[0]), |x| x.0.to_radians());
-                aa = radius * theta.cos();
-                bb = radius * theta.sin();
+                st.aa = radius * theta.cos();
+                st.bb = radius * theta.sin();
             } else {
-                aa = word(u).unwrap_or(cur[u]);
-                bb = word(v).unwrap_or(cur[v]);
+                st.aa = word(u).unwrap_or(cur[u]);
+                st.bb = word(v).unwrap_or(cur[v]);
             }
-            (aa_inc, bb_inc) = (0.0, 0.0);
         } else {
-            aa_inc = word(u).unwrap_or(0.0);
-            bb_inc = word(v).unwrap_or(0.0);
-            rad_inc = k.w.letters[AT].map_or(0.0, |x| x.0);
-            ang_inc = k.w.letters[CARET].map_or(0.0, |x| x.0.to_radians());
-            r = r_word + old_cc;
-            z = r + z_word;
-            aa = cur[u];
-            bb = cur[v];
+            st.aa_inc = word(u).unwrap_or(0.0);
+            st.bb_inc = word(v).unwrap_or(0.0);
+            st.radius_inc = k.w.letters[AT].map_or(0.0, |x| x.0);
+            st.angle_inc = k.w.letters[CARET].map_or(0.0, |x| x.0.to_radians());
+            st.r = words.r + old_cc;
+            st.z = st.r + words.z;
         }
-        if r < z {
-            self.err(span, DiagnosticKind::Block, || {
+        if st.r < st.z {
+            let (r, z) = (st.r, st.z);
+            self.cycle_err(span, || {
                 format!(
                     "the R plane ({r}) is below the cycle's depth {} ({z})",
                     names[w]
                 )
             });
-            return;
+            return None;
         }
-        let feed = Feed::UnitsPerMin(feed);
-        let at = |it: &mut Self, a: f64, b: f64, c: f64, rapid: bool| {
-            it.cycle_move(a, b, c, rapid, feed, span);
-        };
-        if old_cc < r {
-            at(self, cur[u], cur[v], r, true);
-            old_cc = r;
-            current_cc = old_cc;
+        if st.old_cc < st.r {
+            let feed = Feed::UnitsPerMin(0.0);
+            self.cycle_move(cur[u], cur[v], st.r, true, feed, span);
+            st.old_cc = st.r;
+            st.current_cc = st.r;
         }
+        Some(st)
+    }
+
+    /// The `L` repeats (LinuxCNC `CYCLE_MACRO`): position in the plane, down to R, the cycle.
+    fn cycle_repeats(&mut self, c: Cycle, mut st: Start, words: &Words, feed: Feed, span: Span) {
         let plan = Plan {
-            r,
-            z,
-            clear: if self.st.retract_r_plane { r } else { old_cc },
-            p,
-            q,
+            r: st.r,
+            z: st.z,
+            clear: if self.st.retract_r_plane {
+                st.r
+            } else {
+                st.old_cc
+            },
+            p: words.p,
+            q: words.q,
         };
-        for rep in (1..=repeats).rev() {
-            aa += aa_inc;
-            bb += bb_inc;
-            if rad_inc != 0.0 || ang_inc != 0.0 {
-                if aa == 0.0 && bb == 0.0 {
+        let at = |it: &mut Self, a: f64, b: f64, c: f64| it.cycle_move(a, b, c, true, feed, span);
+        for rep in (1..=words.repeats).rev() {
+            st.aa += st.aa_inc;
+            st.bb += st.bb_inc;
+            if st.radius_inc != 0.0 || st.angle_inc != 0.0 {
+                if st.aa == 0.0 && st.bb == 0.0 {
                     self.err(
                         span,
                         DiagnosticKind::Motion,
@@ -209,26 +244,23 @@ impl Interp<'_> {
                     );
                     return;
                 }
-                let radius = bb.hypot(aa) + rad_inc;
-                let theta = bb.atan2(aa) + ang_inc;
-                aa = radius * theta.cos();
-                bb = radius * theta.sin();
+                let radius = st.bb.hypot(st.aa) + st.radius_inc;
+                let theta = st.bb.atan2(st.aa) + st.angle_inc;
+                st.aa = radius * theta.cos();
+                st.bb = radius * theta.sin();
             }
-            if rep == repeats && current_cc > plan.r {
-                at(self, aa, bb, current_cc, true);
-                at(self, aa, bb, plan.r, true);
+            let (aa, bb) = (st.aa, st.bb);
+            if rep == words.repeats && st.current_cc > plan.r {
+                at(self, aa, bb, st.current_cc);
+                at(self, aa, bb, plan.r);
             } else {
-                at(self, aa, bb, plan.clear, true);
+                at(self, aa, bb, plan.clear);
                 if plan.clear > plan.r {
-                    at(self, aa, bb, plan.r, true);
+                    at(self, aa, bb, plan.r);
                 }
             }
             self.cycle_body(c, aa, bb, &plan, feed, span);
         }
-        self.st.cycle.r = r_word;
-        self.st.cycle.z = z_word;
-        self.st.cycle.p = p;
-        self.st.cycle.q = q;
     }
 
     fn cycle_body(&mut self, c: Cycle, aa: f64, bb: f64, plan: &Plan, feed: Feed, span: Span) {

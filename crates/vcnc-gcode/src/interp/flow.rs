@@ -6,7 +6,7 @@
 
 use std::collections::HashMap;
 
-use crate::diag::{Diagnostic, DiagnosticKind, Severity, Sink};
+use crate::diag::{Diagnostic, DiagnosticKind, Severity, Sink, Span};
 use crate::syntax::{OLabel, OStatement, Program};
 
 /// Kind of a loop.
@@ -68,14 +68,11 @@ struct Frame {
 
 /// Analyse `program`. Blocks in `skip` (deleted lines) are ignored.
 pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mut Sink) -> Flow {
-    let mut flow = Flow::default();
-    let mut stack: Vec<Frame> = Vec::new();
-    let label_text = |l: OLabel| match l {
-        OLabel::Number(n) => format!("o{n}"),
-        OLabel::Name(n) => format!("o<{}>", program.name(n)),
-    };
-    let err = |sink: &mut Sink, span, kind, msg: String| {
-        sink.push(Diagnostic::new(span, Severity::Error, kind, msg));
+    let mut a = Analyser {
+        program,
+        sink,
+        flow: Flow::default(),
+        stack: Vec::new(),
     };
     for (i, b) in program.blocks.iter().enumerate() {
         let Some(o) = b.o_word.as_deref() else {
@@ -84,339 +81,314 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
         if skip(i) {
             continue;
         }
-        let label = o.label;
-        let span = o.keyword_span;
-        let line_of = |j: usize| program.blocks[j].line;
-        // The innermost open construct, when it has this label.
-        let top_matches = |stack: &[Frame]| stack.last().is_some_and(|f| f.label == label);
+        let (label, span) = (o.label, o.keyword_span);
         match &o.statement {
             OStatement::ProgramNumber | OStatement::Call(_) => {}
-            OStatement::Sub => {
-                if let Some(f) = stack.last() {
-                    err(
-                        sink,
-                        span,
-                        DiagnosticKind::ControlFlow,
-                        format!(
-                            "{} sub inside {} opened at line {}: subroutines cannot be defined inside other statements",
-                            label_text(label),
-                            label_text(f.label),
-                            line_of(f.index)
-                        ),
-                    );
-                    continue;
-                }
-                if let Some(&first) = flow.subs.get(&label) {
-                    err(
-                        sink,
-                        span,
-                        DiagnosticKind::ControlFlow,
-                        format!(
-                            "subroutine {} is defined twice (first at line {})",
-                            label_text(label),
-                            line_of(first)
-                        ),
-                    );
-                }
-                flow.subs.entry(label).or_insert(i);
-                stack.push(Frame {
-                    label,
-                    index: i,
-                    open: Open::Sub,
-                });
-            }
-            OStatement::EndSub(_) => match stack.last() {
-                Some(Frame {
-                    open: Open::Sub,
-                    index,
-                    ..
-                }) if top_matches(&stack) => {
-                    flow.jumps.insert(*index, Jump::Sub { end: i });
-                    stack.pop();
-                }
-                _ => unmatched(
-                    sink,
-                    &stack,
-                    &label_text,
-                    line_of,
-                    label,
-                    span,
-                    "endsub",
-                    "sub",
-                ),
-            },
-            OStatement::Return(_) => {
-                // As in LinuxCNC, a return leaves the subroutine it is in, whatever its label.
-                let inside = stack.iter().any(|f| matches!(f.open, Open::Sub));
-                if !inside {
-                    err(
-                        sink,
-                        span,
-                        DiagnosticKind::ControlFlow,
-                        format!(
-                            "{} return outside a subroutine definition (sub … endsub)",
-                            label_text(label)
-                        ),
-                    );
-                }
-            }
-            OStatement::If(_) => stack.push(Frame {
+            OStatement::Sub => a.sub(i, label, span),
+            OStatement::EndSub(_) => a.endsub(i, label, span),
+            OStatement::Return(_) => a.ret(label, span),
+            OStatement::If(_) => a.open(
+                i,
                 label,
-                index: i,
-                open: Open::If {
+                Open::If {
                     branches: vec![i],
                     has_else: false,
                 },
-            }),
-            OStatement::ElseIf(_) | OStatement::Else => {
-                let is_else = matches!(o.statement, OStatement::Else);
-                let kw = if is_else { "else" } else { "elseif" };
-                match stack.last_mut() {
-                    Some(Frame {
-                        open: Open::If { branches, has_else },
-                        label: l,
-                        ..
-                    }) if *l == label => {
-                        if *has_else {
-                            err(
-                                sink,
-                                span,
-                                DiagnosticKind::ControlFlow,
-                                format!("{} {kw} after the else of this if", label_text(label)),
-                            );
-                        }
-                        branches.push(i);
-                        *has_else |= is_else;
-                    }
-                    _ => unmatched(sink, &stack, &label_text, line_of, label, span, kw, "if"),
-                }
-            }
-            OStatement::EndIf => match stack.last() {
-                Some(Frame {
-                    open: Open::If { branches, .. },
-                    ..
-                }) if top_matches(&stack) => {
-                    for (k, &b) in branches.iter().enumerate() {
-                        let next = branches.get(k + 1).copied().unwrap_or(i);
-                        let is_else = matches!(
-                            program.blocks[b].o_word.as_deref().map(|o| &o.statement),
-                            Some(OStatement::Else)
-                        );
-                        let jump = if is_else {
-                            Jump::Else { endif: i }
-                        } else {
-                            Jump::Branch { next, endif: i }
-                        };
-                        flow.jumps.insert(b, jump);
-                    }
-                    stack.pop();
-                }
-                _ => unmatched(
-                    sink,
-                    &stack,
-                    &label_text,
-                    line_of,
-                    label,
-                    span,
-                    "endif",
-                    "if",
-                ),
-            },
-            OStatement::While(_) => {
-                // A `while` with the label of an open `do` closes it; otherwise it opens a loop.
-                if let Some(Frame {
-                    open:
-                        Open::Loop {
-                            kind: LoopKind::Do, ..
-                        },
-                    ..
-                }) = stack.last()
-                    && top_matches(&stack)
-                {
-                    close_loop(&mut flow, &mut stack, i, LoopKind::Do);
-                } else {
-                    stack.push(Frame {
-                        label,
-                        index: i,
-                        open: Open::Loop {
-                            kind: LoopKind::While,
-                            exits: Vec::new(),
-                        },
-                    });
-                }
-            }
-            OStatement::Do | OStatement::Repeat(_) => stack.push(Frame {
-                label,
-                index: i,
-                open: Open::Loop {
-                    kind: if matches!(o.statement, OStatement::Do) {
-                        LoopKind::Do
-                    } else {
-                        LoopKind::Repeat
-                    },
-                    exits: Vec::new(),
-                },
-            }),
-            OStatement::EndWhile | OStatement::EndRepeat => {
-                let (kind, kw, opener) = if matches!(o.statement, OStatement::EndWhile) {
-                    (LoopKind::While, "endwhile", "while")
-                } else {
-                    (LoopKind::Repeat, "endrepeat", "repeat")
-                };
-                match stack.last() {
-                    Some(Frame {
-                        open: Open::Loop { kind: k, .. },
-                        ..
-                    }) if *k == kind && top_matches(&stack) => {
-                        close_loop(&mut flow, &mut stack, i, kind);
-                    }
-                    _ => unmatched(sink, &stack, &label_text, line_of, label, span, kw, opener),
-                }
-            }
-            OStatement::Break | OStatement::Continue => {
-                let kw = if matches!(o.statement, OStatement::Break) {
-                    "break"
-                } else {
-                    "continue"
-                };
-                let target = stack
-                    .iter_mut()
-                    .rev()
-                    .take_while(|f| !matches!(f.open, Open::Sub))
-                    .find(|f| f.label == label && matches!(f.open, Open::Loop { .. }));
-                match target {
-                    Some(Frame {
-                        open:
-                            Open::Loop {
-                                kind: LoopKind::Repeat,
-                                ..
-                            },
-                        ..
-                    }) => err(
-                        sink,
-                        span,
-                        DiagnosticKind::ControlFlow,
-                        format!(
-                            "{} {kw} in a repeat loop: as in LinuxCNC, break and continue apply to while and do loops only",
-                            label_text(label)
-                        ),
-                    ),
-                    Some(Frame {
-                        open:
-                            Open::Loop {
-                                kind: LoopKind::Do, ..
-                            },
-                        ..
-                    }) if kw == "continue" => err(
-                        sink,
-                        span,
-                        DiagnosticKind::ControlFlow,
-                        format!(
-                            "{} continue in a do … while loop is refused: LinuxCNC 2.9 does not continue such a loop (it leaves it), so the program would not run as written; use while … endwhile",
-                            label_text(label)
-                        ),
-                    ),
-                    Some(Frame {
-                        open: Open::Loop { exits, .. },
-                        ..
-                    }) => exits.push(i),
-                    _ => err(
-                        sink,
-                        span,
-                        DiagnosticKind::ControlFlow,
-                        format!(
-                            "{} {kw} outside a loop labelled {} (do, while or repeat)",
-                            label_text(label),
-                            label_text(label)
-                        ),
-                    ),
-                }
-            }
+            ),
+            OStatement::ElseIf(_) => a.branch(i, label, span, false),
+            OStatement::Else => a.branch(i, label, span, true),
+            OStatement::EndIf => a.endif(i, label, span),
+            OStatement::While(_) => a.while_(i, label),
+            OStatement::Do => a.open_loop(i, label, LoopKind::Do),
+            OStatement::Repeat(_) => a.open_loop(i, label, LoopKind::Repeat),
+            OStatement::EndWhile => a.end_loop(i, label, span, LoopKind::While),
+            OStatement::EndRepeat => a.end_loop(i, label, span, LoopKind::Repeat),
+            OStatement::Break => a.exit(i, label, span, "break"),
+            OStatement::Continue => a.exit(i, label, span, "continue"),
         }
     }
-    for f in stack {
-        let b = &program.blocks[f.index];
-        let what = match f.open {
-            Open::Sub => "sub … endsub",
-            Open::If { .. } => "if … endif",
-            Open::Loop {
-                kind: LoopKind::While,
-                ..
-            } => "while … endwhile",
-            Open::Loop {
-                kind: LoopKind::Do, ..
-            } => "do … while",
-            Open::Loop {
-                kind: LoopKind::Repeat,
-                ..
-            } => "repeat … endrepeat",
-        };
-        let span = b.o_word.as_deref().map_or(b.span, |o| o.keyword_span);
-        err(
-            sink,
+    a.unclosed();
+    a.flow
+}
+
+/// The pass's state: the open constructs, innermost last.
+struct Analyser<'p, 's> {
+    program: &'p Program,
+    sink: &'s mut Sink,
+    flow: Flow,
+    stack: Vec<Frame>,
+}
+
+impl Analyser<'_, '_> {
+    fn label(&self, l: OLabel) -> String {
+        match l {
+            OLabel::Number(n) => format!("o{n}"),
+            OLabel::Name(n) => format!("o<{}>", self.program.name(n)),
+        }
+    }
+
+    fn line(&self, block: usize) -> u32 {
+        self.program.blocks[block].line
+    }
+
+    fn err(&mut self, span: Span, msg: String) {
+        self.sink.push(Diagnostic::new(
             span,
+            Severity::Error,
             DiagnosticKind::ControlFlow,
-            format!(
-                "{} is never closed: {what} needs its closing statement with the same label",
-                label_text(f.label)
-            ),
+            msg,
+        ));
+    }
+
+    /// The innermost open construct, when it has this label.
+    fn top(&self, label: OLabel) -> Option<&Frame> {
+        self.stack.last().filter(|f| f.label == label)
+    }
+
+    fn open(&mut self, index: usize, label: OLabel, open: Open) {
+        self.stack.push(Frame { label, index, open });
+    }
+
+    fn open_loop(&mut self, index: usize, label: OLabel, kind: LoopKind) {
+        self.open(
+            index,
+            label,
+            Open::Loop {
+                kind,
+                exits: Vec::new(),
+            },
         );
     }
-    flow
-}
 
-fn close_loop(flow: &mut Flow, stack: &mut Vec<Frame>, end: usize, kind: LoopKind) {
-    if let Some(Frame {
-        index,
-        open: Open::Loop { exits, .. },
-        ..
-    }) = stack.pop()
-    {
-        flow.jumps.insert(index, Jump::LoopStart { end });
-        flow.jumps.insert(end, Jump::LoopEnd { start: index, kind });
-        for e in exits {
-            flow.jumps.insert(
-                e,
-                Jump::LoopExit {
-                    start: index,
-                    end,
-                    kind,
-                },
+    fn sub(&mut self, i: usize, label: OLabel, span: Span) {
+        if let Some(f) = self.stack.last() {
+            let msg = format!(
+                "{} sub inside {} opened at line {}: subroutines cannot be defined inside other statements",
+                self.label(label),
+                self.label(f.label),
+                self.line(f.index)
             );
+            self.err(span, msg);
+            return;
+        }
+        if let Some(&first) = self.flow.subs.get(&label) {
+            let msg = format!(
+                "subroutine {} is defined twice (first at line {})",
+                self.label(label),
+                self.line(first)
+            );
+            self.err(span, msg);
+        }
+        self.flow.subs.entry(label).or_insert(i);
+        self.open(i, label, Open::Sub);
+    }
+
+    fn endsub(&mut self, i: usize, label: OLabel, span: Span) {
+        match self.top(label) {
+            Some(Frame {
+                open: Open::Sub,
+                index,
+                ..
+            }) => {
+                let start = *index;
+                self.flow.jumps.insert(start, Jump::Sub { end: i });
+                self.stack.pop();
+            }
+            _ => self.unmatched(label, span, "endsub", "sub"),
         }
     }
-}
 
-/// Report a closing statement that does not close the innermost open construct.
-#[allow(clippy::too_many_arguments)]
-fn unmatched(
-    sink: &mut Sink,
-    stack: &[Frame],
-    label_text: &dyn Fn(OLabel) -> String,
-    line_of: impl Fn(usize) -> u32,
-    label: OLabel,
-    span: crate::diag::Span,
-    keyword: &str,
-    opener: &str,
-) {
-    let msg = match stack.last() {
-        Some(f) => format!(
-            "{} {keyword} does not match the innermost open statement, {} opened at line {} (expected {} {opener} before it)",
-            label_text(label),
-            label_text(f.label),
-            line_of(f.index),
-            label_text(label)
-        ),
-        None => format!(
-            "{} {keyword} without a {} {opener} before it",
-            label_text(label),
-            label_text(label)
-        ),
-    };
-    sink.push(Diagnostic::new(
-        span,
-        Severity::Error,
-        DiagnosticKind::ControlFlow,
-        msg,
-    ));
+    /// As in LinuxCNC, a return leaves the subroutine it is in, whatever its label.
+    fn ret(&mut self, label: OLabel, span: Span) {
+        if !self.stack.iter().any(|f| matches!(f.open, Open::Sub)) {
+            let msg = format!(
+                "{} return outside a subroutine definition (sub … endsub)",
+                self.label(label)
+            );
+            self.err(span, msg);
+        }
+    }
+
+    /// `elseif` or `else`.
+    fn branch(&mut self, i: usize, label: OLabel, span: Span, is_else: bool) {
+        let kw = if is_else { "else" } else { "elseif" };
+        let after_else = match self.stack.last_mut() {
+            Some(Frame {
+                open: Open::If { branches, has_else },
+                label: l,
+                ..
+            }) if *l == label => {
+                let after = *has_else;
+                branches.push(i);
+                *has_else |= is_else;
+                after
+            }
+            _ => return self.unmatched(label, span, kw, "if"),
+        };
+        if after_else {
+            let msg = format!("{} {kw} after the else of this if", self.label(label));
+            self.err(span, msg);
+        }
+    }
+
+    fn endif(&mut self, i: usize, label: OLabel, span: Span) {
+        let branches = match self.top(label) {
+            Some(Frame {
+                open: Open::If { branches, .. },
+                ..
+            }) => branches.clone(),
+            _ => return self.unmatched(label, span, "endif", "if"),
+        };
+        for (k, &b) in branches.iter().enumerate() {
+            let next = branches.get(k + 1).copied().unwrap_or(i);
+            let is_else = matches!(
+                self.program.blocks[b]
+                    .o_word
+                    .as_deref()
+                    .map(|o| &o.statement),
+                Some(OStatement::Else)
+            );
+            let jump = if is_else {
+                Jump::Else { endif: i }
+            } else {
+                Jump::Branch { next, endif: i }
+            };
+            self.flow.jumps.insert(b, jump);
+        }
+        self.stack.pop();
+    }
+
+    /// A `while` with the label of an open `do` closes it; otherwise it opens a loop.
+    fn while_(&mut self, i: usize, label: OLabel) {
+        let closes_do = matches!(
+            self.top(label),
+            Some(Frame {
+                open: Open::Loop {
+                    kind: LoopKind::Do,
+                    ..
+                },
+                ..
+            })
+        );
+        if closes_do {
+            self.close_loop(i, LoopKind::Do);
+        } else {
+            self.open_loop(i, label, LoopKind::While);
+        }
+    }
+
+    fn end_loop(&mut self, i: usize, label: OLabel, span: Span, kind: LoopKind) {
+        let matches_top = matches!(
+            self.top(label),
+            Some(Frame { open: Open::Loop { kind: k, .. }, .. }) if *k == kind
+        );
+        if matches_top {
+            self.close_loop(i, kind);
+        } else if kind == LoopKind::While {
+            self.unmatched(label, span, "endwhile", "while");
+        } else {
+            self.unmatched(label, span, "endrepeat", "repeat");
+        }
+    }
+
+    fn close_loop(&mut self, end: usize, kind: LoopKind) {
+        if let Some(Frame {
+            index,
+            open: Open::Loop { exits, .. },
+            ..
+        }) = self.stack.pop()
+        {
+            self.flow.jumps.insert(index, Jump::LoopStart { end });
+            self.flow
+                .jumps
+                .insert(end, Jump::LoopEnd { start: index, kind });
+            for e in exits {
+                self.flow.jumps.insert(
+                    e,
+                    Jump::LoopExit {
+                        start: index,
+                        end,
+                        kind,
+                    },
+                );
+            }
+        }
+    }
+
+    /// `break` or `continue`: the enclosing `while` or `do` loop with this label.
+    fn exit(&mut self, i: usize, label: OLabel, span: Span, kw: &str) {
+        let target = self
+            .stack
+            .iter_mut()
+            .rev()
+            .take_while(|f| !matches!(f.open, Open::Sub))
+            .find(|f| f.label == label && matches!(f.open, Open::Loop { .. }));
+        let kind = match target {
+            Some(Frame {
+                open: Open::Loop { kind, exits },
+                ..
+            }) => {
+                let allowed = *kind == LoopKind::While || (*kind == LoopKind::Do && kw == "break");
+                if allowed {
+                    exits.push(i);
+                    return;
+                }
+                Some(*kind)
+            }
+            _ => None,
+        };
+        let l = self.label(label);
+        let msg = match kind {
+            Some(LoopKind::Repeat) => format!(
+                "{l} {kw} in a repeat loop: as in LinuxCNC, break and continue apply to while and do loops only"
+            ),
+            Some(_) => format!(
+                "{l} continue in a do … while loop is refused: LinuxCNC 2.9 does not continue such a loop (it leaves it), so the program would not run as written; use while … endwhile"
+            ),
+            None => format!("{l} {kw} outside a loop labelled {l} (do, while or repeat)"),
+        };
+        self.err(span, msg);
+    }
+
+    /// A closing statement that does not close the innermost open construct.
+    fn unmatched(&mut self, label: OLabel, span: Span, keyword: &str, opener: &str) {
+        let l = self.label(label);
+        let msg = match self.stack.last() {
+            Some(f) => format!(
+                "{l} {keyword} does not match the innermost open statement, {} opened at line {} (expected {l} {opener} before it)",
+                self.label(f.label),
+                self.line(f.index),
+            ),
+            None => format!("{l} {keyword} without a {l} {opener} before it"),
+        };
+        self.err(span, msg);
+    }
+
+    /// Every construct still open at the end of the file.
+    fn unclosed(&mut self) {
+        for f in std::mem::take(&mut self.stack) {
+            let b = &self.program.blocks[f.index];
+            let what = match f.open {
+                Open::Sub => "sub … endsub",
+                Open::If { .. } => "if … endif",
+                Open::Loop {
+                    kind: LoopKind::While,
+                    ..
+                } => "while … endwhile",
+                Open::Loop {
+                    kind: LoopKind::Do, ..
+                } => "do … while",
+                Open::Loop {
+                    kind: LoopKind::Repeat,
+                    ..
+                } => "repeat … endrepeat",
+            };
+            let span = b.o_word.as_deref().map_or(b.span, |o| o.keyword_span);
+            let msg = format!(
+                "{} is never closed: {what} needs its closing statement with the same label",
+                self.label(f.label)
+            );
+            self.err(span, msg);
+        }
+    }
 }

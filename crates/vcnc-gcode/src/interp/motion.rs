@@ -15,6 +15,28 @@ fn coord_base(index: usize) -> u32 {
     5201 + 20 * index as u32
 }
 
+/// Signed sweep, rad, of an arc from `s` to `e` about `c` (in-plane coordinates) with `turns`
+/// turns: in (0, 2π] in the direction of travel for the first turn (equal points make a full
+/// circle), plus 2π for each further turn; positive counter-clockwise.
+fn arc_sweep(ccw: bool, s: [f64; 2], e: [f64; 2], c: [f64; 2], turns: u32) -> f64 {
+    let t0 = (s[1] - c[1]).atan2(s[0] - c[0]);
+    let t1 = (e[1] - c[1]).atan2(e[0] - c[0]);
+    let same = (e[0] - s[0]).hypot(e[1] - s[1]) <= 1e-9;
+    let mut d = if ccw { t1 - t0 } else { t0 - t1 };
+    if same {
+        d = TAU;
+    } else {
+        if d <= 0.0 {
+            d += TAU;
+        }
+        if d > TAU {
+            d -= TAU;
+        }
+    }
+    let magnitude = d + TAU * f64::from(turns - 1);
+    if ccw { magnitude } else { -magnitude }
+}
+
 fn rotate(x: f64, y: f64, deg: f64) -> (f64, f64) {
     if deg == 0.0 {
         return (x, y);
@@ -364,11 +386,7 @@ impl Interp<'_> {
         k: &Checked,
     ) -> Option<ArcMove> {
         let plane = self.st.plane;
-        let (u, v, w) = plane.axes();
-        let offset_letters = ['I', 'J', 'K'];
-        let lscale = self.lscale();
-        let (su, sv) = (start[u], start[v]);
-        let (eu, ev) = (end[u], end[v]);
+        let (u, v, _) = plane.axes();
         let turns = match k.w.get('P') {
             None => 1,
             Some((p, s)) => {
@@ -381,90 +399,15 @@ impl Interp<'_> {
                 p as u32
             }
         };
-        let pname = match plane {
-            Plane::XY => "G17",
-            Plane::ZX => "G18",
-            Plane::YZ => "G19",
-        };
+        let s = [start[u], start[v]];
+        let e = [end[u], end[v]];
         let r_word = k.w.get('R');
-        let has_offsets = offset_letters.iter().any(|&c| k.w.get(c).is_some());
-        let (cu, cv) = if let Some((r, rs)) = r_word {
-            if has_offsets {
-                self.err(
-                    rs,
-                    DiagnosticKind::Block,
-                    "arc with both R and I/J/K: use one form",
-                );
-                return None;
-            }
-            let r = r * lscale;
-            let (du, dv) = (eu - su, ev - sv);
-            let chord = du.hypot(dv);
-            if chord == 0.0 {
-                self.err(
-                    rs,
-                    DiagnosticKind::Motion,
-                    "R-form arc with the end point equal to the start: a full circle needs I/J/K",
-                );
-                return None;
-            }
-            if r == 0.0 {
-                self.err(rs, DiagnosticKind::Motion, "arc radius R0");
-                return None;
-            }
-            let half = chord / 2.0;
-            let h2 = r * r - half * half;
-            let h = if h2 >= 0.0 {
-                h2.sqrt()
-            } else if half - r.abs() <= self.opts.arc_r_tol_mm {
-                0.0
-            } else {
-                self.err(rs, DiagnosticKind::Motion, || {
-                    format!(
-                        "arc radius |R| = {:.6} mm is smaller than half the chord ({half:.6} mm)",
-                        r.abs()
-                    )
-                });
-                return None;
-            };
-            // Left normal of the chord; G3 with R > 0 has its centre on the left.
-            let (nu, nv) = (-dv / chord, du / chord);
-            let side = if ccw == (r > 0.0) { 1.0 } else { -1.0 };
-            (su + du / 2.0 + side * h * nu, sv + dv / 2.0 + side * h * nv)
-        } else {
-            let normal_letter = offset_letters[w];
-            if let Some((_, s)) = k.w.get(normal_letter) {
-                self.err(s, DiagnosticKind::Block, || {
-                    format!("'{normal_letter}' word in a {pname} arc: centre offsets must lie in the arc plane")
-                });
-                return None;
-            }
-            let ou = k.w.get(offset_letters[u]);
-            let ov = k.w.get(offset_letters[v]);
-            if ou.is_none() && ov.is_none() {
-                self.err(span, DiagnosticKind::Block, || {
-                    format!(
-                        "{pname} arc needs R or at least one of {}, {}",
-                        offset_letters[u], offset_letters[v]
-                    )
-                });
-                return None;
-            }
-            if self.st.arc_absolute {
-                // G90.1: I J K are the centre itself, in program coordinates.
-                (
-                    ou.map_or(su, |o| o.0 * lscale),
-                    ov.map_or(sv, |o| o.0 * lscale),
-                )
-            } else {
-                (
-                    su + ou.map_or(0.0, |o| o.0 * lscale),
-                    sv + ov.map_or(0.0, |o| o.0 * lscale),
-                )
-            }
+        let c = match r_word {
+            Some(r) => self.arc_centre_r(ccw, s, e, r, k)?,
+            None => self.arc_centre_offsets(s, span, k)?,
         };
-        let r0 = (su - cu).hypot(sv - cv);
-        let r1 = (eu - cu).hypot(ev - cv);
+        let r0 = (s[0] - c[0]).hypot(s[1] - c[1]);
+        let r1 = (e[0] - c[0]).hypot(e[1] - c[1]);
         if r0.is_nan() || r0 <= 0.0 || !r0.is_finite() || !r1.is_finite() {
             self.err(
                 span,
@@ -473,52 +416,143 @@ impl Interp<'_> {
             );
             return None;
         }
-        if r_word.is_none() {
-            let abs_err = (r1 - r0).abs();
-            let rel_err = abs_err / r0.max(r1);
-            if abs_err > 100.0 * self.opts.arc_abs_tol_mm
-                || (abs_err > self.opts.arc_abs_tol_mm && rel_err > self.opts.arc_rel_tol)
-            {
-                self.err(span, DiagnosticKind::Motion, || {
-                    format!(
-                        "radius to the end of the arc differs from the radius to the start: \
-                         r_start = {r0:.6} mm, r_end = {r1:.6} mm, difference {abs_err:.6} mm \
-                         ({:.4} %)",
-                        100.0 * rel_err
-                    )
-                });
-                return None;
-            }
+        if r_word.is_none() && !self.radii_agree(r0, r1, span) {
+            return None;
         }
-        let t0 = (sv - cv).atan2(su - cu);
-        let t1 = (ev - cv).atan2(eu - cu);
-        let same = (eu - su).hypot(ev - sv) <= 1e-9;
-        // Unsigned sweep in (0, 2π] in the direction of travel; equal points make a full circle.
-        let mut d = if ccw { t1 - t0 } else { t0 - t1 };
-        if same {
-            d = TAU;
-        } else {
-            if d <= 0.0 {
-                d += TAU;
-            }
-            if d > TAU {
-                d -= TAU;
-            }
-        }
-        let magnitude = d + TAU * f64::from(turns - 1);
-        let sweep = if ccw { magnitude } else { -magnitude };
-        if !(sweep.is_finite() && cu.is_finite() && cv.is_finite()) {
+        let sweep = arc_sweep(ccw, s, e, c, turns);
+        if !(sweep.is_finite() && c[0].is_finite() && c[1].is_finite()) {
             self.err(span, DiagnosticKind::Motion, "arc geometry is out of range");
             return None;
         }
         Some(ArcMove {
             plane,
-            centre: [cu, cv],
+            centre: c,
             sweep_rad: sweep,
             radius_start_mm: r0,
             radius_end_mm: r1,
             turns,
         })
+    }
+
+    fn plane_name(&self) -> &'static str {
+        match self.st.plane {
+            Plane::XY => "G17",
+            Plane::ZX => "G18",
+            Plane::YZ => "G19",
+        }
+    }
+
+    /// Centre of an `R`-format arc from `s` to `e` (in-plane coordinates): on the left of the
+    /// chord for `G3` with R > 0 (and for `G2` with R < 0).
+    fn arc_centre_r(
+        &mut self,
+        ccw: bool,
+        s: [f64; 2],
+        e: [f64; 2],
+        (r, rs): (f64, Span),
+        k: &Checked,
+    ) -> Option<[f64; 2]> {
+        if ['I', 'J', 'K'].iter().any(|&c| k.w.get(c).is_some()) {
+            self.err(
+                rs,
+                DiagnosticKind::Block,
+                "arc with both R and I/J/K: use one form",
+            );
+            return None;
+        }
+        let r = r * self.lscale();
+        let (du, dv) = (e[0] - s[0], e[1] - s[1]);
+        let chord = du.hypot(dv);
+        if chord == 0.0 {
+            self.err(
+                rs,
+                DiagnosticKind::Motion,
+                "R-form arc with the end point equal to the start: a full circle needs I/J/K",
+            );
+            return None;
+        }
+        if r == 0.0 {
+            self.err(rs, DiagnosticKind::Motion, "arc radius R0");
+            return None;
+        }
+        let half = chord / 2.0;
+        let h2 = r * r - half * half;
+        let h = if h2 >= 0.0 {
+            h2.sqrt()
+        } else if half - r.abs() <= self.opts.arc_r_tol_mm {
+            0.0
+        } else {
+            self.err(rs, DiagnosticKind::Motion, || {
+                format!(
+                    "arc radius |R| = {:.6} mm is smaller than half the chord ({half:.6} mm)",
+                    r.abs()
+                )
+            });
+            return None;
+        };
+        let (nu, nv) = (-dv / chord, du / chord);
+        let side = if ccw == (r > 0.0) { 1.0 } else { -1.0 };
+        Some([
+            s[0] + du / 2.0 + side * h * nu,
+            s[1] + dv / 2.0 + side * h * nv,
+        ])
+    }
+
+    /// Centre of an `I J K` arc: offsets from the start (`G91.1`) or the centre itself
+    /// (`G90.1`), in the plane's two axes; the normal axis's letter is an error.
+    fn arc_centre_offsets(&mut self, s: [f64; 2], span: Span, k: &Checked) -> Option<[f64; 2]> {
+        let (u, v, w) = self.st.plane.axes();
+        let letters = ['I', 'J', 'K'];
+        let pname = self.plane_name();
+        if let Some((_, sp)) = k.w.get(letters[w]) {
+            self.err(sp, DiagnosticKind::Block, || {
+                format!(
+                    "'{}' word in a {pname} arc: centre offsets must lie in the arc plane",
+                    letters[w]
+                )
+            });
+            return None;
+        }
+        let (ou, ov) = (k.w.get(letters[u]), k.w.get(letters[v]));
+        if ou.is_none() && ov.is_none() {
+            self.err(span, DiagnosticKind::Block, || {
+                format!(
+                    "{pname} arc needs R or at least one of {}, {}",
+                    letters[u], letters[v]
+                )
+            });
+            return None;
+        }
+        let l = self.lscale();
+        Some(if self.st.arc_absolute {
+            [ou.map_or(s[0], |o| o.0 * l), ov.map_or(s[1], |o| o.0 * l)]
+        } else {
+            [
+                s[0] + ou.map_or(0.0, |o| o.0 * l),
+                s[1] + ov.map_or(0.0, |o| o.0 * l),
+            ]
+        })
+    }
+
+    /// LinuxCNC's test of a centre-format arc (`interp_arc.cc`): the radius difference may not
+    /// exceed 100 × the absolute tolerance, nor both the absolute and the relative tolerance.
+    fn radii_agree(&mut self, r0: f64, r1: f64, span: Span) -> bool {
+        let abs_err = (r1 - r0).abs();
+        let rel_err = abs_err / r0.max(r1);
+        if abs_err > 100.0 * self.opts.arc_abs_tol_mm
+            || (abs_err > self.opts.arc_abs_tol_mm && rel_err > self.opts.arc_rel_tol)
+        {
+            self.err(span, DiagnosticKind::Motion, || {
+                format!(
+                    "radius to the end of the arc differs from the radius to the start: \
+                     r_start = {r0:.6} mm, r_end = {r1:.6} mm, difference {abs_err:.6} mm \
+                     ({:.4} %)",
+                    100.0 * rel_err
+                )
+            });
+            return false;
+        }
+        true
     }
 
     /// Tool length group: `G43 [H]`, `G43.1 <axes>`, `G43.2 H|<axes>`, `G49`, vcnc's `G43.4`.
