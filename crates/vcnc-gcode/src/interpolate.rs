@@ -1040,7 +1040,7 @@ fn sample(
         })
         .collect();
     let mut tcp = Vec::with_capacity(len);
-    let mut blocks = Vec::new();
+    let mut blocks = Vec::with_capacity(tp.moves.len());
     let emit = |p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], axes: &mut [AxisTrack]| {
         for (track, &i) in axes.iter_mut().zip(&idx) {
             track.pos.push(p[i]);

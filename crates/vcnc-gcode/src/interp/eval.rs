@@ -36,8 +36,11 @@ pub(super) enum Target {
 /// Parameter storage apart from the call frames' locals.
 #[derive(Debug, Clone)]
 pub(super) struct Params {
-    /// `#0`..=`#5601` (index 0 unused).
-    pub(super) numbered: Vec<f64>,
+    /// `#0`..=`#5601` (index 0 unused) once a parameter has been written; empty before, when
+    /// reads come from `initial` (most programs never write one: no 45 kB table for them).
+    numbered: Vec<f64>,
+    /// The parameters given at start.
+    initial: crate::tables::ParameterTable,
     /// Global named parameters set by the program (`#<_name>`).
     pub(super) globals: HashMap<NameId, f64>,
     /// `#<_value>`: the last subroutine's return value.
@@ -48,14 +51,12 @@ pub(super) struct Params {
 
 impl Params {
     pub(super) fn new(table: &crate::tables::ParameterTable) -> Self {
-        let mut numbered = vec![0.0; MAX_PARAMETER as usize + 1];
-        for (&n, &v) in &table.values {
-            if let Some(slot) = numbered.get_mut(n as usize) {
-                *slot = v;
-            }
-        }
+        let mut initial = table.clone();
+        // LinuxCNC's parameter files always hold #5220 (the coordinate system); absent, G54.
+        initial.values.entry(5220).or_insert(1.0);
         Params {
-            numbered,
+            numbered: Vec::new(),
+            initial,
             globals: HashMap::new(),
             value: 0.0,
             value_returned: false,
@@ -63,10 +64,28 @@ impl Params {
     }
 
     pub(super) fn get(&self, n: u32) -> f64 {
-        self.numbered.get(n as usize).copied().unwrap_or(0.0)
+        if self.numbered.is_empty() {
+            self.initial.get(n)
+        } else {
+            self.numbered.get(n as usize).copied().unwrap_or(0.0)
+        }
     }
 
     pub(super) fn set(&mut self, n: u32, v: f64) {
+        if n > MAX_PARAMETER {
+            return;
+        }
+        if self.numbered.is_empty() {
+            if self.initial.get(n) == v {
+                return;
+            }
+            self.numbered = vec![0.0; MAX_PARAMETER as usize + 1];
+            for (&k, &x) in &self.initial.values {
+                if let Some(slot) = self.numbered.get_mut(k as usize) {
+                    *slot = x;
+                }
+            }
+        }
         if let Some(slot) = self.numbered.get_mut(n as usize) {
             *slot = v;
         }
