@@ -10,14 +10,14 @@
 //!
 //! The strict run uses machine-like limits where B cannot move (velocity and acceleration 0, as
 //! on a table-tilting A/C machine), so the "axis cannot move" path is reached; the lenient run
-//! uses uniform limits, outputs all six axes and stretches infeasible `G93` blocks.
+//! uses uniform limits and outputs all six axes. Infeasible `G93` blocks run at the limits.
 
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use vcnc_gcode::{
-    AxisLimits, InterpOptions, InterpolateOptions, InverseTimePolicy, Limits, ParseOptions,
-    Trajectory, interpolate, interpret, parse_bytes,
+    AxisLimits, AxisName, InterpOptions, InterpolateOptions, Limits, ParseOptions, Trajectory,
+    interpolate, interpret, parse_bytes,
 };
 
 /// Sample budget: 50 s at 1 ms. Longer programs must be refused, not computed. (Sampling
@@ -95,6 +95,8 @@ fn run(data: &[u8], lenient: bool) {
         lenient,
         tcp_on_mcodes: vec![428],
         tcp_off_mcodes: vec![429],
+        // O-word loops: a bounded budget keeps every input fast (an endless loop is an error).
+        max_loop_iterations: 100_000,
         ..InterpOptions::default()
     };
     let toolpath = match interpret(&program, &interp_opts) {
@@ -116,8 +118,7 @@ fn run(data: &[u8], lenient: bool) {
             Limits::uniform(100.0, 1000.0),
             InterpolateOptions {
                 max_samples: MAX_SAMPLES,
-                axes: Some(vec!['X', 'Y', 'Z', 'A', 'B', 'C']),
-                inverse_time: InverseTimePolicy::Stretch,
+                axes: Some(AxisName::ALL.to_vec()),
                 ..InterpolateOptions::default()
             },
         )

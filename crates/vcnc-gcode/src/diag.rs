@@ -38,6 +38,46 @@ impl fmt::Display for Severity {
     }
 }
 
+/// What kind of problem a [`Diagnostic`] reports, for programs that act on it (the message is
+/// for people). The bad-input cases of `LANGUAGE.md` each have their own kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DiagnosticKind {
+    /// Malformed text: numbers, comments, words without values, stray characters.
+    Syntax,
+    /// A `[` without its `]`, or a `]` without its `[`.
+    UnbalancedBracket,
+    /// A parameter number that is not a whole number in 1..=5601.
+    ParameterNumber,
+    /// A named parameter read before it was set.
+    UndefinedParameter,
+    /// Division by zero, or a function outside its domain (`SQRT` of a negative, …).
+    Arithmetic,
+    /// O-word statements that do not match (`endsub` without `sub`, `endif` without `if`, …).
+    ControlFlow,
+    /// An O-word with an unknown keyword (`o100 frobnicate`).
+    UnknownOWord,
+    /// A call of a subroutine that the file does not define.
+    UndefinedSubroutine,
+    /// The loop-iteration budget is exhausted: the program does not end.
+    LoopBudget,
+    /// Subroutine calls nested deeper than the limit.
+    CallDepth,
+    /// An unknown or unsupported G-code, M-code or word.
+    Unsupported,
+    /// Cutter radius compensation (`G41`, `G42`), which vcnc does not perform.
+    CutterCompensation,
+    /// Words that conflict, are missing or have no code that uses them.
+    Block,
+    /// A move that cannot be made (arc geometry, missing feed, bad offsets, …).
+    Motion,
+    /// The program stopped itself with `(ABORT, …)`.
+    Abort,
+    /// A size limit was reached (line length, blocks, moves, diagnostics).
+    Limit,
+    /// Anything else, including every warning.
+    Other,
+}
+
 /// One problem found in a program, with its position.
 ///
 /// `Display` prints `line:col: message`; the binary prefixes the file name
@@ -50,27 +90,35 @@ pub struct Diagnostic {
     pub col: u32,
     /// Error or warning.
     pub severity: Severity,
+    /// What kind of problem it is.
+    pub kind: DiagnosticKind,
     /// What is wrong, in words that name the offending text and values.
     pub message: String,
 }
 
 impl Diagnostic {
-    /// An error at `span`.
+    /// An error of kind [`DiagnosticKind::Other`] at `span`.
     pub fn error(span: Span, message: impl Into<String>) -> Self {
-        Diagnostic {
-            line: span.line,
-            col: span.col,
-            severity: Severity::Error,
-            message: message.into(),
-        }
+        Diagnostic::new(span, Severity::Error, DiagnosticKind::Other, message)
     }
 
     /// A warning at `span`.
     pub fn warning(span: Span, message: impl Into<String>) -> Self {
+        Diagnostic::new(span, Severity::Warning, DiagnosticKind::Other, message)
+    }
+
+    /// A diagnostic of any severity and kind at `span`.
+    pub fn new(
+        span: Span,
+        severity: Severity,
+        kind: DiagnosticKind,
+        message: impl Into<String>,
+    ) -> Self {
         Diagnostic {
             line: span.line,
             col: span.col,
-            severity: Severity::Warning,
+            severity,
+            kind,
             message: message.into(),
         }
     }
@@ -134,14 +182,15 @@ impl Sink {
 
     /// Report a diagnostic whose message is built only if it will be stored (junk input can
     /// produce millions of diagnostics; formatting them all would dominate the run time).
-    pub(crate) fn report(&mut self, span: Span, severity: Severity, msg: &dyn Fn() -> String) {
+    pub(crate) fn report(
+        &mut self,
+        span: Span,
+        severity: Severity,
+        kind: DiagnosticKind,
+        msg: &dyn Fn() -> String,
+    ) {
         if self.list.len() < self.max {
-            self.push(Diagnostic {
-                line: span.line,
-                col: span.col,
-                severity,
-                message: msg(),
-            });
+            self.push(Diagnostic::new(span, severity, kind, msg()));
         } else {
             self.suppressed += 1;
             if severity == Severity::Error {
@@ -151,14 +200,15 @@ impl Sink {
     }
 
     /// [`Sink::report`] for any [`Message`].
-    pub(crate) fn report_msg(&mut self, span: Span, severity: Severity, msg: impl Message) {
+    pub(crate) fn report_msg(
+        &mut self,
+        span: Span,
+        severity: Severity,
+        kind: DiagnosticKind,
+        msg: impl Message,
+    ) {
         if self.list.len() < self.max {
-            self.push(Diagnostic {
-                line: span.line,
-                col: span.col,
-                severity,
-                message: msg.build(),
-            });
+            self.push(Diagnostic::new(span, severity, kind, msg.build()));
         } else {
             self.suppressed += 1;
             if severity == Severity::Error {
@@ -201,6 +251,7 @@ impl Sink {
                 line: self.last_span.line,
                 col: self.last_span.col,
                 severity,
+                kind: DiagnosticKind::Limit,
                 message: format!(
                     "{} further diagnostic(s) suppressed (the limit is {})",
                     self.suppressed, self.max

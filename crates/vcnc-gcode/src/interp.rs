@@ -1,62 +1,75 @@
-//! G-code *meaning*: the modal interpreter that turns parsed blocks into a [`Toolpath`].
+//! G-code *meaning*: the interpreter that runs a parsed [`Program`] and produces a
+//! [`Toolpath`], as LinuxCNC's RS274/NGC interpreter does. The supported language — codes,
+//! parameters, expressions, O-word control flow, offsets, canned cycles — and every deliberate
+//! difference from LinuxCNC are listed in this crate's `LANGUAGE.md`.
 //!
-//! Supported (docs/gcode.md; LinuxCNC / NIST RS274NGC v3 semantics where docs/gcode.md is silent):
+//! Stages, in the order LinuxCNC's interpreter uses for each block (`Interp::read` →
+//! `check_items` → `execute_block`):
 //!
-//! | group | codes |
-//! |---|---|
-//! | motion | `G0 G1 G2 G3` (arcs: `I J K` centre offsets, always incremental, or `R`; `P` turns) |
-//! | non-modal | `G4 P` dwell, `P` in seconds |
-//! | plane | `G17 G18 G19` (arc axes (X,Y), (Z,X), (Y,Z): the normal is +Z, +Y, +X) |
-//! | units | `G20` inch, `G21` mm |
-//! | distance | `G90` absolute, `G91` incremental |
-//! | feed mode | `G93` inverse time, `G94` units per minute |
-//! | path | `G61` exact stop (default), `G64` continuous (optional `P` tolerance in program units, `Q` accepted) |
-//! | tool-centre point | `G43.4` on (optional `H`), `G49` off, plus M-codes mapped by [`InterpOptions`] |
-//! | M | `M0 M1` pause, `M2 M30` end, `M3 M4 M5` spindle, `M6` tool change, `M7 M8 M9` coolant |
-//! | words | `F S T`, axes `X Y Z A B C` |
+//! 1. **collect** (module `block`): evaluate every word's value and every parameter assignment with
+//!    the parameter values from *before* the line, and sort the words into G-codes, M-codes
+//!    and letter values;
+//! 2. **check**: modal-group conflicts, repeated words, words no code uses, missing words;
+//! 3. **apply**: store the line's parameter assignments (they take effect at the end of the
+//!    line, before its codes run), then execute in LinuxCNC's order: feed mode, `F`, `S`, `T`,
+//!    M-codes, `G4`, plane, units, cutter compensation, tool length offset, coordinate system,
+//!    path mode, distance modes, retract mode, `G10`/`G28`/`G30`/`G52`/`G92`, motion, stops.
 //!
-//! Order of execution inside a block (NIST RS274NGC v3, section 3.8): feed mode, F, S, T, M6,
-//! spindle, coolant, dwell, plane, units, tool-centre point, path mode, distance mode, motion,
-//! stop. One deliberate difference: an `F` word is read in the length units the block ends up
-//! in (`G20 G1 X1 F10` is 10 inch/min), which is what a programmer writing that line means.
-//! The physical feed is kept when the units change later.
+//! O-word statements (subroutines, conditions, loops) are matched once before the run
+//! (module `flow`), so the run is linear in the program length apart from the loops themselves. A
+//! program that does not end is stopped by [`InterpOptions::max_loop_iterations`].
 //!
-//! Units are converted once, here: every length in the [`Toolpath`] is in mm, every angle in
-//! degrees (`G20` scales X Y Z I J K R and linear feeds by 25.4; A B C are always degrees).
+//! **Coordinates.** The interpreter keeps the machine position (machine coordinates, mm and
+//! deg) and converts each programmed point as LinuxCNC's canonical layer does:
+//! $$ \mathbf{m} = R_z(\theta)\,(\mathbf{p} + \mathbf{o}_{92}) + \mathbf{o}_{5x} + \mathbf{t} $$
+//! with $\mathbf{p}$ the programmed point in mm and deg, $\mathbf{o}_{92}$ the G92/G52 offset,
+//! $R_z(\theta)$ the rotation of the active coordinate system (`G10 L2 R`) about Z,
+//! $\mathbf{o}_{5x}$ its offset (G54–G59.3) and $\mathbf{t}$ the tool offset (G43). Every
+//! length in the [`Toolpath`] is in mm and every angle in degrees.
+//!
+//! **Start.** The machine rests at [`InterpOptions::start`] (default: every axis at 0, as after
+//! homing) and the first block moves from there, as on a control. ([`StartPosition::FirstMove`]
+//! keeps the behaviour of vcnc before this rule, for callers that have no start position yet.)
 //!
 //! **Feed rule** (docs/gcode.md, NIST RS274NGC v3 section 2.1.2.5): under `G94` the feed `F`
 //! applies to the XYZ path length (in TCP mode that *is* the tool-tip path) whenever it is
 //! non-zero, and the rotary axes move in proportion; a move of rotary axes alone takes `F` in
 //! deg/min along $\sqrt{\Delta A^2+\Delta B^2+\Delta C^2}$. Under `G93` each feed block must carry
-//! `F` and lasts $1/F$ minutes.
+//! `F` and lasts $1/F$ minutes. As in LinuxCNC, `F` is read in the length units in force when
+//! the block starts (`G20 G1 X1 F10` is 10 mm/min after `G21`): the feed comes before the
+//! units change in the order above.
 //!
-//! **Initial position**: with [`InterpOptions::initial_position`] `None`, the machine is taken to
-//! rest at the target of the first `G0`/`G1` block (axes it does not name are 0), so a program's
-//! opening positioning block defines [`Toolpath::start`] and costs no motion. Real programs
-//! begin with such a block. If the first motion is an arc, it starts from all-zero axes and a
-//! warning says so.
-//!
-//! Unknown words and codes are errors with line:column, or warnings under
-//! [`InterpOptions::lenient`] (then ignored). Modal-group conflicts, repeated words, words without
-//! a code that uses them, arcs that do not fit, feed moves without a feed, and `G93` feed blocks
-//! without `F` are always errors.
+//! Unknown words and codes are errors with line:column. [`InterpOptions::lenient`] downgrades
+//! to warnings only what cannot change the path (`E` words, user M-codes `M100`–`M199`);
+//! anything that changes what moves where is an error even then.
+
+mod block;
+mod cycles;
+mod eval;
+mod flow;
+mod motion;
+
+use std::collections::HashMap;
 
 use crate::AxisName;
-use crate::diag::{Diagnostic, Message, Severity, Sink, Span};
-use crate::syntax::Program;
-use std::f64::consts::TAU;
+use crate::diag::{Diagnostic, DiagnosticKind, Message, Severity, Sink, Span};
+use crate::syntax::{NameId, OLabel, OStatement, OWord, Program};
+use crate::tables::{LengthUnit, ParameterTable, ToolTable};
+use eval::Params;
+use flow::{Flow, Jump, LoopKind};
 
 const MM_PER_INCH: f64 = 25.4;
 
 /// Interpreter settings. Plain data; [`Default`] gives the documented defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InterpOptions {
-    /// Downgrade unknown words and codes (and the parser's dialect problems, in
-    /// [`crate::load`]) to warnings. Default `false`.
+    /// Downgrade to warnings the problems that cannot change the path: unknown `E` words and
+    /// user M-codes `M100`–`M199` (and the parser's dialect problems, in [`crate::load`]).
+    /// Default `false`.
     pub lenient: bool,
-    /// Start position of X Y Z A B C (mm, mm, mm, deg, deg, deg). `None` (default): rest at the
-    /// first motion block's target (see the module doc).
-    pub initial_position: Option<[f64; 6]>,
+    /// Where the machine rests before the first block. Default
+    /// [`StartPosition::Machine`] with every axis at 0, as after homing.
+    pub start: StartPosition,
     /// Block-delete switch: when `true`, lines starting with `/` are skipped. Default `false`
     /// (switch off: they run), as on LinuxCNC and Fanuc controls at power-up.
     pub block_delete: bool,
@@ -78,13 +91,29 @@ pub struct InterpOptions {
     pub arc_r_tol_mm: f64,
     /// Most diagnostics stored (the rest are counted). Default 1000.
     pub max_diagnostics: usize,
+    /// Numbered parameters at start (work offsets, G28/G30 positions, …), e.g. from a LinuxCNC
+    /// parameter file ([`crate::parse_parameter_file`]). Default: all 0, G54 active.
+    pub parameters: ParameterTable,
+    /// Tools for `G43 H`, e.g. from a LinuxCNC tool table ([`crate::parse_tool_table`]).
+    /// Default empty.
+    pub tools: ToolTable,
+    /// Length unit of [`InterpOptions::parameters`] and [`InterpOptions::tools`] (LinuxCNC
+    /// `[TRAJ] LINEAR_UNITS`). Default mm.
+    pub machine_units: LengthUnit,
+    /// Most loop iterations (all `while`, `do` and `repeat` loops together); one more is an
+    /// error naming the loop's line, so a program that never ends stops. Default 10 000 000.
+    pub max_loop_iterations: u64,
+    /// Deepest nesting of subroutine calls. Default 10 (LinuxCNC `INTERP_SUB_ROUTINE_LEVELS`).
+    pub max_call_depth: usize,
+    /// Most moves in the toolpath. Default 10 000 000 (about 1.5 GB of moves).
+    pub max_moves: usize,
 }
 
 impl Default for InterpOptions {
     fn default() -> Self {
         InterpOptions {
             lenient: false,
-            initial_position: None,
+            start: StartPosition::default(),
             block_delete: false,
             tcp_on_mcodes: Vec::new(),
             tcp_off_mcodes: Vec::new(),
@@ -92,7 +121,33 @@ impl Default for InterpOptions {
             arc_rel_tol: 0.001,
             arc_r_tol_mm: 0.00127,
             max_diagnostics: 1000,
+            parameters: ParameterTable::default(),
+            tools: ToolTable::default(),
+            machine_units: LengthUnit::Mm,
+            max_loop_iterations: 10_000_000,
+            max_call_depth: 10,
+            max_moves: 10_000_000,
         }
+    }
+}
+
+/// Where the machine rests before the first block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StartPosition {
+    /// At X Y Z A B C (mm, mm, mm, deg, deg, deg, machine coordinates); the first block moves
+    /// from there, as on a control. In tool-centre-point mode the interpreter reads X Y Z as the
+    /// tool tip (it has no kinematics).
+    Machine([f64; 6]),
+    /// vcnc's behaviour before issue 13, for callers without a start position: the machine
+    /// rests at the target of the first straight motion (axes it does not name at 0), so that
+    /// motion costs nothing; a first arc starts from all-zero axes, with a warning. A control
+    /// does not do this: it hides the program's first move.
+    FirstMove,
+}
+
+impl Default for StartPosition {
+    fn default() -> Self {
+        StartPosition::Machine([0.0; 6])
     }
 }
 
@@ -126,7 +181,8 @@ impl Plane {
 pub struct ArcMove {
     /// The arc plane.
     pub plane: Plane,
-    /// Centre in the plane: coordinates along the plane's first and second axes, mm.
+    /// Centre in the plane: coordinates along the plane's first and second axes, mm (machine
+    /// coordinates).
     pub centre: [f64; 2],
     /// Signed swept angle, rad: positive counter-clockwise (`G3`), negative clockwise (`G2`);
     /// includes the extra full turns of a `P` word.
@@ -143,13 +199,14 @@ pub struct ArcMove {
 /// What a move does.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MoveKind {
-    /// `G0`: straight line at the axis limits.
+    /// `G0` (and the positioning moves of cycles, `G28`, `G30`): straight line at the axis
+    /// limits.
     Rapid,
-    /// `G1`: straight line at the feed.
+    /// `G1` (and the feed moves of cycles): straight line at the feed.
     Linear,
     /// `G2`/`G3`: arc at the feed; the axes off the plane move in proportion to the angle.
     Arc(ArcMove),
-    /// `G4`: hold still.
+    /// `G4` (and cycle dwells): hold still.
     Dwell {
         /// Dwell time, s.
         seconds: f64,
@@ -166,7 +223,7 @@ pub enum Feed {
     InverseTime(f64),
 }
 
-/// One move of the toolpath, in mm and degrees.
+/// One move of the toolpath, in mm and degrees (machine coordinates).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Move {
     /// Source line (1-based).
@@ -195,7 +252,8 @@ pub struct Move {
 /// The interpreted program: moves in mm and degrees.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Toolpath {
-    /// X Y Z A B C where the machine rests before the first move (mm, mm, mm, deg, deg, deg).
+    /// X Y Z A B C where the machine rests before the first move (mm, mm, mm, deg, deg, deg):
+    /// [`InterpOptions::start`].
     pub start: [f64; 6],
     /// Moves in program order (zero-length motions are dropped).
     pub moves: Vec<Move>,
@@ -226,29 +284,109 @@ impl Toolpath {
     }
 }
 
+/// Canned cycles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Motion {
+pub(crate) enum Cycle {
+    G73,
+    G81,
+    G82,
+    G83,
+    G85,
+    G89,
+}
+
+/// Modal motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Motion {
     Rapid,
     Linear,
     Cw,
     Ccw,
+    Cycle(Cycle),
+}
+
+impl Motion {
+    /// The G-code × 10 (`G73` → 730).
+    pub(crate) fn code10(self) -> u32 {
+        match self {
+            Motion::Rapid => 0,
+            Motion::Linear => 10,
+            Motion::Cw => 20,
+            Motion::Ccw => 30,
+            Motion::Cycle(c) => match c {
+                Cycle::G73 => 730,
+                Cycle::G81 => 810,
+                Cycle::G82 => 820,
+                Cycle::G83 => 830,
+                Cycle::G85 => 850,
+                Cycle::G89 => 890,
+            },
+        }
+    }
+}
+
+/// Sticky values of canned cycles (LinuxCNC `cycle_*` settings), program units.
+#[derive(Debug, Clone, Copy, Default)]
+struct CycleMemory {
+    /// Initial level: the clear-plane height (normal axis) when the cycles started.
+    il: Option<f64>,
+    r: f64,
+    z: f64,
+    p: f64,
+    q: f64,
 }
 
 /// Modal state.
 #[derive(Debug, Clone)]
 struct State {
+    /// Machine position, mm and deg.
     pos: [f64; 6],
+    /// `None` after `G80` (and at start).
     motion: Option<Motion>,
     plane: Plane,
     inch: bool,
     absolute: bool,
+    /// `G90.1`: arc centres I J K absolute.
+    arc_absolute: bool,
     inverse_time: bool,
     exact_stop: bool,
     tcp: bool,
-    /// Current `G94` feed, mm/min (linear) and the raw value (deg/min for rotary moves).
+    /// Current `G94` feed: mm/min (linear) and the raw value (deg/min for rotary moves).
     feed: Option<(f64, f64)>,
     blend_tol: Option<f64>,
+    spindle_rpm: f64,
+    current_tool: u32,
+    selected_tool: u32,
+    /// Tool offset X Y Z A B C, mm and deg.
+    tool_offset: [f64; 6],
+    /// Active coordinate system, 1 (G54) … 9 (G59.3).
+    coord_index: usize,
+    /// Its offset, mm and deg.
+    g5x: [f64; 6],
+    /// Its XY rotation, deg.
+    rotation_deg: f64,
+    /// G92/G52 offset, mm and deg.
+    g92: [f64; 6],
+    /// `G99` (true, LinuxCNC's start-up mode) or `G98`.
+    retract_r_plane: bool,
+    cycle: CycleMemory,
+    /// Line being executed.
+    line: u32,
+    /// `false` until the first motion under [`StartPosition::FirstMove`].
     started: bool,
+}
+
+/// One subroutine call (the main program is the first frame).
+#[derive(Debug, Default)]
+struct Frame {
+    /// Block to continue at after the return.
+    return_to: usize,
+    /// The caller's `#1`–`#30`.
+    saved: Option<Box<[f64; 30]>>,
+    /// Named local parameters.
+    locals: HashMap<NameId, f64>,
+    /// Active `repeat` loops: (`repeat` block, iterations left).
+    repeats: Vec<(usize, u64)>,
 }
 
 /// Interpret a parsed program.
@@ -258,69 +396,8 @@ pub fn interpret(
     program: &Program,
     opts: &InterpOptions,
 ) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
-    let mut it = Interp {
-        opts,
-        sink: Sink::new(opts.max_diagnostics),
-        st: State {
-            pos: opts.initial_position.unwrap_or([0.0; 6]),
-            motion: None,
-            plane: Plane::XY,
-            inch: false,
-            absolute: true,
-            inverse_time: false,
-            exact_stop: true,
-            tcp: false,
-            feed: None,
-            blend_tol: None,
-            started: opts.initial_position.is_some(),
-        },
-        tp: Toolpath {
-            start: opts.initial_position.unwrap_or([0.0; 6]),
-            ..Toolpath::default()
-        },
-    };
-    if let Some(p) = opts.initial_position
-        && p.iter().any(|v| !v.is_finite())
-    {
-        it.sink.push(Diagnostic::error(
-            Span {
-                line: 1,
-                col: 1,
-                start: 0,
-                end: 0,
-            },
-            format!("initial position {p:?} is not finite"),
-        ));
-    }
-    let mut seen_percent = false;
-    let mut ended_at: Option<u32> = None;
-    for (bi, block) in program.blocks.iter().enumerate() {
-        if let Some(end_line) = ended_at {
-            if !block.words.is_empty() {
-                it.sink.push(Diagnostic::warning(
-                    block.span,
-                    format!("blocks after the program end on line {end_line} are not executed"),
-                ));
-            }
-            break;
-        }
-        if block.percent {
-            if seen_percent || bi > 0 {
-                ended_at = Some(block.line);
-            }
-            seen_percent = true;
-            continue;
-        }
-        if block.block_delete && opts.block_delete {
-            continue;
-        }
-        if block.words.is_empty() {
-            continue;
-        }
-        if it.block(block) {
-            ended_at = Some(block.line);
-        }
-    }
+    let mut it = Interp::new(program, opts);
+    it.run();
     if let Some(last) = it.tp.moves.last_mut() {
         last.stop_after = true;
     }
@@ -335,13 +412,462 @@ pub fn interpret(
 
 struct Interp<'a> {
     opts: &'a InterpOptions,
+    prog: &'a Program,
     sink: Sink,
     st: State,
+    params: Params,
+    tools: ToolTable,
     tp: Toolpath,
+    frames: Vec<Frame>,
+    loop_iterations: u64,
 }
 
-/// A G or M code with its span.
-type Code = (u32, Span);
+/// How the run goes on after a statement.
+enum Next {
+    /// Continue at this block.
+    Goto(usize),
+    /// The program ends (`M2`, `M30`, `%`, or an error that leaves nowhere to go).
+    End,
+}
+
+impl<'a> Interp<'a> {
+    fn new(prog: &'a Program, opts: &'a InterpOptions) -> Self {
+        let params = Params::new(&opts.parameters);
+        let (start, started) = match opts.start {
+            StartPosition::Machine(p) => (p, true),
+            StartPosition::FirstMove => ([0.0; 6], false),
+        };
+        let mut it = Interp {
+            opts,
+            prog,
+            sink: Sink::new(opts.max_diagnostics),
+            st: State {
+                pos: start,
+                motion: None,
+                plane: Plane::XY,
+                inch: false,
+                absolute: true,
+                arc_absolute: false,
+                inverse_time: false,
+                exact_stop: true,
+                tcp: false,
+                feed: None,
+                blend_tol: None,
+                spindle_rpm: 0.0,
+                current_tool: 0,
+                selected_tool: 0,
+                tool_offset: [0.0; 6],
+                coord_index: 1,
+                g5x: [0.0; 6],
+                rotation_deg: 0.0,
+                g92: [0.0; 6],
+                retract_r_plane: true,
+                cycle: CycleMemory::default(),
+                line: 0,
+                started,
+            },
+            params,
+            tools: opts.tools.clone(),
+            tp: Toolpath {
+                start,
+                ..Toolpath::default()
+            },
+            frames: vec![Frame::default()],
+            loop_iterations: 0,
+        };
+        if start.iter().any(|v| !v.is_finite()) {
+            it.sink.push(Diagnostic::new(
+                Span {
+                    line: 1,
+                    col: 1,
+                    start: 0,
+                    end: 0,
+                },
+                Severity::Error,
+                DiagnosticKind::Other,
+                format!("start position {start:?} is not finite"),
+            ));
+        }
+        it.load_start_offsets();
+        it
+    }
+
+    fn frame(&self) -> &Frame {
+        // The main frame is never popped.
+        self.frames
+            .last()
+            .unwrap_or_else(|| unreachable!("the main frame is never popped"))
+    }
+
+    fn frame_mut(&mut self) -> &mut Frame {
+        if self.frames.is_empty() {
+            self.frames.push(Frame::default());
+        }
+        let n = self.frames.len() - 1;
+        &mut self.frames[n]
+    }
+
+    fn err(&mut self, span: Span, kind: DiagnosticKind, msg: impl Message) {
+        self.sink.report_msg(span, Severity::Error, kind, msg);
+    }
+
+    /// An unsupported word or code that cannot change the path: a warning under `lenient`.
+    fn harmless(&mut self, span: Span, msg: impl Message) {
+        if self.opts.lenient {
+            self.sink
+                .report_msg(span, Severity::Warning, DiagnosticKind::Unsupported, || {
+                    format!("{} (ignored)", msg.build())
+                });
+        } else {
+            self.sink
+                .report_msg(span, Severity::Error, DiagnosticKind::Unsupported, msg);
+        }
+    }
+
+    /// Run from the first block to the end of the program.
+    fn run(&mut self) {
+        let prog = self.prog;
+        let delete = self.opts.block_delete;
+        let skip = move |i: usize| prog.blocks[i].block_delete && delete;
+        let flow = flow::analyse(prog, &skip, &mut self.sink);
+        if self.sink.has_errors() {
+            return;
+        }
+        let blocks = &prog.blocks;
+        let mut pc = 0usize;
+        let mut ended_at: Option<u32> = None;
+        while pc < blocks.len() {
+            let block = &blocks[pc];
+            if block.percent {
+                if pc > 0 {
+                    ended_at = Some(block.line);
+                    break;
+                }
+                pc += 1;
+                continue;
+            }
+            if skip(pc) {
+                pc += 1;
+                continue;
+            }
+            self.st.line = block.line;
+            let next = match block.o_word.as_deref() {
+                Some(o) => self.control(pc, o, &flow),
+                None if self.block(block) => {
+                    ended_at = Some(block.line);
+                    Next::End
+                }
+                None => Next::Goto(pc + 1),
+            };
+            if self.tp.moves.len() > self.opts.max_moves {
+                self.err(
+                    block.span,
+                    DiagnosticKind::Limit,
+                    format!(
+                        "the program makes more than {} moves (InterpOptions::max_moves)",
+                        self.opts.max_moves
+                    ),
+                );
+                return;
+            }
+            match next {
+                Next::Goto(n) => pc = n,
+                Next::End => break,
+            }
+        }
+        let Some(end_line) = ended_at else {
+            if let Some(last) = blocks.last() {
+                self.sink.push(Diagnostic::warning(
+                    last.span,
+                    "the program ends without M2, M30 or a closing %: LinuxCNC refuses such a file (\"File ended with no percent sign or program end\")",
+                ));
+            }
+            return;
+        };
+        // Code after the end (subroutine definitions aside) never runs: say so.
+        let mut i = pc + 1;
+        while i < blocks.len() {
+            if let Some(Jump::Sub { end }) = flow.jumps.get(&i) {
+                i = end + 1;
+                continue;
+            }
+            let b = &blocks[i];
+            if !b.words.is_empty() || !b.assignments.is_empty() {
+                self.sink.push(Diagnostic::warning(
+                    b.span,
+                    format!("blocks after the program end on line {end_line} are not executed"),
+                ));
+                break;
+            }
+            i += 1;
+        }
+    }
+
+    /// Execute an O-word statement at block `pc`.
+    fn control(&mut self, pc: usize, o: &OWord, flow: &Flow) -> Next {
+        let span = o.keyword_span;
+        let cond = |it: &mut Self, e| match it.eval(e) {
+            Ok(v) => Some(v),
+            Err(e) => {
+                it.sink
+                    .report_msg(e.span, Severity::Error, e.kind, e.message);
+                None
+            }
+        };
+        let jump = flow.jumps.get(&pc).copied();
+        match (&o.statement, jump) {
+            (OStatement::ProgramNumber, _) => Next::Goto(pc + 1),
+            // Flowing into a definition skips it.
+            (OStatement::Sub, Some(Jump::Sub { end })) => Next::Goto(end + 1),
+            (OStatement::EndSub(v) | OStatement::Return(v), _) => {
+                let value = match v {
+                    Some(e) => match cond(self, *e) {
+                        Some(x) => Some(x),
+                        None => return Next::End,
+                    },
+                    None => None,
+                };
+                self.ret(value, pc)
+            }
+            (OStatement::Call(args), _) => self.call(pc, o, args, flow),
+            (OStatement::If(c), Some(Jump::Branch { next, .. })) => match cond(self, *c) {
+                None => Next::End,
+                Some(v) if v != 0.0 => Next::Goto(pc + 1),
+                Some(_) => self.next_branch(next, flow),
+            },
+            // Reached from a branch that ran: leave the if.
+            (OStatement::ElseIf(_), Some(Jump::Branch { endif, .. }))
+            | (OStatement::Else, Some(Jump::Else { endif })) => Next::Goto(endif + 1),
+            (OStatement::EndIf, _) => Next::Goto(pc + 1),
+            (OStatement::While(c), Some(Jump::LoopStart { end })) => match cond(self, *c) {
+                None => Next::End,
+                Some(v) if v != 0.0 => Next::Goto(pc + 1),
+                Some(_) => Next::Goto(end + 1),
+            },
+            (OStatement::Do, Some(Jump::LoopStart { .. })) => Next::Goto(pc + 1),
+            (OStatement::Repeat(c), Some(Jump::LoopStart { end })) => match cond(self, *c) {
+                None => Next::End,
+                Some(n) if n >= 1.0 => {
+                    // LinuxCNC runs the body `(int) n` times.
+                    let n = n.min(u64::MAX as f64) as u64;
+                    self.frame_mut().repeats.push((pc, n));
+                    Next::Goto(pc + 1)
+                }
+                Some(_) => Next::Goto(end + 1),
+            },
+            (
+                OStatement::EndWhile | OStatement::While(_) | OStatement::EndRepeat,
+                Some(Jump::LoopEnd { start, kind }),
+            ) => self.loop_end(pc, start, kind, o),
+            (OStatement::Break, Some(Jump::LoopExit { start, end, kind })) => {
+                if kind == LoopKind::Repeat {
+                    self.pop_repeat(start);
+                }
+                Next::Goto(end + 1)
+            }
+            (OStatement::Continue, Some(Jump::LoopExit { start, end, kind })) => match kind {
+                LoopKind::While => {
+                    if !self.count_iteration(start) {
+                        return Next::End;
+                    }
+                    Next::Goto(start)
+                }
+                // The closing statement evaluates the condition or counts the repeat.
+                LoopKind::Do | LoopKind::Repeat => Next::Goto(end),
+            },
+            _ => {
+                // The pre-pass reported every statement without its partner.
+                self.err(
+                    span,
+                    DiagnosticKind::ControlFlow,
+                    "O-word statement out of place",
+                );
+                Next::End
+            }
+        }
+    }
+
+    /// From a failed `if`/`elseif`, find the branch that runs.
+    fn next_branch(&mut self, mut at: usize, flow: &Flow) -> Next {
+        loop {
+            let Some(o) = self.prog.blocks[at].o_word.as_deref() else {
+                return Next::Goto(at + 1);
+            };
+            match (&o.statement, flow.jumps.get(&at).copied()) {
+                (OStatement::ElseIf(c), Some(Jump::Branch { next, .. })) => match self.eval(*c) {
+                    Err(e) => {
+                        self.sink
+                            .report_msg(e.span, Severity::Error, e.kind, e.message);
+                        return Next::End;
+                    }
+                    Ok(v) if v != 0.0 => return Next::Goto(at + 1),
+                    Ok(_) => at = next,
+                },
+                // `else` runs; `endif` means no branch ran.
+                _ => return Next::Goto(at + 1),
+            }
+        }
+    }
+
+    /// Count one loop iteration against the budget; `false` (and an error naming the loop)
+    /// when it is exhausted.
+    fn count_iteration(&mut self, start: usize) -> bool {
+        self.loop_iterations += 1;
+        if self.loop_iterations > self.opts.max_loop_iterations {
+            let b = &self.prog.blocks[start];
+            let span = b.o_word.as_deref().map_or(b.span, |o| o.keyword_span);
+            let line = b.line;
+            self.err(span, DiagnosticKind::LoopBudget, || {
+                format!(
+                    "the loop at line {line} has run more than {} iterations in all (InterpOptions::max_loop_iterations): the program does not end",
+                    self.opts.max_loop_iterations
+                )
+            });
+            return false;
+        }
+        true
+    }
+
+    /// The closing statement of a loop at `pc`, opened at `start`.
+    fn loop_end(&mut self, pc: usize, start: usize, kind: LoopKind, o: &OWord) -> Next {
+        match kind {
+            LoopKind::While => {
+                if !self.count_iteration(start) {
+                    return Next::End;
+                }
+                Next::Goto(start)
+            }
+            LoopKind::Do => {
+                let OStatement::While(c) = o.statement else {
+                    return Next::Goto(pc + 1);
+                };
+                match self.eval(c) {
+                    Err(e) => {
+                        self.sink
+                            .report_msg(e.span, Severity::Error, e.kind, e.message);
+                        Next::End
+                    }
+                    Ok(v) if v != 0.0 => {
+                        if !self.count_iteration(start) {
+                            return Next::End;
+                        }
+                        Next::Goto(start + 1)
+                    }
+                    Ok(_) => Next::Goto(pc + 1),
+                }
+            }
+            LoopKind::Repeat => {
+                let again = match self.frame_mut().repeats.last_mut() {
+                    Some((s, left)) if *s == start => {
+                        *left -= 1;
+                        *left > 0
+                    }
+                    _ => false,
+                };
+                if again {
+                    if !self.count_iteration(start) {
+                        return Next::End;
+                    }
+                    Next::Goto(start + 1)
+                } else {
+                    self.pop_repeat(start);
+                    Next::Goto(pc + 1)
+                }
+            }
+        }
+    }
+
+    fn pop_repeat(&mut self, start: usize) {
+        let f = self.frame_mut();
+        if let Some(i) = f.repeats.iter().rposition(|(s, _)| *s == start) {
+            f.repeats.truncate(i);
+        }
+    }
+
+    /// `o<label> call [args]`.
+    fn call(&mut self, pc: usize, o: &OWord, args: &[crate::syntax::ExprId], flow: &Flow) -> Next {
+        let span = o.keyword_span;
+        let Some(&sub) = flow.subs.get(&o.label) else {
+            let name = match o.label {
+                OLabel::Number(n) => format!("o{n}"),
+                OLabel::Name(n) => format!("o<{}>", self.prog.name(n)),
+            };
+            self.err(o.label_span, DiagnosticKind::UndefinedSubroutine, || {
+                format!("subroutine {name} is not defined in this file (no '{name} sub')")
+            });
+            return Next::End;
+        };
+        if args.len() > 30 {
+            self.err(
+                span,
+                DiagnosticKind::Block,
+                format!(
+                    "{} arguments: a call takes at most 30 (#1 … #30)",
+                    args.len()
+                ),
+            );
+            return Next::End;
+        }
+        let mut values = [0.0; 30];
+        for (slot, &a) in values.iter_mut().zip(args) {
+            match self.eval(a) {
+                Ok(v) => *slot = v,
+                Err(e) => {
+                    self.sink
+                        .report_msg(e.span, Severity::Error, e.kind, e.message);
+                    return Next::End;
+                }
+            }
+        }
+        if self.frames.len() > self.opts.max_call_depth {
+            self.err(span, DiagnosticKind::CallDepth, || {
+                format!(
+                    "subroutine calls nested more than {} deep (InterpOptions::max_call_depth)",
+                    self.opts.max_call_depth
+                )
+            });
+            return Next::End;
+        }
+        let saved: [f64; 30] = std::array::from_fn(|i| self.params.get(i as u32 + 1));
+        for (i, v) in values.iter().enumerate() {
+            self.params.set(i as u32 + 1, *v);
+        }
+        self.params.value_returned = false;
+        self.frames.push(Frame {
+            return_to: pc + 1,
+            saved: Some(Box::new(saved)),
+            locals: HashMap::new(),
+            repeats: Vec::new(),
+        });
+        Next::Goto(sub + 1)
+    }
+
+    /// `endsub`/`return`: back to the caller, restoring its `#1`–`#30`.
+    fn ret(&mut self, value: Option<f64>, pc: usize) -> Next {
+        if self.frames.len() <= 1 {
+            // Flowing into an `endsub` in the main program (a `sub` skipped by a jump) is
+            // prevented by the pre-pass; reaching one means the program ends here.
+            let b = &self.prog.blocks[pc];
+            self.err(
+                b.span,
+                DiagnosticKind::ControlFlow,
+                "endsub or return reached outside a subroutine call",
+            );
+            return Next::End;
+        }
+        let Some(frame) = self.frames.pop() else {
+            return Next::End;
+        };
+        if let Some(saved) = frame.saved {
+            for (i, v) in saved.iter().enumerate() {
+                self.params.set(i as u32 + 1, *v);
+            }
+        }
+        self.params.value = value.unwrap_or(0.0);
+        self.params.value_returned = value.is_some();
+        Next::Goto(frame.return_to)
+    }
+}
 
 /// `value × 10` as an integer when the value has at most one decimal (G43.4 → 434).
 fn code10(v: f64) -> Option<u32> {
@@ -358,870 +884,5 @@ fn gname(c: u32) -> String {
     }
 }
 
-#[derive(Default)]
-struct Groups {
-    motion: Option<Code>,
-    nonmodal: Option<Code>,
-    plane: Option<Code>,
-    units: Option<Code>,
-    distance: Option<Code>,
-    feed_mode: Option<Code>,
-    path: Option<Code>,
-    tlo: Option<Code>,
-    m_stop: Option<Code>,
-    m_spindle: Option<Code>,
-    m_tool: Option<Code>,
-    m_coolant: Vec<Code>,
-    m_tcp: Option<(bool, Span)>,
-}
-
-fn letter_index(c: char) -> Option<usize> {
-    c.is_ascii_uppercase().then(|| (c as u8 - b'A') as usize)
-}
-
-impl Interp<'_> {
-    fn err(&mut self, span: Span, msg: impl Message) {
-        self.sink.report_msg(span, Severity::Error, msg);
-    }
-
-    fn unsupported(&mut self, span: Span, msg: impl Message) {
-        if self.opts.lenient {
-            self.sink.report_msg(span, Severity::Warning, || {
-                format!("{} (ignored)", msg.build())
-            });
-        } else {
-            self.sink.report_msg(span, Severity::Error, msg);
-        }
-    }
-
-    fn set_group(
-        &mut self,
-        slot: &mut Option<Code>,
-        code: Code,
-        group: &str,
-        name: fn(u32) -> String,
-    ) {
-        if let Some((prev, _)) = *slot {
-            self.err(code.1, || {
-                format!(
-                    "{} and {} in one block: both belong to the {group} modal group",
-                    name(prev),
-                    name(code.0)
-                )
-            });
-        } else {
-            *slot = Some(code);
-        }
-    }
-
-    /// Interpret one block; returns `true` at a program end (`M2`, `M30`).
-    fn block(&mut self, block: &crate::syntax::Block) -> bool {
-        let mut g = Groups::default();
-        let mut letters: [Option<(f64, Span)>; 26] = [None; 26];
-        let mname = |c: u32| format!("M{c}");
-        for w in &block.words {
-            match w.letter {
-                'G' => match code10(w.value) {
-                    Some(c) => {
-                        let code = (c, w.span);
-                        let slot = match c {
-                            0 | 10 | 20 | 30 => Some((&mut g.motion, "motion")),
-                            40 => Some((&mut g.nonmodal, "non-modal")),
-                            170 | 180 | 190 => Some((&mut g.plane, "plane")),
-                            200 | 210 => Some((&mut g.units, "units")),
-                            900 | 910 => Some((&mut g.distance, "distance")),
-                            930 | 940 => Some((&mut g.feed_mode, "feed-rate mode")),
-                            610 | 640 => Some((&mut g.path, "path-control")),
-                            434 | 490 => Some((&mut g.tlo, "tool-length")),
-                            _ => None,
-                        };
-                        match slot {
-                            Some((slot, group)) => {
-                                let mut s = *slot;
-                                self.set_group(&mut s, code, group, gname);
-                                *slot = s;
-                            }
-                            None => self
-                                .unsupported(w.span, || format!("unsupported G-code {}", gname(c))),
-                        }
-                    }
-                    None => self.unsupported(w.span, || format!("unsupported G-code G{}", w.value)),
-                },
-                'M' => {
-                    let c = (w.value.fract() == 0.0 && (0.0..1e7).contains(&w.value))
-                        .then_some(w.value as u32);
-                    let Some(c) = c else {
-                        self.unsupported(w.span, || format!("unsupported M-code M{}", w.value));
-                        continue;
-                    };
-                    let on = self.opts.tcp_on_mcodes.contains(&c);
-                    let off = self.opts.tcp_off_mcodes.contains(&c);
-                    if on || off {
-                        if let Some((_, s)) = g.m_tcp {
-                            self.err(
-                                w.span,
-                                format!("M{c} and the tool-centre-point M-code at column {} in one block", s.col),
-                            );
-                        } else {
-                            g.m_tcp = Some((on, w.span));
-                        }
-                        continue;
-                    }
-                    let code = (c, w.span);
-                    match c {
-                        0 | 1 | 2 | 30 => {
-                            let mut s = g.m_stop;
-                            self.set_group(&mut s, code, "stopping", mname);
-                            g.m_stop = s;
-                        }
-                        3..=5 => {
-                            let mut s = g.m_spindle;
-                            self.set_group(&mut s, code, "spindle", mname);
-                            g.m_spindle = s;
-                        }
-                        6 => {
-                            let mut s = g.m_tool;
-                            self.set_group(&mut s, code, "tool-change", mname);
-                            g.m_tool = s;
-                        }
-                        7..=9 => {
-                            // M7 and M8 may share a block (LinuxCNC); M9 goes alone.
-                            let clash = g
-                                .m_coolant
-                                .iter()
-                                .find(|(p, _)| *p == c || *p == 9 || c == 9);
-                            if let Some(&(p, _)) = clash {
-                                self.err(
-                                    w.span,
-                                    format!("M{p} and M{c} in one block: both belong to the coolant modal group"),
-                                );
-                            } else {
-                                g.m_coolant.push(code);
-                            }
-                        }
-                        _ => self.unsupported(w.span, || format!("unsupported M-code M{c}")),
-                    }
-                }
-                'A' | 'B' | 'C' | 'X' | 'Y' | 'Z' | 'F' | 'I' | 'J' | 'K' | 'P' | 'Q' | 'R'
-                | 'S' | 'T' | 'H' => {
-                    let Some(i) = letter_index(w.letter) else {
-                        continue;
-                    };
-                    if let Some((_, first)) = letters[i] {
-                        self.err(w.span, || {
-                            format!(
-                                "word '{}' appears twice in one block (first at column {})",
-                                w.letter, first.col
-                            )
-                        });
-                    } else if !w.value.is_finite() {
-                        self.err(
-                            w.span,
-                            format!("value of word '{}' is not finite", w.letter),
-                        );
-                    } else {
-                        letters[i] = Some((w.value, w.span));
-                    }
-                }
-                other => self.unsupported(w.span, || format!("unsupported word '{other}'")),
-            }
-        }
-        let get = |c: char| letter_index(c).and_then(|i| letters[i]);
-
-        // Which commands use which words.
-        let block_motion = g.motion.map(|(c, s)| {
-            let m = match c {
-                0 => Motion::Rapid,
-                10 => Motion::Linear,
-                20 => Motion::Cw,
-                _ => Motion::Ccw,
-            };
-            (m, s)
-        });
-        let axis_words: Vec<(usize, f64, Span)> = AxisName::ALL
-            .iter()
-            .enumerate()
-            .filter_map(|(i, n)| get(n.letter()).map(|(v, s)| (i, v, s)))
-            .collect();
-        let motion = block_motion.map(|(m, _)| m).or(self.st.motion);
-        let moving = !axis_words.is_empty();
-        let arc_move = moving && matches!(motion, Some(Motion::Cw | Motion::Ccw));
-        let dwell = g.nonmodal.is_some();
-        let path_g64 = matches!(g.path, Some((640, _)));
-        let tcp_g434 = matches!(g.tlo, Some((434, _)));
-        if moving && motion.is_none() {
-            let s = axis_words[0].2;
-            self.err(
-                s,
-                "axis words with no motion mode active (G0, G1, G2 or G3)",
-            );
-        }
-        for c in ['I', 'J', 'K', 'R'] {
-            if let Some((_, s)) = get(c)
-                && !arc_move
-            {
-                self.err(s, format!("'{c}' word with no G2/G3 arc move to use it"));
-            }
-        }
-        if let Some((_, s)) = get('P')
-            && !(dwell || arc_move || path_g64)
-        {
-            self.err(s, "'P' word with no G4, G64 or G2/G3 arc move to use it");
-        }
-        if let Some((_, s)) = get('P')
-            && dwell
-            && arc_move
-        {
-            self.err(
-                s,
-                "'P' word is ambiguous: G4 dwell and G2/G3 turns in one block",
-            );
-        }
-        if let Some((_, s)) = get('Q')
-            && !path_g64
-        {
-            self.err(s, "'Q' word with no G64 to use it");
-        }
-        if let Some((v, s)) = get('H') {
-            if !tcp_g434 {
-                self.err(s, "'H' word with no G43.4 to use it");
-            } else if v < 0.0 || v.fract() != 0.0 {
-                self.err(s, format!("H{v} is not a tool number (a whole number ≥ 0)"));
-            }
-        }
-        if let Some((v, s)) = get('T')
-            && (v < 0.0 || v.fract() != 0.0)
-        {
-            self.err(s, format!("T{v} is not a tool number (a whole number ≥ 0)"));
-        }
-        if let Some((v, s)) = get('S')
-            && v < 0.0
-        {
-            self.err(s, format!("spindle speed S{v} is negative"));
-        }
-        if let (Some(_), Some((_, s))) = (g.m_tcp, g.tlo) {
-            self.err(s, "G43.4/G49 and a tool-centre-point M-code in one block");
-        }
-
-        // 1. feed mode; 2. F.
-        if let Some((c, _)) = g.feed_mode {
-            let inverse = c == 930;
-            if inverse != self.st.inverse_time {
-                // Changing the feed mode leaves no valid feed (LinuxCNC resets it).
-                self.st.feed = None;
-            }
-            self.st.inverse_time = inverse;
-        }
-        let inch_after = match g.units {
-            Some((200, _)) => true,
-            Some(_) => false,
-            None => self.st.inch,
-        };
-        let lscale = if inch_after { MM_PER_INCH } else { 1.0 };
-        let mut f_block = None;
-        if let Some((f, s)) = get('F') {
-            if f < 0.0 {
-                self.err(s, format!("feed rate F{f} is negative"));
-            } else {
-                f_block = Some((f, s));
-                if !self.st.inverse_time {
-                    self.st.feed = Some((f * lscale, f));
-                }
-            }
-        }
-        // 6. tool change: the machine must be at rest.
-        if g.m_tool.is_some()
-            && let Some(last) = self.tp.moves.last_mut()
-        {
-            last.stop_after = true;
-        }
-        // 10. dwell.
-        if dwell {
-            match get('P') {
-                Some((p, s)) if p < 0.0 => self.err(s, format!("dwell time P{p} is negative")),
-                Some((p, _)) => {
-                    let span = g.nonmodal.map_or(block.span, |c| c.1);
-                    self.tp.moves.push(Move {
-                        line: span.line,
-                        col: span.col,
-                        kind: MoveKind::Dwell { seconds: p },
-                        start: self.st.pos,
-                        end: self.st.pos,
-                        feed: None,
-                        exact_stop: true,
-                        stop_after: true,
-                        tcp: self.st.tcp,
-                        blend_tolerance_mm: None,
-                    });
-                }
-                None => {
-                    let s = g.nonmodal.map_or(block.span, |c| c.1);
-                    self.err(s, "G4 dwell without a P word (seconds)");
-                }
-            }
-        }
-        // 11. plane; 12. units.
-        if let Some((c, _)) = g.plane {
-            self.st.plane = match c {
-                170 => Plane::XY,
-                180 => Plane::ZX,
-                _ => Plane::YZ,
-            };
-        }
-        self.st.inch = inch_after;
-        // 14. tool-centre point.
-        match (g.tlo, g.m_tcp) {
-            (Some((434, _)), _) | (None, Some((true, _))) => self.st.tcp = true,
-            (Some(_), _) | (None, Some((false, _))) => self.st.tcp = false,
-            (None, None) => {}
-        }
-        // 16. path mode.
-        if let Some((c, _)) = g.path {
-            self.st.exact_stop = c == 610;
-            self.st.blend_tol = None;
-            if c == 640
-                && let Some((p, s)) = get('P')
-            {
-                if p < 0.0 {
-                    self.err(s, format!("G64 tolerance P{p} is negative"));
-                } else if p > 0.0 {
-                    self.st.blend_tol = Some(p * lscale);
-                }
-            }
-        }
-        // 17. distance mode.
-        if let Some((c, _)) = g.distance {
-            self.st.absolute = c == 900;
-        }
-        // 20. motion.
-        if let Some((m, _)) = block_motion {
-            self.st.motion = Some(m);
-        }
-        if moving && let Some(m) = motion {
-            let span = block_motion.map_or(axis_words[0].2, |(_, s)| s);
-            let mut target = self.st.pos;
-            for &(i, v, _) in &axis_words {
-                let v = if i < 3 { v * lscale } else { v };
-                target[i] = if self.st.absolute {
-                    v
-                } else {
-                    self.st.pos[i] + v
-                };
-                self.tp.axes_used[i] = true;
-            }
-            if let Some(&(i, _, s)) = axis_words.iter().find(|&&(i, _, _)| !target[i].is_finite()) {
-                self.err(
-                    s,
-                    format!(
-                        "{} target is out of range after unit conversion",
-                        AxisName::ALL[i]
-                    ),
-                );
-                return false;
-            }
-            self.motion(m, target, span, f_block, &get, lscale);
-        }
-        // 21. stop.
-        match g.m_stop {
-            Some((0 | 1, _)) => {
-                if let Some(last) = self.tp.moves.last_mut() {
-                    last.stop_after = true;
-                }
-                false
-            }
-            Some(_) => true,
-            None => false,
-        }
-    }
-
-    fn feed_for(
-        &mut self,
-        span: Span,
-        f_block: Option<(f64, Span)>,
-        pure_rotary: bool,
-    ) -> Option<Feed> {
-        if self.st.inverse_time {
-            match f_block {
-                Some((f, _)) if f > 0.0 => Some(Feed::InverseTime(f)),
-                Some((_, s)) => {
-                    self.err(s, "G93 inverse-time feed F0: the move would take forever");
-                    None
-                }
-                None => {
-                    self.err(
-                        span,
-                        "G93 inverse-time mode needs an F word on every feed block",
-                    );
-                    None
-                }
-            }
-        } else {
-            match self.st.feed {
-                Some((mm, raw)) if mm > 0.0 => {
-                    Some(Feed::UnitsPerMin(if pure_rotary { raw } else { mm }))
-                }
-                Some(_) => {
-                    self.err(span, "feed move with feed rate F0");
-                    None
-                }
-                None => {
-                    self.err(span, "feed move with no feed rate set (F)");
-                    None
-                }
-            }
-        }
-    }
-
-    fn motion(
-        &mut self,
-        m: Motion,
-        target: [f64; 6],
-        span: Span,
-        f_block: Option<(f64, Span)>,
-        get: &dyn Fn(char) -> Option<(f64, Span)>,
-        lscale: f64,
-    ) {
-        let start = self.st.pos;
-        let xyz_zero = (0..3).all(|i| target[i] == start[i]);
-        let feed = match m {
-            Motion::Rapid => None,
-            _ => self.feed_for(span, f_block, xyz_zero && m == Motion::Linear),
-        };
-        let kind = match m {
-            Motion::Rapid => MoveKind::Rapid,
-            Motion::Linear => MoveKind::Linear,
-            Motion::Cw | Motion::Ccw => {
-                if !self.st.started {
-                    self.sink.push(Diagnostic::warning(
-                        span,
-                        "the first motion is an arc: it starts from all axes at 0",
-                    ));
-                    self.st.started = true;
-                }
-                match self.arc(m == Motion::Ccw, start, target, span, get, lscale) {
-                    Some(a) => MoveKind::Arc(a),
-                    None => return,
-                }
-            }
-        };
-        if !self.st.started {
-            // The opening positioning block defines the start (module doc).
-            self.st.started = true;
-            self.tp.start = target;
-            for mv in &mut self.tp.moves {
-                mv.start = target;
-                mv.end = target;
-            }
-            self.st.pos = target;
-            return;
-        }
-        self.st.pos = target;
-        if m != Motion::Rapid && feed.is_none() {
-            // The missing feed has been reported.
-            return;
-        }
-        if target == start && !matches!(kind, MoveKind::Arc(_)) {
-            return;
-        }
-        self.tp.moves.push(Move {
-            line: span.line,
-            col: span.col,
-            kind,
-            start,
-            end: target,
-            feed,
-            exact_stop: self.st.exact_stop,
-            stop_after: false,
-            tcp: self.st.tcp,
-            blend_tolerance_mm: self.st.blend_tol,
-        });
-    }
-
-    fn arc(
-        &mut self,
-        ccw: bool,
-        start: [f64; 6],
-        end: [f64; 6],
-        span: Span,
-        get: &dyn Fn(char) -> Option<(f64, Span)>,
-        lscale: f64,
-    ) -> Option<ArcMove> {
-        let plane = self.st.plane;
-        let (u, v, w) = plane.axes();
-        let offset_letters = ['I', 'J', 'K'];
-        let (su, sv) = (start[u], start[v]);
-        let (eu, ev) = (end[u], end[v]);
-        let turns = match get('P') {
-            None => 1,
-            Some((p, s)) => {
-                if p < 1.0 || p.fract() != 0.0 || p > 1e6 {
-                    self.err(s, format!("arc turns P{p} must be a whole number ≥ 1"));
-                    return None;
-                }
-                p as u32
-            }
-        };
-        let pname = match plane {
-            Plane::XY => "G17",
-            Plane::ZX => "G18",
-            Plane::YZ => "G19",
-        };
-        let r_word = get('R');
-        let has_offsets = offset_letters.iter().any(|&c| get(c).is_some());
-        let (cu, cv) = if let Some((r, rs)) = r_word {
-            if has_offsets {
-                self.err(rs, "arc with both R and I/J/K: use one form");
-                return None;
-            }
-            let r = r * lscale;
-            let (du, dv) = (eu - su, ev - sv);
-            let chord = du.hypot(dv);
-            if chord == 0.0 {
-                self.err(
-                    rs,
-                    "R-form arc with the end point equal to the start: a full circle needs I/J/K",
-                );
-                return None;
-            }
-            if r == 0.0 {
-                self.err(rs, "arc radius R0");
-                return None;
-            }
-            let half = chord / 2.0;
-            let h2 = r * r - half * half;
-            let h = if h2 >= 0.0 {
-                h2.sqrt()
-            } else if half - r.abs() <= self.opts.arc_r_tol_mm {
-                0.0
-            } else {
-                self.err(
-                    rs,
-                    format!(
-                        "arc radius |R| = {:.6} mm is smaller than half the chord ({:.6} mm)",
-                        r.abs(),
-                        half
-                    ),
-                );
-                return None;
-            };
-            // Left normal of the chord; G3 with R > 0 has its centre on the left.
-            let (nu, nv) = (-dv / chord, du / chord);
-            let side = if ccw == (r > 0.0) { 1.0 } else { -1.0 };
-            (su + du / 2.0 + side * h * nu, sv + dv / 2.0 + side * h * nv)
-        } else {
-            let normal_letter = offset_letters[w];
-            if let Some((_, s)) = get(normal_letter) {
-                self.err(
-                    s,
-                    format!("'{normal_letter}' word in a {pname} arc: centre offsets must lie in the arc plane"),
-                );
-                return None;
-            }
-            let ou = get(offset_letters[u]);
-            let ov = get(offset_letters[v]);
-            if ou.is_none() && ov.is_none() {
-                self.err(
-                    span,
-                    format!(
-                        "{pname} arc needs R or at least one of {}, {}",
-                        offset_letters[u], offset_letters[v]
-                    ),
-                );
-                return None;
-            }
-            (
-                su + ou.map_or(0.0, |o| o.0 * lscale),
-                sv + ov.map_or(0.0, |o| o.0 * lscale),
-            )
-        };
-        let r0 = (su - cu).hypot(sv - cv);
-        let r1 = (eu - cu).hypot(ev - cv);
-        if r0.is_nan() || r0 <= 0.0 || !r0.is_finite() || !r1.is_finite() {
-            self.err(span, "arc centre coincides with the start point");
-            return None;
-        }
-        if r_word.is_none() {
-            let abs_err = (r1 - r0).abs();
-            let rel_err = abs_err / r0.max(r1);
-            if abs_err > 100.0 * self.opts.arc_abs_tol_mm
-                || (abs_err > self.opts.arc_abs_tol_mm && rel_err > self.opts.arc_rel_tol)
-            {
-                self.err(
-                    span,
-                    format!(
-                        "radius to the end of the arc differs from the radius to the start: \
-                         r_start = {r0:.6} mm, r_end = {r1:.6} mm, difference {abs_err:.6} mm \
-                         ({:.4} %)",
-                        100.0 * rel_err
-                    ),
-                );
-                return None;
-            }
-        }
-        let t0 = (sv - cv).atan2(su - cu);
-        let t1 = (ev - cv).atan2(eu - cu);
-        let same = (eu - su).hypot(ev - sv) <= 1e-9;
-        // Unsigned sweep in (0, 2π] in the direction of travel; equal points make a full circle.
-        let mut d = if ccw { t1 - t0 } else { t0 - t1 };
-        if same {
-            d = TAU;
-        } else {
-            if d <= 0.0 {
-                d += TAU;
-            }
-            if d > TAU {
-                d -= TAU;
-            }
-        }
-        let magnitude = d + TAU * f64::from(turns - 1);
-        let sweep = if ccw { magnitude } else { -magnitude };
-        if !(sweep.is_finite() && cu.is_finite() && cv.is_finite()) {
-            self.err(span, "arc geometry is out of range");
-            return None;
-        }
-        Some(ArcMove {
-            plane,
-            centre: [cu, cv],
-            sweep_rad: sweep,
-            radius_start_mm: r0,
-            radius_end_mm: r1,
-            turns,
-        })
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::syntax::parse;
-    use std::f64::consts::{FRAC_PI_2, PI};
-
-    fn run(src: &str) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
-        run_with(src, &InterpOptions::default())
-    }
-
-    fn run_with(
-        src: &str,
-        opts: &InterpOptions,
-    ) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
-        let (p, d) = parse(src);
-        assert!(d.is_empty(), "{d:?}");
-        interpret(&p, opts)
-    }
-
-    fn ok(src: &str) -> Toolpath {
-        match run(src) {
-            Ok((tp, _)) => tp,
-            Err(e) => panic!("{src}: {e:?}"),
-        }
-    }
-
-    /// (line, col) of every error.
-    fn errors(src: &str) -> Vec<(u32, u32)> {
-        match run(src) {
-            Ok(_) => Vec::new(),
-            Err(d) => d
-                .iter()
-                .filter(|d| d.is_error())
-                .map(|d| (d.line, d.col))
-                .collect(),
-        }
-    }
-
-    fn arc(m: &Move) -> ArcMove {
-        match m.kind {
-            MoveKind::Arc(a) => a,
-            k => panic!("not an arc: {k:?}"),
-        }
-    }
-
-    #[test]
-    fn opening_block_defines_the_start() {
-        let tp = ok("G4 P1\nG0 X10 Y5\nG1 X20 F600");
-        assert_eq!(tp.start, [10.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
-        assert_eq!(tp.moves.len(), 2);
-        // The dwell before the first motion holds at the start.
-        assert_eq!(tp.moves[0].start, tp.start);
-        assert_eq!(tp.moves[1].end, [20.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
-        assert_eq!(tp.moves[1].feed, Some(Feed::UnitsPerMin(600.0)));
-        let opts = InterpOptions {
-            initial_position: Some([1.0; 6]),
-            ..InterpOptions::default()
-        };
-        let (tp, _) = run_with("G0 X10 Y5", &opts).unwrap();
-        assert_eq!(tp.start, [1.0; 6]);
-        assert_eq!(tp.moves.len(), 1);
-        assert_eq!(tp.points().len(), 2);
-    }
-
-    #[test]
-    fn incremental_equals_absolute() {
-        let a = ok("G0 X1 Y2\nG90 G1 X4 Y6 A30 F100\nX0");
-        let b = ok("G0 X1 Y2\nG91 G1 X3 Y4 A30 F100\nX-4");
-        assert_eq!(a, b);
-    }
-
-    #[test]
-    fn inch_converts_lengths_and_linear_feeds_only() {
-        // 1 in = 25.4 mm exactly; rotary words and pure rotary feeds are not scaled.
-        let tp = ok("G20 G0 X1 A0\nG1 X2 F10\nG1 A90 F3600");
-        assert_eq!(tp.start[0], 25.4);
-        assert_eq!(tp.moves[0].end[0], 50.8);
-        assert_eq!(tp.moves[0].feed, Some(Feed::UnitsPerMin(254.0)));
-        assert_eq!(tp.moves[1].end[3], 90.0);
-        assert_eq!(tp.moves[1].feed, Some(Feed::UnitsPerMin(3600.0)));
-    }
-
-    #[test]
-    fn modal_conflicts_and_repeats_are_errors_with_columns() {
-        assert_eq!(errors("G0 G1 X1 F1"), vec![(1, 4)]);
-        assert_eq!(errors("G90 G91"), vec![(1, 5)]);
-        assert_eq!(errors("G0 X1\nG1 X1 X2 F1"), vec![(2, 7)]);
-        assert_eq!(errors("M3 M5"), vec![(1, 4)]);
-        assert_eq!(errors("M8 M9"), vec![(1, 4)]);
-        assert!(errors("M7 M8").is_empty());
-        assert_eq!(errors("G17 G18"), vec![(1, 5)]);
-    }
-
-    #[test]
-    fn words_without_a_user_are_errors() {
-        assert_eq!(errors("G0 X0\nG1 X1 I2 F100"), vec![(2, 7)]);
-        assert_eq!(errors("G1 P2 F100"), vec![(1, 4)]);
-        assert_eq!(errors("H1"), vec![(1, 1)]);
-        assert_eq!(errors("X1"), vec![(1, 1)]);
-        assert_eq!(errors("G4"), vec![(1, 1)]);
-        assert!(errors("G43.4 H1 G64 P0.01 Q0.01").is_empty());
-    }
-
-    #[test]
-    fn feeds_must_be_set() {
-        // No feed ever set.
-        assert_eq!(errors("G0 X0\nG1 X1"), vec![(2, 1)]);
-        // G93: F on every feed block.
-        assert_eq!(errors("G0 X0\nG93 G1 X1 F2\nG1 X3"), vec![(3, 1)]);
-        // Leaving G93 leaves no feed.
-        assert_eq!(errors("G0 X0\nG93 G1 X1 F2\nG94 G1 X3"), vec![(3, 5)]);
-        let tp = ok("G0 X0\nG93 G1 X1 F2\nG0 X0\nG1 X3 F4");
-        assert_eq!(tp.moves[0].feed, Some(Feed::InverseTime(2.0)));
-        assert_eq!(tp.moves[1].feed, None);
-        assert_eq!(tp.moves[2].feed, Some(Feed::InverseTime(4.0)));
-    }
-
-    #[test]
-    fn unknown_codes_are_errors_or_lenient_warnings() {
-        let src = "G0 X0\nG54 G1 X1 F100 E5 M587";
-        assert_eq!(errors(src), vec![(2, 1), (2, 16), (2, 19)]);
-        let opts = InterpOptions {
-            lenient: true,
-            ..InterpOptions::default()
-        };
-        let (tp, warnings) = run_with(src, &opts).unwrap();
-        assert_eq!(tp.moves.len(), 1);
-        assert_eq!(warnings.len(), 3);
-        assert!(warnings.iter().all(|w| w.severity == Severity::Warning));
-        assert!(warnings[0].message.contains("G54"));
-    }
-
-    #[test]
-    fn centre_format_arcs() {
-        // Quarter circle clockwise about the origin: from angle 0 to −90°.
-        let tp = ok("G0 X10 Y0\nG2 X0 Y-10 I-10 J0 F100");
-        let a = arc(&tp.moves[0]);
-        assert_eq!(a.centre, [0.0, 0.0]);
-        assert!((a.sweep_rad + FRAC_PI_2).abs() < 1e-12);
-        assert_eq!(a.radius_start_mm, 10.0);
-        // Full circle, and two turns with P2.
-        let tp = ok("G0 X10 Y0\nG3 X10 Y0 I-10 F100\nG3 X10 Y0 I-10 P2");
-        assert!((arc(&tp.moves[0]).sweep_rad - 2.0 * PI).abs() < 1e-12);
-        assert!((arc(&tp.moves[1]).sweep_rad - 4.0 * PI).abs() < 1e-12);
-        // G18: first axis Z, second X; K and I offsets.
-        let tp = ok("G18 G0 X0 Z10\nG3 X10 Z0 K-10 F100");
-        let a = arc(&tp.moves[0]);
-        assert_eq!(a.plane, Plane::ZX);
-        assert_eq!(a.centre, [0.0, 0.0]);
-        assert!((a.sweep_rad - FRAC_PI_2).abs() < 1e-12);
-        // Offsets off the plane are errors.
-        assert_eq!(errors("G0 X10 Y0\nG2 X0 Y-10 I-10 K1 F100"), vec![(2, 17)]);
-    }
-
-    #[test]
-    fn radius_format_arcs() {
-        // G3 from (1,0) to (0,1): R1 → centre (0,0), 90°; R−1 → centre (1,1), 270°.
-        let tp = ok("G0 X1 Y0\nG3 X0 Y1 R1 F100\nG0 X1 Y0\nG3 X0 Y1 R-1");
-        let a = arc(&tp.moves[0]);
-        assert!(a.centre[0].abs() < 1e-12 && a.centre[1].abs() < 1e-12);
-        assert!((a.sweep_rad - FRAC_PI_2).abs() < 1e-12);
-        let b = arc(&tp.moves[2]);
-        assert!((b.centre[0] - 1.0).abs() < 1e-12 && (b.centre[1] - 1.0).abs() < 1e-12);
-        assert!((b.sweep_rad - 1.5 * PI).abs() < 1e-12);
-        // G2 with R > 0 puts the centre on the right: (1,0) → (0,1) centre (1,1), −90°.
-        let tp = ok("G0 X1 Y0\nG2 X0 Y1 R1 F100");
-        let c = arc(&tp.moves[0]);
-        assert!((c.centre[0] - 1.0).abs() < 1e-12 && (c.centre[1] - 1.0).abs() < 1e-12);
-        assert!((c.sweep_rad + FRAC_PI_2).abs() < 1e-12);
-    }
-
-    #[test]
-    fn arcs_that_do_not_fit_are_errors() {
-        // End radius 10.5 vs start radius 10: 5 %, far over 0.002 mm and 0.1 %.
-        assert_eq!(errors("G0 X10 Y0\nG2 X0 Y-10.5 I-10 J0 F100"), vec![(2, 1)]);
-        // Within 0.002 mm: accepted (runs as a spiral).
-        let tp = ok("G0 X10 Y0\nG2 X0 Y-10.001 I-10 J0 F100");
-        assert!((arc(&tp.moves[0]).radius_end_mm - 10.001).abs() < 1e-12);
-        // R shorter than half the chord (5 mm).
-        assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 R4 F100"), vec![(2, 11)]);
-        // A 1.27 µm shortfall is tolerated (LinuxCNC RADIUS_TOLERANCE_MM): a half circle.
-        let tp = ok("G0 X0 Y0\nG2 X10 Y0 R4.999 F100");
-        assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 R4.99 F100"), vec![(2, 11)]);
-        assert!((arc(&tp.moves[0]).sweep_rad + PI).abs() < 1e-12);
-        // R and I together; no offsets at all.
-        assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 R5 I5 F100"), vec![(2, 11)]);
-        assert_eq!(errors("G0 X0 Y0\nG2 X10 Y0 F100"), vec![(2, 1)]);
-    }
-
-    #[test]
-    fn tcp_mode_by_g43_4_or_mapped_m_codes() {
-        let tp = ok("G0 X0\nG43.4 H1\nG1 X1 F100\nG49\nG1 X2");
-        assert!(tp.moves[0].tcp && !tp.moves[1].tcp);
-        let opts = InterpOptions {
-            tcp_on_mcodes: vec![428],
-            tcp_off_mcodes: vec![429],
-            ..InterpOptions::default()
-        };
-        let (tp, _) = run_with("G0 X0\nM428\nG1 X1 F100\nM429\nG1 X2", &opts).unwrap();
-        assert!(tp.moves[0].tcp && !tp.moves[1].tcp);
-        assert_eq!(errors("M428"), vec![(1, 1)]);
-    }
-
-    #[test]
-    fn path_mode_stops_and_program_end() {
-        let tp = ok("%\nG0 X0\nG64 P0.05 G1 X1 F100\nM6 T2\nG1 X2\nM0\nG61 G1 X3\nM30\nG1 X9\n%");
-        assert_eq!(tp.moves.len(), 3);
-        assert!(!tp.moves[0].exact_stop && tp.moves[0].stop_after);
-        assert_eq!(tp.moves[0].blend_tolerance_mm, Some(0.05));
-        assert!(tp.moves[1].stop_after);
-        assert!(tp.moves[2].exact_stop);
-        let (_, warnings) = run("G0 X0\nM2\nG1 X9").unwrap();
-        assert_eq!(warnings.len(), 1);
-        assert_eq!(warnings[0].line, 3);
-    }
-
-    #[test]
-    fn block_delete_switch() {
-        let src = "G0 X0\n/G0 X5\nG0 X1";
-        assert_eq!(ok(src).moves.len(), 2);
-        let opts = InterpOptions {
-            block_delete: true,
-            ..InterpOptions::default()
-        };
-        assert_eq!(run_with(src, &opts).unwrap().0.moves.len(), 1);
-    }
-
-    #[test]
-    fn dwell_and_units_order() {
-        let tp = ok("G0 X0\nG4 P0.5\nG20 G1 X1 F10");
-        assert_eq!(tp.moves[0].kind, MoveKind::Dwell { seconds: 0.5 });
-        // F read in the block's final units: 10 in/min.
-        assert_eq!(tp.moves[1].feed, Some(Feed::UnitsPerMin(254.0)));
-    }
-}
+mod tests;

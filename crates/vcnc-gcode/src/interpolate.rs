@@ -55,9 +55,14 @@
 //!
 //! **Inverse time** (`G93`): a feed block takes exactly $1/F$ minutes, rounded up to a whole
 //! number of samples (exact when $60/F$ is a multiple of $T_s$): a rest-to-rest trapezoid with
-//! the acceleration $A$ and the peak speed lowered as above to fit that duration. When the limits
-//! make $1/F$ infeasible ($1/F < T^*$ at the limits) it is an error naming the line, or, with
-//! [`InverseTimePolicy::Stretch`], a warning and the block takes $T^*$ rounded up.
+//! the acceleration $A$ and the peak speed lowered as above to fit that duration.
+//!
+//! **Feeds the machine cannot follow** are run at its limits, as a control does, never refused:
+//! a `G94` feed above a block's speed cap $V_{\lim}$ (the axis, tool-tip or centripetal limits
+//! above) runs at $V_{\lim}$, slowed by the factor $F/(60 V_{\lim})$; a `G93` block whose $1/F$
+//! is shorter than its time-optimal duration $T^*$ at the limits takes $T^*$, slowed by
+//! $T^* F / 60$. One warning sums them up: how many blocks were slowed and the worst one (line
+//! and factor); [`Trajectory::slowdown`] holds the same figures.
 //!
 //! **Dwell**: holds the position for $P$ seconds rounded up to $T_s$.
 
@@ -97,16 +102,6 @@ impl Limits {
     }
 }
 
-/// What to do when a `G93` block cannot last 1/F within the limits.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum InverseTimePolicy {
-    /// Return [`Error::InverseTimeInfeasible`] (default).
-    #[default]
-    Error,
-    /// Take the shortest feasible time and add a warning naming the line.
-    Stretch,
-}
-
 /// Interpolator settings. Plain data; [`Default`] gives the documented defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InterpolateOptions {
@@ -120,8 +115,6 @@ pub struct InterpolateOptions {
     pub junction_deviation: f64,
     /// Axes to output; `None` (default): the axes the program uses.
     pub axes: Option<Vec<AxisName>>,
-    /// Infeasible `G93` blocks: error (default) or stretch with a warning.
-    pub inverse_time: InverseTimePolicy,
     /// Fraction $\beta$ of the acceleration limit given to the centripetal acceleration on arcs
     /// (the rest is for the tangential one), in (0, 1). Default 0.5.
     pub arc_centripetal_fraction: f64,
@@ -134,7 +127,6 @@ impl Default for InterpolateOptions {
             max_samples: 10_000_000,
             junction_deviation: 0.01,
             axes: None,
-            inverse_time: InverseTimePolicy::Error,
             arc_centripetal_fraction: 0.5,
         }
     }
@@ -153,6 +145,28 @@ pub struct AxisTrack {
     pub acc: Vec<f64>,
 }
 
+/// What a span of the trajectory does: position (rapid), cut (feed) or wait (dwell).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MoveClass {
+    /// `G0`, and the positioning moves of canned cycles, `G28` and `G30`.
+    Rapid,
+    /// `G1`, `G2`, `G3`, and the feed moves of canned cycles: the moves that cut.
+    Feed,
+    /// `G4`, and the dwells of canned cycles.
+    Dwell,
+}
+
+impl MoveClass {
+    /// The class of a move kind.
+    pub fn of(kind: &MoveKind) -> MoveClass {
+        match kind {
+            MoveKind::Rapid => MoveClass::Rapid,
+            MoveKind::Linear | MoveKind::Arc(_) => MoveClass::Feed,
+            MoveKind::Dwell { .. } => MoveClass::Dwell,
+        }
+    }
+}
+
 /// Time span of one move in the trajectory.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BlockSpan {
@@ -160,12 +174,32 @@ pub struct BlockSpan {
     pub move_index: usize,
     /// Source line of the move.
     pub line: u32,
+    /// Rapid, feed or dwell.
+    pub class: MoveClass,
     /// Start time, s.
     pub t_start_s: f64,
     /// End time, s (exact-stop blocks end on a sample; inner `G64` segments need not).
     pub t_end_s: f64,
+    /// First sample of the span: samples `first_sample..end_sample` belong to it. A sample on
+    /// the boundary of two spans belongs to the one that ends there (the first span also has
+    /// sample 0), so every sample of a trajectory with moves belongs to exactly one span.
+    pub first_sample: usize,
+    /// One past the last sample of the span (equal to `first_sample` for a span shorter than a
+    /// sample period that holds no sample).
+    pub end_sample: usize,
     /// Tool-centre-point mode.
     pub tcp: bool,
+}
+
+/// How much the machine's limits slowed the programmed feeds (module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Slowdown {
+    /// Number of feed blocks that ran slower than programmed.
+    pub blocks: usize,
+    /// Source line of the most slowed block.
+    pub worst_line: u32,
+    /// Its slowdown: programmed speed over the speed it ran at (> 1, dimensionless).
+    pub worst_factor: f64,
 }
 
 /// The sampled reference trajectory.
@@ -179,7 +213,9 @@ pub struct Trajectory {
     pub tcp: Vec<bool>,
     /// The moves' time spans, in order (zero-length moves have none).
     pub blocks: Vec<BlockSpan>,
-    /// Warnings raised while interpolating (e.g. a stretched `G93` block).
+    /// Feeds slowed to the machine's limits, if any.
+    pub slowdown: Option<Slowdown>,
+    /// Warnings raised while interpolating (the slowdown summary).
     pub warnings: Vec<Diagnostic>,
 }
 
@@ -204,11 +240,31 @@ impl Trajectory {
         self.axes.iter().find(|a| a.name == name)
     }
 
-    /// The span of the move running at sample `k` (the earlier one at a boundary).
+    /// The span sample `k` belongs to ([`BlockSpan::first_sample`]); O(log spans).
+    pub fn span_at(&self, k: usize) -> Option<&BlockSpan> {
+        let i = self.blocks.partition_point(|b| b.end_sample <= k);
+        self.blocks.get(i).filter(|b| b.first_sample <= k)
+    }
+
+    /// The span of the move running at sample `k` (the earlier one at a boundary): the same as
+    /// [`Trajectory::span_at`].
     pub fn block_at(&self, k: usize) -> Option<&BlockSpan> {
-        let t = k as f64 * self.ts;
-        let i = self.blocks.partition_point(|b| b.t_end_s < t - 1e-12);
-        self.blocks.get(i).filter(|b| b.t_start_s <= t + 1e-12)
+        self.span_at(k)
+    }
+
+    /// For every sample in order, the index in [`Trajectory::blocks`] of its span (`None` only
+    /// for a trajectory without moves): O(samples + spans) in all.
+    pub fn sample_spans(&self) -> impl Iterator<Item = Option<usize>> + '_ {
+        let mut next = 0usize;
+        (0..self.len()).map(move |k| {
+            while next < self.blocks.len() && self.blocks[next].end_sample <= k {
+                next += 1;
+            }
+            self.blocks
+                .get(next)
+                .filter(|b| b.first_sample <= k)
+                .map(|_| next)
+        })
     }
 }
 
@@ -325,6 +381,8 @@ struct Seg {
     vcap: f64,
     /// Speed cap from the limits alone.
     vlim: f64,
+    /// Programmed `G94` speed along s (∞ for rapids and `G93` blocks).
+    vfeed: f64,
     /// Acceleration cap along s.
     acap: f64,
     move_index: usize,
@@ -602,6 +660,7 @@ fn segment(
         len,
         vcap,
         vlim,
+        vfeed,
         acap,
         move_index: index,
         xyz_basis,
@@ -743,6 +802,83 @@ fn continuous(mv: &Move) -> bool {
         && matches!(mv.kind, MoveKind::Linear | MoveKind::Arc(_))
 }
 
+/// Why a block was slowed (numbers only: the message is built once, for the worst block).
+#[derive(Clone, Copy)]
+enum Cause {
+    /// `G94`: programmed speed and the cap, along s (mm/s or deg/s).
+    Feed { v_feed: f64, v_lim: f64, deg: bool },
+    /// `G93`: requested and shortest durations, s, and F (1/min).
+    InverseTime { want_s: f64, min_s: f64, f: f64 },
+}
+
+/// Blocks slowed to the limits: the count and the worst (factor, line, column, cause).
+#[derive(Default)]
+struct Slowed {
+    count: usize,
+    worst: Option<(f64, u32, u32, Cause)>,
+}
+
+impl Slowed {
+    /// Note a `G94` segment whose feed is above its speed cap.
+    fn feed(&mut self, seg: &Seg, mv: &Move) {
+        if seg.vfeed.is_finite() && seg.vfeed > seg.vlim * (1.0 + 1e-9) {
+            let cause = Cause::Feed {
+                v_feed: seg.vfeed,
+                v_lim: seg.vlim,
+                deg: !seg.xyz_basis,
+            };
+            self.note(seg.vfeed / seg.vlim, mv, cause);
+        }
+    }
+
+    fn note(&mut self, factor: f64, mv: &Move, cause: Cause) {
+        self.count += 1;
+        if self.worst.is_none_or(|w| factor > w.0) {
+            self.worst = Some((factor, mv.line, mv.col, cause));
+        }
+    }
+
+    fn finish(self, warnings: &mut Vec<Diagnostic>) -> Option<Slowdown> {
+        let (factor, line, col, cause) = self.worst?;
+        let detail = match cause {
+            Cause::Feed { v_feed, v_lim, deg } => {
+                let unit = if deg { "deg" } else { "mm" };
+                format!(
+                    "F{} asks for {v_feed:.3} {unit}/s, the limits allow {v_lim:.3} {unit}/s",
+                    fmt_num(v_feed * 60.0)
+                )
+            }
+            Cause::InverseTime { want_s, min_s, f } => format!(
+                "inverse time F{} asks for {want_s:.4} s, the limits need {min_s:.4} s",
+                fmt_num(f)
+            ),
+        };
+        warnings.push(Diagnostic::warning(
+            Span {
+                line,
+                col,
+                start: 0,
+                end: 0,
+            },
+            format!(
+                "{} feed block(s) run slower than programmed, at the machine's limits; the worst is line {line} ({detail}): {factor:.3} times slower",
+                self.count
+            ),
+        ));
+        Some(Slowdown {
+            blocks: self.count,
+            worst_line: line,
+            worst_factor: factor,
+        })
+    }
+}
+
+/// A number without trailing zeros.
+fn fmt_num(x: f64) -> String {
+    let s = format!("{x:.4}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 /// Interpolate a toolpath into samples (module doc).
 pub fn interpolate(
     tp: &Toolpath,
@@ -752,7 +888,7 @@ pub fn interpolate(
     check_limits(limits, opts)?;
     let ts = opts.ts;
     let max = opts.max_samples;
-    let mut warnings = Vec::new();
+    let mut slowed = Slowed::default();
     let mut pieces: Vec<Piece> = Vec::new();
     let mut total: u64 = 0;
     let push = |p: Piece, total: &mut u64, pieces: &mut Vec<Piece>| -> Result<(), Error> {
@@ -800,6 +936,7 @@ pub fn interpolate(
                         break;
                     }
                     basis = Some(seg.xyz_basis);
+                    slowed.feed(&seg, m);
                     segs.push(seg);
                     deltas.push(m.blend_tolerance_mm.unwrap_or(opts.junction_deviation));
                 }
@@ -824,57 +961,42 @@ pub fn interpolate(
             continue;
         }
         if let Some(seg) = segment(mv, i, limits, opts)? {
-            let t_req = match mv.feed {
+            let piece = match mv.feed {
                 Some(Feed::InverseTime(f)) => {
                     let want = 60.0 / f;
                     let t_min = Trap::new(seg.len, 0.0, 0.0, seg.vlim, seg.acap).duration();
                     if want < t_min * (1.0 - 1e-12) {
-                        match opts.inverse_time {
-                            InverseTimePolicy::Error => {
-                                return Err(Error::InverseTimeInfeasible {
-                                    line: mv.line,
-                                    requested_s: want,
-                                    min_s: t_min,
-                                });
-                            }
-                            InverseTimePolicy::Stretch => warnings.push(Diagnostic::warning(
-                                Span {
-                                    line: mv.line,
-                                    col: mv.col,
-                                    start: 0,
-                                    end: 0,
-                                },
-                                format!(
-                                    "inverse-time block asks for {want:.6} s but the limits need \
-                                     at least {t_min:.6} s; it takes the longer time"
-                                ),
-                            )),
-                        }
+                        slowed.note(
+                            t_min / want,
+                            mv,
+                            Cause::InverseTime {
+                                want_s: want,
+                                min_s: t_min,
+                                f,
+                            },
+                        );
                     }
-                    // The feed cap does not apply: the duration does.
+                    // The feed cap does not apply: the duration does (at least T*).
                     let seg = Seg {
                         vcap: seg.vlim,
                         ..seg
                     };
-                    push(
-                        single(seg, mv.tcp, Some(want), ts, max)?,
-                        &mut total,
-                        &mut pieces,
-                    )?;
-                    i += 1;
-                    continue;
+                    single(seg, mv.tcp, Some(want), ts, max)?
                 }
-                _ => None,
+                _ => {
+                    slowed.feed(&seg, mv);
+                    single(seg, mv.tcp, None, ts, max)?
+                }
             };
-            push(
-                single(seg, mv.tcp, t_req, ts, max)?,
-                &mut total,
-                &mut pieces,
-            )?;
+            push(piece, &mut total, &mut pieces)?;
         }
         i += 1;
     }
-    sample(tp, &pieces, total, opts, warnings)
+    let mut warnings = Vec::new();
+    let slowdown = slowed.finish(&mut warnings);
+    let mut t = sample(tp, &pieces, total, opts, warnings)?;
+    t.slowdown = slowdown;
+    Ok(t)
 }
 
 /// Fill the sample arrays.
@@ -918,7 +1040,7 @@ fn sample(
         })
         .collect();
     let mut tcp = Vec::with_capacity(len);
-    let mut blocks = Vec::new();
+    let mut blocks = Vec::with_capacity(tp.moves.len());
     let emit = |p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], axes: &mut [AxisTrack]| {
         for (track, &i) in axes.iter_mut().zip(&idx) {
             track.pos.push(p[i]);
@@ -927,17 +1049,29 @@ fn sample(
         }
     };
     let zero = [0.0; 6];
+    let class = |mi: usize| {
+        tp.moves
+            .get(mi)
+            .map_or(MoveClass::Feed, |m| MoveClass::of(&m.kind))
+    };
     let mut k0: u64 = 0;
     for piece in pieces {
         let t0 = k0 as f64 * ts;
         let lam = piece.lambda;
+        // Samples k with t_start < t_k ≤ t_end belong to a span (BlockSpan::first_sample).
+        let base = k0 as usize;
+        let n = piece.n as usize;
+        let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
         if piece.segs.is_empty() {
             if let Some(mi) = piece.dwell_move {
                 blocks.push(BlockSpan {
                     move_index: mi,
                     line: tp.moves.get(mi).map_or(0, |m| m.line),
+                    class: class(mi),
                     t_start_s: t0,
                     t_end_s: t0 + piece.n as f64 * ts,
+                    first_sample: base + 1,
+                    end_sample: base + n + 1,
                     tcp: piece.tcp,
                 });
             }
@@ -948,16 +1082,21 @@ fn sample(
         } else {
             let last = piece.segs.len() - 1;
             for (j, (seg, trap, tau0)) in piece.segs.iter().enumerate() {
-                let t_end = if j == last {
-                    t0 + piece.n as f64 * ts
+                let (t_end, k_end) = if j == last {
+                    (t0 + piece.n as f64 * ts, n)
                 } else {
-                    t0 + lam * (tau0 + trap.duration())
+                    let rel = lam * (tau0 + trap.duration());
+                    (t0 + rel, last_in(rel))
                 };
+                let k_first = if j == 0 { 0 } else { last_in(lam * tau0) };
                 blocks.push(BlockSpan {
                     move_index: seg.move_index,
                     line: tp.moves.get(seg.move_index).map_or(0, |m| m.line),
+                    class: class(seg.move_index),
                     t_start_s: t0 + lam * tau0,
                     t_end_s: t_end,
+                    first_sample: base + k_first + 1,
+                    end_sample: base + k_end.max(k_first) + 1,
                     tcp: piece.tcp,
                 });
             }
@@ -988,11 +1127,15 @@ fn sample(
     let end = tp.moves.last().map_or(tp.start, |m| m.end);
     emit(&end, &zero, &zero, &mut axes);
     tcp.push(tp.moves.last().is_some_and(|m| m.tcp));
+    if let Some(first) = blocks.first_mut() {
+        first.first_sample = 0;
+    }
     Ok(Trajectory {
         ts,
         axes,
         tcp,
         blocks,
+        slowdown: None,
         warnings,
     })
 }
@@ -1116,7 +1259,8 @@ mod tests {
             t.axis(AxisName::Y).unwrap(),
             t.axis(AxisName::Z).unwrap(),
         );
-        for k in 0..t.len() {
+        // From the end of the positioning rapid on, on the circle.
+        for k in t.blocks[1].first_sample..t.len() {
             let r = x.pos[k].hypot(y.pos[k]);
             assert!((r - 10.0).abs() < 1e-9, "k {k}: r = {r}");
         }
@@ -1129,7 +1273,7 @@ mod tests {
         assert_eq!(z.pos.last(), Some(&5.0));
         // Centripetal cap on the in-plane speed, √(½ A r) = 70.7 mm/s < feed 100: the
         // cruise is on it.
-        let vmax = (0..t.len())
+        let vmax = (t.blocks[1].first_sample..t.len())
             .map(|k| x.vel[k].hypot(y.vel[k]))
             .fold(0.0, f64::max);
         let cap = (0.5 * 1000.0 * 10.0f64).sqrt();
@@ -1196,36 +1340,81 @@ mod tests {
             assert!((got - want).abs() < 1e-12, "{d:?}");
         }
         assert_eq!(t.axis(AxisName::X).unwrap().pos.last(), Some(&15.0));
-        // 100 mm in 0.1 s cannot be done at 100 mm/s.
-        let src = "G0 X0\nG93 G1 X100 F600";
-        match traj(src, &limits, &InterpolateOptions::default()) {
-            Err(Error::InverseTimeInfeasible {
-                line,
-                requested_s,
-                min_s,
-            }) => {
-                assert_eq!(line, 2);
-                assert!((requested_s - 0.1).abs() < 1e-12);
-                assert!((min_s - 1.1).abs() < 1e-12);
-            }
-            other => panic!("{other:?}"),
-        }
-        let opts = InterpolateOptions {
-            inverse_time: InverseTimePolicy::Stretch,
-            ..InterpolateOptions::default()
-        };
-        let t = traj(src, &limits, &opts).unwrap();
-        assert!((t.duration_s() - 1.1).abs() < 1e-12);
+        // 100 mm in 0.1 s cannot be done at 100 mm/s: it runs at the limits (T* = 1.1 s),
+        // 11 times slower, with one summary warning naming the line.
+        let src = "G0 X0\nG93 G1 X100 F600\nG1 X0 F300\nG94 G1 X10 F60000";
+        let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
+        let d: Vec<f64> = t.blocks.iter().map(|b| b.t_end_s - b.t_start_s).collect();
+        assert!(
+            (d[0] - 1.1).abs() < 1e-12 && (d[1] - 1.1).abs() < 1e-12,
+            "{d:?}"
+        );
         assert_eq!(t.warnings.len(), 1);
         assert_eq!(t.warnings[0].line, 2);
+        assert!(
+            t.warnings[0].message.starts_with("3 feed block(s)"),
+            "{}",
+            t.warnings[0].message
+        );
+        let s = t.slowdown.unwrap();
+        assert_eq!((s.blocks, s.worst_line), (3, 2));
+        assert!((s.worst_factor - 11.0).abs() < 1e-9);
+        // Within the limits: no warning.
+        let t = traj(
+            "G0 X0\nG1 X10 F600",
+            &limits,
+            &InterpolateOptions::default(),
+        )
+        .unwrap();
+        assert!(t.warnings.is_empty() && t.slowdown.is_none());
+    }
+
+    #[test]
+    fn every_sample_belongs_to_one_span_with_its_class() {
+        // Rapid, feed chain (G64), dwell, feed: spans tile the samples; boundary samples go to
+        // the span that ends there.
+        let limits = Limits::uniform(100.0, 1000.0);
+        let src = "G0 X5\nG64 G1 X6 F600\nX7\nG4 P0.1\nG61 G1 X8";
+        let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
+        let classes: Vec<MoveClass> = t.blocks.iter().map(|b| b.class).collect();
+        assert_eq!(
+            classes,
+            vec![
+                MoveClass::Rapid,
+                MoveClass::Feed,
+                MoveClass::Feed,
+                MoveClass::Dwell,
+                MoveClass::Feed
+            ]
+        );
+        assert_eq!(t.blocks[0].first_sample, 0);
+        assert_eq!(t.blocks.last().unwrap().end_sample, t.len());
+        for w in t.blocks.windows(2) {
+            assert_eq!(w[0].end_sample, w[1].first_sample);
+        }
+        let spans: Vec<Option<usize>> = t.sample_spans().collect();
+        for (k, s) in spans.iter().enumerate() {
+            let b = &t.blocks[s.unwrap()];
+            assert!(b.first_sample <= k && k < b.end_sample);
+            assert_eq!(t.span_at(k), Some(b));
+            let tk = k as f64 * t.ts;
+            assert!(
+                tk <= b.t_end_s + 1e-9 && (k == 0 || tk > b.t_start_s - 1e-9),
+                "k {k}"
+            );
+        }
+        // The rapid ends exactly on a sample, which belongs to it.
+        let k = (t.blocks[0].t_end_s / t.ts).round() as usize;
+        assert_eq!(t.span_at(k).unwrap().class, MoveClass::Rapid);
+        assert_eq!(t.span_at(k + 1).unwrap().class, MoveClass::Feed);
     }
 
     #[test]
     fn dwell_holds_for_p_rounded_up() {
         let limits = Limits::uniform(100.0, 1000.0);
-        let t = traj("G0 X1\nG4 P0.2505", &limits, &InterpolateOptions::default()).unwrap();
+        let t = traj("G4 P0.2505", &limits, &InterpolateOptions::default()).unwrap();
         assert_eq!(t.len(), 252);
-        assert!(t.axis(AxisName::X).unwrap().pos.iter().all(|&x| x == 1.0));
+        assert!(t.axis(AxisName::X).unwrap().pos.iter().all(|&x| x == 0.0));
     }
 
     #[test]

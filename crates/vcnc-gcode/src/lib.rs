@@ -1,13 +1,17 @@
-//! G-code front end of vcnc: parsing, modal interpretation, trapezoidal interpolation at the
-//! sample period, and the program generators (docs/gcode.md).
+//! G-code front end of vcnc: parsing, interpretation, trapezoidal interpolation at the sample
+//! period, and the program generators (docs/gcode.md). The language — RS274/NGC as LinuxCNC
+//! runs it, with parameters, expressions, O-word control flow, offsets and canned cycles — is
+//! described in this crate's `LANGUAGE.md`, and checked against LinuxCNC's own interpreter
+//! (`tests/linuxcnc.rs`).
 //!
 //! The stages are kept apart (STYLE, the gcode-rs model):
 //!
 //! | module | input → output | main type |
 //! |---|---|---|
-//! | [`syntax`] | text → blocks, words, comments with spans; every diagnostic | [`Program`] |
-//! | [`interp`] | blocks → moves in mm and degrees (modal state, units, arcs, feeds) | [`Toolpath`] |
-//! | [`interpolate`](mod@interpolate) | moves + limits → samples of position, velocity, acceleration | [`Trajectory`] |
+//! | [`syntax`] | text → blocks, words, expressions, O-words, comments with spans; every diagnostic | [`Program`] |
+//! | [`interp`] | blocks → moves in mm and degrees, machine coordinates (parameters, control flow, modal state, offsets, cycles, arcs, feeds) | [`Toolpath`] |
+//! | [`tables`] | LinuxCNC parameter file and tool table → typed tables | [`ParameterTable`], [`ToolTable`] |
+//! | [`interpolate`](mod@interpolate) | moves + limits → samples of position, velocity, acceleration, with each sample's source line and move class | [`Trajectory`] |
 //! | [`generate`] | options → G-code text (identification excitation, 5-axis spiral) | `String` |
 //!
 //! ```
@@ -26,20 +30,27 @@ pub mod generate;
 pub mod interp;
 pub mod interpolate;
 pub mod syntax;
+pub mod tables;
 
-pub use diag::{Diagnostic, Severity, Span};
+pub use diag::{Diagnostic, DiagnosticKind, Severity, Span};
 pub use generate::{
     IdentificationOptions, SpiralOptions, TcpProgramOptions, TipPose, identification,
     spiral_points, tcp_program,
 };
-pub use interp::{ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, Toolpath, interpret};
+pub use interp::{
+    ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath, interpret,
+};
 pub use interpolate::{
-    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, InverseTimePolicy, Limits, Trajectory,
+    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,
     interpolate,
 };
 pub use syntax::{
-    Block, Comment, CommentKind, LineNumber, ParseOptions, Program, Word, parse, parse_bytes,
+    Assignment, BinOp, Block, Comment, CommentKind, Expr, ExprId, ExprKind, Func, LineNumber,
+    NameId, OLabel, OStatement, OWord, ParamRef, ParseOptions, Program, Word, parse, parse_bytes,
     parse_with,
+};
+pub use tables::{
+    LengthUnit, ParameterTable, Tool, ToolTable, parse_parameter_file, parse_tool_table,
 };
 
 /// Axis names; their order ([`AxisName::ALL`]) is that of every `[f64; 6]` position: X Y Z
@@ -97,18 +108,6 @@ pub enum Error {
         /// Duration reached, s.
         duration_s: f64,
     },
-    /// A `G93` block cannot last 1/F within the limits.
-    #[error(
-        "line {line}: inverse-time feed asks for {requested_s:.6} s but the axis limits need at least {min_s:.6} s"
-    )]
-    InverseTimeInfeasible {
-        /// Source line.
-        line: u32,
-        /// 1/F, s.
-        requested_s: f64,
-        /// Shortest feasible time, s.
-        min_s: f64,
-    },
     /// A computed quantity is not finite (degenerate input).
     #[error("line {line}: {what} is not finite or not positive")]
     NonFinite {
@@ -116,6 +115,30 @@ pub enum Error {
         line: u32,
         /// What was computed.
         what: &'static str,
+    },
+    /// A line of a LinuxCNC parameter file (`.var`) is wrong.
+    #[error("{file}:{line}: {reason}: '{text}'")]
+    ParameterFile {
+        /// The file's name, as given.
+        file: String,
+        /// Line number, 1-based.
+        line: u32,
+        /// The offending line (trimmed).
+        text: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A line of a LinuxCNC tool table (`.tbl`) is wrong.
+    #[error("{file}:{line}: {reason}: '{text}'")]
+    ToolTable {
+        /// The file's name, as given.
+        file: String,
+        /// Line number, 1-based.
+        line: u32,
+        /// The offending word or line.
+        text: String,
+        /// What is wrong.
+        reason: String,
     },
     /// A generator option is out of range.
     #[error("generator option {name} = {value:?} is invalid: expected {expected}")]
@@ -139,8 +162,9 @@ impl Error {
             | Error::InvalidOption { .. }
             | Error::AxisCannotMove { .. }
             | Error::TooManySamples { .. }
-            | Error::InverseTimeInfeasible { .. }
             | Error::NonFinite { .. }
+            | Error::ParameterFile { .. }
+            | Error::ToolTable { .. }
             | Error::InvalidGenerator { .. } => true,
         }
     }

@@ -171,13 +171,16 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
         limits.axes[i].max_vel = 1000.0;
         limits.axes[i].max_acc = 1.0e6;
     }
-    let run = load(
-        &text,
-        &InterpOptions::default(),
-        &limits,
-        &InterpolateOptions::default(),
-    )
-    .unwrap();
+    // The machine starts where the program's opening rapid goes, so that rapid costs nothing
+    // and the path is the spiral alone.
+    let (program, _) = vcnc_gcode::parse(&text);
+    let (first, _) = vcnc_gcode::interpret(&program, &InterpOptions::default()).unwrap();
+    assert_eq!(first.moves[0].kind, MoveKind::Rapid);
+    let opts = InterpOptions {
+        start: vcnc_gcode::StartPosition::Machine(first.moves[0].end),
+        ..InterpOptions::default()
+    };
+    let run = load(&text, &opts, &limits, &InterpolateOptions::default()).unwrap();
     let tp = &run.toolpath;
     assert!(tp.moves.iter().all(|m| m.tcp && !m.exact_stop));
     assert!(tp.moves.iter().all(|m| matches!(m.kind, MoveKind::Linear)));

@@ -273,6 +273,9 @@ impl Machine {
     pub fn interp_options(&self, lenient: bool) -> InterpOptions {
         InterpOptions {
             lenient,
+            // The machine file has no start position yet (issue 13 item 7): keep the behaviour
+            // the pipeline's figures were made with, the opening motion defines the start.
+            start: vcnc_gcode::StartPosition::FirstMove,
             tcp_on_mcodes: self.tcp_mcodes.0.clone(),
             tcp_off_mcodes: self.tcp_mcodes.1.clone(),
             ..InterpOptions::default()

@@ -73,8 +73,9 @@ fn divide(num: &[f64], den: &[f64]) -> (Poly, Poly) {
 
 /// Value of a polynomial at a complex point (Horner).
 fn eval(p: &[f64], z: Complex<f64>) -> Complex<f64> {
-    p.iter()
-        .fold(Complex::new(0.0, 0.0), |acc, c| acc * z + Complex::new(*c, 0.0))
+    p.iter().fold(Complex::new(0.0, 0.0), |acc, c| {
+        acc * z + Complex::new(*c, 0.0)
+    })
 }
 
 /// Derivative of a polynomial.
@@ -158,11 +159,7 @@ impl Operator {
         let mut y: Vec<f64> = (0..n)
             .map(|k| {
                 let d = [u[k], du[k], ddu[k]];
-                self.q
-                    .iter()
-                    .enumerate()
-                    .map(|(i, c)| c * d[deg - i])
-                    .sum()
+                self.q.iter().enumerate().map(|(i, c)| c * d[deg - i]).sum()
             })
             .collect();
         for &(c, z, pair) in &self.modes {
@@ -252,7 +249,12 @@ pub fn compensate_axis(
     ts: f64,
     deadband: f64,
 ) -> Result<AxisSignals, Error> {
-    let fail = |m: String| Error::Usage(format!("axis {}: cannot invert the model: {m}", desired.name));
+    let fail = |m: String| {
+        Error::Usage(format!(
+            "axis {}: cannot invert the model: {m}",
+            desired.name
+        ))
+    };
     if !(model.is_finite() && model.is_marginally_stable()) {
         return Err(fail("the model is not stable".into()));
     }
@@ -291,7 +293,11 @@ pub fn compensate_axis(
             .map(|v| if v.abs() <= deadband { 0.0 } else { v.signum() })
             .collect();
         // s/N, or 1/(N/s) once the root at 0 has cancelled.
-        let mut num = if model.a3 == 0.0 { vec![1.0] } else { vec![1.0, 0.0] };
+        let mut num = if model.a3 == 0.0 {
+            vec![1.0]
+        } else {
+            vec![1.0, 0.0]
+        };
         let mut parts = Vec::new();
         for _ in 0..3 {
             parts.push(Operator::new(&num, &nn).ok().filter(|o| o.q.len() == 1));
@@ -442,34 +448,71 @@ mod spiral_experiment {
     #[ignore]
     fn spiral() {
         let machine = vcnc_machine::Machine::embedded_nmv5000().unwrap();
-        let run = crate::run::prepare(&machine, vcnc_machine::embedded::SPIRAL_NGC, "s", false).unwrap();
+        let run =
+            crate::run::prepare(&machine, vcnc_machine::embedded::SPIRAL_NGC, "s", false).unwrap();
         let axes: Vec<_> = machine.axes.iter().collect();
         let ids = crate::identify::identify_axes(&machine, &axes, None).unwrap();
         let models: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
-        for (label, ms) in [("identified", models.clone()), ("true", machine.axes.iter().map(|a| a.true_model()).collect())] {
+        for (label, ms) in [
+            ("identified", models.clone()),
+            (
+                "true",
+                machine.axes.iter().map(|a| a.true_model()).collect(),
+            ),
+        ] {
             let (comp, _margins) = compensate_run(&machine, &run, &ms).unwrap();
             let mut crun = run.clone();
             crun.axes = comp;
             let traces = crate::simulate::simulate_true(&machine, &crun).unwrap();
             let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
             let (_, c) = crate::predict::contour(&machine, &run, &pos).unwrap();
-            eprintln!("{label}: contour max {:.3} µm rms {:.3}, orientation max {:.5} mrad", c.tip_max_mm*1e3, c.tip_rms_mm*1e3, c.orientation_max_rad*1e3);
+            eprintln!(
+                "{label}: contour max {:.3} µm rms {:.3}, orientation max {:.5} mrad",
+                c.tip_max_mm * 1e3,
+                c.tip_rms_mm * 1e3,
+                c.orientation_max_rad * 1e3
+            );
             let n = c.tip_mm.len();
             for w in 0..20 {
                 let (a, b) = (w * n / 20, (w + 1) * n / 20);
                 let m = c.tip_mm[a..b].iter().cloned().fold(0.0, f64::max);
-                let (k, _) = c.tip_mm[a..b].iter().enumerate().fold((0, 0.0), |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc });
-                eprint!("[{:.2}s {:.2}µm @{:.3}] ", a as f64 * 1e-3, m * 1e3, (a + k) as f64 * 1e-3);
+                let (k, _) = c.tip_mm[a..b]
+                    .iter()
+                    .enumerate()
+                    .fold(
+                        (0, 0.0),
+                        |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc },
+                    );
+                eprint!(
+                    "[{:.2}s {:.2}µm @{:.3}] ",
+                    a as f64 * 1e-3,
+                    m * 1e3,
+                    (a + k) as f64 * 1e-3
+                );
             }
             eprintln!();
             for (i, a) in crun.axes.iter().enumerate() {
-                let x = ms[i].simulate(a.reference(), run.ts, &vcnc_drive::SimOptions::default()).unwrap();
+                let x = ms[i]
+                    .simulate(a.reference(), run.ts, &vcnc_drive::SimOptions::default())
+                    .unwrap();
                 let d = &run.axes[i].pos;
-                let win = |lo: usize, hi: usize, v: &[f64]| (lo..hi.min(d.len())).map(|k| (v[k] - d[k]).abs()).fold(0.0, f64::max) * 1e3;
+                let win = |lo: usize, hi: usize, v: &[f64]| {
+                    (lo..hi.min(d.len()))
+                        .map(|k| (v[k] - d[k]).abs())
+                        .fold(0.0, f64::max)
+                        * 1e3
+                };
                 let n = d.len();
-                eprintln!("  {}: model-vs-desired start {:.3} mid {:.3} end {:.3}; drive-vs-desired start {:.3} mid {:.3} end {:.3}", a.name,
-                    win(0, 60, &x), win(60, n - 60, &x), win(n - 60, n, &x),
-                    win(0, 60, &traces[i].true_position), win(60, n - 60, &traces[i].true_position), win(n - 60, n, &traces[i].true_position));
+                eprintln!(
+                    "  {}: model-vs-desired start {:.3} mid {:.3} end {:.3}; drive-vs-desired start {:.3} mid {:.3} end {:.3}",
+                    a.name,
+                    win(0, 60, &x),
+                    win(60, n - 60, &x),
+                    win(n - 60, n, &x),
+                    win(0, 60, &traces[i].true_position),
+                    win(60, n - 60, &traces[i].true_position),
+                    win(n - 60, n, &traces[i].true_position)
+                );
             }
         }
     }
@@ -494,7 +537,8 @@ mod tests {
             let tau = (k as f64 * ts / t_move).min(1.0);
             s.pos[k] = 5.0 + len * (10.0 * tau.powi(3) - 15.0 * tau.powi(4) + 6.0 * tau.powi(5));
             if tau < 1.0 {
-                s.vel[k] = len / t_move * (30.0 * tau.powi(2) - 60.0 * tau.powi(3) + 30.0 * tau.powi(4));
+                s.vel[k] =
+                    len / t_move * (30.0 * tau.powi(2) - 60.0 * tau.powi(3) + 30.0 * tau.powi(4));
                 s.acc[k] = len / (t_move * t_move)
                     * (60.0 * tau - 180.0 * tau.powi(2) + 120.0 * tau.powi(3));
             }
@@ -552,7 +596,10 @@ mod tests {
                 let fine = quintic(100.0, 0.4, ts / 2.0, 1600);
                 let c2 = compensate_axis(&m, &fine, ts / 2.0, 1.5).unwrap();
                 let after2 = track_error(&m, &c2, &fine, ts / 2.0);
-                assert!(after / after2 > 3.2, "{m:?}: {after} at 1 ms, {after2} at 0.5 ms");
+                assert!(
+                    after / after2 > 3.2,
+                    "{m:?}: {after} at 1 ms, {after2} at 0.5 ms"
+                );
             }
         }
     }

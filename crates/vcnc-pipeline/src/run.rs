@@ -220,6 +220,7 @@ fn check_axes_exist(
                         line: m.line,
                         col: m.col,
                         severity: Severity::Error,
+                        kind: vcnc_gcode::DiagnosticKind::Motion,
                         message: format!(
                             "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
                             machine.name,
