@@ -1,6 +1,8 @@
-//! Writers for the simple formats, for round trips and for making test traces. Numbers are
-//! written in Rust's shortest exact form (not the `%.14f` or `%f` of the LinuxCNC tools), so a
-//! written trace reads back bit for bit.
+//! Writers of every format the readers take (halscope tables and pairs, halsampler, delimited
+//! text, TNCscope, Sinumerik servo traces, TwinCAT Scope CSV), in the layouts the readers of
+//! [`crate::formats`] document, for round trips and for making test traces. Numbers are written
+//! in Rust's shortest exact form (not the `%.14f` or `%f` of the LinuxCNC tools), so a written
+//! trace reads back bit for bit.
 
 use std::io::{self, Write};
 
