@@ -9,3 +9,4 @@ mod cli;
 mod identify;
 mod spiral;
 mod sweep;
+mod traces;

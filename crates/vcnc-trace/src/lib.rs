@@ -1,4 +1,5 @@
-//! Read the traces CNC scopes save, and pair them per axis for identification.
+//! Read the traces CNC scopes save, and pair them per axis for identification. The user's view
+//! (formats, units, periods, gaps, channel mapping, measured accuracy): `docs/traces.md`.
 //!
 //! ```text
 //! file bytes ──► detect (content signatures, fixed order) ──► Format

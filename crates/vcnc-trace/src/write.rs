@@ -1,6 +1,8 @@
-//! Writers for the simple formats, for round trips and for making test traces. Numbers are
-//! written in Rust's shortest exact form (not the `%.14f` or `%f` of the LinuxCNC tools), so a
-//! written trace reads back bit for bit.
+//! Writers of every format the readers take (halscope tables and pairs, halsampler, delimited
+//! text, TNCscope, Sinumerik servo traces, TwinCAT Scope CSV), in the layouts the readers of
+//! [`crate::formats`] document, for round trips and for making test traces. Numbers are written
+//! in Rust's shortest exact form (not the `%.14f` or `%f` of the LinuxCNC tools), so a written
+//! trace reads back bit for bit.
 
 use std::io::{self, Write};
 
@@ -187,6 +189,168 @@ pub fn tncscope(w: &mut impl Write, control: &str, curves: &[TncCurve<'_>]) -> i
                 line.push_str(&num(*v, false));
             }
             line.push(';');
+        }
+        writeln!(w, "{line}")?;
+    }
+    Ok(())
+}
+
+fn invalid(what: &str) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidInput, what.to_string())
+}
+
+/// One signal of a Sinumerik servo trace.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SinumerikSignal<'a> {
+    /// `id`: record attribute `f<id>` carries its values.
+    pub id: usize,
+    /// `name`: the NCK path (`/Nck/ServoTrace/PositionSetpoint[X1]`).
+    pub name: &'a str,
+    /// `description`: what the trace screen shows (`Position setpoint X1`).
+    pub description: &'a str,
+    /// `unit`, when given (`mm`, `deg`).
+    pub unit: Option<&'a str>,
+    /// One value per record time; each must be finite and at most
+    /// [`crate::NO_VALUE_ABOVE`] (larger ones mean "no value").
+    pub samples: &'a [f64],
+}
+
+/// A Sinumerik Operate servo trace (the layout of [`crate::formats::sinumerik`]): the signals
+/// declared, then one `rec` per time of `times_s` (s). As the control does, a record lists only
+/// the values that changed since the previous record (all of them in the first).
+pub fn sinumerik(
+    w: &mut impl Write,
+    times_s: &[f64],
+    signals: &[SinumerikSignal<'_>],
+) -> io::Result<()> {
+    use quick_xml::escape::escape;
+    if signals.iter().any(|s| s.samples.len() != times_s.len()) {
+        return Err(invalid("every signal needs one value per record time"));
+    }
+    if signals
+        .iter()
+        .flat_map(|s| s.samples)
+        .any(|v| !v.is_finite() || *v > crate::NO_VALUE_ABOVE)
+    {
+        return Err(invalid(
+            "values must be finite and below the \"no value\" marker",
+        ));
+    }
+    writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#)?;
+    writeln!(w, r#"<traceFile version="1.0">"#)?;
+    writeln!(w, "  <traceData>")?;
+    writeln!(w, "    <dataFrame>")?;
+    for s in signals {
+        write!(
+            w,
+            r#"      <dataSignal id="{}" name="{}" description="{}""#,
+            s.id,
+            escape(s.name),
+            escape(s.description)
+        )?;
+        if let Some(u) = s.unit {
+            write!(w, r#" unit="{}""#, escape(u))?;
+        }
+        writeln!(w, "/>")?;
+    }
+    let mut line = String::new();
+    for (k, t) in times_s.iter().enumerate() {
+        line.clear();
+        line.push_str(&format!(r#"      <rec time="{t}""#));
+        for s in signals {
+            let v = s.samples[k];
+            if k == 0 || v.to_bits() != s.samples[k - 1].to_bits() {
+                line.push_str(&format!(r#" f{}="{v}""#, s.id));
+            }
+        }
+        writeln!(w, "{line}/>")?;
+    }
+    writeln!(w, "    </dataFrame>")?;
+    writeln!(w, "  </traceData>")?;
+    writeln!(w, "</traceFile>")
+}
+
+/// One channel of a TwinCAT Scope export.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinCatChannel<'a> {
+    /// `Name` (the channel's name in the scope).
+    pub name: &'a str,
+    /// `SymbolName` (the PLC or NC symbol, `MAIN.AxisX.NcToPlc.ActPos`).
+    pub symbol: &'a str,
+    /// `Unit` as the scope writes it (`mm (Millimeter)`, `(None)`).
+    pub unit: &'a str,
+    /// `SampleTime[ms]`.
+    pub sample_ms: f64,
+    /// The samples, the first at time 0.
+    pub samples: &'a [f64],
+}
+
+/// A TwinCAT Scope CSV export in its default layout (the layout of
+/// [`crate::formats::twincat`]): header block, channel block with a `Name` column group per
+/// channel, data rows of time (ms) and value per channel; channels with fewer samples end with
+/// empty cells. `separator` is `;` or tab; `decimal_comma` writes `,` as decimal mark (times,
+/// sample times and values), as the export option does.
+pub fn twincat(
+    w: &mut impl Write,
+    scope: &str,
+    separator: u8,
+    decimal_comma: bool,
+    channels: &[TwinCatChannel<'_>],
+) -> io::Result<()> {
+    if !matches!(separator, b';' | b'\t') {
+        return Err(invalid("the separator must be ';' or tab"));
+    }
+    if channels
+        .iter()
+        .any(|c| !(c.sample_ms.is_finite() && c.sample_ms > 0.0))
+    {
+        return Err(invalid("sample times must be positive"));
+    }
+    let sep = (separator as char).to_string();
+    let duration_ms = channels
+        .iter()
+        .map(|c| c.samples.len().saturating_sub(1) as f64 * c.sample_ms)
+        .fold(0.0, f64::max);
+    // Windows file times (100 ns since 1601) of an arbitrary start, and of its end.
+    let start: u64 = 133_521_660_000_000_000;
+    let end = start + (duration_ms * 1e4).round() as u64;
+    writeln!(w, "Name{sep}{scope}")?;
+    writeln!(w, "File{sep}C:\\TwinCAT\\Scope\\{scope}.csv")?;
+    writeln!(w, "Starttime of export{sep}{start}")?;
+    writeln!(w, "Endtime of export{sep}{end}")?;
+    writeln!(w)?;
+    writeln!(w)?;
+    let row = |w: &mut dyn Write, key: &str, cell: &dyn Fn(&TwinCatChannel<'_>) -> String| {
+        let cells: Vec<String> = channels
+            .iter()
+            .map(|c| format!("{key}{sep}{}", cell(c)))
+            .collect();
+        writeln!(w, "{}", cells.join(&sep))
+    };
+    row(w, "Name", &|c| c.name.to_string())?;
+    row(w, "SymbolComment", &|_| String::new())?;
+    row(w, "Data-Type", &|_| "REAL64".to_string())?;
+    row(w, "SampleTime[ms]", &|c| num(c.sample_ms, decimal_comma))?;
+    row(w, "SymbolName", &|c| c.symbol.to_string())?;
+    row(w, "ScaleFactor", &|_| "1".to_string())?;
+    row(w, "Offset", &|_| "0".to_string())?;
+    row(w, "Unit", &|c| c.unit.to_string())?;
+    writeln!(w)?;
+    let rows = channels.iter().map(|c| c.samples.len()).max().unwrap_or(0);
+    let mut line = String::new();
+    for k in 0..rows {
+        line.clear();
+        for (i, c) in channels.iter().enumerate() {
+            if i > 0 {
+                line.push_str(&sep);
+            }
+            if let Some(v) = c.samples.get(k) {
+                line.push_str(&num(k as f64 * c.sample_ms, decimal_comma));
+                line.push_str(&sep);
+                line.push_str(&num(*v, decimal_comma));
+            } else {
+                line.push_str(&sep);
+            }
         }
         writeln!(w, "{line}")?;
     }

@@ -111,6 +111,93 @@ proptest! {
             prop_assert!((ch.period_s.unwrap() - 0.5e-3).abs() < 1e-15);
         }
     }
+
+    #[test]
+    fn sinumerik_round_trip(cols in values(30), held in 0usize..30) {
+        // Runs of equal values are left out of the records and carried forward by the reader.
+        let mut cols = cols;
+        for c in cols.iter_mut() {
+            let v = c[held];
+            for x in c[held..].iter_mut().take(5) {
+                *x = v;
+            }
+        }
+        let times: Vec<f64> = (0..cols[0].len()).map(|k| k as f64 * 2e-3).collect();
+        let names: Vec<(String, String)> = (0..cols.len())
+            .map(|i| {
+                let axis = ["X1", "Y1", "Z1", "A1", "C1"][i];
+                let what = if i % 2 == 0 { "setpoint" } else { "actual value" };
+                (format!("/Nck/ServoTrace/Position[{axis}] <&\"'>"), format!("Position {what} {axis}"))
+            })
+            .collect();
+        let signals: Vec<write::SinumerikSignal<'_>> = cols
+            .iter()
+            .zip(&names)
+            .enumerate()
+            .map(|(i, (c, (n, d)))| write::SinumerikSignal {
+                id: i + 1,
+                name: n,
+                description: d,
+                unit: (i % 2 == 0).then_some("mm"),
+                samples: c,
+            })
+            .collect();
+        let mut buf = Vec::new();
+        write::sinumerik(&mut buf, &times, &signals).unwrap();
+        let t = read_bytes("rt.xml", &buf, &ReadOptions::default()).unwrap();
+        prop_assert_eq!(t.format, Format::SinumerikTrace);
+        prop_assert_eq!(t.channels.len(), cols.len());
+        for (i, (ch, col)) in t.channels.iter().zip(&cols).enumerate() {
+            prop_assert_eq!(&ch.name, &names[i].1);
+            prop_assert_eq!(&ch.description, &names[i].0);
+            prop_assert_eq!(&ch.unit, &(i % 2 == 0).then_some(TraceUnit::Mm));
+            prop_assert_eq!(bits(&ch.samples), bits(col));
+            prop_assert!((ch.period_s.unwrap() - 2e-3).abs() < 1e-15);
+            prop_assert_eq!(ch.axis, AxisName::from_index([0, 1, 2, 3, 5][i]));
+        }
+    }
+
+    #[test]
+    fn twincat_round_trip(
+        cols in values(20),
+        tab in any::<bool>(),
+        comma in any::<bool>(),
+        short in 1usize..20,
+        sample_ms in prop::sample::select(vec![0.25, 1.0, 2.0]),
+    ) {
+        // The last channel may end early (its cells then stay empty).
+        let mut cols = cols;
+        let k = cols.len() - 1;
+        cols[k].truncate(short);
+        let names: Vec<(String, String)> = (0..cols.len())
+            .map(|i| (format!("ActPos_{i}"), format!("MAIN.Axis{}.NcToPlc.ActPos", ["X", "Y", "Z", "A"][i])))
+            .collect();
+        let channels: Vec<write::TwinCatChannel<'_>> = cols
+            .iter()
+            .zip(&names)
+            .map(|(c, (n, s))| write::TwinCatChannel {
+                name: n,
+                symbol: s,
+                unit: "mm (Millimeter)",
+                sample_ms,
+                samples: c,
+            })
+            .collect();
+        let mut buf = Vec::new();
+        write::twincat(&mut buf, "rt", if tab { b'\t' } else { b';' }, comma, &channels).unwrap();
+        let t = read_bytes("rt.csv", &buf, &ReadOptions::default()).unwrap();
+        prop_assert_eq!(t.format, Format::TwinCatScope);
+        prop_assert_eq!(t.channels.len(), cols.len());
+        for (i, (ch, col)) in t.channels.iter().zip(&cols).enumerate() {
+            prop_assert_eq!(&ch.name, &names[i].0);
+            prop_assert_eq!(&ch.description, &names[i].1);
+            prop_assert_eq!(&ch.unit, &Some(TraceUnit::Mm));
+            prop_assert_eq!(bits(&ch.samples), bits(col));
+            prop_assert_eq!(ch.period_s, Some(sample_ms * 1e-3));
+            prop_assert_eq!(ch.axis, AxisName::from_index(i));
+            prop_assert_eq!(ch.quantity, Quantity::ActualPosition);
+        }
+    }
 }
 
 #[test]
