@@ -118,6 +118,12 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Rebuild `report.html` of an output folder from its `manifest.json`, `summary.json` and
+    /// figures (every computing command writes all three).
+    Report {
+        /// Output folder of a vcnc command.
+        dir: PathBuf,
+    },
     /// Generate G-code programs on standard output.
     Gen {
         #[command(subcommand)]

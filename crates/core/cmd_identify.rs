@@ -12,7 +12,10 @@ use vcnc_pipeline::table::read_columns;
 use crate::cli::{IdentifyArgs, TraceUnits};
 use crate::output::ensure_dir;
 use crate::table::table;
-use crate::writers::{MACHINE_MODELS, fmt_poles, identification_table, write_identification};
+use crate::writers::{
+    MACHINE_MODELS, fmt_poles, identification_table, identify_machine_report,
+    identify_trace_report, write_identification,
+};
 use crate::{Ctx, bad_input};
 
 pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
@@ -43,8 +46,9 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let axes = identify::select_axes(&machine, &args.axes)?;
     let results = identify::identify_axes(&machine, &axes, args.seed)?;
     ensure_dir(&args.out)?;
+    let mut report = identify_machine_report(&args.out, &machine.name, path, &results, args.seed);
     write_identification(
-        &args.out,
+        &mut report,
         &IdentifySummary::machine(&machine.name, &results),
         &machine.name,
         MACHINE_MODELS,
@@ -89,8 +93,9 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let axis = args.axes.first().copied().unwrap_or(vcnc_axis::AxisName::X);
     let id = identify::identify_trace(trace, &file, axis, unit, &options, args.seed)?;
     ensure_dir(&args.out)?;
+    let mut report = identify_trace_report(&args.out, &file, &id, &cols, args.options.as_deref());
     write_identification(
-        &args.out,
+        &mut report,
         &IdentifySummary::trace(&file, &id),
         &format!("trace {file}"),
         "identified by vcnc from a measured trace",

@@ -412,7 +412,10 @@ mod tests {
         }
         // The dwell holds for 0.5 s: that many samples of line 3, give or take its ends.
         let dwell = lines.iter().filter(|l| **l == 3).count() as i64;
-        assert!(((dwell as f64) * run.ts - 0.5).abs() <= 2.0 * run.ts, "{dwell} dwell samples");
+        assert!(
+            ((dwell as f64) * run.ts - 0.5).abs() <= 2.0 * run.ts,
+            "{dwell} dwell samples"
+        );
         for want in [2, 3, 4, 5] {
             assert!(lines.contains(&want), "line {want} missing");
         }
