@@ -7,5 +7,6 @@ mod util;
 mod bad_inputs;
 mod cli;
 mod identify;
+mod report;
 mod spiral;
 mod sweep;
