@@ -507,7 +507,7 @@ pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> 
     let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&lines));
     let tags: Vec<String> = models
         .iter()
-        .map(|m| m.label.replace(['\'', ' '], "_").replace("__", "_"))
+        .map(|m| m.label.replace('\'', "").replace(' ', "_"))
         .collect();
     for ((tag, tip), or) in tags.iter().zip(&tip_m).zip(&or_m) {
         vtp.scalars.push(PointScalars {
