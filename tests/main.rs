@@ -7,6 +7,7 @@ mod util;
 mod bad_inputs;
 mod cli;
 mod identify;
+mod report;
 mod spiral;
 mod sweep;
 mod traces;

@@ -123,6 +123,12 @@ pub enum Command {
         #[command(subcommand)]
         what: TraceCommand,
     },
+    /// Rebuild `report.html` of an output folder from its `manifest.json`, `summary.json` and
+    /// figures (every computing command writes all three).
+    Report {
+        /// Output folder of a vcnc command.
+        dir: PathBuf,
+    },
     /// Generate G-code programs on standard output.
     Gen {
         #[command(subcommand)]

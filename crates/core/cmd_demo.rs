@@ -12,14 +12,17 @@ use vcnc_machine::{Machine, embedded};
 use vcnc_pipeline::identify::{self, AxisOverview, IdentifySummary};
 use vcnc_pipeline::predict::{self, ContourSummary};
 use vcnc_pipeline::run;
+use vcnc_report::Role;
 
 use crate::Ctx;
-use crate::figures::write_prediction_plots;
+use crate::figures::{self, ModelErrors, PAPER, VCNC_MODEL};
 use crate::output::{ensure_dir, write_json};
+use crate::report::RunReport;
 use crate::sink::TableOptions;
 use crate::table::{print_warnings, table as text_table};
 use crate::writers::{
-    MACHINE_MODELS, contour_rows, identification_table, write_contour_table, write_identification,
+    MACHINE_MODELS, contour_report_table, contour_rows, identification_report_table,
+    identification_table, report_table_file, write_contour_table, write_identification,
 };
 
 /// `summary.json` of the demo.
@@ -58,8 +61,19 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     ensure_dir(out)?;
     let id_dir = out.join("identify");
     ensure_dir(&id_dir)?;
-    write_identification(
+    let machine_input = format!("{} (embedded machines/nmv5000.toml)", machine.name);
+    let mut id_report = RunReport::new(
         &id_dir,
+        format!("vcnc demo, identification: {}, five axes", machine.name),
+    );
+    id_report.input("machine", machine_input.as_str());
+    id_report.input(
+        "runs",
+        "per axis: the 70-move excitation program through the true 20 kHz drive (estimation), a \
+         second program (validation)",
+    );
+    write_identification(
+        &mut id_report,
         &IdentifySummary::machine(&machine.name, &ids),
         &machine.name,
         MACHINE_MODELS,
@@ -74,14 +88,65 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
         identification: identify::overview(&ids),
     };
     write_json(&out.join("summary.json"), &summary)?;
-    write_contour_table(out, &run, &p, table)?;
-    write_prediction_plots(
-        out,
+    let table_path = write_contour_table(out, &run, &p, table)?;
+
+    let mut report = RunReport::new(out, format!("vcnc demo: {} + spiral", machine.name));
+    report.input("machine", machine_input);
+    report.input(
+        "program",
+        format!(
+            "{spiral} ({} samples, {:.2} s at Ts = {} s)",
+            run.len(),
+            run.duration_s(),
+            run.ts
+        ),
+    );
+    report.input(
+        "models",
+        format!(
+            "{VCNC_MODEL}: identified from each axis' excitation run (PSO + output-error \
+             refinement); {PAPER}: the paper's equation-error PSO alone"
+        ),
+    );
+    report.input("table options", table.describe());
+    report.warnings(&run.warnings);
+    contour_report_table(
+        &mut report,
+        &[(VCNC_MODEL, &p.figures()), (PAPER, &pp.figures())],
+    );
+    identification_report_table(&mut report, &ids);
+    let (tp, tpp) = (p.tracking(&machine, &run), pp.tracking(&machine, &run));
+    figures::prediction(
+        &mut report,
         &run,
-        &p,
-        &p.tracking(&machine, &run),
-        Some(("paper PSO", &pp)),
+        &[
+            ModelErrors {
+                label: VCNC_MODEL,
+                role: Role::Model,
+                prediction: &p,
+                tracking: &tp,
+            },
+            ModelErrors {
+                label: PAPER,
+                role: Role::Paper,
+                prediction: &pp,
+                tracking: &tpp,
+            },
+        ],
     )?;
+    report.include(&id_report, "identify");
+    report_table_file(
+        &mut report,
+        &table_path,
+        "per sample: reference, true and predicted axis positions, tool poses, contour and \
+         orientation errors (docs/cli.md)",
+    );
+    report.file(
+        "identify/report.html",
+        "the identification's own report (its inputs, tables and figures)",
+    );
+    report.file("identify/model.toml", "the identified models, for --model");
+    report.finish()?;
     let elapsed = start.elapsed().as_secs_f64();
     if !ctx.quiet {
         println!(
@@ -123,8 +188,8 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
             )
         );
         println!(
-            "\n{elapsed:.2} s; summaries and SVG plots in {}",
-            out.display()
+            "\n{elapsed:.2} s; report: {}",
+            out.join(vcnc_report::REPORT_FILE).display()
         );
     }
     Ok(())

@@ -3,13 +3,14 @@
 use std::path::Path;
 
 use anyhow::Result;
-use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::{Machine, ModelSet};
 use vcnc_pipeline::frf::frf_summary;
+use vcnc_report::Role;
 
 use crate::Ctx;
-use crate::figures::write_frf;
+use crate::figures::{self, FrfModel, TRUE_MACHINE, VCNC_MODEL, section};
 use crate::output::{ensure_dir, write_json};
+use crate::report::RunReport;
 use crate::table::table;
 
 /// `vcnc frf MACHINE [--model MODEL] --out DIR`.
@@ -20,16 +21,49 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
         None => None,
     };
     ensure_dir(out)?;
+    let mut report = RunReport::new(out, format!("vcnc frf: {}", machine.name));
+    report.input(
+        "machine",
+        format!("{} ({})", machine.name, machine_path.display()),
+    );
+    if let Some(p) = model {
+        report.input("models", p.display().to_string());
+    }
     for (i, a) in machine.axes.iter().enumerate() {
         let truth = a.true_model();
-        let mut list: Vec<(&str, &ClosedLoopModel)> = vec![("true", &truth)];
+        let mut list = vec![FrfModel {
+            tag: "true",
+            label: TRUE_MACHINE,
+            role: Role::TrueMachine,
+            model: &truth,
+        }];
         if let Some(m) = &models {
-            list.push(("model", &m[i]));
+            list.push(FrfModel {
+                tag: "model",
+                label: VCNC_MODEL,
+                role: Role::Model,
+                model: &m[i],
+            });
         }
-        write_frf(out, &format!("frf_{}", a.name), a.name, &list)?;
+        figures::frf(
+            &mut report,
+            &format!("frf_{}", a.name),
+            a.name,
+            &list,
+            section::FRF,
+        )?;
+        report.file(
+            &format!("frf_{}.csv", a.name),
+            &format!(
+                "axis {}: Bode data (f_hz; per model tracking and disturbance magnitude, dB, and \
+                 phase, deg)",
+                a.name
+            ),
+        );
     }
     let summary = frf_summary(&machine, models.as_deref());
     write_json(&out.join("summary.json"), &summary)?;
+    report.finish()?;
     if !ctx.quiet {
         // Machine order (the summary's map is sorted by letter).
         let rows: Vec<Vec<String>> = machine

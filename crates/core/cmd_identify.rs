@@ -13,7 +13,10 @@ use vcnc_trace::{AxisMap, ChannelRef, GapPolicy, PairOptions};
 use crate::cli::{GapsArg, IdentifyArgs};
 use crate::output::ensure_dir;
 use crate::table::table;
-use crate::writers::{MACHINE_MODELS, fmt_poles, identification_table, write_identification};
+use crate::writers::{
+    MACHINE_MODELS, fmt_poles, identification_table, identify_machine_report,
+    identify_trace_report, write_identification,
+};
 use crate::{Ctx, bad_input};
 
 pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
@@ -48,8 +51,9 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let axes = identify::select_axes(&machine, &args.axes)?;
     let results = identify::identify_axes(&machine, &axes, args.seed)?;
     ensure_dir(&args.out)?;
+    let mut report = identify_machine_report(&args.out, &machine.name, path, &results, args.seed);
     write_identification(
-        &args.out,
+        &mut report,
         &IdentifySummary::machine(&machine.name, &results),
         &machine.name,
         MACHINE_MODELS,
@@ -111,8 +115,15 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     }
     let ids = traces::identify_measured(&measured, &options, args.seed)?;
     ensure_dir(&args.out)?;
-    write_identification(
+    let mut report = identify_trace_report(
         &args.out,
+        &file,
+        measured.paired.format,
+        &ids,
+        args.options.as_deref(),
+    );
+    write_identification(
+        &mut report,
         &IdentifySummary::trace(&file, measured.paired.format, &ids),
         &format!("trace {file}"),
         "identified by vcnc from a measured trace",

@@ -8,13 +8,15 @@ use vcnc_machine::{Machine, ModelSet};
 use vcnc_pipeline::identify;
 use vcnc_pipeline::predict::{self, ContourSummary, PredictSummary};
 use vcnc_pipeline::run;
+use vcnc_report::Role;
 
 use crate::Ctx;
-use crate::figures::write_prediction_plots;
+use crate::figures::{self, ModelErrors, VCNC_MODEL, program_name};
 use crate::output::{ensure_dir, write_json};
+use crate::report::RunReport;
 use crate::sink::TableOptions;
 use crate::table::{print_warnings, table as text_table};
-use crate::writers::{contour_rows, write_contour_table};
+use crate::writers::{contour_report_table, contour_rows, report_table_file, write_contour_table};
 
 /// `vcnc predict MACHINE PROGRAM [--model MODEL] --out DIR`.
 pub fn predict(
@@ -51,9 +53,55 @@ pub fn predict(
         models: source,
         warnings: run.warnings.clone(),
     };
-    write_contour_table(out, &run, &p, table)?;
+    let table_path = write_contour_table(out, &run, &p, table)?;
     write_json(&out.join("summary.json"), &summary)?;
-    write_prediction_plots(out, &run, &p, &p.tracking(&machine, &run), None)?;
+    let mut report = RunReport::new(
+        out,
+        format!(
+            "vcnc predict: {} on {}",
+            program_name(&run.file),
+            machine.name
+        ),
+    );
+    report.input(
+        "machine",
+        format!("{} ({})", machine.name, machine_path.display()),
+    );
+    report.input(
+        "program",
+        format!(
+            "{} ({} samples, {:.2} s at Ts = {} s)",
+            run.file,
+            run.len(),
+            run.duration_s(),
+            run.ts
+        ),
+    );
+    report.input("models", summary.models.as_str());
+    report.input("table options", table.describe());
+    if ctx.lenient {
+        report.input("option", "--lenient");
+    }
+    report.warnings(&run.warnings);
+    contour_report_table(&mut report, &[(VCNC_MODEL, &p.figures())]);
+    let tracking = p.tracking(&machine, &run);
+    figures::prediction(
+        &mut report,
+        &run,
+        &[ModelErrors {
+            label: VCNC_MODEL,
+            role: Role::Model,
+            prediction: &p,
+            tracking: &tracking,
+        }],
+    )?;
+    report_table_file(
+        &mut report,
+        &table_path,
+        "per sample: reference, true and predicted axis positions, tool poses, contour and \
+         orientation errors (docs/cli.md)",
+    );
+    report.finish()?;
     if !ctx.quiet {
         let rows: Vec<Vec<String>> = contour_rows(&p.figures())
             .into_iter()

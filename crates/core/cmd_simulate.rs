@@ -8,20 +8,22 @@ use vcnc_pipeline::run::{self, InterpolateSummary};
 use vcnc_pipeline::simulate;
 
 use crate::Ctx;
-use crate::figures::write_tracking;
+use crate::figures::{self, program_name};
 use crate::output::{ensure_dir, write_json};
+use crate::report::RunReport;
 use crate::sink::{TableOptions, write_table};
 use crate::table::{print_warnings, table as text_table};
+use crate::writers::report_table_file;
 
 /// `vcnc interpolate MACHINE PROGRAM --out DIR`: `reference.csv` and `summary.json`.
 pub fn interpolate(
-    machine: &Path,
+    machine_path: &Path,
     program: &Path,
     out: &Path,
     table: &TableOptions,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = Machine::load(machine)?;
+    let machine = Machine::load(machine_path)?;
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&run.warnings);
     ensure_dir(out)?;
@@ -48,11 +50,20 @@ pub fn interpolate(
         cols.push(&a.vel);
         cols.push(&a.acc);
     }
-    write_table(out, "reference", header, &cols, table)?;
+    let table_path = write_table(out, "reference", header, &cols, table)?;
     write_json(
         &out.join("summary.json"),
         &InterpolateSummary::of(&machine, &run),
     )?;
+    let mut report = run_report(out, "interpolate", machine_path, &machine, &run, table, ctx);
+    figures::reference(&mut report, &run)?;
+    report_table_file(
+        &mut report,
+        &table_path,
+        "per sample: t, the tool tip px py pz (TCP programs), and per axis position, velocity \
+         and acceleration (docs/cli.md)",
+    );
+    report.finish()?;
     if !ctx.quiet {
         println!(
             "{}: {} samples, {:.3} s at Ts = {} s -> {}",
@@ -100,7 +111,7 @@ pub fn simulate(
             cols.push(&p[i]);
         }
     }
-    write_table(out, "trace", header, &cols, table)?;
+    let table_path = write_table(out, "trace", header, &cols, table)?;
     let tracking = simulate::tracking(&machine, &run, &sim);
     let summary = simulate::simulate_summary(
         &machine,
@@ -109,14 +120,44 @@ pub fn simulate(
         models.as_ref().map(|(f, m)| (f.as_str(), m.as_slice())),
     );
     write_json(&out.join("summary.json"), &summary)?;
-    write_tracking(
-        &out.join("tracking.svg"),
-        &run,
-        &tracking,
-        "model",
-        900,
-        300,
-    )?;
+    let mut report = run_report(out, "simulate", machine_path, &machine, &run, table, ctx);
+    if let Some((file, _)) = &models {
+        report.input("models", file.as_str());
+    }
+    let mut header = vec!["axis", "controller", "max", "RMS"];
+    if sim.predicted.is_some() {
+        header.push("|model − true| max");
+    }
+    report.table(
+        "tracking errors x_r − x",
+        &header,
+        tracking
+            .iter()
+            .map(|a| {
+                let u = a.unit.micro_symbol();
+                let mut row = vec![
+                    a.axis.to_string(),
+                    a.controller.to_string(),
+                    format!("{:.2} {u}", a.tracking_max),
+                    format!("{:.2} {u}", a.tracking_rms),
+                ];
+                if let Some(m) = a.model_vs_true_max {
+                    row.push(format!("{m:.3} {u}"));
+                }
+                row
+            })
+            .collect(),
+        "the true drives' encoder readings against the reference; µm for linear axes, mdeg for \
+         rotary axes",
+    );
+    figures::simulation_tracking(&mut report, &run, &tracking)?;
+    report_table_file(
+        &mut report,
+        &table_path,
+        "per sample: t and per axis the reference, the true drive's encoder reading and, with \
+         --model, the model's position (docs/cli.md)",
+    );
+    report.finish()?;
     if !ctx.quiet {
         let rows: Vec<Vec<String>> = tracking
             .iter()
@@ -142,4 +183,44 @@ pub fn simulate(
         println!("-> {}", out.display());
     }
     Ok(())
+}
+
+/// The report of a run of `command` on a machine and a program: its inputs and warnings.
+fn run_report(
+    out: &Path,
+    command: &str,
+    machine_path: &Path,
+    machine: &Machine,
+    run: &run::Run,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> RunReport {
+    let mut report = RunReport::new(
+        out,
+        format!(
+            "vcnc {command}: {} on {}",
+            program_name(&run.file),
+            machine.name
+        ),
+    );
+    report.input(
+        "machine",
+        format!("{} ({})", machine.name, machine_path.display()),
+    );
+    report.input(
+        "program",
+        format!(
+            "{} ({} samples, {:.3} s at Ts = {} s)",
+            run.file,
+            run.len(),
+            run.duration_s(),
+            run.ts
+        ),
+    );
+    report.input("table options", table.describe());
+    if ctx.lenient {
+        report.input("option", "--lenient");
+    }
+    report.warnings(&run.warnings);
+    report
 }

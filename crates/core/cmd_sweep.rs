@@ -11,17 +11,18 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use vcnc_machine::{MachineDocument, ModelSet};
 use vcnc_pipeline::run::read_program;
-use vcnc_pipeline::sweep::{self, Sweep};
+use vcnc_pipeline::sweep::{self, Sweep, SweepOutcome};
 
 use crate::Ctx;
 use crate::cli::SweepArgs;
-use crate::figures::write_sweep_plots;
+use crate::figures::{self, program_name};
 use crate::output::{ensure_dir, write_atomic, write_json};
+use crate::report::RunReport;
 
 pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let doc = MachineDocument::load(&args.machine)?;
     let program = read_program(&args.program)?;
-    let program_name = args.program.display().to_string();
+    let program_file = args.program.display().to_string();
     let models = match &args.model {
         Some(p) => {
             let base = doc.check()?;
@@ -32,7 +33,7 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let plan = Sweep::new(
         &doc,
         &program,
-        &program_name,
+        &program_file,
         &args.sets,
         args.shard.as_deref(),
         models,
@@ -72,7 +73,30 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let elapsed = started.elapsed().as_secs_f64();
     write_json(&args.out.join("summary.json"), &plan.summary(&outcome))?;
     let keys: Vec<String> = plan.keys().iter().map(|k| k.key.clone()).collect();
-    write_sweep_plots(&args.out, &keys, &outcome)?;
+    let mut report = RunReport::new(
+        &args.out,
+        format!(
+            "vcnc sweep: {} on {}",
+            program_name(&program_file),
+            plan.base().name
+        ),
+    );
+    report.input(
+        "machine",
+        format!("{} ({})", plan.base().name, args.machine.display()),
+    );
+    report.input("program", program_file.as_str());
+    for s in &args.sets {
+        report.input("--set", s.as_str());
+    }
+    if let Some(m) = &args.model {
+        report.input("models", m.display().to_string());
+    }
+    if let Some(s) = &args.shard {
+        report.input("shard", s.as_str());
+    }
+    sweep_report(&mut report, &keys, &outcome)?;
+    report.finish()?;
     if !ctx.quiet {
         println!(
             "{} configurations ({} ok, {} failed) in {:.2} s ({:.1}/s on {} threads) -> {}",
@@ -123,8 +147,13 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
     ensure_dir(out)?;
     write_atomic(&out.join("sweep.csv"), merged.text.as_bytes())?;
     let dirs: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
-    write_json(&out.join("summary.json"), &merged.summary(dirs))?;
-    write_sweep_plots(out, &merged.keys, &merged.outcome)?;
+    write_json(&out.join("summary.json"), &merged.summary(dirs.clone()))?;
+    let mut report = RunReport::new(out, format!("vcnc sweep-merge: {} shards", dirs.len()));
+    for d in &dirs {
+        report.input("shard", d.as_str());
+    }
+    sweep_report(&mut report, &merged.keys, &merged.outcome)?;
+    report.finish()?;
     if !ctx.quiet {
         println!(
             "merged {} rows from {} shards -> {}",
@@ -133,5 +162,43 @@ pub fn merge(dirs: &[PathBuf], out: &Path, ctx: &Ctx) -> Result<()> {
             out.display()
         );
     }
+    Ok(())
+}
+
+/// What both sweep commands report: the failures, the best configuration, the figures and the
+/// table.
+fn sweep_report(report: &mut RunReport, keys: &[String], outcome: &SweepOutcome) -> Result<()> {
+    if outcome.failed > 0 {
+        report.warnings(&[format!(
+            "{} of {} configurations failed (status column of sweep.csv); the first: {}",
+            outcome.failed,
+            outcome.ok + outcome.failed,
+            outcome.first_error.as_deref().unwrap_or("-")
+        )]);
+    }
+    if let Some(b) = &outcome.best {
+        let mut rows: Vec<Vec<String>> = keys
+            .iter()
+            .zip(&b.values)
+            .map(|(k, v)| vec![k.clone(), v.to_string()])
+            .collect();
+        rows.push(vec!["configuration index".into(), b.index.to_string()]);
+        rows.push(vec![
+            "max contour error, true machine (µm)".into(),
+            format!("{:.3}", b.contour_max_um),
+        ]);
+        report.table(
+            "best configuration",
+            &["", "value"],
+            rows,
+            "the smallest largest tool-tip contour error of the true machine",
+        );
+    }
+    figures::sweep(report, keys, outcome)?;
+    report.file(
+        "sweep.csv",
+        "one row per configuration: index, the swept keys, tracking and contour errors, status \
+         (docs/cli.md)",
+    );
     Ok(())
 }

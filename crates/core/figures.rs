@@ -1,377 +1,658 @@
-//! The SVG figures of each kind of result (drawn with `plot`), shared by the commands.
-
-use std::path::Path;
+//! The figures of each kind of result, drawn by vcnc-report in its one style and listed in the
+//! run's report: identification (frequency responses, PSO convergence, validation), prediction
+//! (the tool-tip path coloured by contour error, the errors along it, tracking errors),
+//! simulation (tracking errors), frequency responses and sweeps.
+//!
+//! Every curve gets the role of what it is — true machine, measurement, vcnc model, paper's
+//! method — with the same legend label in every command ([`TRUE_MACHINE`] …), so a role has one
+//! colour and one name across all reports. Errors are drawn in µm (linear axes), mdeg (rotary
+//! axes) and mrad (orientation), every axis names its quantity.
 
 use anyhow::Result;
+use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::ClosedLoopModel;
-use vcnc_identify::{FitMetrics, Identification, Trace};
+use vcnc_kinematics::Pose;
 use vcnc_pipeline::frf::{BodeData, standard_freqs};
 use vcnc_pipeline::stats::scaled_diff;
 use vcnc_pipeline::sweep::SweepOutcome;
-use vcnc_pipeline::{AxisIdentification, AxisTracking, Prediction, Run};
-
-use crate::output::write_csv;
-use crate::plot::{
-    LinePlot, Scale, Series, write_coloured_path, write_line_plot, write_panels, write_scatter,
+use vcnc_pipeline::{AxisIdentification, AxisTracking, IdentificationSource, Prediction, Run};
+use vcnc_report::style::units;
+use vcnc_report::vtp::{PointScalars, VtpEncoding, VtpPath, write_vtp};
+use vcnc_report::{
+    self as vr, Axis, AxisErrors, BodeCurve, BodeGroup, ColouredPath, Comparison, HeatMap, Mark,
+    PathErrors, PathViewOptions, Quantity, Role, Series,
 };
 
-/// Writes `<prefix>.csv` and `<prefix>.svg` for an axis: tracking and disturbance Bode data of
-/// named models (true drive, identified, …).
-pub fn write_frf(
-    dir: &Path,
+use crate::output::write_csv;
+use crate::report::RunReport;
+
+/// Legend label of the true machine (the simulated plant, the truth of a virtual experiment).
+pub const TRUE_MACHINE: &str = "true machine";
+/// Legend label of a measured trace.
+pub const MEASUREMENT: &str = "measurement";
+/// Legend label of vcnc's identified model (refined).
+pub const VCNC_MODEL: &str = "vcnc model";
+/// Legend label of the paper's method (equation-error PSO alone).
+pub const PAPER: &str = "paper's method";
+
+/// How many of the worst blocks the contour figures mark.
+const WORST_BLOCKS: usize = 5;
+
+/// The 3-D export of a prediction (VTK PolyData).
+pub const TOOLPATH_VTP: &str = "toolpath.vtp";
+
+/// Section headings of the reports.
+pub mod section {
+    /// Identification figures.
+    pub const IDENTIFICATION: &str = "Identification";
+    /// Contour-error figures.
+    pub const CONTOUR: &str = "Contour errors";
+    /// Tracking-error figures.
+    pub const TRACKING: &str = "Tracking errors";
+    /// Frequency responses.
+    pub const FRF: &str = "Frequency responses";
+    /// Sweep results.
+    pub const SWEEP: &str = "Sweep";
+}
+
+/// The file name of a program for titles (`spiral.ngc`).
+pub fn program_name(file: &str) -> &str {
+    file.rsplit(['/', '\\']).next().unwrap_or(file)
+}
+
+fn times(n: usize, ts: f64) -> Vec<f64> {
+    (0..n).map(|k| k as f64 * ts).collect()
+}
+
+/// One model in a frequency-response file and figure: its column tag in the CSV (the CSV's
+/// contract, docs/cli.md), its legend label and role.
+pub struct FrfModel<'a> {
+    /// Column tag in `frf_<AXIS>.csv` (`true`, `identified`, `paper_PSO`, `model`).
+    pub tag: &'a str,
+    /// Legend label.
+    pub label: &'a str,
+    /// Role of the curve.
+    pub role: Role,
+    /// The model.
+    pub model: &'a ClosedLoopModel,
+}
+
+/// Writes `<prefix>.csv` (tracking and disturbance Bode data of each model) into the report's
+/// folder and adds `<prefix>.svg`: magnitude and phase of both responses over a log frequency
+/// axis.
+pub fn frf(
+    report: &mut RunReport,
     prefix: &str,
-    axis: impl std::fmt::Display,
-    models: &[(&str, &ClosedLoopModel)],
+    axis: AxisName,
+    models: &[FrfModel],
+    section: &str,
 ) -> Result<()> {
     let freqs = standard_freqs();
     let data: Vec<BodeData> = models
         .iter()
-        .map(|(_, m)| BodeData::of(m, &freqs))
+        .map(|m| BodeData::of(m.model, &freqs))
         .collect();
     let mut header = vec!["f_hz".to_string()];
     let mut cols: Vec<&[f64]> = vec![&freqs];
-    for ((name, _), d) in models.iter().zip(&data) {
-        let tag = name.replace(' ', "_");
+    for (m, d) in models.iter().zip(&data) {
         for (suffix, col) in [
             ("track_mag_db", &d.track_mag),
             ("track_phase_deg", &d.track_phase),
             ("dist_mag_db", &d.dist_mag),
             ("dist_phase_deg", &d.dist_phase),
         ] {
-            header.push(format!("{tag}_{suffix}"));
+            header.push(format!("{}_{suffix}", m.tag));
             cols.push(col);
         }
     }
-    write_csv(&dir.join(format!("{prefix}.csv")), &header, &cols)?;
-    let t1 = format!("axis {axis}: tracking x/x_r, magnitude");
-    let t2 = format!("axis {axis}: tracking x/x_r, phase");
-    let t3 = format!("axis {axis}: disturbance x/d, magnitude (d: acceleration)");
-    let series = |pick: fn(&BodeData) -> &Vec<f64>| -> Vec<Series> {
-        models
+    write_csv(&report.dir().join(format!("{prefix}.csv")), &header, &cols)?;
+    let group = |name: &str, pick: fn(&BodeData) -> (&Vec<f64>, &Vec<f64>)| BodeGroup {
+        name: name.to_string(),
+        curves: models
             .iter()
             .zip(&data)
-            .map(|((name, _), d)| Series {
-                name: name.to_string(),
-                x: &freqs,
-                y: pick(d),
+            .map(|(m, d)| {
+                let (mag, phase) = pick(d);
+                BodeCurve {
+                    label: m.label.to_string(),
+                    role: m.role,
+                    freq_hz: &freqs,
+                    mag_db: mag,
+                    phase_deg: phase,
+                }
             })
-            .collect()
+            .collect(),
     };
-    let panels = vec![
-        LinePlot {
-            title: &t1,
-            x_label: "f [Hz]",
-            y_label: "dB",
-            x_scale: Scale::Log10,
-            series: series(|d| &d.track_mag),
-        },
-        LinePlot {
-            title: &t2,
-            x_label: "f [Hz]",
-            y_label: "deg",
-            x_scale: Scale::Log10,
-            series: series(|d| &d.track_phase),
-        },
-        LinePlot {
-            title: &t3,
-            x_label: "f [Hz]",
-            y_label: "dB",
-            x_scale: Scale::Log10,
-            series: series(|d| &d.dist_mag),
-        },
+    let groups = [
+        group("tracking x/x_r", |d| (&d.track_mag, &d.track_phase)),
+        group("disturbance x/d (d: acceleration)", |d| {
+            (&d.dist_mag, &d.dist_phase)
+        }),
     ];
-    write_panels(&dir.join(format!("{prefix}.svg")), &panels, 800, 300)
+    let names: Vec<&str> = models.iter().map(|m| m.label).collect();
+    report.figure(
+        &format!("{prefix}.svg"),
+        vr::bode(
+            &format!("axis {axis}: closed-loop frequency responses"),
+            &groups,
+        ),
+        &format!(
+            "Axis {axis}: tracking response x/x_r and disturbance response x/d (d an \
+             acceleration), magnitude and phase, of the {}. Data in {prefix}.csv.",
+            names.join(", the ")
+        ),
+        section,
+    )
 }
 
-/// The plots of one identified axis: FRF (true when known, identified, paper PSO), PSO
-/// convergence, validation.
-pub fn write_identification_plots(out: &Path, r: &AxisIdentification) -> Result<()> {
-    let a = r.axis;
-    let mut models: Vec<(&str, &ClosedLoopModel)> = Vec::new();
-    if let Some(t) = r.truth() {
-        models.push(("true", t));
+/// The truth of an identification: the true machine for a simulated axis, the measurement for
+/// a trace.
+fn truth_of(r: &AxisIdentification) -> (&'static str, Role) {
+    match r.source {
+        IdentificationSource::Simulated { .. } => (TRUE_MACHINE, Role::TrueMachine),
+        IdentificationSource::Measured { .. } => (MEASUREMENT, Role::Measurement),
     }
-    models.push(("identified", &r.result.identified));
-    models.push(("paper PSO", &r.result.paper_pso));
-    write_frf(out, &format!("frf_{a}"), a, &models)?;
-    write_convergence(out, &a.to_string(), &r.result)?;
-    write_validation(
-        out,
-        &a.to_string(),
-        r.unit,
-        &r.validation_trace,
-        &r.validation,
-        Some(&r.validation_paper),
-    )
 }
 
-fn write_convergence(out: &Path, name: &str, id: &Identification) -> Result<()> {
-    let it: Vec<f64> = id.pso_history.iter().map(|h| h.iteration as f64).collect();
-    let best: Vec<f64> = id
-        .pso_history
-        .iter()
-        .map(|h| h.best_cost.max(1e-300).log10())
-        .collect();
-    let mean: Vec<f64> = id
-        .pso_history
-        .iter()
-        .map(|h| h.mean_cost.max(1e-300).log10())
-        .collect();
-    let title = format!("axis {name}: PSO convergence (equation-error cost)");
-    write_line_plot(
-        &out.join(format!("pso_{name}.svg")),
-        &LinePlot {
-            title: &title,
-            x_label: "iteration",
-            y_label: "log10 cost",
-            x_scale: Scale::Linear,
-            series: vec![
-                Series {
-                    name: "global best".into(),
-                    x: &it,
-                    y: &best,
-                },
-                Series {
-                    name: "swarm mean".into(),
-                    x: &it,
-                    y: &mean,
-                },
-            ],
-        },
-    )
-}
-
-fn write_validation(
-    out: &Path,
-    name: &str,
-    unit: vcnc_axis::Unit,
-    trace: &Trace,
-    fit: &FitMetrics,
-    paper: Option<&FitMetrics>,
-) -> Result<()> {
-    let k = unit.micro_factor();
-    let label = unit.micro_label();
-    let t: Vec<f64> = (0..trace.len()).map(|i| i as f64 * trace.ts).collect();
-    let measured = scaled_diff(&trace.xr, &trace.x, k);
-    let predicted = scaled_diff(&trace.xr, &fit.predicted_x, k);
-    let diff = scaled_diff(&fit.predicted_x, &trace.x, k);
-    let paper_diff = paper.map(|f| scaled_diff(&f.predicted_x, &trace.x, k));
-    let t1 = format!("axis {name}: validation run, tracking error x_r - x [{label}]");
-    let t2 = format!("axis {name}: prediction error x_model - x [{label}]");
-    // The paper's model first, so the refined one is drawn on top of it.
-    let mut s2 = Vec::new();
-    if let Some(p) = &paper_diff {
-        s2.push(Series {
-            name: "paper PSO".into(),
-            x: &t,
-            y: p,
+/// The figures of one identified axis, written into the report's folder: `frf_<AXIS>.csv` and
+/// `.svg` (true machine when known, vcnc model, paper's method), `pso_<AXIS>.svg` (the swarm's
+/// convergence), `validation_<AXIS>.svg` (tracking error measured and predicted, and the
+/// difference).
+pub fn identification(report: &mut RunReport, r: &AxisIdentification) -> Result<()> {
+    let a = r.axis;
+    let mut models = Vec::new();
+    if let Some(t) = r.truth() {
+        models.push(FrfModel {
+            tag: "true",
+            label: TRUE_MACHINE,
+            role: Role::TrueMachine,
+            model: t,
         });
     }
-    s2.push(Series {
-        name: "identified (refined)".into(),
-        x: &t,
-        y: &diff,
+    models.push(FrfModel {
+        tag: "identified",
+        label: VCNC_MODEL,
+        role: Role::Model,
+        model: &r.result.identified,
     });
-    write_panels(
-        &out.join(format!("validation_{name}.svg")),
-        &[
-            LinePlot {
-                title: &t1,
-                x_label: "t [s]",
-                y_label: label,
-                x_scale: Scale::Linear,
-                series: vec![
-                    Series {
-                        name: "measured / true drive".into(),
-                        x: &t,
-                        y: &measured,
-                    },
-                    Series {
-                        name: "predicted (identified model)".into(),
-                        x: &t,
-                        y: &predicted,
-                    },
-                ],
-            },
-            LinePlot {
-                title: &t2,
-                x_label: "t [s]",
-                y_label: label,
-                x_scale: Scale::Linear,
-                series: s2,
-            },
-        ],
-        1000,
-        340,
+    models.push(FrfModel {
+        tag: "paper_PSO",
+        label: PAPER,
+        role: Role::Paper,
+        model: &r.result.paper_pso,
+    });
+    frf(
+        report,
+        &format!("frf_{a}"),
+        a,
+        &models,
+        section::IDENTIFICATION,
+    )?;
+    convergence(report, r)?;
+    validation(report, r)
+}
+
+fn convergence(report: &mut RunReport, r: &AxisIdentification) -> Result<()> {
+    let h = &r.result.pso_history;
+    let it: Vec<f64> = h.iter().map(|e| e.iteration as f64).collect();
+    let best: Vec<f64> = h.iter().map(|e| e.best_cost).collect();
+    let mean: Vec<f64> = h.iter().map(|e| e.mean_cost).collect();
+    let unit = format!("{}²", r.unit.as_str());
+    report.figure(
+        &format!("pso_{}.svg", r.axis),
+        vr::convergence(
+            &format!(
+                "axis {}: PSO convergence (the paper's method, equation-error cost)",
+                r.axis
+            ),
+            &Quantity::new("equation-error cost", unit),
+            &[
+                Series::line("global best", Role::Other(0), &it, &best),
+                Series::line("swarm mean", Role::Other(1), &it, &mean),
+            ],
+        ),
+        &format!(
+            "Axis {}: cost of the swarm's best particle and the swarm's mean cost at each \
+             iteration of the stability-constrained PSO (paper section 3), log scale. The vcnc \
+             model refines the swarm's best by output-error minimisation (docs/identification.md).",
+            r.axis
+        ),
+        section::IDENTIFICATION,
     )
 }
 
-/// Per-axis tracking-error panels of the true drives (and of models when simulated): `name`
-/// in `out`; `model_label` names the model's series.
-pub fn write_tracking(
-    path: &Path,
+fn validation(report: &mut RunReport, r: &AxisIdentification) -> Result<()> {
+    let trace = &r.validation_trace;
+    let (k, u) = (r.unit.micro_factor(), r.unit.micro_symbol());
+    let t = times(trace.len(), trace.ts);
+    let measured = scaled_diff(&trace.xr, &trace.x, k);
+    let model = scaled_diff(&trace.xr, &r.validation.predicted_x, k);
+    let paper = scaled_diff(&trace.xr, &r.validation_paper.predicted_x, k);
+    let (truth, role) = truth_of(r);
+    let (title, what) = match r.source {
+        IdentificationSource::Simulated { .. } => (
+            format!("axis {}: validation run", r.axis),
+            "the validation run (a second excitation program, not used to identify)",
+        ),
+        IdentificationSource::Measured { .. } => (
+            format!("axis {}: fit on the measured trace", r.axis),
+            "the measured trace (the one run there is)",
+        ),
+    };
+    let note = format!(
+        "free-run error RMS / max: {VCNC_MODEL} {:.3} / {:.3} {u}, {PAPER} {:.3} / {:.3} {u}",
+        r.validation.freerun_rms * k,
+        r.validation.freerun_max * k,
+        r.validation_paper.freerun_rms * k,
+        r.validation_paper.freerun_max * k,
+    );
+    report.figure(
+        &format!("validation_{}.svg", r.axis),
+        vr::comparison_figure(
+            &title,
+            &note,
+            Axis::linear("time t", units::S),
+            &[Comparison {
+                title: None,
+                y: Axis::linear("tracking error x_r − x", u),
+                truth: Series::line(truth, role, &t, &measured),
+                others: vec![
+                    Series::line(VCNC_MODEL, Role::Model, &t, &model),
+                    Series::line(PAPER, Role::Paper, &t, &paper),
+                ],
+                difference: Some(Quantity::new(format!("model − {truth}"), u)),
+            }],
+            Vec::new(),
+        ),
+        &format!(
+            "Axis {}: tracking error x_r − x on {what}, of the {truth} and as the models predict \
+             it in free run; below, each model's tracking error minus the {truth}'s.",
+            r.axis
+        ),
+        section::IDENTIFICATION,
+    )
+}
+
+/// A model whose errors are drawn against the true machine's.
+pub struct ModelErrors<'a> {
+    /// Legend label.
+    pub label: &'a str,
+    /// Role.
+    pub role: Role,
+    /// Its prediction (sharing the true drives of the first one).
+    pub prediction: &'a Prediction,
+    /// Its per-axis tracking (`Prediction::tracking`: the true drives' error and the model's).
+    pub tracking: &'a [AxisTracking],
+}
+
+/// Tracking errors x_r − x of the axes the program moves: the truth (`tracking[i].error`) and
+/// each model (`model_error` of each list).
+pub fn tracking(
+    report: &mut RunReport,
+    file: &str,
     run: &Run,
-    tracking: &[AxisTracking],
-    model_label: &str,
-    width: u32,
-    height: u32,
+    truth: (&str, Role),
+    models: &[(&str, Role, &[AxisTracking])],
+    caption: &str,
 ) -> Result<()> {
     let t = run.times();
-    let titles: Vec<String> = tracking
+    let Some(&(_, _, first)) = models.first() else {
+        return Ok(());
+    };
+    let axes: Vec<AxisErrors> = first
+        .iter()
+        .enumerate()
+        .map(|(i, a)| AxisErrors {
+            axis: a.axis,
+            reference: &run.axes[i].pos,
+            truth: Series::line(truth.0, truth.1, &t, &a.error),
+            models: models
+                .iter()
+                .filter_map(|(label, role, tr)| {
+                    tr.get(i)
+                        .and_then(|m| m.model_error.as_deref())
+                        .map(|e| Series::line(*label, *role, &t, e))
+                })
+                .collect(),
+        })
+        .collect();
+    report.figure(
+        file,
+        vr::tracking_errors(
+            &format!(
+                "{}: tracking errors x_r − x per axis",
+                program_name(&run.file)
+            ),
+            &axes,
+        ),
+        caption,
+        section::TRACKING,
+    )
+}
+
+/// Tracking errors of a simulation: the true drives (encoder) and, when simulated, the model.
+pub fn simulation_tracking(report: &mut RunReport, run: &Run, tr: &[AxisTracking]) -> Result<()> {
+    let has_model = tr.iter().any(|a| a.model_error.is_some());
+    tracking(
+        report,
+        "tracking.svg",
+        run,
+        (TRUE_MACHINE, Role::TrueMachine),
+        &[(VCNC_MODEL, Role::Model, tr)],
+        if has_model {
+            "Tracking error x_r − x of each axis the program moves: the true drive (encoder \
+             reading) and the identified model; below each, model − true machine."
+        } else {
+            "Tracking error x_r − x of each axis the program moves, true drive (encoder reading)."
+        },
+    )
+}
+
+/// The reference of a program (`vcnc interpolate`): the velocity of each axis it moves.
+pub fn reference(report: &mut RunReport, run: &Run) -> Result<()> {
+    let t = run.times();
+    let (moved, still): (Vec<_>, Vec<_>) = run
+        .axes
+        .iter()
+        .partition(|a| a.pos.iter().any(|p| *p != a.pos[0]));
+    let panels: Vec<vr::Panel> = moved
         .iter()
         .map(|a| {
-            format!(
-                "axis {}: tracking error x_r - x [{}]",
-                a.axis,
-                a.unit.micro_label()
+            vr::Panel::new(
+                Axis::linear(
+                    format!("{} velocity", a.name),
+                    format!("{}/s", a.unit.as_str()),
+                ),
+                vec![Series::line("reference", Role::Reference, &t, &a.vel)],
             )
         })
         .collect();
-    let panels: Vec<LinePlot> = tracking
-        .iter()
-        .zip(&titles)
-        .map(|(a, title)| {
-            let mut series = vec![Series {
-                name: "true drive".into(),
-                x: &t,
-                y: &a.error,
-            }];
-            if let Some(m) = &a.model_error {
-                series.push(Series {
-                    name: model_label.to_string(),
-                    x: &t,
-                    y: m,
-                });
-            }
-            LinePlot {
-                title,
-                x_label: "t [s]",
-                y_label: a.unit.micro_label(),
-                x_scale: Scale::Linear,
-                series,
-            }
-        })
-        .collect();
-    write_panels(path, &panels, width, height)
-}
-
-/// Plots of a prediction: contour error over time, tool path coloured by contour error,
-/// per-axis tracking errors. `extra` is a second prediction sharing `p`'s true drives
-/// (`predict_many`), drawn beside it in the discrepancy panel.
-pub fn write_prediction_plots(
-    out: &Path,
-    run: &Run,
-    p: &Prediction,
-    tracking: &[AxisTracking],
-    extra: Option<(&str, &Prediction)>,
-) -> Result<()> {
-    let t = run.times();
-    let um = |v: &[f64]| v.iter().map(|x| x * 1000.0).collect::<Vec<f64>>();
-    let (tt, tp) = (um(&p.true_contour.tip_mm), um(&p.predicted_contour.tip_mm));
-    let (ot, op) = (
-        um(&p.true_contour.orientation_rad),
-        um(&p.predicted_contour.orientation_rad),
+    let mut fig = vr::LineFigure::new(
+        format!("{}: reference velocity per axis", program_name(&run.file)),
+        Axis::linear("time t", units::S),
+        panels,
     );
-    let d_tip = um(&p.tip_discrepancy());
-    let d_extra = extra.map(|(_, e)| um(&e.tip_discrepancy()));
-    // The comparison model first, so the refined one is drawn on top of it.
-    let mut disc = Vec::new();
-    if let (Some((name, _)), Some(d)) = (extra, &d_extra) {
-        disc.push(Series {
-            name: name.to_string(),
-            x: &t,
-            y: d,
-        });
+    if !still.is_empty() {
+        let names: Vec<&str> = still.iter().map(|a| a.name.as_str()).collect();
+        fig.note = format!("not moved by the program, not shown: {}", names.join(", "));
     }
-    disc.push(Series {
-        name: "identified (refined)".into(),
-        x: &t,
-        y: &d_tip,
-    });
-    let pair = |a: &'static str, b: &'static str, ya, yb| {
-        vec![
-            Series {
-                name: a.into(),
-                x: &t,
-                y: ya,
-            },
-            Series {
-                name: b.into(),
-                x: &t,
-                y: yb,
-            },
-        ]
-    };
-    write_panels(
-        &out.join("contour_error.svg"),
-        &[
-            LinePlot {
-                title: "tool-tip contour error",
-                x_label: "t [s]",
-                y_label: "um",
-                x_scale: Scale::Linear,
-                series: pair("true drives", "identified drives", &tt, &tp),
-            },
-            LinePlot {
-                title: "|predicted - true| tool-tip contour error",
-                x_label: "t [s]",
-                y_label: "um",
-                x_scale: Scale::Linear,
-                series: disc,
-            },
-            LinePlot {
-                title: "orientation contour error",
-                x_label: "t [s]",
-                y_label: "mrad",
-                x_scale: Scale::Linear,
-                series: pair("true drives", "identified drives", &ot, &op),
-            },
-        ],
-        1000,
-        320,
-    )?;
-    if let Some(poses) = &run.poses {
-        let xy: Vec<(f64, f64)> = poses.iter().map(|q| (q.p.x, q.p.y)).collect();
-        write_coloured_path(
-            &out.join("toolpath_contour.svg"),
-            "tool path (workpiece frame), coloured by the true contour error",
-            ("x [mm]", "y [mm]"),
-            &xy,
-            &tt,
-            "contour error [um]",
-        )?;
-    }
-    write_tracking(
-        &out.join("tracking_errors.svg"),
-        run,
-        tracking,
-        "identified model",
-        1000,
-        260,
+    report.figure(
+        "reference.svg",
+        vr::line_figure(&fig),
+        "Velocity of the reference of each axis the program moves, as interpolated at the sample \
+         period (trapezoidal profiles, look-ahead, and in tool-centre-point mode the inverse \
+         kinematics).",
+        "Reference",
     )
 }
 
-/// One scatter per swept key: the configurations' contour error against the key's value.
-pub fn write_sweep_plots(out: &Path, keys: &[String], outcome: &SweepOutcome) -> Result<()> {
-    let ys: Vec<f64> = outcome.points.iter().map(|p| p.1).collect();
-    for (i, k) in keys.iter().enumerate() {
-        let xs: Vec<f64> = outcome.points.iter().map(|p| p.0[i]).collect();
-        let title = format!("contour error against {k}");
-        let name = format!("sweep_{}.svg", k.replace(['.', '/'], "_"));
-        write_scatter(
-            &out.join(name),
-            &LinePlot {
-                title: &title,
-                x_label: k,
-                y_label: "max contour error [um]",
-                x_scale: Scale::Linear,
-                series: vec![Series {
-                    name: "configurations".into(),
-                    x: &xs,
-                    y: &ys,
-                }],
+fn tips(poses: &[Pose]) -> Vec<[f64; 3]> {
+    poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]).collect()
+}
+
+fn axes_of(poses: &[Pose]) -> Vec<[f64; 3]> {
+    poses.iter().map(|q| [q.o.x, q.o.y, q.o.z]).collect()
+}
+
+fn scaled(v: &[f64], k: f64) -> Vec<f64> {
+    v.iter().map(|x| x * k).collect()
+}
+
+/// The figures and the 3-D export of a prediction, models first to last as given (the first
+/// is the vcnc model; the demo adds the paper's method):
+/// - `toolpath_contour.svg`: the true machine's tool-tip path in 3-D (isometric view and the
+///   two best projections) coloured by its contour error on a scale clipped at the 99.5th
+///   percentile, the worst blocks marked by their G-code lines;
+/// - `contour_error.svg`: contour error and orientation error against the arc length of the
+///   reference path, with model − true machine under each;
+/// - `tracking_errors.svg`: the axes the program moves;
+/// - `toolpath.vtp`: the path with both errors, the tool axis and the block lines (ParaView).
+pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> Result<()> {
+    let Some(first) = models.first() else {
+        return Ok(());
+    };
+    let p = first.prediction;
+    let name = program_name(&run.file);
+    let lines = run.block_lines();
+    let true_tip = tips(&p.true_poses);
+    let ref_tip = run.poses.as_deref().map_or_else(|| true_tip.clone(), tips);
+    let s = vr::arc_length_mm(&ref_tip);
+    let tip_t = scaled(&p.true_contour.tip_mm, 1e3);
+    let or_t = scaled(&p.true_contour.orientation_rad, 1e3);
+    let tip_m: Vec<Vec<f64>> = models
+        .iter()
+        .map(|m| scaled(&m.prediction.predicted_contour.tip_mm, 1e3))
+        .collect();
+    let or_m: Vec<Vec<f64>> = models
+        .iter()
+        .map(|m| scaled(&m.prediction.predicted_contour.orientation_rad, 1e3))
+        .collect();
+
+    let opts = PathViewOptions {
+        worst_blocks: WORST_BLOCKS,
+        ..PathViewOptions::default()
+    };
+    report.figure(
+        "toolpath_contour.svg",
+        vr::contour_path_views(
+            &format!("{name}: tool-tip path coloured by the true machine's contour error"),
+            &ColouredPath {
+                points_mm: &true_tip,
+                values: &tip_t,
+                value: Quantity::new("contour error", units::UM),
+                block_line: Some(&lines),
             },
-        )?;
+            &opts,
+        ),
+        &format!(
+            "The true machine's tool-tip path in the workpiece frame (isometric view and the two \
+             projections that show it best), coloured by its contour error; the colour scale \
+             ends at the {}th percentile so that one spike does not darken the part (larger \
+             values take the top colour). The {} worst blocks are marked with their G-code \
+             line numbers.",
+            opts.clip_percentile, opts.worst_blocks
+        ),
+        section::CONTOUR,
+    )?;
+
+    fn series<'a>(models: &[ModelErrors], s: &'a [f64], v: &'a [Vec<f64>]) -> Vec<Series<'a>> {
+        models
+            .iter()
+            .zip(v)
+            .map(|(m, y)| Series::line(m.label, m.role, s, y))
+            .collect()
     }
+    let labels: Vec<&str> = models.iter().map(|m| m.label).collect();
+    report.figure(
+        "contour_error.svg",
+        vr::error_along_path(
+            &format!("{name}: contour and orientation errors along the path"),
+            &PathErrors {
+                arc_length_mm: &s,
+                contour_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &tip_t),
+                contour_models: series(models, &s, &tip_m),
+                orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
+                orientation_models: series(models, &s, &or_m),
+                block_line: Some(&lines),
+                worst_blocks: WORST_BLOCKS,
+                points_mm: Some(&true_tip),
+            },
+        ),
+        &format!(
+            "Tool-tip contour error (µm) and tool-orientation error (mrad) against the arc \
+             length of the reference tool-tip path, of the true machine and as predicted by the \
+             {}; under each, model − true machine. Dashed lines mark the {WORST_BLOCKS} worst \
+             blocks by their G-code line numbers.",
+            labels.join(" and the ")
+        ),
+        section::CONTOUR,
+    )?;
+
+    let model_tracking: Vec<(&str, Role, &[AxisTracking])> = models
+        .iter()
+        .map(|m| (m.label, m.role, m.tracking))
+        .collect();
+    tracking(
+        report,
+        "tracking_errors.svg",
+        run,
+        (TRUE_MACHINE, Role::TrueMachine),
+        &model_tracking,
+        "Tracking error x_r − x of each axis the program moves (axes it leaves still are left \
+         out): the true drives and the models; below each, model − true machine.",
+    )?;
+
+    // The 3-D export: the true machine's path with its errors, the models' errors beside them.
+    let tool_axis = axes_of(&p.true_poses);
+    let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&lines));
+    let tags: Vec<String> = models
+        .iter()
+        .map(|m| m.label.replace('\'', "").replace(' ', "_"))
+        .collect();
+    for ((tag, tip), or) in tags.iter().zip(&tip_m).zip(&or_m) {
+        vtp.scalars.push(PointScalars {
+            name: format!("{tag}_contour_error_um"),
+            values: tip,
+        });
+        vtp.scalars.push(PointScalars {
+            name: format!("{tag}_orientation_error_mrad"),
+            values: or,
+        });
+    }
+    write_vtp(&report.dir().join(TOOLPATH_VTP), &vtp, VtpEncoding::Base64)?;
+    report.file(
+        TOOLPATH_VTP,
+        "VTK PolyData (ParaView): the true machine's tool-tip path (mm, workpiece frame) with \
+         contour_error_um, orientation_error_mrad, the tool_axis vectors and block_line per \
+         point, and each model's errors",
+    );
     Ok(())
+}
+
+/// What a swept machine-file key is, as an axis quantity: the key and, where its name alone
+/// fixes it, its unit (docs/machine-file.md).
+pub fn key_quantity(key: &str) -> Quantity {
+    let leaf = key.rsplit('.').next().unwrap_or(key);
+    let axis_unit = key
+        .strip_prefix("axes.")
+        .and_then(|r| r.split('.').next())
+        .and_then(|a| a.parse::<AxisName>().ok())
+        .map(AxisName::unit);
+    let per = |suffix: &str| axis_unit.map(|u: Unit| format!("{}{suffix}", u.as_str()));
+    let unit = match leaf {
+        l if l.ends_with("_hz") => Some("Hz".to_string()),
+        l if l.ends_with("_s") => Some("s".to_string()),
+        "j" => Some("kg·m²".into()),
+        "b" => Some("N·m·s/rad".into()),
+        "ka" => Some("A/V".into()),
+        "kt" => Some("N·m/A".into()),
+        "coulomb_torque" => Some("N·m".into()),
+        "u_max" => Some("V".into()),
+        "lambda" => Some("1/s".into()),
+        "max_velocity" => per("/s"),
+        "max_acceleration" => per("/s²"),
+        _ => None,
+    };
+    Quantity::new(key, unit.unwrap_or_default())
+}
+
+/// File name of a key's sweep figure: `sweep_<key>.svg`, dots and slashes as `_`.
+fn key_file(key: &str) -> String {
+    format!("sweep_{}.svg", key.replace(['.', '/'], "_"))
+}
+
+/// The figures of a sweep: one key, the result against the key's value (`sweep_<key>.svg`);
+/// two keys, a heat map of the result over both (`sweep_map.svg`); more keys, one figure per key
+/// with every configuration as a dot and the best over the other keys as a line.
+pub fn sweep(report: &mut RunReport, keys: &[String], outcome: &SweepOutcome) -> Result<()> {
+    let result = Quantity::new("max contour error, true machine", units::UM);
+    let z: Vec<f64> = outcome.points.iter().map(|p| p.1).collect();
+    let col = |i: usize| -> Vec<f64> { outcome.points.iter().map(|p| p.0[i]).collect() };
+    match keys {
+        [] => Ok(()),
+        [key] => {
+            let mut pts: Vec<(f64, f64)> = col(0).into_iter().zip(z.iter().copied()).collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let (x, y): (Vec<f64>, Vec<f64>) = pts.into_iter().unzip();
+            report.figure(
+                &key_file(key),
+                vr::sweep_line(
+                    &format!("sweep: max contour error against {key}"),
+                    &key_quantity(key),
+                    &result,
+                    &[Series::line("configurations", Role::Other(0), &x, &y)],
+                ),
+                &format!(
+                    "The true machine's largest tool-tip contour error over the program for each \
+                     value of {key}."
+                ),
+                section::SWEEP,
+            )
+        }
+        [kx, ky] => {
+            let grid = vr::grid_from_rows(&col(0), &col(1), &z);
+            let fig = grid.and_then(|g| {
+                vr::sweep_heatmap(
+                    &format!("sweep: max contour error over {kx} and {ky}"),
+                    &HeatMap {
+                        x_key: key_quantity(kx),
+                        x_values: &g.x_values,
+                        y_key: key_quantity(ky),
+                        y_values: &g.y_values,
+                        result: result.clone(),
+                        values: &g.values,
+                    },
+                )
+            });
+            report.figure(
+                "sweep_map.svg",
+                fig,
+                &format!(
+                    "The true machine's largest tool-tip contour error over the program for each \
+                     configuration of {kx} (columns) and {ky} (rows); the best configuration is \
+                     outlined, configurations without a result are hatched."
+                ),
+                section::SWEEP,
+            )
+        }
+        _ => {
+            for (i, key) in keys.iter().enumerate() {
+                let x = col(i);
+                // The best result over the other keys at each value of this one.
+                let mut best: Vec<(f64, f64)> = Vec::new();
+                for (v, r) in x.iter().zip(&z) {
+                    match best.iter_mut().find(|b| b.0 == *v) {
+                        Some(b) => b.1 = b.1.min(*r),
+                        None => best.push((*v, *r)),
+                    }
+                }
+                best.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let (bx, by): (Vec<f64>, Vec<f64>) = best.into_iter().unzip();
+                let all = Series {
+                    mark: Mark::Dots,
+                    ..Series::line("every configuration", Role::Other(0), &x, &z)
+                };
+                report.figure(
+                    &key_file(key),
+                    vr::sweep_line(
+                        &format!("sweep: max contour error against {key}"),
+                        &key_quantity(key),
+                        &result,
+                        &[
+                            all,
+                            Series::line("best over the other keys", Role::Other(1), &bx, &by),
+                        ],
+                    ),
+                    &format!(
+                        "The true machine's largest tool-tip contour error against {key}: every \
+                         configuration (dots; the other {} keys vary among them) and, through \
+                         them, the best over the other keys at each value.",
+                        keys.len() - 1
+                    ),
+                    section::SWEEP,
+                )?;
+            }
+            Ok(())
+        }
+    }
 }

@@ -1,7 +1,8 @@
 //! `vcnc`: the command-line front end (docs/cli.md). Library crates do the work (the runs are
 //! `vcnc-pipeline`'s); this binary parses arguments, prints tables and progress, writes files
-//! atomically and draws SVG plots. Command files (`cmd_*`) do not import each other: what
-//! several share is in `writers`, `figures`, `output` and `table`.
+//! atomically, and says which figures of its results to draw and what goes in each folder's
+//! `report.html` (drawn and built by `vcnc-report`). Command files (`cmd_*`) do not import each
+//! other: what several share is in `writers`, `figures`, `report`, `output` and `table`.
 //!
 //! Exit codes: 0 ok, 1 runtime failure, 2 bad input (every message names the file, and the line
 //! and column where there is one).
@@ -13,12 +14,13 @@ mod cmd_gen;
 mod cmd_identify;
 mod cmd_kinematics;
 mod cmd_predict;
+mod cmd_report;
 mod cmd_simulate;
 mod cmd_sweep;
 mod cmd_trace;
 mod figures;
 mod output;
-mod plot;
+mod report;
 mod sink;
 mod table;
 mod writers;
@@ -141,6 +143,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
         Command::Sweep(args) => cmd_sweep::sweep(&args, ctx),
         Command::SweepMerge { dirs, out } => cmd_sweep::merge(&dirs, &out, ctx),
         Command::Trace { what } => cmd_trace::trace(&what, ctx),
+        Command::Report { dir } => cmd_report::report(&dir, ctx),
         Command::Gen { what } => cmd_gen::generate(&what),
     }
 }

@@ -54,6 +54,25 @@ pub struct TableOptions {
     pub columns: Option<Vec<String>>,
 }
 
+impl TableOptions {
+    /// The options as a report shows them (`--format auto --decimate 1 --columns all`).
+    pub fn describe(&self) -> String {
+        let format = match self.format {
+            Format::Auto => "auto",
+            Format::Csv => "csv",
+            Format::Parquet => "parquet",
+        };
+        let columns = self
+            .columns
+            .as_ref()
+            .map_or("all".to_string(), |c| c.join(","));
+        format!(
+            "--format {format} --decimate {} --columns {columns}",
+            self.decimate.max(1)
+        )
+    }
+}
+
 /// A per-sample table being written.
 pub struct TableWriter {
     dir: PathBuf,

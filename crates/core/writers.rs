@@ -1,36 +1,140 @@
 //! Output files and tables of the kinds of result several commands produce (identifications
 //! and predictions), so that command files never import each other.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use vcnc_drive::ClosedLoopModel;
 use vcnc_pipeline::identify::{IdentifySummary, model_set};
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
-use crate::figures::write_identification_plots;
+use crate::figures;
 use crate::output::{write_atomic, write_json};
+use crate::report::RunReport;
 use crate::sink::{TableOptions, write_table};
 use crate::table::table;
 
 /// How `model.toml` describes models identified on a simulated machine.
 pub const MACHINE_MODELS: &str = "identified by vcnc: stability-constrained PSO (paper section 3) + output-error refinement (docs/identification.md)";
 
-/// Writes `summary.json`, `model.toml` and the plots of identifications.
+/// Writes the figures of identifications, `summary.json`, `model.toml` and the folder's
+/// report (its manifest and `report.html`).
 pub fn write_identification(
-    out: &Path,
+    report: &mut RunReport,
     summary: &IdentifySummary,
     model_machine: &str,
     model_description: &str,
     ids: &[AxisIdentification],
 ) -> Result<()> {
+    let out = report.dir().to_path_buf();
     for r in ids {
-        write_identification_plots(out, r)?;
+        figures::identification(report, r)?;
     }
     write_json(&out.join("summary.json"), summary)?;
     let set = model_set(model_machine, model_description, ids);
     write_atomic(&out.join("model.toml"), set.to_toml_string()?.as_bytes())?;
-    Ok(())
+    identification_report_table(report, ids);
+    for r in ids {
+        let a = r.axis;
+        report.file(
+            &format!("frf_{a}.csv"),
+            &format!("axis {a}: Bode data (f_hz; per model tracking and disturbance magnitude, dB, and phase, deg)"),
+        );
+    }
+    report.file(
+        "model.toml",
+        "the identified models, for --model (docs/machine-file.md)",
+    );
+    report.finish()
+}
+
+/// The report of `vcnc identify MACHINE`: its inputs.
+pub fn identify_machine_report(
+    out: &Path,
+    machine: &str,
+    machine_file: &Path,
+    ids: &[AxisIdentification],
+    seed: Option<u64>,
+) -> RunReport {
+    let mut report = RunReport::new(out, format!("vcnc identify: {machine}"));
+    report.input("machine", format!("{machine} ({})", machine_file.display()));
+    let axes: Vec<String> = ids.iter().map(|r| r.axis.to_string()).collect();
+    report.input("axes", axes.join(" "));
+    report.input(
+        "seed",
+        seed.map_or(
+            "the machine file's [identification] seeds".to_string(),
+            |s| s.to_string(),
+        ),
+    );
+    report
+}
+/// The report of an identification from a measured trace (one or more axes).
+pub fn identify_trace_report(
+    out: &Path,
+    file: &str,
+    format: vcnc_trace::Format,
+    ids: &[AxisIdentification],
+    options_file: Option<&Path>,
+) -> RunReport {
+    let mut report = RunReport::new(
+        out,
+        format!(
+            "vcnc identify: trace {}",
+            crate::figures::program_name(file)
+        ),
+    );
+    report.input("trace", format!("{file} ({format})"));
+    for id in ids {
+        let t = &id.validation_trace;
+        let channels = match &id.source {
+            vcnc_pipeline::IdentificationSource::Measured { provenance, .. } => format!(
+                "nominal '{}', actual '{}'",
+                provenance.nominal.name, provenance.actual.name
+            ),
+            vcnc_pipeline::IdentificationSource::Simulated { .. } => String::new(),
+        };
+        report.input(
+            &format!("axis {}", id.axis),
+            format!(
+                "{} samples at Ts = {} s, {}; {channels}",
+                t.len(),
+                t.ts,
+                id.unit.as_str()
+            ),
+        );
+    }
+    report.input(
+        "identifier options",
+        options_file.map_or(
+            "defaults (summary.json: identify_options)".to_string(),
+            |p| format!("{} (summary.json: identify_options)", p.display()),
+        ),
+    );
+    report
+}
+
+/// The identification table in a report (simulated machines: poles against the true drives).
+pub fn identification_report_table(report: &mut RunReport, ids: &[AxisIdentification]) {
+    if !ids.iter().any(|r| r.truth().is_some()) {
+        return;
+    }
+    let (_, rows) = identification_rows(ids, vcnc_axis::Unit::micro_symbol);
+    report.table(
+        "identified poles against the true drives",
+        &[
+            "axis",
+            "true machine ωn (Hz) / ζ / p (Hz)",
+            "vcnc model",
+            "paper's method",
+            "LS baseline",
+            "dc true / vcnc model",
+            "validation: free-run error max / tracking peak",
+        ],
+        rows,
+        "dc: Coulomb friction acceleration, axis units/s²; validation on a second excitation run \
+         not used to identify",
+    );
 }
 
 /// `wn [Hz] / zeta / p [Hz]` of a model, or `-`.
@@ -41,11 +145,16 @@ pub fn fmt_poles(m: &ClosedLoopModel) -> String {
     }
 }
 
-/// Per axis of a simulated machine: true vs identified poles, dc, and validation fit.
-pub fn identification_table(results: &[AxisIdentification]) -> String {
+/// Per axis of a simulated machine: true vs identified poles, dc, and validation fit; the
+/// header and the rows, errors labelled by `unit_label` (`um` for the terminal, `µm` in
+/// reports).
+pub fn identification_rows(
+    results: &[AxisIdentification],
+    unit_label: fn(vcnc_axis::Unit) -> &'static str,
+) -> (Vec<String>, Vec<Vec<String>>) {
     let mut rows = Vec::new();
     for r in results {
-        let label = r.unit.micro_label();
+        let label = unit_label(r.unit);
         let k = r.unit.micro_factor();
         let ls = &r.result.unconstrained_ls;
         let truth = r.truth();
@@ -67,18 +176,25 @@ pub fn identification_table(results: &[AxisIdentification]) -> String {
             ),
         ]);
     }
-    table(
-        &[
-            "axis",
-            "true wn/zeta/p [Hz]",
-            "identified",
-            "paper PSO",
-            "LS baseline",
-            "dc true/id",
-            "validation err/peak",
-        ],
-        &rows,
-    )
+    let header = [
+        "axis",
+        "true wn/zeta/p [Hz]",
+        "identified",
+        "paper PSO",
+        "LS baseline",
+        "dc true/id",
+        "validation err/peak",
+    ]
+    .map(String::from)
+    .to_vec();
+    (header, rows)
+}
+
+/// [`identification_rows`] as the terminal table.
+pub fn identification_table(results: &[AxisIdentification]) -> String {
+    let (header, rows) = identification_rows(results, vcnc_axis::Unit::micro_label);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    table(&header, &rows)
 }
 
 /// The `contour` table (`contour.csv` or `.parquet`): per sample t; reference, true and
@@ -89,7 +205,7 @@ pub fn write_contour_table(
     run: &Run,
     p: &Prediction,
     opts: &TableOptions,
-) -> Result<()> {
+) -> Result<PathBuf> {
     let n = run.len();
     let t = run.times();
     let reference = run.poses.as_deref().unwrap_or(&[]);
@@ -143,8 +259,55 @@ pub fn write_contour_table(
         or_t.as_slice(),
         or_p.as_slice(),
     ]);
-    write_table(out, "contour", header, &cols, opts)?;
-    Ok(())
+    write_table(out, "contour", header, &cols, opts)
+}
+
+/// The per-sample table as a report lists it.
+pub fn report_table_file(report: &mut RunReport, path: &Path, description: &str) {
+    if let Some(name) = path.file_name() {
+        report.file(&name.to_string_lossy(), description);
+    }
+}
+
+/// The contour-error statistics of models against the true machine, as a report table: the
+/// true machine's max and RMS, each model's, and each model's |model − true machine|.
+pub fn contour_report_table(report: &mut RunReport, models: &[(&str, &ContourFigures)]) {
+    let cells = |f: &[vcnc_pipeline::predict::Figure; 2]| {
+        vec![
+            format!("{:.3}", f[0].tip_um),
+            format!("{:.3}", f[1].tip_um),
+            format!("{:.4}", f[0].orientation_mrad),
+            format!("{:.4}", f[1].orientation_mrad),
+        ]
+    };
+    let mut rows = Vec::new();
+    if let Some((_, f)) = models.first() {
+        let mut r = vec![crate::figures::TRUE_MACHINE.to_string()];
+        r.extend(cells(&[f.true_max, f.true_rms]));
+        rows.push(r);
+    }
+    for (label, f) in models {
+        let mut r = vec![label.to_string()];
+        r.extend(cells(&[f.predicted_max, f.predicted_rms]));
+        rows.push(r);
+    }
+    for (label, f) in models {
+        let mut r = vec![format!("|{label} − true machine|")];
+        r.extend(cells(&[f.discrepancy_max, f.discrepancy_rms]));
+        rows.push(r);
+    }
+    report.table(
+        "contour errors",
+        &[
+            "",
+            "tool tip max (µm)",
+            "tool tip RMS (µm)",
+            "orientation max (mrad)",
+            "orientation RMS (mrad)",
+        ],
+        rows,
+        "|model − true machine|: the difference of the two contour errors at each sample",
+    );
 }
 
 /// The contour figures as table rows: label, tool tip (µm), orientation (mrad).

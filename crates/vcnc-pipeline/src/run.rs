@@ -94,6 +94,37 @@ impl Run {
     pub fn has_tcp(&self) -> bool {
         self.loaded.trajectory.tcp.iter().any(|t| *t)
     }
+
+    /// Source line (1-based) of the move running at each sample, as
+    /// [`vcnc_gcode::Trajectory::block_at`] finds it (the earlier move at a boundary; a dwell
+    /// is a move on its `G4` line). A sample no move's span covers carries the line of the move
+    /// before it (the first move's line before the first); a run without moves gives 0.
+    ///
+    /// One pass over the samples and the moves together (they are both in time order), so it
+    /// costs O(samples + moves).
+    pub fn block_lines(&self) -> Vec<u32> {
+        let traj = &self.loaded.trajectory;
+        let blocks = &traj.blocks;
+        let mut out = Vec::with_capacity(self.len());
+        let mut i = 0;
+        let mut last = blocks.first().map_or(0, |b| b.line);
+        for k in 0..self.len() {
+            let t = k as f64 * traj.ts;
+            // The same tests as `block_at`: the first move not ended before t, if it has begun.
+            while i < blocks.len() && blocks[i].t_end_s < t - 1e-12 {
+                last = blocks[i].line;
+                i += 1;
+            }
+            match blocks.get(i) {
+                Some(b) if b.t_start_s <= t + 1e-12 => {
+                    last = b.line;
+                    out.push(b.line);
+                }
+                _ => out.push(last),
+            }
+        }
+        out
+    }
 }
 
 /// Largest program file accepted, bytes. A toolpath this long already asks for more samples
@@ -357,6 +388,45 @@ impl InterpolateSummary {
                 })
                 .collect(),
             warnings: run.warnings.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The one-pass walk agrees with `Trajectory::block_at` at every sample a move covers (a
+    /// dwell is a move of its own, on its `G4` line), and gives every sample a line.
+    #[test]
+    fn block_lines_agree_with_block_at() {
+        let machine = Machine::embedded_nmv5000().unwrap();
+        let src = "G0 X0 Y0 Z0 A0 C0\nG1 X10 F600\nG4 P0.5\nG1 Y10\nG1 X0 Y0\nM2\n";
+        let run = prepare(&machine, src, "t.ngc", false).unwrap();
+        let lines = run.block_lines();
+        assert_eq!(lines.len(), run.len());
+        let traj = &run.loaded.trajectory;
+        for (k, l) in lines.iter().enumerate() {
+            if let Some(b) = traj.block_at(k) {
+                assert_eq!(*l, b.line, "sample {k}");
+            }
+        }
+        // The dwell holds for 0.5 s: that many samples of line 3, give or take its ends.
+        let dwell = lines.iter().filter(|l| **l == 3).count() as i64;
+        assert!(
+            ((dwell as f64) * run.ts - 0.5).abs() <= 2.0 * run.ts,
+            "{dwell} dwell samples"
+        );
+        for want in [2, 3, 4, 5] {
+            assert!(lines.contains(&want), "line {want} missing");
+        }
+        assert!(lines.iter().all(|l| *l != 0));
+        let spiral = prepare(&machine, vcnc_machine::embedded::SPIRAL_NGC, "s.ngc", false).unwrap();
+        let sl = spiral.block_lines();
+        for (k, l) in sl.iter().enumerate() {
+            if let Some(b) = spiral.loaded.trajectory.block_at(k) {
+                assert_eq!(*l, b.line, "spiral sample {k}");
+            }
         }
     }
 }

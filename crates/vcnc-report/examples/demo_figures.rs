@@ -188,6 +188,7 @@ fn run(demo: &Path, program: &Path, out: &Path) -> Res<()> {
                 orientation_models: vec![Series::line("vcnc model", Role::Model, &s, op)],
                 block_line: Some(&lines),
                 worst_blocks: 5,
+                points_mm: None,
             },
         )
         .map_err(e)?,

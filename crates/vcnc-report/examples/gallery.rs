@@ -307,6 +307,7 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
                 )],
                 block_line: Some(&lines),
                 worst_blocks: 5,
+                points_mm: Some(&pts),
             },
         )?,
         "contour_error.svg",

@@ -183,7 +183,11 @@ pub fn line_figure(fig: &LineFigure) -> Result<Figure, Error> {
     let entries: Vec<LegendEntry> =
         chart::legend_entries(fig.panels.iter().flat_map(|p| p.series.iter()));
     let legend_h = chart::legend_rows(&entries, plot_w).len() as f64 * chart::LEGEND_ROW_PX;
-    let marker_h = if fig.markers.is_empty() { 0.0 } else { 30.0 };
+    let marker_h = if fig.markers.is_empty() {
+        0.0
+    } else {
+        4.0 + 13.0 * MARKER_ROWS as f64
+    };
     let mut h = 24.0 + 10.0 + if fig.note.is_empty() { 0.0 } else { 18.0 };
     h += legend_h + 6.0 + marker_h;
     for (i, p) in fig.panels.iter().enumerate() {
@@ -279,18 +283,18 @@ pub fn line_figure(fig: &LineFigure) -> Result<Figure, Error> {
     })
 }
 
-/// Marker labels above the top panel, in two staggered rows so neighbours do not collide.
+/// Rows of marker labels above the top panel.
+const MARKER_ROWS: usize = 3;
+
+/// Marker labels above the top panel, in staggered rows so neighbours do not collide (a label
+/// that finds no room in any row is left out; its dashed line still shows the place).
 fn draw_marker_labels(svg: &mut Svg, spans: &mut [(f64, String)], top: f64, h: f64) {
     spans.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut row_end = [f64::NEG_INFINITY; 2];
+    let mut row_end = [f64::NEG_INFINITY; MARKER_ROWS];
     for (px, label) in spans.iter() {
         let wdt = text_width_px(label, style::TICK_FONT_PX);
-        let row = if px - wdt / 2.0 > row_end[0] + 3.0 {
-            0
-        } else if px - wdt / 2.0 > row_end[1] + 3.0 {
-            1
-        } else {
-            continue; // no room: the dashed line still shows where it is
+        let Some(row) = row_end.iter().position(|end| px - wdt / 2.0 > end + 3.0) else {
+            continue;
         };
         row_end[row] = px + wdt / 2.0;
         let y = top + h - 4.0 - row as f64 * 13.0;
@@ -570,8 +574,11 @@ pub fn convergence(title: &str, cost: &Quantity, curves: &[Series]) -> Result<Fi
     ))
 }
 
-/// A sweep over one key: the result against the key's value, as dots joined by a thin line
-/// when the values are sorted.
+/// A sweep over one key: the result against the key's value. A series marked
+/// [`Mark::Line`] (the default) is drawn as dots joined by a thin line when its values are
+/// sorted, as dots alone when they are not; a series marked [`Mark::Dots`] or
+/// [`Mark::LineDots`] keeps its mark (e.g. every configuration of a many-key sweep as dots
+/// beside the best per value as a line).
 pub fn sweep_line(
     title: &str,
     key: &Quantity,
@@ -582,10 +589,12 @@ pub fn sweep_line(
         .iter()
         .map(|s| {
             let sorted = s.x.windows(2).all(|w| w[0] <= w[1]);
-            Series {
-                mark: if sorted { Mark::LineDots } else { Mark::Dots },
-                ..s.clone()
-            }
+            let mark = match s.mark {
+                Mark::Line if sorted => Mark::LineDots,
+                Mark::Line => Mark::Dots,
+                m => m,
+            };
+            Series { mark, ..s.clone() }
         })
         .collect();
     line_figure(&LineFigure::new(

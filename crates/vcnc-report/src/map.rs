@@ -137,7 +137,11 @@ pub fn sweep_heatmap(title: &str, m: &HeatMap) -> Result<Figure, Error> {
     let bar_col = 170.0;
     let plot_w = w - left - bar_col;
     let cell_w = plot_w / nx as f64;
-    let cell_h = (plot_w * 0.6 / ny as f64).clamp(22.0, 60.0);
+    // Rows tall enough for the rotated y label to fit beside them (up to 140 px a row).
+    let y_label_h = text_width_px(&m.y_key.label(), style::LABEL_FONT_PX) + 10.0;
+    let cell_h = (plot_w * 0.6 / ny as f64)
+        .clamp(22.0, 60.0)
+        .max((y_label_h / ny as f64).min(140.0));
     let plot_h = cell_h * ny as f64;
     let note = match best {
         Some(k) => format!(

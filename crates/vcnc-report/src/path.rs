@@ -131,6 +131,40 @@ pub(crate) fn hot_spots(
         .collect()
 }
 
+/// The marks of the worst blocks on a 3-D path: neighbouring bad blocks (their worst samples
+/// within 8 % of the part's diagonal of each other) share one mark. The path views and the
+/// error along the path (when given the points) use this same rule, so both mark the same
+/// places with the same labels.
+pub(crate) fn path_hot_spots(
+    points_mm: &[[f64; 3]],
+    values: &[f64],
+    block_line: &[u32],
+    n: usize,
+) -> Vec<HotSpot> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points_mm.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let diag = (0..3)
+        .map(|k| (hi[k] - lo[k]).max(0.0).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    hot_spots(
+        values,
+        block_line,
+        n,
+        |a, b| {
+            let (p, q) = (points_mm[a], points_mm[b]);
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        },
+        0.08 * diag,
+    )
+}
+
 /// The `p`-th percentile (0 … 100) of the finite values, interpolating linearly between order
 /// statistics (Hyndman & Fan, *Sample quantiles in statistical packages*, 1996, definition 7,
 /// the default of R and NumPy); `None` if no value is finite. With the sorted values
@@ -770,40 +804,9 @@ pub fn contour_path_views(
         .block_line
         .map(|l| worst_blocks(path.values, l, opts.worst_blocks))
         .unwrap_or_default();
-    // Marks: neighbouring bad blocks (within 8 % of the part's size) share one ring.
-    let diag = {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in path
-            .points_mm
-            .iter()
-            .filter(|p| p.iter().all(|c| c.is_finite()))
-        {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        (0..3)
-            .map(|k| (hi[k] - lo[k]).max(0.0).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let pts3 = path.points_mm;
     let spots = path
         .block_line
-        .map(|l| {
-            hot_spots(
-                path.values,
-                l,
-                opts.worst_blocks,
-                |a, b| {
-                    let (p, q) = (pts3[a], pts3[b]);
-                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-                },
-                0.08 * diag,
-            )
-        })
+        .map(|l| path_hot_spots(path.points_mm, path.values, l, opts.worst_blocks))
         .unwrap_or_default();
 
     let w = opts.width_px;
@@ -925,6 +928,11 @@ pub struct PathErrors<'a> {
     pub block_line: Option<&'a [u32]>,
     /// How many worst blocks to mark.
     pub worst_blocks: usize,
+    /// The tool-tip points the contour error belongs to (mm), when known: the worst blocks are
+    /// then merged into marks by distance on the part, exactly as [`contour_path_views`] of the
+    /// same points and values does, so both figures mark the same places. `None`: blocks within
+    /// 2 % of the path's length of each other share a mark.
+    pub points_mm: Option<&'a [[f64; 3]]>,
 }
 
 /// Renders [`PathErrors`] (x: arc length s in mm).
@@ -958,19 +966,30 @@ pub fn error_along_path(title: &str, e: &PathErrors) -> Result<Figure, Error> {
                 .copied()
                 .filter(|v| v.is_finite())
                 .fold(0.0, f64::max);
-            hot_spots(
-                e.contour_truth.y,
-                l,
-                e.worst_blocks,
-                |a, b| (s[a] - s[b]).abs(),
-                0.02 * total,
-            )
-            .into_iter()
-            .map(|h| XMarker {
-                x: s[h.index],
-                label: h.label,
-            })
-            .collect()
+            let spots = match e.points_mm {
+                Some(p) if p.len() == n => path_hot_spots(p, e.contour_truth.y, l, e.worst_blocks),
+                Some(p) => {
+                    return Err(Error::LengthMismatch {
+                        what: format!("{title}: tool-tip points"),
+                        expected: n,
+                        found: p.len(),
+                    });
+                }
+                None => hot_spots(
+                    e.contour_truth.y,
+                    l,
+                    e.worst_blocks,
+                    |a, b| (s[a] - s[b]).abs(),
+                    0.02 * total,
+                ),
+            };
+            spots
+                .into_iter()
+                .map(|h| XMarker {
+                    x: s[h.index],
+                    label: h.label,
+                })
+                .collect()
         }
         None => Vec::new(),
     };
