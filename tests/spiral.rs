@@ -5,6 +5,7 @@ use std::sync::OnceLock;
 
 use vcnc_drive::{AxisName, ClosedLoopModel};
 use vcnc_machine::{Machine, embedded};
+use vcnc_pipeline::run::Measured;
 use vcnc_pipeline::{AxisIdentification, Prediction, Run, identify, predict, run};
 
 struct Fixture {
@@ -49,14 +50,23 @@ fn max(v: &[f64]) -> f64 {
 fn spiral_matches_spec_geometry_and_duration() {
     // Truth: docs/contour.md (≈ 755 mm at 75 mm/s and 1500 mm/s² ≈ 10.1 s; axis spans X −36…36,
     // Y −25…58, Z 22…61 mm, A −36.9…−11.5°, peak rates 127, 110, 28 mm/s, 4.6 and 212 °/s).
+    // The spiral's feed moves (the program opens with a rapid from the machine's start).
     let f = fixture();
-    let d = f.run.loaded.trajectory.duration_s();
+    let feed = f.run.measured(Measured::Feed);
+    let d = feed.iter().filter(|m| **m).count() as f64 * f.run.ts;
     assert!((d - 10.12).abs() < 0.02, "duration {d} s");
     let span = |c: AxisName| {
         let a = f.run.axes.iter().find(|a| a.name == c).unwrap();
-        let lo = a.pos.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = a.pos.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let v = a.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let on = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(&feed)
+                .filter_map(|(x, m)| m.then_some(*x))
+                .collect()
+        };
+        let (pos, vel) = (on(&a.pos), on(&a.vel));
+        let lo = pos.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = pos.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let v = vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         (lo, hi, v)
     };
     let (xl, xh, xv) = span(AxisName::X);
@@ -85,7 +95,9 @@ fn spiral_matches_spec_geometry_and_duration() {
         );
     }
     let c = f.run.axes.iter().find(|a| a.name == AxisName::C).unwrap();
-    let turns = (c.pos[c.pos.len() - 1] - c.pos[0]).abs() / 360.0;
+    // From the end of the opening rapid (the sample before the first feed sample).
+    let first = feed.iter().position(|m| *m).unwrap();
+    let turns = (c.pos[c.pos.len() - 1] - c.pos[first - 1]).abs() / 360.0;
     assert!((turns - 3.0).abs() < 1e-6, "C turns {turns}");
 }
 
@@ -93,9 +105,11 @@ fn spiral_matches_spec_geometry_and_duration() {
 fn true_contour_error_is_the_published_scale() {
     // docs/contour.md / issue 5: with Table 3 drives the true contour error peaks near 450 µm
     // and 3.9 mrad.
+    // Over the feed moves (the contour statistics' default).
     let f = fixture();
-    let tip = f.refined.true_contour.tip_max_mm * 1e3;
-    let ori = f.refined.true_contour.orientation_max_rad * 1e3;
+    let figures = f.refined.figures(&f.run.measured(Measured::Feed));
+    let tip = figures.true_max.tip_um;
+    let ori = figures.true_max.orientation_mrad;
     assert!((tip - 450.0).abs() < 10.0, "true contour max {tip} µm");
     assert!((ori - 3.9).abs() < 0.1, "true orientation max {ori} mrad");
 }

@@ -64,6 +64,10 @@ pub enum Command {
         /// Output folder (contour.csv, summary.json, plots).
         #[arg(long, default_value = "vcnc-predict")]
         out: PathBuf,
+        /// Count rapids (G0) and dwells in the contour statistics too; by default they cover
+        /// the feed moves (G1 G2 G3, cycles' feed parts): what is cut.
+        #[arg(long)]
+        include_rapids: bool,
         #[command(flatten)]
         table: TableArgs,
     },

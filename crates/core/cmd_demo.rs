@@ -11,7 +11,7 @@ use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::{Machine, embedded};
 use vcnc_pipeline::identify::{self, AxisOverview, IdentifySummary};
 use vcnc_pipeline::predict::{self, ContourSummary};
-use vcnc_pipeline::run;
+use vcnc_pipeline::run::{self, Measured};
 use vcnc_report::Role;
 
 use crate::Ctx;
@@ -54,6 +54,7 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     print_warnings(&run.warnings);
     let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
     let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
+    let mask = run.measured(Measured::Feed);
     let [p, pp]: [predict::Prediction; 2] =
         predict::predict_many(&machine, &run, &[&refined, &paper])?
             .try_into()
@@ -80,11 +81,11 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
         &ids,
     )?;
     let summary = DemoSummary {
-        contour: ContourSummary::of(&p),
+        contour: ContourSummary::of(&p, &run, Measured::Feed),
         machine: machine.name.clone(),
         program: spiral,
         models: "identified (PSO + output-error refinement)",
-        paper_pso: ContourSummary::of(&pp),
+        paper_pso: ContourSummary::of(&pp, &run, Measured::Feed),
         identification: identify::overview(&ids),
     };
     write_json(&out.join("summary.json"), &summary)?;
@@ -112,7 +113,7 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     report.warnings(&run.warnings);
     contour_report_table(
         &mut report,
-        &[(VCNC_MODEL, &p.figures()), (PAPER, &pp.figures())],
+        &[(VCNC_MODEL, &p.figures(&mask)), (PAPER, &pp.figures(&mask))],
     );
     identification_report_table(&mut report, &ids);
     let (tp, tpp) = (p.tracking(&machine, &run), pp.tracking(&machine, &run));
@@ -160,7 +161,10 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
         );
         print!("{}", identification_table(&ids));
         println!("\nSpiral contour errors, true drives vs identified models:");
-        let (a, b) = (contour_rows(&p.figures()), contour_rows(&pp.figures()));
+        let (a, b) = (
+            contour_rows(&p.figures(&mask)),
+            contour_rows(&pp.figures(&mask)),
+        );
         let rows: Vec<Vec<String>> = a
             .iter()
             .zip(&b)

@@ -24,11 +24,13 @@ pub fn predict(
     program: &Path,
     model: Option<&Path>,
     out: &Path,
+    measured: run::Measured,
     table: &TableOptions,
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
+    let mask = run.measured(measured);
     print_warnings(&run.warnings);
     let (models, source): (Vec<ClosedLoopModel>, String) = match model {
         Some(p) => (
@@ -47,7 +49,7 @@ pub fn predict(
     let p = predict::predict(&machine, &run, &models)?;
     ensure_dir(out)?;
     let summary = PredictSummary {
-        contour: ContourSummary::of(&p),
+        contour: ContourSummary::of(&p, &run, measured),
         machine: machine.name.clone(),
         program: run.file.clone(),
         models: source,
@@ -83,7 +85,7 @@ pub fn predict(
         report.input("option", "--lenient");
     }
     report.warnings(&run.warnings);
-    contour_report_table(&mut report, &[(VCNC_MODEL, &p.figures())]);
+    contour_report_table(&mut report, &[(VCNC_MODEL, &p.figures(&mask))]);
     let tracking = p.tracking(&machine, &run);
     figures::prediction(
         &mut report,
@@ -103,7 +105,7 @@ pub fn predict(
     );
     report.finish()?;
     if !ctx.quiet {
-        let rows: Vec<Vec<String>> = contour_rows(&p.figures())
+        let rows: Vec<Vec<String>> = contour_rows(&p.figures(&mask))
             .into_iter()
             .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
             .collect();

@@ -413,7 +413,7 @@ pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> 
     };
     let p = first.prediction;
     let name = program_name(&run.file);
-    let lines = run.block_lines();
+    let lines = &run.lines;
     let true_tip = tips(&p.true_poses);
     let ref_tip = run.poses.as_deref().map_or_else(|| true_tip.clone(), tips);
     let s = vr::arc_length_mm(&ref_tip);
@@ -440,7 +440,7 @@ pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> 
                 points_mm: &true_tip,
                 values: &tip_t,
                 value: Quantity::new("contour error", units::UM),
-                block_line: Some(&lines),
+                block_line: Some(lines),
             },
             &opts,
         ),
@@ -473,7 +473,7 @@ pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> 
                 contour_models: series(models, &s, &tip_m),
                 orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
                 orientation_models: series(models, &s, &or_m),
-                block_line: Some(&lines),
+                block_line: Some(lines),
                 worst_blocks: WORST_BLOCKS,
                 points_mm: Some(&true_tip),
             },
@@ -504,7 +504,7 @@ pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> 
 
     // The 3-D export: the true machine's path with its errors, the models' errors beside them.
     let tool_axis = axes_of(&p.true_poses);
-    let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&lines));
+    let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(lines));
     let tags: Vec<String> = models
         .iter()
         .map(|m| m.label.replace('\'', "").replace(' ', "_"))

@@ -113,12 +113,18 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             program,
             model,
             out,
+            include_rapids,
             table,
         } => cmd_predict::predict(
             &machine,
             &program,
             model.as_deref(),
             &out,
+            if include_rapids {
+                vcnc_pipeline::run::Measured::All
+            } else {
+                vcnc_pipeline::run::Measured::Feed
+            },
             &table.options(),
             ctx,
         ),

@@ -227,8 +227,10 @@ pub fn write_contour_table(
     let tip_p = to_um(&p.predicted_contour.tip_mm);
     let or_t = to_um(&p.true_contour.orientation_rad);
     let or_p = to_um(&p.predicted_contour.orientation_rad);
-    let mut header = vec!["t".to_string()];
-    let mut cols: Vec<&[f64]> = vec![&t];
+    // The source line of the block running at each sample, so a user finds it in the program.
+    let lines: Vec<f64> = run.lines.iter().map(|l| f64::from(*l)).collect();
+    let mut header = vec!["t".to_string(), "line".to_string()];
+    let mut cols: Vec<&[f64]> = vec![&t, &lines];
     for (i, a) in run.axes.iter().enumerate() {
         header.push(format!("{}_ref", a.name));
         cols.push(&a.pos);

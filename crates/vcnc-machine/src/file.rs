@@ -207,6 +207,10 @@ pub struct AxisFile {
     /// Centre of this axis' identification moves, axis units (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub identification_centre: Option<f64>,
+    /// Where the axis is when a program starts (machine coordinates, axis units): the first
+    /// block moves from here, as on a control. Default 0, as after homing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<f64>,
 }
 
 fn default_servo_rate() -> f64 {

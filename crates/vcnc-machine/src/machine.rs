@@ -41,6 +41,8 @@ pub struct Axis {
     pub identification_range: f64,
     /// Centre of this axis' identification moves (a work offset), axis units.
     pub identification_centre: f64,
+    /// Where the axis is when a program starts, axis units (machine coordinates).
+    pub start: f64,
 }
 
 impl Axis {
@@ -269,13 +271,25 @@ impl Machine {
         }
     }
 
-    /// Interpreter options (dialect M-codes, leniency).
+    /// Where a program starts: every axis at its `start` (machine coordinates, X Y Z A B C
+    /// order; axes the machine lacks at 0).
+    pub fn start_position(&self) -> [f64; 6] {
+        let mut p = [0.0; 6];
+        for a in &self.axes {
+            p[a.name.index()] = a.start;
+        }
+        p
+    }
+
+    /// Interpreter options (dialect M-codes, leniency, start position).
     pub fn interp_options(&self, lenient: bool) -> InterpOptions {
         InterpOptions {
             lenient,
-            // The machine file has no start position yet (issue 13 item 7): keep the behaviour
-            // the pipeline's figures were made with, the opening motion defines the start.
-            start: vcnc_gcode::StartPosition::FirstMove,
+            // The first block moves from the machine's start position, as on a control. (In
+            // tool-centre-point mode the interpreter reads it as tool-tip coordinates; on a
+            // table-tilting machine they agree at A = C = 0, where the workpiece frame is the
+            // machine frame.)
+            start: vcnc_gcode::StartPosition::Machine(self.start_position()),
             tcp_on_mcodes: self.tcp_mcodes.0.clone(),
             tcp_off_mcodes: self.tcp_mcodes.1.clone(),
             ..InterpOptions::default()
@@ -466,6 +480,16 @@ impl Checker<'_> {
                 ),
             ));
         }
+        let start = a.start.unwrap_or(0.0);
+        if !(start.is_finite() && start >= lo && start <= hi) {
+            return Err(self.invalid(
+                &k("start"),
+                format!(
+                    "the start position {start} {} is outside the travel [{lo}, {hi}]",
+                    a.unit
+                ),
+            ));
+        }
         Ok(Axis {
             name,
             unit: a.unit,
@@ -475,6 +499,7 @@ impl Checker<'_> {
             drive,
             identification_range: range,
             identification_centre: centre,
+            start,
         })
     }
 

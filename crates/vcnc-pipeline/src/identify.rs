@@ -115,8 +115,14 @@ pub fn excitation_run(machine: &Machine, a: &Axis, seed: u64) -> Result<Excitati
             l.max_acc = l.max_acc.min(acc);
         }
     }
-    let loaded = vcnc_gcode::load(&program, &machine.interp_options(false), &limits, &iopts)
-        .map_err(|e| Error::gcode(&name, e))?;
+    // The excitation opens with `G0 <axis>0` at rest: it starts at its own centre, whatever
+    // the machine's start position.
+    let interp = vcnc_gcode::InterpOptions {
+        start: vcnc_gcode::StartPosition::Machine([0.0; 6]),
+        ..machine.interp_options(false)
+    };
+    let loaded =
+        vcnc_gcode::load(&program, &interp, &limits, &iopts).map_err(|e| Error::gcode(&name, e))?;
     // The interpolator outputs exactly the axes it is asked for.
     let track =
         loaded.trajectory.axes.first().ok_or_else(|| {

@@ -10,7 +10,7 @@ use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 
 use crate::Error;
-use crate::run::{Run, forward_poses};
+use crate::run::{Measured, Run, forward_poses};
 use crate::simulate::{simulate_models, simulate_true};
 use crate::stats::{max_abs, rms};
 
@@ -81,23 +81,88 @@ impl Prediction {
         crate::simulate::tracking_of(machine, run, &actual, Some(&self.predicted))
     }
 
-    /// The six contour statistics, tool tip in µm and orientation in mrad.
-    pub fn figures(&self) -> ContourFigures {
+    /// The six contour statistics over the samples `mask` selects (every sample when it is
+    /// all true), tool tip in µm and orientation in mrad.
+    pub fn figures(&self, mask: &[bool]) -> ContourFigures {
         let (t, q) = (&self.true_contour, &self.predicted_contour);
         let (d_tip, d_or) = (self.tip_discrepancy(), self.orientation_discrepancy());
-        let pair = |tip_mm: f64, or_rad: f64| Figure {
-            tip_um: tip_mm * 1e3,
-            orientation_mrad: or_rad * 1e3,
+        let pick = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(mask)
+                .filter_map(|(x, m)| m.then_some(*x))
+                .collect()
+        };
+        let pair = |tip: &[f64], or: &[f64], f: fn(&[f64]) -> f64| Figure {
+            tip_um: f(&pick(tip)) * 1e3,
+            orientation_mrad: f(&pick(or)) * 1e3,
         };
         ContourFigures {
-            true_max: pair(t.tip_max_mm, t.orientation_max_rad),
-            true_rms: pair(t.tip_rms_mm, t.orientation_rms_rad),
-            predicted_max: pair(q.tip_max_mm, q.orientation_max_rad),
-            predicted_rms: pair(q.tip_rms_mm, q.orientation_rms_rad),
-            discrepancy_max: pair(max_abs(&d_tip), max_abs(&d_or)),
-            discrepancy_rms: pair(rms(&d_tip), rms(&d_or)),
+            true_max: pair(&t.tip_mm, &t.orientation_rad, max_abs),
+            true_rms: pair(&t.tip_mm, &t.orientation_rad, rms),
+            predicted_max: pair(&q.tip_mm, &q.orientation_rad, max_abs),
+            predicted_rms: pair(&q.tip_mm, &q.orientation_rad, rms),
+            discrepancy_max: pair(&d_tip, &d_or, max_abs),
+            discrepancy_rms: pair(&d_tip, &d_or, rms),
         }
     }
+
+    /// The `n` blocks (source lines) with the largest true tool-tip contour error among the
+    /// samples `mask` selects, worst first.
+    pub fn worst_blocks(&self, run: &Run, mask: &[bool], n: usize) -> Vec<WorstBlock> {
+        worst_blocks(
+            &run.lines,
+            &self.true_contour.tip_mm,
+            &self.true_contour.orientation_rad,
+            mask,
+            n,
+        )
+    }
+}
+
+/// A block of the program and its largest contour errors.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct WorstBlock {
+    /// Source line of the block.
+    pub line: u32,
+    /// Its largest tool-tip contour error, µm.
+    pub contour_max_um: f64,
+    /// Its largest orientation contour error, mrad.
+    pub orientation_max_mrad: f64,
+}
+
+/// The `n` source lines with the largest tool-tip error (mm) among the samples `mask` selects,
+/// worst first (ties: the earlier line); their orientation error (rad) beside it.
+pub fn worst_blocks(
+    lines: &[u32],
+    tip_mm: &[f64],
+    orientation_rad: &[f64],
+    mask: &[bool],
+    n: usize,
+) -> Vec<WorstBlock> {
+    let mut per_line: BTreeMap<u32, (f64, f64)> = BTreeMap::new();
+    for k in 0..lines.len().min(tip_mm.len()).min(mask.len()) {
+        if !mask[k] || lines[k] == 0 {
+            continue;
+        }
+        let e = per_line.entry(lines[k]).or_insert((0.0, 0.0));
+        e.0 = e.0.max(tip_mm[k]);
+        e.1 = e.1.max(orientation_rad.get(k).copied().unwrap_or(0.0));
+    }
+    let mut v: Vec<WorstBlock> = per_line
+        .into_iter()
+        .map(|(line, (t, o))| WorstBlock {
+            line,
+            contour_max_um: t * 1e3,
+            orientation_max_mrad: o * 1e3,
+        })
+        .collect();
+    v.sort_by(|a, b| {
+        b.contour_max_um
+            .total_cmp(&a.contour_max_um)
+            .then(a.line.cmp(&b.line))
+    });
+    v.truncate(n);
+    v
 }
 
 /// One statistic of the tool-tip (µm) and orientation (mrad) contour errors.
@@ -141,21 +206,31 @@ impl ContourFigures {
 }
 
 /// The contour part of a summary: `contour_um.{true_max …}`, `orientation_mrad.{…}`,
-/// `samples`.
+/// `samples`, `measured`, `measured_samples`, `worst_blocks`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ContourSummary {
     /// Tool-tip contour error statistics, µm.
     pub contour_um: BTreeMap<&'static str, f64>,
     /// Orientation contour error statistics, mrad.
     pub orientation_mrad: BTreeMap<&'static str, f64>,
-    /// Number of samples.
+    /// Number of samples of the run.
     pub samples: usize,
+    /// Which samples the statistics cover: `feed` (feed moves, the default) or `all`.
+    pub measured: &'static str,
+    /// How many samples they cover.
+    pub measured_samples: usize,
+    /// The blocks with the largest true contour errors, worst first.
+    pub worst_blocks: Vec<WorstBlock>,
 }
 
+/// Blocks listed in a summary's `worst_blocks`.
+pub const WORST_BLOCKS: usize = 10;
+
 impl ContourSummary {
-    /// The summary of a prediction.
-    pub fn of(p: &Prediction) -> ContourSummary {
-        let rows = p.figures().rows();
+    /// The summary of a prediction over the samples `which` selects.
+    pub fn of(p: &Prediction, run: &Run, which: Measured) -> ContourSummary {
+        let mask = run.measured(which);
+        let rows = p.figures(&mask).rows();
         ContourSummary {
             contour_um: rows.iter().map(|(_, k, f)| (*k, f.tip_um)).collect(),
             orientation_mrad: rows
@@ -163,6 +238,12 @@ impl ContourSummary {
                 .map(|(_, k, f)| (*k, f.orientation_mrad))
                 .collect(),
             samples: p.true_contour.tip_mm.len(),
+            measured: match which {
+                Measured::Feed => "feed",
+                Measured::All => "all",
+            },
+            measured_samples: mask.iter().filter(|m| **m).count(),
+            worst_blocks: p.worst_blocks(run, &mask, WORST_BLOCKS),
         }
     }
 }

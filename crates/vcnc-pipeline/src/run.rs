@@ -6,7 +6,7 @@ use std::path::Path;
 
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::Reference;
-use vcnc_gcode::{Diagnostic, Loaded, Severity};
+use vcnc_gcode::{Diagnostic, Loaded, MoveClass, Severity};
 use vcnc_kinematics::{Pose, Track};
 use vcnc_machine::Machine;
 
@@ -62,9 +62,36 @@ pub struct Run {
     pub poses: Option<Vec<Pose>>,
     /// Warnings for the user (G-code warnings, limit excursions of IK'd references).
     pub warnings: Vec<String>,
+    /// Per sample: the source line of the block running (0 where none is, e.g. before the
+    /// first move).
+    pub lines: Vec<u32>,
+    /// Per sample: the kind of move running (rapid, feed, dwell; `None` before the first
+    /// move).
+    pub classes: Vec<Option<MoveClass>>,
+}
+
+/// Which samples the contour statistics cover.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Measured {
+    /// Feed moves only (G1 G2 G3 and the feed parts of cycles): what is cut (the default).
+    #[default]
+    Feed,
+    /// Every sample, rapids and dwells included.
+    All,
 }
 
 impl Run {
+    /// Per sample: whether the contour statistics count it.
+    pub fn measured(&self, which: Measured) -> Vec<bool> {
+        match which {
+            Measured::All => vec![true; self.len()],
+            Measured::Feed => self
+                .classes
+                .iter()
+                .map(|c| *c == Some(MoveClass::Feed))
+                .collect(),
+        }
+    }
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.axes.first().map_or(0, |a| a.pos.len())
@@ -93,37 +120,6 @@ impl Run {
     /// True when some samples are in tool-centre-point mode.
     pub fn has_tcp(&self) -> bool {
         self.loaded.trajectory.tcp.iter().any(|t| *t)
-    }
-
-    /// Source line (1-based) of the move running at each sample, as
-    /// [`vcnc_gcode::Trajectory::block_at`] finds it (the earlier move at a boundary; a dwell
-    /// is a move on its `G4` line). A sample no move's span covers carries the line of the move
-    /// before it (the first move's line before the first); a run without moves gives 0.
-    ///
-    /// One pass over the samples and the moves together (they are both in time order), so it
-    /// costs O(samples + moves).
-    pub fn block_lines(&self) -> Vec<u32> {
-        let traj = &self.loaded.trajectory;
-        let blocks = &traj.blocks;
-        let mut out = Vec::with_capacity(self.len());
-        let mut i = 0;
-        let mut last = blocks.first().map_or(0, |b| b.line);
-        for k in 0..self.len() {
-            let t = k as f64 * traj.ts;
-            // The same tests as `block_at`: the first move not ended before t, if it has begun.
-            while i < blocks.len() && blocks[i].t_end_s < t - 1e-12 {
-                last = blocks[i].line;
-                i += 1;
-            }
-            match blocks.get(i) {
-                Some(b) if b.t_start_s <= t + 1e-12 => {
-                    last = b.line;
-                    out.push(b.line);
-                }
-                _ => out.push(last),
-            }
-        }
-        out
     }
 }
 
@@ -225,6 +221,13 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         )?),
         None => None,
     };
+    let (lines, classes) = traj
+        .sample_spans()
+        .map(|i| {
+            i.and_then(|i| traj.blocks.get(i))
+                .map_or((0, None), |b| (b.line, Some(b.class)))
+        })
+        .unzip();
     Ok(Run {
         file: file.to_string(),
         ts: traj.ts,
@@ -232,6 +235,8 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         axes,
         poses,
         warnings,
+        lines,
+        classes,
     })
 }
 
@@ -350,6 +355,8 @@ pub struct InterpolateSummary {
     pub program: String,
     /// Duration, s.
     pub duration_s: f64,
+    /// Time spent in feed moves (G1 G2 G3, cycles' feed parts), s.
+    pub feed_duration_s: f64,
     /// Number of samples.
     pub samples: usize,
     /// Sample period, s.
@@ -370,6 +377,12 @@ impl InterpolateSummary {
             machine: machine.name.clone(),
             program: run.file.clone(),
             duration_s: run.duration_s(),
+            feed_duration_s: run
+                .classes
+                .iter()
+                .filter(|c| **c == Some(MoveClass::Feed))
+                .count() as f64
+                * run.ts,
             samples: run.len(),
             ts_s: run.ts,
             tcp: run.has_tcp(),
@@ -399,11 +412,11 @@ mod tests {
     /// The one-pass walk agrees with `Trajectory::block_at` at every sample a move covers (a
     /// dwell is a move of its own, on its `G4` line), and gives every sample a line.
     #[test]
-    fn block_lines_agree_with_block_at() {
+    fn sample_lines_agree_with_block_at() {
         let machine = Machine::embedded_nmv5000().unwrap();
         let src = "G0 X0 Y0 Z0 A0 C0\nG1 X10 F600\nG4 P0.5\nG1 Y10\nG1 X0 Y0\nM2\n";
         let run = prepare(&machine, src, "t.ngc", false).unwrap();
-        let lines = run.block_lines();
+        let lines = &run.lines;
         assert_eq!(lines.len(), run.len());
         let traj = &run.loaded.trajectory;
         for (k, l) in lines.iter().enumerate() {
@@ -422,7 +435,7 @@ mod tests {
         }
         assert!(lines.iter().all(|l| *l != 0));
         let spiral = prepare(&machine, vcnc_machine::embedded::SPIRAL_NGC, "s.ngc", false).unwrap();
-        let sl = spiral.block_lines();
+        let sl = &spiral.lines;
         for (k, l) in sl.iter().enumerate() {
             if let Some(b) = spiral.loaded.trajectory.block_at(k) {
                 assert_eq!(*l, b.line, "spiral sample {k}");

@@ -17,7 +17,7 @@ use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::{Machine, MachineDocument};
 
 use crate::predict::{contour, model_contour};
-use crate::run::{Run, prepare};
+use crate::run::{Measured, Run, prepare};
 use crate::simulate::simulate_true;
 use crate::stats::{max_abs, rms, scaled_diff};
 use crate::{Error, format_num};
@@ -383,6 +383,14 @@ impl<'a> Sweep<'a> {
             .collect();
         let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
         let (_, c) = contour(&machine, run, &pos)?;
+        // The statistics cover the feed moves (what is cut), as `vcnc predict`'s do.
+        let mask = run.measured(Measured::Feed);
+        let masked = |v: &[f64], f: fn(&[f64]) -> f64| {
+            f(&v.iter()
+                .zip(&mask)
+                .filter_map(|(x, m)| m.then_some(*x))
+                .collect::<Vec<f64>>())
+        };
         let predicted = match &self.models {
             None => None,
             Some(models) => {
@@ -394,20 +402,25 @@ impl<'a> Sweep<'a> {
                         &owned_pc
                     }
                 };
-                let disc = c
+                let disc: Vec<f64> = c
                     .tip_mm
                     .iter()
                     .zip(&pc.tip_mm)
-                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-                Some((pc.tip_max_mm * 1e3, pc.tip_rms_mm * 1e3, disc * 1e3))
+                    .map(|(a, b)| (a - b).abs())
+                    .collect();
+                Some((
+                    masked(&pc.tip_mm, max_abs) * 1e3,
+                    masked(&pc.tip_mm, rms) * 1e3,
+                    masked(&disc, max_abs) * 1e3,
+                ))
             }
         };
         Ok(ConfigResult {
             tracking,
-            contour_max_um: c.tip_max_mm * 1e3,
-            contour_rms_um: c.tip_rms_mm * 1e3,
-            orientation_max_mrad: c.orientation_max_rad * 1e3,
-            orientation_rms_mrad: c.orientation_rms_rad * 1e3,
+            contour_max_um: masked(&c.tip_mm, max_abs) * 1e3,
+            contour_rms_um: masked(&c.tip_mm, rms) * 1e3,
+            orientation_max_mrad: masked(&c.orientation_rad, max_abs) * 1e3,
+            orientation_rms_mrad: masked(&c.orientation_rad, rms) * 1e3,
             predicted,
         })
     }
