@@ -8,6 +8,8 @@
 //! - [`sim`]: the drive in the time domain at the servo rate ([`Drive::simulate`] →
 //!   [`DriveTrace`]) and the effective poles of the sampled loop.
 //! - [`model`]: the closed-loop model ([`ClosedLoopModel`]) with poles, FRFs and simulation.
+//! - [`drive_model`]: model structures beyond the paper ([`DriveModel`]: dead time, reference
+//!   filter, extra pole), with simulation from positions alone or with derivatives.
 //! - [`presets`]: the paper's Table 1 drive and the NMV5000 axes designed from Table 3.
 //!
 //! ```
@@ -34,12 +36,16 @@
 //! ```
 
 pub mod design;
+pub mod drive_model;
 pub mod model;
 pub mod params;
 pub mod presets;
 pub mod sim;
 
 pub use design::{design_pid, design_ppi, design_smc};
+pub use drive_model::{
+    DriveModel, MAX_DELAY_S, ModelInput, ModelRun, Realisation, ReferenceFilter,
+};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
 pub use params::{
     Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,
