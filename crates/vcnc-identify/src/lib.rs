@@ -54,14 +54,19 @@ mod regress;
 mod trace;
 
 pub use filter::Butterworth2;
-pub use identify::{Identification, LsBaseline, identify, unconstrained_ls};
-pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run};
+pub use identify::{
+    Identification, LsBaseline, StructureFit, ValidationSource, identify, identify_with_validation,
+    unconstrained_ls,
+};
+pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run, free_run_model, score};
 pub use options::{
-    IdentifyOptions, PoleBounds, Prefilter, PsoSettings, RefineOptions, StartCondition,
+    ExtendedBounds, IdentifyOptions, ModelStructure, PoleBounds, Prefilter, PsoSettings,
+    RefineOptions, StartCondition,
 };
 pub use pso::{CostFunction, HistoryEntry, Pso, PsoResult};
 pub use refine::{
-    OutputErrorProblem, RefineResult, RefineStage, SignSource, refine, refine_problem,
+    BoundHit, OutputErrorProblem, ParameterStd, RefineResult, RefineSetup, RefineStage, SignSource,
+    Start, Uncertainty, refine,
 };
 pub use regress::{EquationErrorCost, Regressors, Theta};
 pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Trace};
@@ -189,6 +194,12 @@ pub enum Error {
         eta: f64,
         /// Upper limit $2(1+w)$ on the sum.
         limit: f64,
+    },
+    /// The output-error refinement found no usable model from any start.
+    #[error("the output-error refinement of the {structure} structure failed from every start")]
+    RefinementFailed {
+        /// The structure being refined.
+        structure: ModelStructure,
     },
     /// The drive model could not be simulated.
     #[error("model simulation failed: {0}")]
