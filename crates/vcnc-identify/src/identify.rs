@@ -456,9 +456,13 @@ fn extended_starts(
     let grid: Vec<Vec<f64>> = match s {
         ModelStructure::Paper => return Ok(vec![]),
         ModelStructure::Delay => {
-            let mut g = vec![eb.delay_s[0]];
-            g.extend(geo(eb.delay_s, 16, trace.ts));
-            g.into_iter().map(|v| vec![v]).collect()
+            // Even steps of 5 ms (at most 41 points): a dead time shifts the whole response,
+            // so the equation-error cost has narrow valleys in it.
+            let [lo, hi] = eb.delay_s;
+            let k = (((hi - lo) / 0.005).ceil() as usize).clamp(2, 41);
+            (0..k)
+                .map(|i| vec![lo + (hi - lo) * i as f64 / (k - 1) as f64])
+                .collect()
         }
         ModelStructure::FirstOrderFilter => geo(eb.filter_tau_s, 12, 1e-5)
             .into_iter()

@@ -345,6 +345,9 @@ impl Layout {
             .poles()?;
             vec![p.p_hz(), p.wn_hz(), p.zeta]
         } else {
+            // A start with its pole at the origin (a drive without integral action) starts
+            // just off it: the map reaches a3 = 0 only in the limit.
+            let a3 = a3.max(1e-12 * a1 * a2);
             let g = a2 - a3 / a1;
             if !(a1 > 0.0 && a3 > 0.0 && g > 0.0) {
                 return None;
@@ -566,6 +569,13 @@ impl Layout {
     }
 }
 
+/// Whether a trace that starts moving gets its initial state estimated by free-response
+/// columns. Off: on the EMPS benchmark it made the free run from rest worse (3.1 µm RMS
+/// against 2.2 µm), since the fit then serves a residual with the estimated initial state
+/// while the model is used from rest; and it did not cure the randomised suite's cut-out
+/// traces (see the suite's notes). Kept for the next round of work.
+const FREE_RESPONSES: bool = false;
+
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
 const KMAX: usize = 9;
 
@@ -652,7 +662,11 @@ fn pass_positions<const NU: usize, const NF: usize>(
     let mut g = [[0.0; KMAX + 1]; KMAX + 1];
     let pw: [f64; 7] = std::array::from_fn(|k| om.powi(k as i32));
     // Free responses (a trace that starts moving): the first companion state of Phi^k e_j.
-    let nh = if prob.prefixed { NU } else { 0 };
+    let nh = if prob.prefixed && FREE_RESPONSES {
+        NU
+    } else {
+        0
+    };
     let kk = 4 + nh;
     w.k = kk;
     let mut rho = [0.0; NU];
@@ -721,7 +735,11 @@ fn pass_derivatives(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> Gram {
     let p = &d.pieces[0];
     let (mut yu, mut yv, mut ya, mut yf) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
     let mut g = [[0.0; KMAX + 1]; KMAX + 1];
-    let nh = if prob.prefixed { 3 } else { 0 };
+    let nh = if prob.prefixed && FREE_RESPONSES {
+        3
+    } else {
+        0
+    };
     let kk = 4 + nh;
     w.k = kk;
     let mut rho = [1.0, 0.0, 0.0];
@@ -1028,6 +1046,25 @@ pub fn refine(
             }
         }
     }
+    // No start usable in coefficient space: bounded pole coordinates from the starts.
+    let boxed_runs: Vec<Option<LmRun>>;
+    if best.is_none() {
+        let boxed = Layout::new(s, true, setup.bounds, setup.extended);
+        boxed_runs = starts
+            .par_iter()
+            .map(|st| {
+                let eta = boxed.eta_of(st.core, &st.extra)?;
+                levenberg_marquardt(&prob, &boxed, &eta, setup.opts)
+            })
+            .collect();
+        for (i, r) in boxed_runs.iter().enumerate() {
+            if let Some(r) = r
+                && best.is_none_or(|(_, b)| r.cost < b.cost)
+            {
+                best = Some((i, r));
+            }
+        }
+    }
     let Some((best_i, best_run)) = best else {
         return Err(Error::RefinementFailed { structure: s });
     };
@@ -1137,7 +1174,8 @@ fn inside(core: &ClosedLoopModel, b: &PoleBounds) -> bool {
     let ok = |p: Poles| {
         let v = [p.p_hz(), p.wn_hz(), p.zeta];
         let (lo, hi) = (b.lower(), b.upper());
-        (0..3).all(|j| v[j] >= lo[j] && v[j] <= hi[j])
+        // Roots recomputed from the coefficients carry rounding: a pole on its bound is inside.
+        (0..3).all(|j| v[j] >= lo[j] * (1.0 - 1e-9) && v[j] <= hi[j] * (1.0 + 1e-9))
     };
     let roots = core.roots();
     if roots.iter().all(|r| r.im == 0.0) {
@@ -1238,6 +1276,13 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
     if jcols.iter().any(|c| c.iter().any(|v| !v.is_finite())) {
         return None;
     }
+    // A column that vanishes (the friction column when the model applies no friction) leaves
+    // its parameter undetermined: it is left out, and its deviation reported as NaN.
+    let dc_col = mdim + 3;
+    let dc_free = dot(&jcols[dc_col], &jcols[dc_col]) > 0.0;
+    if !dc_free {
+        jcols[dc_col][0] = 1.0;
+    }
     // Column scaling, then QR (faer) of the tall Jacobian.
     let scale: Vec<f64> = jcols
         .iter()
@@ -1250,7 +1295,9 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
     let qr = jm.qr();
     let r = qr.thin_R().to_owned();
     let rmat = DMatrix::from_fn(np, np, |i, j| if i <= j { r[(i, j)] } else { 0.0 });
-    let rinv = rmat.try_inverse()?;
+    let Some(rinv) = rmat.clone().try_inverse() else {
+        return None;
+    };
     let bread = &rinv * rinv.transpose(); // (J^T J)^-1 in scaled coordinates
     // Long-run covariance of the scores s_t = J_t r_t (overlapping batch means).
     let window = andrews_window(&resid);
@@ -1291,7 +1338,9 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
         .chain(lin[..kk].iter().copied())
         .collect();
     let phys = |th: &[f64]| -> Option<Vec<f64>> { physical(lay, &th[..mdim], &th[mdim..]) };
-    let p0 = phys(&theta)?;
+    let Some(p0) = phys(&theta) else {
+        return None;
+    };
     let mut g = DMatrix::<f64>::zeros(p0.len(), np);
     for j in 0..np {
         let h = if j < mdim {
@@ -1315,7 +1364,11 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
         .map(|(i, name)| ParameterStd {
             name,
             value: p0[i],
-            std: cp[(i, i)].max(0.0).sqrt(),
+            std: if name == "dc" && !dc_free {
+                f64::NAN
+            } else {
+                cp[(i, i)].max(0.0).sqrt()
+            },
         })
         .collect();
     Some(Uncertainty {
@@ -1342,4 +1395,218 @@ fn andrews_window(r: &[f64]) -> usize {
     let alpha = 4.0 * rho * rho / ((1.0 - rho).powi(2) * (1.0 + rho).powi(2));
     let b = 1.1447 * (alpha * n as f64).cbrt();
     (b.ceil() as usize).clamp(1, (n / 4).max(1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::options::IdentifyOptions;
+    use vcnc_drive::{Reference, SimOptions};
+
+    /// Rest-to-rest smooth moves with reversals, 1 ms.
+    fn reference(n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let ts = 1e-3;
+        let moves = [
+            (0.1, 0.25, 20.0),
+            (0.5, 0.3, -35.0),
+            (0.95, 0.12, 4.0),
+            (1.2, 0.4, 30.0),
+            (1.8, 0.2, -25.0),
+            (2.2, 0.5, 12.0),
+        ];
+        let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for k in 0..n {
+            let t = k as f64 * ts;
+            for &(t0, dur, d) in &moves {
+                let s = ((t - t0) / dur).clamp(0.0, 1.0);
+                p[k] += d * (3.0 * s * s - 2.0 * s * s * s);
+                if (0.0..1.0).contains(&s) && t > t0 {
+                    v[k] += d * (6.0 * s - 6.0 * s * s) / dur;
+                    a[k] += d * (6.0 - 12.0 * s) / (dur * dur);
+                }
+            }
+        }
+        (p, v, a)
+    }
+
+    fn setup<'a>(opts: &'a IdentifyOptions, s: ModelStructure) -> RefineSetup<'a> {
+        RefineSetup {
+            structure: s,
+            bounds: &opts.bounds,
+            extended: &opts.extended_bounds,
+            opts: &opts.refine,
+        }
+    }
+
+    fn table1(dc: f64) -> ClosedLoopModel {
+        ClosedLoopModel {
+            a1: 238.4335,
+            a2: 48421.586,
+            a3: 2487140.3,
+            b0: 0.2,
+            b1: 117.5424,
+            b2: 37258.98,
+            dc,
+        }
+    }
+
+    #[test]
+    fn crosses_the_seam_where_the_real_pole_meets_the_pair() {
+        // Truth: the model that generated the data with the very simulation the refinement
+        // fits. The start has three real poles, the real one equal to one of the pair's
+        // ((s + 36.3)^2 (s + 9.1) in Hz): in pole coordinates the path to the truth's complex
+        // pair swaps the roles of p and a pair pole, where the map to the coefficients is
+        // singular (a gradient method stalled there at zeta = 1). The coefficient map has no
+        // such point.
+        let truth = table1(47.7);
+        let (p, v, a) = reference(3000);
+        let x = truth
+            .simulate(
+                Reference {
+                    pos: &p,
+                    vel: &v,
+                    acc: &a,
+                },
+                1e-3,
+                &SimOptions::default(),
+            )
+            .unwrap();
+        let tr = Trace::new(1e-3, p, x)
+            .unwrap()
+            .with_reference_derivatives(v, a)
+            .unwrap();
+        let opts = IdentifyOptions::default();
+        let regs = Regressors::build(&tr, &opts).unwrap();
+        let start = Start::from_poles(&Poles::from_hz(36.3, 18.2, 1.2477));
+        let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Paper)).unwrap();
+        let (tp, rp) = (truth.poles().unwrap(), r.poles);
+        let rel = |a: f64, b: f64| ((a - b) / b).abs();
+        assert!(
+            rel(rp.p, tp.p) < 1e-4 && rel(rp.wn, tp.wn) < 1e-4 && rel(rp.zeta, tp.zeta) < 1e-4,
+            "{rp:?} vs {tp:?}"
+        );
+        let m = r.model.core;
+        assert!(
+            rel(m.b2, truth.b2) < 1e-4 && rel(m.dc, truth.dc) < 1e-3,
+            "{m:?}"
+        );
+        assert!(r.stages[r.chosen].freerun_rms < 1e-6, "{:?}", r.stages);
+        assert!(r.on_bounds.is_empty());
+    }
+
+    #[test]
+    fn an_optimum_outside_the_bounds_ends_on_them_and_says_so() {
+        // Data from a 60 Hz drive searched with wn <= 40 Hz: the result is on that bound and
+        // the bound is reported.
+        let truth = ClosedLoopModel::from_poles(
+            &Poles::from_hz(20.0, 60.0, 0.5),
+            0.0,
+            150.0,
+            120000.0,
+            30.0,
+        );
+        let (p, v, a) = reference(3000);
+        let x = truth
+            .simulate(
+                Reference {
+                    pos: &p,
+                    vel: &v,
+                    acc: &a,
+                },
+                1e-3,
+                &SimOptions::default(),
+            )
+            .unwrap();
+        let tr = Trace::new(1e-3, p, x).unwrap();
+        let opts = IdentifyOptions {
+            bounds: PoleBounds {
+                p_hz: [0.2, 500.0],
+                wn_hz: [0.2, 40.0],
+                zeta: [0.2, 2.0],
+            },
+            ..Default::default()
+        };
+        let regs = Regressors::build(&tr, &opts).unwrap();
+        let start = Start::from_poles(&Poles::from_hz(10.0, 30.0, 0.7));
+        let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Paper)).unwrap();
+        assert!(r.model.is_stable());
+        assert!(inside(&r.model.core, &opts.bounds), "{:?}", r.poles);
+        assert!(
+            r.on_bounds
+                .iter()
+                .any(|h| h.parameter == "wn_hz" && h.bound == "upper"),
+            "{:?}",
+            r.on_bounds
+        );
+    }
+
+    #[test]
+    fn recovers_a_sub_sample_dead_time_and_its_uncertainty_is_honest() {
+        // Truth: a delayed model (17.3 ms, not a whole number of samples) driven by positions
+        // alone, with a coloured disturbance added to the measurement (a first-order filtered
+        // white noise, 2 µm, correlated over about 20 ms, as an unmodelled slow error would
+        // be). Over 24 noise seeds the spread of the estimates is compared with the reported
+        // standard deviations: a white-noise formula would understate it many times over.
+        use rand::{RngExt, SeedableRng};
+        let core = table1(47.7);
+        let m = DriveModel {
+            delay_s: 0.0173,
+            ..DriveModel::from(core)
+        };
+        let (p, _, _) = reference(3000);
+        let clean = m
+            .simulate_positions(&p, 1e-3, &SimOptions::default())
+            .unwrap();
+        let opts = IdentifyOptions {
+            structures: vec![ModelStructure::Delay],
+            ..Default::default()
+        };
+        let mut est = vec![];
+        let mut std = vec![];
+        for seed in 0..24u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut e = 0.0;
+            let x: Vec<f64> = clean
+                .iter()
+                .map(|v| {
+                    let w: f64 = rng.random::<f64>() - 0.5;
+                    e = 0.95 * e + 0.002 * w;
+                    v + e
+                })
+                .collect();
+            let tr = Trace::new(1e-3, p.clone(), x).unwrap();
+            let regs = Regressors::build(&tr, &opts).unwrap();
+            let start = Start {
+                core: core.poles().unwrap().denominator(),
+                extra: vec![0.01],
+            };
+            let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Delay)).unwrap();
+            let u = r.uncertainty.expect("uncertainty");
+            est.push([r.model.delay_s, r.poles.wn_hz()]);
+            std.push([u.get("delay_s").unwrap().std, u.get("wn_hz").unwrap().std]);
+        }
+        for i in 0..2 {
+            let mean = est.iter().map(|e| e[i]).sum::<f64>() / est.len() as f64;
+            let spread = (est.iter().map(|e| (e[i] - mean).powi(2)).sum::<f64>()
+                / (est.len() - 1) as f64)
+                .sqrt();
+            // The median report: in a few runs the joint fit of dead time and poles is
+            // nearly collinear and the reported deviation is much larger (conservative).
+            let mut r: Vec<f64> = std.iter().map(|s| s[i]).collect();
+            r.sort_by(f64::total_cmp);
+            let reported = r[r.len() / 2];
+            let truth = [0.0173, core.poles().unwrap().wn_hz()][i];
+            assert!(
+                (mean - truth).abs() < 3.0 * spread.max(1e-12) + 1e-4 * truth,
+                "{i}: {mean} vs {truth}"
+            );
+            // Calibrated within a factor of 3 either way (24 runs estimate a spread to ±15 %;
+            // the long-run covariance of a 3000-sample trace is itself uncertain). The
+            // white-noise formula sigma^2 (J^T J)^-1 is about 2-3 times smaller here.
+            assert!(
+                reported > spread / 3.0 && reported < spread * 3.0,
+                "parameter {i}: reported {reported:e}, observed spread {spread:e}"
+            );
+        }
+    }
 }
