@@ -497,6 +497,7 @@ impl DriveModel {
 
     /// Free run with the friction level of every sample (the identifier fits the friction the
     /// model itself would apply). `opts.integrator` is ignored: the scheme is exact.
+    #[allow(clippy::needless_range_loop)] // small dense kernels: indices read best
     pub fn simulate_run(
         &self,
         input: ModelInput<'_>,

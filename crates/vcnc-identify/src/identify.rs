@@ -169,7 +169,9 @@ fn distinct_starts(candidates: &[(Vec<f64>, f64)], k: usize, extra: &[f64]) -> V
     let best = candidates.first().map_or(f64::INFINITY, |c| c.1);
     let mut out: Vec<Start> = Vec::new();
     for (pos, c) in candidates {
-        if out.len() >= k || !(*c <= 20.0 * best.max(1e-300)) {
+        if out.len() >= k
+            || c.partial_cmp(&(20.0 * best.max(1e-300))) != Some(std::cmp::Ordering::Less)
+        {
             break;
         }
         let [p, wn, z] = match pos[..] {
@@ -546,8 +548,8 @@ fn shaped_trace(trace: &Trace, s: ModelStructure, g: &[f64]) -> Result<Trace, Er
             let p = std::f64::consts::TAU * g[0].exp();
             let n = trace.len();
             let mut xc = trace.x.clone();
-            for k in 1..n - 1 {
-                xc[k] = trace.x[k] + (trace.x[k + 1] - trace.x[k - 1]) / (2.0 * trace.ts * p);
+            for (k, v) in xc.iter_mut().enumerate().take(n - 1).skip(1) {
+                *v = trace.x[k] + (trace.x[k + 1] - trace.x[k - 1]) / (2.0 * trace.ts * p);
             }
             return Trace::new(trace.ts, trace.xr.clone(), xc);
         }

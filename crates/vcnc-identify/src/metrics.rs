@@ -140,8 +140,8 @@ fn one_step_shaped(
         // x = P x_c with P = p/(s + p): x_c = x + x'/p (central differences).
         let p = std::f64::consts::TAU * pe;
         let n = xc.len();
-        for k in 1..n.saturating_sub(1) {
-            xc[k] = trace.x[k] + (trace.x[k + 1] - trace.x[k - 1]) / (2.0 * trace.ts * p);
+        for (k, v) in xc.iter_mut().enumerate().take(n.saturating_sub(1)).skip(1) {
+            *v = trace.x[k] + (trace.x[k + 1] - trace.x[k - 1]) / (2.0 * trace.ts * p);
         }
     }
     let tr = Trace::new(trace.ts, sub(&shaped), sub(&xc))?;

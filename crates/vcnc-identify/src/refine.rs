@@ -187,7 +187,12 @@ impl Uncertainty {
     pub fn flagged(&self, threshold: f64) -> Vec<&'static str> {
         self.parameters
             .iter()
-            .filter(|p| !(p.relative() <= threshold))
+            .filter(|p| {
+                matches!(
+                    p.relative().partial_cmp(&threshold),
+                    Some(std::cmp::Ordering::Greater) | None
+                )
+            })
             .map(|p| p.name)
             .collect()
     }
@@ -419,8 +424,6 @@ impl Layout {
             1e-6 * v.abs().max(1e-3 * (self.hi[j] - self.lo[j]))
         } else if self.structure == ModelStructure::Delay && j == 3 {
             1e-4 * ts
-        } else if self.structure == ModelStructure::SecondOrderFilter && j == 4 {
-            1e-6
         } else {
             1e-6
         };
@@ -1295,9 +1298,7 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
     let qr = jm.qr();
     let r = qr.thin_R().to_owned();
     let rmat = DMatrix::from_fn(np, np, |i, j| if i <= j { r[(i, j)] } else { 0.0 });
-    let Some(rinv) = rmat.clone().try_inverse() else {
-        return None;
-    };
+    let rinv = rmat.try_inverse()?;
     let bread = &rinv * rinv.transpose(); // (J^T J)^-1 in scaled coordinates
     // Long-run covariance of the scores s_t = J_t r_t (overlapping batch means).
     let window = andrews_window(&resid);
@@ -1338,9 +1339,7 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
         .chain(lin[..kk].iter().copied())
         .collect();
     let phys = |th: &[f64]| -> Option<Vec<f64>> { physical(lay, &th[..mdim], &th[mdim..]) };
-    let Some(p0) = phys(&theta) else {
-        return None;
-    };
+    let p0 = phys(&theta)?;
     let mut g = DMatrix::<f64>::zeros(p0.len(), np);
     for j in 0..np {
         let h = if j < mdim {

@@ -502,60 +502,9 @@ fn run_one(d: &SuiteDrive, dir: &Path) -> Row {
     let val_path = dir.join(format!("drive{:03}_val.csv", d.id));
     write_csv(&est_path, &est_run);
     write_csv(&val_path, &val_run);
-    let exact = std::env::var("VCNC_SUITE_EXACT").is_ok();
-    let (id, val) = if exact {
-        let pe = prog(1000 + d.id as u64);
-        let pv = prog(5000 + d.id as u64);
-        let est = read_csv(&est_path)
-            .unwrap()
-            .with_reference_derivatives(pe.vel, pe.acc)
-            .unwrap();
-        let val = read_csv(&val_path)
-            .unwrap()
-            .with_reference_derivatives(pv.vel, pv.acc)
-            .unwrap();
-        (identify(&est, &command_options()).unwrap(), val)
-    } else {
-        (
-            identify_csv(&est_path).expect("identifies"),
-            read_csv(&val_path).expect("validation trace"),
-        )
-    };
+    let id = identify_csv(&est_path).expect("identifies");
+    let val = read_csv(&val_path).expect("validation trace");
     let m = id.identified;
-    if std::env::var("VCNC_SUITE_DEBUG").is_ok() {
-        println!("pso {:?}", id.paper_pso_poles.p_hz());
-        let est = read_csv(&est_path).unwrap();
-        println!(
-            "truth on est: free run {:.3} um; identified {:.3} um; N {}",
-            1e3 * freerun_rms(&truth, &est),
-            1e3 * freerun_rms(&m, &est),
-            est.len()
-        );
-        println!(
-            "pso poles {:?} {} {}",
-            id.paper_pso_poles.p_hz(),
-            id.paper_pso_poles.wn_hz(),
-            id.paper_pso_poles.zeta
-        );
-        if let Some(r) = &id.refinement {
-            for st in &r.stages {
-                let p = st.model.core.poles().unwrap();
-                println!(
-                    "  stage {:?} p {:.3} wn {:.3} z {:.4} cost {:e} fr {:e}",
-                    st.sign,
-                    p.p_hz(),
-                    p.wn_hz(),
-                    p.zeta,
-                    st.cost,
-                    st.freerun_rms
-                );
-            }
-            println!(
-                "  iterations {} evals {} hist {:?}",
-                r.iterations, r.evaluations, r.cost_history
-            );
-        }
-    }
     let errs = pole_errors(&m, &truth);
     let rv = freerun_rms(&m, &val);
     let rt = freerun_rms(&truth, &val);
@@ -624,8 +573,8 @@ fn randomised_drives_are_identified_from_csv() {
     let ok = rows.iter().filter(|r| r.ok).count();
     let mut worst = [0.0f64; 4];
     for r in &rows {
-        for i in 0..3 {
-            worst[i] = worst[i].max(r.errs[i].abs());
+        for (w, e) in worst.iter_mut().zip(&r.errs) {
+            *w = w.max(e.abs());
         }
         worst[3] = worst[3].max(r.ratio);
     }
@@ -715,19 +664,19 @@ fn shaped_references_are_identified_with_the_extended_structures() {
             rms(&true_model),
         );
         let ok = rx <= 1.2 * rt && id_.model.is_stable();
+        let shaping_name = format!("{shaping:?}");
         let line = format!(
-            "{id} {:14} | {:20} | {:9.3} {:9.3} {:7.3} {:5.2} {} {}",
-            format!("{shaping:?}"),
+            "{id} {:14} | {:20} | {:9.3} {:9.3} {:7.3} {:5.2} {} Td {:.4} filter {:?} pole {:?}",
+            shaping_name,
             id_.structure.name(),
             1e3 * r7,
             1e3 * rx,
             1e3 * rt,
             rx / rt,
             if ok { "ok" } else { "FAIL" },
-            format!(
-                "Td {:.4} filter {:?} pole {:?}",
-                id_.model.delay_s, id_.model.reference_filter, id_.model.extra_pole_hz
-            )
+            id_.model.delay_s,
+            id_.model.reference_filter,
+            id_.model.extra_pole_hz
         );
         println!("{line}");
         if !ok {
