@@ -389,10 +389,12 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     for v in xr.iter_mut().chain(x.iter_mut()) {
         *v *= scale;
     }
-    let trace = match args.ts {
-        Some(ts) => Trace::new(ts, xr, x),
-        None => Trace::from_columns(&t, &xr, &x),
-    }
+    // The time column is always checked; a stated --ts must agree with it.
+    let timing = match args.ts {
+        Some(ts) => vcnc_identify::Timing::ColumnWithPeriod(&t, ts),
+        None => vcnc_identify::Timing::Column(&t),
+    };
+    let trace = Trace::from_log(timing, xr, x)
     .map_err(|e| bad_input(format!("{file}: {e}")))?;
     let (mut opts, sets_p_bounds) = match options_file {
         Some(f) => (f.options, f.sets_p_bounds),

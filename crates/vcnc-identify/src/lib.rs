@@ -69,7 +69,7 @@ pub use refine::{
     Start, Uncertainty, refine,
 };
 pub use regress::{EquationErrorCost, Regressors, Theta};
-pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Trace};
+pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Timing, Trace};
 
 /// Errors of the identification crate. Every variant carries the values needed to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -116,6 +116,19 @@ pub enum Error {
         dt: f64,
         /// Nominal (median) sample period, s.
         ts: f64,
+        /// Relative tolerance allowed.
+        tolerance: f64,
+    },
+    /// The period stated for a trace disagrees with its time column.
+    #[error(
+        "the stated sample period {given} s disagrees with the time column's {measured} s \
+         (relative tolerance {tolerance})"
+    )]
+    PeriodMismatch {
+        /// Period stated by the user, s.
+        given: f64,
+        /// Median step of the time column, s.
+        measured: f64,
         /// Relative tolerance allowed.
         tolerance: f64,
     },
