@@ -394,8 +394,7 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         Some(ts) => vcnc_identify::Timing::ColumnWithPeriod(&t, ts),
         None => vcnc_identify::Timing::Column(&t),
     };
-    let trace = Trace::from_log(timing, xr, x)
-    .map_err(|e| bad_input(format!("{file}: {e}")))?;
+    let trace = Trace::from_log(timing, xr, x).map_err(|e| bad_input(format!("{file}: {e}")))?;
     let (mut opts, sets_p_bounds) = match options_file {
         Some(f) => (f.options, f.sets_p_bounds),
         None => (IdentifyOptions::default(), false),

@@ -9,7 +9,11 @@
 //!      │                     │
 //!      │                     ├──► unconstrained_ls ........ baseline, may be unstable
 //!      │                     └──► EquationErrorCost ──► Pso (paper §3.3) ──► paper_pso
-//!      └──────────────────────────────────────────────────► refine (output error) ──► identified
+//!      │                                                   │ distinct good particles
+//!      └──────────────────────────────────────────────────► refine (output error, per
+//!                                                           structure) ──► identified
+//!                                                           │  validation error
+//!                                                           └──► model (DriveModel) ──► score
 //! ```
 //!
 //! 1. [`Trace`]: validated samples $(x_{r,k}, x_k)$ at a uniform period (optionally with the exact
@@ -24,17 +28,28 @@
 //!    keep every pole in the left half plane (paper eq. 12). Seeded, bit-identical for any thread
 //!    count, history kept.
 //! 4. [`refine`]: output-error refinement, the step beyond the paper (docs/identification.md): the
-//!    free-run simulation error of the model ([`free_run`], the same simulation the predictions
-//!    use) minimised over all seven parameters inside the same bounds, by variable projection and
-//!    a bounded Levenberg–Marquardt, with the model's own friction (sticking included) in a
-//!    fixed-point second stage.
+//!    free-run simulation error of the model ([`free_run_model`], the same simulation the
+//!    predictions use) minimised over all parameters, by variable projection and a bounded
+//!    Levenberg–Marquardt in coefficients mapped onto the stable region (no seam where poles
+//!    change roles), from several distinct swarm particles, with the model's own friction
+//!    (sticking included) in a fixed-point second stage, and a sandwich covariance that
+//!    accounts for the residual's autocorrelation.
 //! 5. [`unconstrained_ls`]: the 7-parameter least-squares baseline, reported with its poles and
 //!    a stability flag, whatever they are.
-//! 6. [`fit_metrics`]: one-step and free-run prediction errors and fit % on any trace
-//!    (estimation or validation run).
+//! 6. [`fit_metrics`] and [`score`]: one-step and free-run prediction errors and fit % of any
+//!    model ([`vcnc_drive::DriveModel`], the paper's structure or an extended one) on any trace
+//!    (estimation or validation run, or a held-out part).
+//! 7. Model structures beyond the paper ([`ModelStructure`]: dead time, first- or second-order
+//!    reference filter, extra pole), each identified by the same swarm and refinement and
+//!    chosen by validation error ([`identify`] holds out the end of a single trace,
+//!    [`identify_with_validation`] takes a second trace).
 //!
-//! [`identify`] runs 1–6 and returns an [`Identification`] with the refined model, the paper's
-//! result and the baseline side by side.
+//! [`identify`] runs 1–7 and returns an [`Identification`] with the refined model, the chosen
+//! structure's model, the paper's result and the baseline side by side, the parameters that
+//! ended on a bound ([`BoundHit`]) and their standard deviations ([`Uncertainty`]).
+//!
+//! A measured trace enters through [`Trace::from_log`] ([`Timing`]: a time column is always
+//! checked).
 //!
 //! Drives without integral action (the EMPS benchmark) have their third pole at the origin: set
 //! `bounds.p_hz = [0.0, ...]` ([`PoleBounds`]); the model found may then have $a_3 = 0$, which

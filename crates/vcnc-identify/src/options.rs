@@ -476,7 +476,8 @@ pub enum StartCondition {
     /// At rest: zero initial conditions after subtracting the initial position.
     Rest,
     /// Moving (a cut-out of a longer log, such as the EMPS benchmark): the equation-error
-    /// regression gets a constant column for the unknown integration constant, and the
-    /// output-error fit estimates the initial state (three free-response columns).
+    /// regression gets a constant column for the unknown integration constant; the
+    /// output-error fit and the free run start the model at rest at the measured $x_0$ one
+    /// sample before the first ([`crate::Trace::prefixed_reference`]).
     Moving,
 }
