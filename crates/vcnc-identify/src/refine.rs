@@ -1315,12 +1315,16 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
     if jcols.iter().any(|c| c.iter().any(|v| !v.is_finite())) {
         return None;
     }
-    // A column that vanishes (the friction column when the model applies no friction) leaves
-    // its parameter undetermined: it is left out, and its deviation reported as NaN.
-    let dc_col = mdim + 3;
-    let dc_free = dot(&jcols[dc_col], &jcols[dc_col]) > 0.0;
-    if !dc_free {
-        jcols[dc_col][0] = 1.0;
+    // A column that vanishes (the friction column when the model applies no friction; the
+    // constant term of a drive without integral action, a3 -> 0) leaves its parameter
+    // undetermined: it is decoupled (a unit column of its own), and every physical parameter
+    // that depends on it is reported with a NaN deviation.
+    let norms: Vec<f64> = jcols.iter().map(|c| dot(c, c).sqrt()).collect();
+    let top = norms.iter().fold(0.0f64, |a, b| a.max(*b));
+    let vanishing: Vec<usize> = (0..np).filter(|&c| !(norms[c] > 1e-12 * top)).collect();
+    for &c in &vanishing {
+        jcols[c].iter_mut().for_each(|v| *v = 0.0);
+        jcols[c][c.min(n - 1)] = 1.0;
     }
     // Column scaling, then QR (faer) of the tall Jacobian.
     let scale: Vec<f64> = jcols
@@ -1399,7 +1403,7 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
         .map(|(i, name)| ParameterStd {
             name,
             value: p0[i],
-            std: if name == "dc" && !dc_free {
+            std: if vanishing.iter().any(|&j| g[(i, j)] != 0.0) {
                 f64::NAN
             } else {
                 cp[(i, i)].max(0.0).sqrt()
