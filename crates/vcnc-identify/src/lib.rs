@@ -75,10 +75,10 @@ pub use identify::{
 };
 pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run, free_run_model, score};
 pub use options::{
-    ExtendedBounds, IdentifyOptions, ModelStructure, PoleBounds, Prefilter, PsoSettings,
-    RefineOptions, StartCondition,
+    ExtendedBounds, IdentifyOptions, MAX_POLE_HZ, MAX_ZETA, ModelStructure, PoleBounds, Prefilter,
+    PsoSettings, RefineOptions, StartCondition,
 };
-pub use pso::{CostFunction, HistoryEntry, Pso, PsoResult};
+pub use pso::{CostFunction, DISTINCT, HistoryEntry, Pso, PsoResult};
 pub use refine::{
     BoundHit, MOVING_START_SKIP_S, OutputErrorProblem, ParameterStd, RefineResult, RefineSetup,
     RefineStage, SignSource, Start, Uncertainty, refine,

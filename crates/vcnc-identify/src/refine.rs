@@ -1321,7 +1321,9 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
     // that depends on it is reported with a NaN deviation.
     let norms: Vec<f64> = jcols.iter().map(|c| dot(c, c).sqrt()).collect();
     let top = norms.iter().fold(0.0f64, |a, b| a.max(*b));
-    let vanishing: Vec<usize> = (0..np).filter(|&c| !(norms[c] > 1e-12 * top)).collect();
+    let vanishing: Vec<usize> = (0..np)
+        .filter(|&c| norms[c].is_nan() || norms[c] <= 1e-12 * top)
+        .collect();
     for &c in &vanishing {
         jcols[c].iter_mut().for_each(|v| *v = 0.0);
         jcols[c][c.min(n - 1)] = 1.0;
