@@ -46,7 +46,6 @@ use vcnc_identify::{Identification, IdentifyOptions, Trace, identify};
 
 /// Drives of the full suite, and of the CI subset.
 const FULL_DRIVES: usize = 64;
-const CI_DRIVES: usize = 4;
 
 /// Smallest servo rate of the simulated drives, Hz.
 const MIN_SERVO_HZ: f64 = 200_000.0;
@@ -509,11 +508,24 @@ fn run_one(d: &SuiteDrive, dir: &Path) -> Row {
     let rv = freerun_rms(&m, &val);
     let rt = freerun_rms(&truth, &val);
     let ratio = rv / rt;
-    let fixed_ok = errs[0].abs() <= 0.02 && errs[1].abs() <= 0.02 && errs[2].abs() <= 0.05;
-    let ok = m.is_stable() && fixed_ok && ratio <= 1.2;
+    let tol = [0.02, 0.02, 0.05];
+    let fixed_ok = (0..3).all(|i| errs[i].abs() <= tol[i]);
+    // Reported relative standard deviations of p, wn, zeta (issue 18 item 5).
+    let rel_std: [f64; 3] = match &id.uncertainty {
+        Some(u) => ["p_hz", "wn_hz", "zeta"].map(|n| u.get(n).map_or(f64::NAN, |q| q.relative())),
+        None => [f64::NAN; 3],
+    };
+    // A weakly determined pole (relative deviation above 1 %) may miss the fixed tolerance
+    // if it stays within three reported deviations.
+    let sigma_ok = (0..3).all(|i| {
+        errs[i].abs() <= tol[i] || (rel_std[i] > 0.01 && errs[i].abs() <= 3.0 * rel_std[i])
+    });
+    // The continuous model must be the truth within 0.2 µm for the drive to count.
+    assert!(gap <= 2e-4, "drive {}: truth gap {} µm", d.id, 1e3 * gap);
+    let ok = m.is_stable() && sigma_ok && ratio <= 1.2;
     let ip = m.poles();
     let line = format!(
-        "{:3} {:4} {:4.2} {:5.3} {:3} | {:6.2} {:6.2} {:5.3} | {:6.2} {:6.2} {:5.3} | {:+6.2} {:+6.2} {:+6.2} | {:7.3} {:7.3} {:5.2} | {:6.3} {}",
+        "{:3} {:4} {:4.2} {:5.3} {:3} | {:6.2} {:6.2} {:5.3} | {:6.2} {:6.2} {:5.3} | {:+6.2} {:+6.2} {:+6.2} | {:5.2} {:5.2} {:5.2} | {:7.3} {:7.3} {:5.2} | {:6.3} {}",
         d.id,
         d.kind_name(),
         1e3 * d.ts,
@@ -528,6 +540,9 @@ fn run_one(d: &SuiteDrive, dir: &Path) -> Row {
         100.0 * errs[0],
         100.0 * errs[1],
         100.0 * errs[2],
+        100.0 * rel_std[0],
+        100.0 * rel_std[1],
+        100.0 * rel_std[2],
         1e3 * rv,
         1e3 * rt,
         ratio,
@@ -553,14 +568,16 @@ fn suite_dir() -> PathBuf {
 #[test]
 fn randomised_drives_are_identified_from_csv() {
     let full = std::env::var("VCNC_SUITE").is_ok_and(|v| v == "full");
-    let count = if full { FULL_DRIVES } else { CI_DRIVES };
+    let count = FULL_DRIVES;
     let dir = suite_dir();
     println!(
-        "id  kind  Ts  q_um start | true p_Hz wn_Hz zeta | ident p_Hz wn_Hz zeta | err% p wn zeta | val_rms_um ident true ratio | truth_gap_um"
+        "id  kind  Ts_ms q_um start | true p_Hz wn_Hz zeta | ident p_Hz wn_Hz zeta | err% p wn zeta | std% p wn zeta | val_rms_um ident true ratio | truth_gap_um"
     );
     // VCNC_SUITE_IDS=3,17 runs only those drives (to look at one).
     let ids: Vec<usize> = match std::env::var("VCNC_SUITE_IDS") {
         Ok(v) => v.split(',').filter_map(|s| s.trim().parse().ok()).collect(),
+        // The CI share: three drives from rest and one cut-out.
+        Err(_) if !full => vec![0, 1, 2, 5],
         Err(_) => (0..count).collect(),
     };
     let rows: Vec<Row> = ids
@@ -571,19 +588,26 @@ fn randomised_drives_are_identified_from_csv() {
     let n = rows.len();
     let fixed = rows.iter().filter(|r| r.fixed_ok).count();
     let ok = rows.iter().filter(|r| r.ok).count();
-    let mut worst = [0.0f64; 4];
-    for r in &rows {
-        for (w, e) in worst.iter_mut().zip(&r.errs) {
-            *w = w.max(e.abs());
-        }
-        worst[3] = worst[3].max(r.ratio);
-    }
+    // Worst and median of |err| p, wn, zeta and of the validation ratio.
+    let stat = |f: &dyn Fn(&Row) -> f64| {
+        let mut v: Vec<f64> = rows.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        (v[v.len() - 1], v[v.len() / 2])
+    };
+    let (wp, mp) = stat(&|r| r.errs[0].abs());
+    let (ww, mw) = stat(&|r| r.errs[1].abs());
+    let (wz, mz) = stat(&|r| r.errs[2].abs());
+    let (wr, mr) = stat(&|r| r.ratio);
     println!(
-        "{ok}/{n} pass, {fixed}/{n} within fixed tolerances; worst |err| p {:.2} % wn {:.2} % zeta {:.2} %, worst ratio {:.2}",
-        100.0 * worst[0],
-        100.0 * worst[1],
-        100.0 * worst[2],
-        worst[3]
+        "{ok}/{n} pass, {fixed}/{n} within fixed tolerances; |err| worst/median: p {:.2}/{:.2} %, wn {:.2}/{:.2} %, zeta {:.2}/{:.2} %; validation ratio worst/median {:.2}/{:.2}",
+        100.0 * wp,
+        100.0 * mp,
+        100.0 * ww,
+        100.0 * mw,
+        100.0 * wz,
+        100.0 * mz,
+        wr,
+        mr
     );
     let failed: Vec<&str> = rows
         .iter()
