@@ -559,8 +559,8 @@ fn run_one(d: &SuiteDrive, dir: &Path) -> Row {
     }
 }
 
-fn suite_dir() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vcnc-suite-{}", std::process::id()));
+fn suite_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vcnc-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir
 }
@@ -569,7 +569,7 @@ fn suite_dir() -> PathBuf {
 fn randomised_drives_are_identified_from_csv() {
     let full = std::env::var("VCNC_SUITE").is_ok_and(|v| v == "full");
     let count = FULL_DRIVES;
-    let dir = suite_dir();
+    let dir = suite_dir("suite");
     println!(
         "id  kind  Ts_ms q_um start | true p_Hz wn_Hz zeta | ident p_Hz wn_Hz zeta | err% p wn zeta | std% p wn zeta | val_rms_um ident true ratio | truth_gap_um"
     );
@@ -642,7 +642,7 @@ fn shaped_references_are_identified_with_the_extended_structures() {
             (107, Shaping::Delay(0.0633)),
         ]);
     }
-    let dir = suite_dir();
+    let dir = suite_dir("shaped");
     println!("id  shaping        | chosen               | val_rms_um 7-par  extended  true  ratio");
     let mut failed = vec![];
     for (id, shaping) in cases {
