@@ -67,7 +67,7 @@ pub struct PsoResult {
     pub history: Vec<HistoryEntry>,
     /// Cost evaluations made.
     pub evaluations: usize,
-    /// The best distinct positions seen, best first, with their costs: no two within
+    /// The best distinct personal bests, best first, with their costs: no two within
     /// [`DISTINCT`] (relative, in every coordinate) of each other. The first is `best`.
     pub candidates: Vec<(Vec<f64>, f64)>,
 }
@@ -80,7 +80,8 @@ const ARCHIVE: usize = 8;
 
 /// Offers a position to the archive of distinct good candidates (sorted, best first).
 fn offer(archive: &mut Vec<(Vec<f64>, f64)>, p: &[f64], c: f64, floor: &[f64]) {
-    if !c.is_finite() {
+    // Most offers are worse than every kept candidate: rejected before any distance check.
+    if !c.is_finite() || (archive.len() == ARCHIVE && c >= archive[ARCHIVE - 1].1) {
         return;
     }
     let near = |q: &[f64]| {
@@ -255,9 +256,6 @@ impl Pso {
                 parallel = it == 0 && t0.elapsed() > PARALLEL_ABOVE;
             }
             for i in 0..m {
-                offer(&mut archive, &pos[i * d..(i + 1) * d], costs[i], &floor);
-            }
-            for i in 0..m {
                 if costs[i] <= pbest_cost[i] {
                     pbest_cost[i] = costs[i];
                     pbest[i * d..(i + 1) * d].copy_from_slice(&pos[i * d..(i + 1) * d]);
@@ -305,6 +303,11 @@ impl Pso {
                     *pj = (*pj + nv).clamp(lo, hi);
                 }
             }
+        }
+        // Distinct good candidates from the personal bests (each particle's best position of the
+        // whole run; gbest among them).
+        for i in 0..m {
+            offer(&mut archive, &pbest[i * d..(i + 1) * d], pbest_cost[i], &floor);
         }
         PsoResult {
             best: gbest,
