@@ -298,9 +298,12 @@ pub struct Realisation {
 /// Exact discretisation of one piece of length `h`: $z(h) = \Phi z_0 + \Gamma u_0 + R(u_1 - u_0) + \gamma_f f$.
 #[derive(Debug, Clone)]
 struct Piece {
-    phi: DMatrix<f64>,
-    gamma: DMatrix<f64>,
-    ramp: DMatrix<f64>,
+    /// Row-major n×n.
+    phi: Vec<f64>,
+    /// Row-major n×3.
+    gamma: Vec<f64>,
+    /// Row-major n×3.
+    ramp: Vec<f64>,
     gf: Vec<f64>,
 }
 
@@ -532,7 +535,7 @@ impl DriveModel {
         if pieces.len() == 2 {
             let (p1, p2) = (&pieces[0], &pieces[1]);
             for i in 0..ns {
-                gf_total[i] += (0..ns).map(|j| p2.phi[(i, j)] * p1.gf[j]).sum::<f64>();
+                gf_total[i] += (0..ns).map(|j| p2.phi[i * ns + j] * p1.gf[j]).sum::<f64>();
             }
         }
         let l = -dot(&real.cv, &gf_total);
@@ -581,12 +584,10 @@ impl DriveModel {
         out.position[0] = r0;
         let advance = |p: &Piece, z: &[f64], u0: &[f64; 3], u1: &[f64; 3], out: &mut [f64]| {
             for i in 0..ns {
-                let mut s = 0.0;
-                for j in 0..ns {
-                    s += p.phi[(i, j)] * z[j];
-                }
+                let row = &p.phi[i * ns..(i + 1) * ns];
+                let mut s: f64 = row.iter().zip(z).map(|(a, b)| a * b).sum();
                 for j in 0..3 {
-                    s += p.gamma[(i, j)] * u0[j] + p.ramp[(i, j)] * (u1[j] - u0[j]);
+                    s += p.gamma[i * 3 + j] * u0[j] + p.ramp[i * 3 + j] * (u1[j] - u0[j]);
                 }
                 out[i] = s;
             }
@@ -677,10 +678,16 @@ fn piece(r: &Realisation, h: f64) -> Result<Piece, Error> {
     if e.iter().any(|v| !v.is_finite()) {
         return Err(Error::NonFiniteModel);
     }
+    let rows = |c0: usize, w: usize, scale: f64| -> Vec<f64> {
+        (0..n)
+            .flat_map(|i| (0..w).map(move |j| (i, j)))
+            .map(|(i, j)| e[(i, c0 + j)] * scale)
+            .collect()
+    };
     Ok(Piece {
-        phi: e.view((0, 0), (n, n)).into_owned(),
-        gamma: e.view((0, n), (n, 3)).into_owned(),
-        ramp: e.view((0, n + 4), (n, 3)).into_owned() / h,
+        phi: rows(0, n, 1.0),
+        gamma: rows(n, 3, 1.0),
+        ramp: rows(n + 4, 3, 1.0 / h),
         gf: (0..n).map(|i| e[(i, n + 3)]).collect(),
     })
 }

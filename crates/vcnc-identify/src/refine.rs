@@ -640,13 +640,30 @@ fn accumulate(g: &mut Gram, row: &[f64; KMAX + 1], k: usize) {
     }
 }
 
+/// A [`Piece`] in fixed-size arrays for the inner loops.
+struct Fixed<const N: usize> {
+    phi: [[f64; N]; N],
+    gamma: [f64; N],
+    ramp: [f64; N],
+}
+
+impl<const N: usize> Fixed<N> {
+    fn of(p: &Piece) -> Fixed<N> {
+        Fixed {
+            phi: std::array::from_fn(|i| std::array::from_fn(|j| p.phi[(i, j)])),
+            gamma: std::array::from_fn(|i| p.gamma[i]),
+            ramp: std::array::from_fn(|i| p.ramp[i]),
+        }
+    }
+}
+
 #[inline(always)]
-fn advance<const N: usize>(p: &Piece, y: &[f64; N], u0: f64, u1: f64) -> [f64; N] {
+fn advance<const N: usize>(p: &Fixed<N>, y: &[f64; N], u0: f64, u1: f64) -> [f64; N] {
     let mut out = [0.0; N];
     for (i, o) in out.iter_mut().enumerate() {
         let mut s = p.gamma[i] * u0 + p.ramp[i] * (u1 - u0);
         for (j, yj) in y.iter().enumerate() {
-            s += p.phi[(i, j)] * yj;
+            s += p.phi[i][j] * yj;
         }
         *o = s;
     }
@@ -692,6 +709,9 @@ fn pass_positions<const NU: usize, const NF: usize>(
     let mut rho = [0.0; NU];
     rho[0] = 1.0;
     let step_phi = d.step_phi();
+    let p0 = Fixed::<NU>::of(&d.pieces[0]);
+    let p1 = d.pieces.get(1).map(Fixed::<NU>::of);
+    let pf = Fixed::<NF>::of(&d.fric);
     let (cu, cf, a3) = (d.cu, d.cf, d.a3);
     for k in 0..n {
         let j = k as isize - d.m as isize;
@@ -732,13 +752,14 @@ fn pass_positions<const NU: usize, const NF: usize>(
             }
             rho = next;
         }
-        y = if phi == 0.0 {
-            advance(&d.pieces[0], &y, sample(j), sample(j + 1))
-        } else {
-            let mid = advance(&d.pieces[0], &y, between(j), sample(j));
-            advance(&d.pieces[1], &mid, sample(j), between(j + 1))
+        y = match &p1 {
+            None => advance(&p0, &y, sample(j), sample(j + 1)),
+            Some(p1) => {
+                let mid = advance(&p0, &y, between(j), sample(j));
+                advance(p1, &mid, sample(j), between(j + 1))
+            }
         };
-        yf = advance(&d.fric, &yf, f[k], f[k]);
+        yf = advance(&pf, &yf, f[k], f[k]);
     }
     g
 }
@@ -755,7 +776,8 @@ fn pass_derivatives(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> Gram {
         &prob.f[..n],
     );
     let om = d.om;
-    let p = &d.pieces[0];
+    let p = Fixed::<3>::of(&d.pieces[0]);
+    let pf = Fixed::<3>::of(&d.fric);
     let (mut yu, mut yv, mut ya, mut yf) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
     let mut g = [[0.0; KMAX + 1]; KMAX + 1];
     let nh = if prob.prefixed && FREE_RESPONSES {
@@ -786,14 +808,14 @@ fn pass_derivatives(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> Gram {
         if nh > 0 {
             let mut next = [0.0; 3];
             for (jj, v) in next.iter_mut().enumerate() {
-                *v = (0..3).map(|i| rho[i] * p.phi[(i, jj)]).sum();
+                *v = (0..3).map(|i| rho[i] * p.phi[i][jj]).sum();
             }
             rho = next;
         }
-        yu = advance(p, &yu, u[k], u[k + 1]);
-        yv = advance(p, &yv, ud[k], ud[k + 1]);
-        ya = advance(p, &ya, udd[k], udd[k + 1]);
-        yf = advance(&d.fric, &yf, f[k], f[k]);
+        yu = advance(&p, &yu, u[k], u[k + 1]);
+        yv = advance(&p, &yv, ud[k], ud[k + 1]);
+        ya = advance(&p, &ya, udd[k], udd[k + 1]);
+        yf = advance(&pf, &yf, f[k], f[k]);
     }
     g
 }
@@ -927,10 +949,20 @@ fn levenberg_marquardt(
         let jm = faer::Mat::<f64>::from_fn(n, free.len(), |i, c| jac[free[c]].resid[i]);
         let qr = jm.qr();
         let r = qr.thin_R().to_owned();
-        let rhs = faer::Mat::<f64>::from_fn(n, 1, |i, _| base.resid[i]);
-        let q = qr.compute_thin_Q();
-        let qtr = q.transpose() * &rhs;
         let k = free.len();
+        // Q^T r = R^-T J^T r (J = Q R), without forming Q.
+        let jtr: Vec<f64> = free.iter().map(|&j| grad[j]).collect();
+        let mut qtr_v = vec![0.0; k];
+        for i in 0..k {
+            let mut sum = jtr[i];
+            for (l, q) in qtr_v.iter().enumerate().take(i) {
+                sum -= r[(l, i)] * q;
+            }
+            if r[(i, i)] == 0.0 {
+                break 'outer;
+            }
+            qtr_v[i] = sum / r[(i, i)];
+        }
         // Marquardt scaling by the column norms of J.
         let dscale: Vec<f64> = (0..k)
             .map(|c| {
@@ -952,7 +984,7 @@ fn levenberg_marquardt(
                     0.0
                 }
             });
-            let rhs = DVector::from_fn(2 * k, |i, _| if i < k { -qtr[(i, 0)] } else { 0.0 });
+            let rhs = DVector::from_fn(2 * k, |i, _| if i < k { -qtr_v[i] } else { 0.0 });
             let small = aug.qr();
             let Some(delta) = small
                 .r()
