@@ -307,7 +307,12 @@ impl Pso {
         // Distinct good candidates from the personal bests (each particle's best position of the
         // whole run; gbest among them).
         for i in 0..m {
-            offer(&mut archive, &pbest[i * d..(i + 1) * d], pbest_cost[i], &floor);
+            offer(
+                &mut archive,
+                &pbest[i * d..(i + 1) * d],
+                pbest_cost[i],
+                &floor,
+            );
         }
         PsoResult {
             best: gbest,

@@ -1142,13 +1142,19 @@ pub fn refine(
         let boxed = Layout::new(s, true, setup.bounds, setup.extended);
         let (a1, a2, a3) = lay.core(&run.eta);
         let extra = run.eta[3..].to_vec();
-        if let Some(eta) = boxed.eta_of((a1, a2, a3), &extra)
-            && let Some(r) = levenberg_marquardt(&prob, &boxed, &eta, setup.opts)
-        {
-            iterations += r.iterations;
-            evaluations += r.evaluations;
-            run = r;
-            lay = boxed;
+        // From the nearest point inside, else from the best start.
+        let from_run = boxed.eta_of((a1, a2, a3), &extra);
+        let from_start = starts
+            .get(best_i)
+            .and_then(|st| boxed.eta_of(st.core, &st.extra));
+        for eta in [from_run, from_start].into_iter().flatten() {
+            if let Some(r) = levenberg_marquardt(&prob, &boxed, &eta, setup.opts) {
+                iterations += r.iterations;
+                evaluations += r.evaluations;
+                run = r;
+                lay = boxed;
+                break;
+            }
         }
     }
     let m0 = lay.model(&run.eta, &run.lin);
@@ -1178,6 +1184,10 @@ pub fn refine(
         iterations += r.iterations;
         evaluations += r.evaluations;
         let m = lay.model(&r.eta, &r.lin);
+        // A stage that leaves the pole bounds (free coordinates) is not a candidate.
+        if !lay.boxed_core && !inside(&m.core, setup.bounds) {
+            break;
+        }
         let fr = freerun(&m);
         stages.push(RefineStage {
             sign: SignSource::Model(it),
