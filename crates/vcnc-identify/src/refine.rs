@@ -611,8 +611,10 @@ struct Work {
 
 impl Work {
     fn new(n: usize) -> Work {
+        // Room for the free responses only when they are on.
+        let kmax = if FREE_RESPONSES { KMAX } else { 4 };
         Work {
-            cols: vec![0.0; KMAX * n],
+            cols: vec![0.0; kmax * n],
             k: 4,
             resid: vec![0.0; n],
             cost: f64::INFINITY,
