@@ -251,7 +251,7 @@ pub struct Feedback {
 /// The control's nominal-position filter.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum ReferenceFilter {
+pub enum ShapingFilter {
     /// $1/(1 + T s)$.
     FirstOrder {
         /// Time constant $T$, s. Positive, at most 1.
@@ -287,7 +287,7 @@ pub enum ReferenceFilter {
 pub struct ReferenceShaping {
     /// Nominal-position filter. Default: none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub filter: Option<ReferenceFilter>,
+    pub filter: Option<ShapingFilter>,
     /// Delay between the logged nominal position and the loop, s: a whole number of servo
     /// periods. Default 0; at most 1 s.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -457,7 +457,7 @@ pub struct FeedbackPath {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shaping {
     /// The filter as given (checked).
-    pub filter: Option<ReferenceFilter>,
+    pub filter: Option<ShapingFilter>,
     /// Interpolation delay, servo ticks.
     pub delay_ticks: usize,
 }
@@ -1107,10 +1107,10 @@ fn check_shaping(r: &ReferenceShaping, servo_rate_hz: f64) -> Result<Option<Shap
         }
     };
     match r.filter {
-        Some(ReferenceFilter::FirstOrder { time_constant_s }) => {
+        Some(ShapingFilter::FirstOrder { time_constant_s }) => {
             time_constant("reference.filter.time_constant_s", time_constant_s)?
         }
-        Some(ReferenceFilter::SecondOrder {
+        Some(ShapingFilter::SecondOrder {
             time_constant_s,
             zeta,
         }) => {
@@ -1119,7 +1119,7 @@ fn check_shaping(r: &ReferenceShaping, servo_rate_hz: f64) -> Result<Option<Shap
                 return Err(bad("reference.filter.zeta", zeta, "in (0, 2]"));
             }
         }
-        Some(ReferenceFilter::MovingAverage { window_s }) => {
+        Some(ShapingFilter::MovingAverage { window_s }) => {
             whole_ticks("reference.filter.window_s", window_s, servo_rate_hz, 1)?;
         }
         None => {}

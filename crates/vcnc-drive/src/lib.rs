@@ -15,6 +15,8 @@
 //!   control's reference filter and interpolation delay ([`ReferenceShaping`]). Absent tables
 //!   leave the ideal drive bit for bit.
 //! - [`frf`]: the true drive's frequency response measured by simulation ([`Drive::measure_frf`]).
+//! - [`drive_model`]: model structures beyond the paper ([`DriveModel`]: dead time, reference
+//!   filter, extra pole), with simulation from positions alone or with derivatives.
 //! - [`presets`]: the paper's Table 1 drive and the NMV5000 axes designed from Table 3.
 //!
 //! ```
@@ -41,6 +43,7 @@
 //! ```
 
 pub mod design;
+pub mod drive_model;
 pub mod effects;
 pub mod frf;
 pub mod model;
@@ -51,9 +54,12 @@ mod real_sim;
 pub mod sim;
 
 pub use design::{design_pid, design_ppi, design_smc};
+pub use drive_model::{
+    DriveModel, MAX_DELAY_S, ModelInput, ModelRun, Realisation, ReferenceFilter,
+};
 pub use effects::{
     Compliance, CurrentLoop, CurrentLoopOrder, Effects, Feedback, FeedbackSource, Friction,
-    FrictionLocation, ReferenceFilter, ReferenceShaping,
+    FrictionLocation, ReferenceShaping, ShapingFilter,
 };
 pub use frf::{Frf, FrfKind, FrfOptions};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};

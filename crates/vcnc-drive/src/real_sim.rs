@@ -29,7 +29,7 @@ use nalgebra::{Complex, DMatrix, SMatrix};
 use crate::Error;
 use crate::effects::{
     CurrentLoopOrder, Effects, FeedbackSource, FrictionKind, FrictionLaw, FrictionLocation,
-    MAX_ELEMENTS, ReferenceFilter, maxwell_slip_stiffness,
+    MAX_ELEMENTS, ShapingFilter, maxwell_slip_stiffness,
 };
 use crate::model::{Reference, check_exp_norm};
 use crate::noise::Normals;
@@ -473,7 +473,7 @@ impl Shaper {
         let u0 = [r0.xr, r0.vr, r0.ar];
         let filter = match filter {
             None => ShapeFilter::None,
-            Some(ReferenceFilter::MovingAverage { window_s }) => {
+            Some(ShapingFilter::MovingAverage { window_s }) => {
                 let m = (window_s / h).round().max(1.0) as usize;
                 ShapeFilter::Avg {
                     ring: vec![u0; m + 1],
@@ -486,12 +486,12 @@ impl Shaper {
                     inv_m: 1.0 / m as f64,
                 }
             }
-            Some(ReferenceFilter::FirstOrder { time_constant_s }) => {
+            Some(ShapingFilter::FirstOrder { time_constant_s }) => {
                 let a = [[-1.0 / time_constant_s, 0.0], [0.0, -1.0]];
                 let b = [1.0 / time_constant_s, 0.0];
                 foh_filter(a, b, h, u0)?
             }
-            Some(ReferenceFilter::SecondOrder {
+            Some(ShapingFilter::SecondOrder {
                 time_constant_s,
                 zeta,
             }) => {
@@ -1596,7 +1596,7 @@ mod tests {
 
     /// The shaper's position output for a nominal position that ramps from 0 to 1 over one
     /// tick (a step, as the fine interpolation sees it) starting at tick 5.
-    fn shaped_step(filter: ReferenceFilter, h: f64, n: usize) -> Vec<f64> {
+    fn shaped_step(filter: ShapingFilter, h: f64, n: usize) -> Vec<f64> {
         let r = |x: f64| RefSample {
             xr: x,
             vr: 0.0,
@@ -1639,7 +1639,7 @@ mod tests {
         };
         let tf = 2e-3;
         check(
-            ReferenceFilter::FirstOrder {
+            ShapingFilter::FirstOrder {
                 time_constant_s: tf,
             },
             &|t| t - tf * (1.0 - (-t / tf).exp()),
@@ -1648,7 +1648,7 @@ mod tests {
         // Critically damped second order: step 1 - e^{-t/T}(1 + t/T), ramp
         // t - 2T + e^{-t/T}(2T + t).
         check(
-            ReferenceFilter::SecondOrder {
+            ShapingFilter::SecondOrder {
                 time_constant_s: tf,
                 zeta: 1.0,
             },
@@ -1660,7 +1660,7 @@ mod tests {
         let (zeta, wn) = (0.4, 1.0 / tf);
         let wd = wn * (1.0f64 - zeta * zeta).sqrt();
         check(
-            ReferenceFilter::SecondOrder {
+            ShapingFilter::SecondOrder {
                 time_constant_s: tf,
                 zeta,
             },
@@ -1677,7 +1677,7 @@ mod tests {
         let tw = 80.0 * h;
         let sr = |t: f64| if t <= 0.0 { 0.0 } else { 0.5 * t * t };
         check(
-            ReferenceFilter::MovingAverage { window_s: tw },
+            ShapingFilter::MovingAverage { window_s: tw },
             &|t| (sr(t) - sr(t - tw)) / tw,
             "moving average",
         );

@@ -181,7 +181,7 @@ fn drives_without_effects_are_bit_identical_to_the_simulator_before_them() {
 use std::f64::consts::TAU;
 use vcnc_drive::{
     Compliance, CurrentLoop, CurrentLoopOrder, Error, Feedback, FeedbackSource, FrfKind,
-    FrfOptions, ReferenceFilter, ReferenceShaping,
+    FrfOptions, ReferenceShaping, ShapingFilter,
 };
 
 /// Samples at TS of a piecewise-constant-velocity path: `(duration s, velocity units/s)`
@@ -851,14 +851,14 @@ fn the_loop_sees_the_shaped_reference_but_the_trace_logs_the_nominal() {
     let follow = (1.0 - 0.5) * v / (70.0 * 1.5915);
     for (filter, lag) in [
         (
-            ReferenceFilter::FirstOrder {
+            ShapingFilter::FirstOrder {
                 time_constant_s: 0.003,
             },
             0.003,
         ),
-        (ReferenceFilter::MovingAverage { window_s: 0.004 }, 0.002),
+        (ShapingFilter::MovingAverage { window_s: 0.004 }, 0.002),
         (
-            ReferenceFilter::SecondOrder {
+            ShapingFilter::SecondOrder {
                 time_constant_s: 0.002,
                 zeta: 1.0,
             },
@@ -1135,7 +1135,7 @@ fn bad_effect_parameters_are_rejected_with_their_key_and_value() {
         (
             |p| {
                 p.reference = Some(ReferenceShaping {
-                    filter: Some(ReferenceFilter::MovingAverage { window_s: 0.0 }),
+                    filter: Some(ShapingFilter::MovingAverage { window_s: 0.0 }),
                     interpolation_delay_s: 0.0,
                 })
             },
@@ -1144,7 +1144,7 @@ fn bad_effect_parameters_are_rejected_with_their_key_and_value() {
         (
             |p| {
                 p.reference = Some(ReferenceShaping {
-                    filter: Some(ReferenceFilter::FirstOrder {
+                    filter: Some(ShapingFilter::FirstOrder {
                         time_constant_s: -0.001,
                     }),
                     interpolation_delay_s: 0.0,

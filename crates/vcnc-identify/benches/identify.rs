@@ -8,7 +8,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 use vcnc_drive::Poles;
-use vcnc_identify::{IdentifyOptions, Pso, Regressors, Trace, identify, refine};
+use vcnc_identify::{
+    IdentifyOptions, ModelStructure, Pso, RefineSetup, Regressors, Start, Trace, identify, refine,
+};
 
 #[path = "../tests/support/mod.rs"]
 mod support;
@@ -47,24 +49,39 @@ fn bench(c: &mut Criterion) {
         })
     });
     let best = pso.run(&cost, &mut ChaCha8Rng::seed_from_u64(1)).best;
-    let poles = Poles::from_hz(best[0], best[1], best[2]);
-    let (theta, _) = cost.theta_hz(best[0], best[1], best[2]);
-    let start = theta.to_model();
-    g.bench_function("refinement", |b| {
+    let start = Start::from_poles(&Poles::from_hz(best[0], best[1], best[2]));
+    g.bench_function("refinement_one_start", |b| {
         b.iter(|| {
             refine(
                 black_box(&tr),
                 &regs,
-                &start,
-                &poles,
-                &opts.bounds,
-                &opts.refine,
+                std::slice::from_ref(&start),
+                RefineSetup {
+                    structure: ModelStructure::Paper,
+                    bounds: &opts.bounds,
+                    extended: &opts.extended_bounds,
+                    opts: &opts.refine,
+                },
             )
             .expect("refine")
         })
     });
     g.bench_function("identify_total", |b| {
         b.iter(|| identify(black_box(&tr), &opts).expect("identify"))
+    });
+    // The same trace without the exact reference derivatives (a measured trace's case), with
+    // every extended structure chosen by a held-out part.
+    let measured = Trace::new(tr.ts, tr.xr.clone(), tr.x.clone()).expect("trace");
+    let all = IdentifyOptions {
+        structures: ModelStructure::ALL.to_vec(),
+        ..IdentifyOptions::default()
+    };
+    g.sample_size(10);
+    g.bench_function("identify_measured_paper_only", |b| {
+        b.iter(|| identify(black_box(&measured), &opts).expect("identify"))
+    });
+    g.bench_function("identify_measured_all_structures", |b| {
+        b.iter(|| identify(black_box(&measured), &all).expect("identify"))
     });
     g.finish();
 }

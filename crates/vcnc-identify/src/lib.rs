@@ -9,7 +9,11 @@
 //!      │                     │
 //!      │                     ├──► unconstrained_ls ........ baseline, may be unstable
 //!      │                     └──► EquationErrorCost ──► Pso (paper §3.3) ──► paper_pso
-//!      └──────────────────────────────────────────────────► refine (output error) ──► identified
+//!      │                                                   │ distinct good particles
+//!      └──────────────────────────────────────────────────► refine (output error, per
+//!                                                           structure) ──► identified
+//!                                                           │  validation error
+//!                                                           └──► model (DriveModel) ──► score
 //! ```
 //!
 //! 1. [`Trace`]: validated samples $(x_{r,k}, x_k)$ at a uniform period (optionally with the exact
@@ -24,17 +28,28 @@
 //!    keep every pole in the left half plane (paper eq. 12). Seeded, bit-identical for any thread
 //!    count, history kept.
 //! 4. [`refine`]: output-error refinement, the step beyond the paper (docs/identification.md): the
-//!    free-run simulation error of the model ([`free_run`], the same simulation the predictions
-//!    use) minimised over all seven parameters inside the same bounds, by variable projection and
-//!    a bounded Levenberg–Marquardt, with the model's own friction (sticking included) in a
-//!    fixed-point second stage.
+//!    free-run simulation error of the model ([`free_run_model`], the same simulation the
+//!    predictions use) minimised over all parameters, by variable projection and a bounded
+//!    Levenberg–Marquardt in coefficients mapped onto the stable region (no seam where poles
+//!    change roles), from several distinct swarm particles, with the model's own friction
+//!    (sticking included) in a fixed-point second stage, and a sandwich covariance that
+//!    accounts for the residual's autocorrelation.
 //! 5. [`unconstrained_ls`]: the 7-parameter least-squares baseline, reported with its poles and
 //!    a stability flag, whatever they are.
-//! 6. [`fit_metrics`]: one-step and free-run prediction errors and fit % on any trace
-//!    (estimation or validation run).
+//! 6. [`fit_metrics`] and [`score`]: one-step and free-run prediction errors and fit % of any
+//!    model ([`vcnc_drive::DriveModel`], the paper's structure or an extended one) on any trace
+//!    (estimation or validation run, or a held-out part).
+//! 7. Model structures beyond the paper ([`ModelStructure`]: dead time, first- or second-order
+//!    reference filter, extra pole), each identified by the same swarm and refinement and
+//!    chosen by validation error ([`identify`] holds out the end of a single trace,
+//!    [`identify_with_validation`] takes a second trace).
 //!
-//! [`identify`] runs 1–6 and returns an [`Identification`] with the refined model, the paper's
-//! result and the baseline side by side.
+//! [`identify`] runs 1–7 and returns an [`Identification`] with the refined model, the chosen
+//! structure's model, the paper's result and the baseline side by side, the parameters that
+//! ended on a bound ([`BoundHit`]) and their standard deviations ([`Uncertainty`]).
+//!
+//! A measured trace enters through [`Trace::from_log`] ([`Timing`]: a time column is always
+//! checked).
 //!
 //! Drives without integral action (the EMPS benchmark) have their third pole at the origin: set
 //! `bounds.p_hz = [0.0, ...]` ([`PoleBounds`]); the model found may then have $a_3 = 0$, which
@@ -54,17 +69,22 @@ mod regress;
 mod trace;
 
 pub use filter::Butterworth2;
-pub use identify::{Identification, LsBaseline, identify, unconstrained_ls};
-pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run};
-pub use options::{
-    IdentifyOptions, PoleBounds, Prefilter, PsoSettings, RefineOptions, StartCondition,
+pub use identify::{
+    Identification, LsBaseline, StructureFit, ValidationSource, identify, identify_with_validation,
+    unconstrained_ls,
 };
-pub use pso::{CostFunction, HistoryEntry, Pso, PsoResult};
+pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run, free_run_model, score};
+pub use options::{
+    ExtendedBounds, IdentifyOptions, MAX_POLE_HZ, MAX_ZETA, ModelStructure, PoleBounds, Prefilter,
+    PsoSettings, RefineOptions, StartCondition,
+};
+pub use pso::{CostFunction, DISTINCT, HistoryEntry, Pso, PsoResult};
 pub use refine::{
-    OutputErrorProblem, RefineResult, RefineStage, SignSource, refine, refine_problem,
+    BoundHit, MOVING_START_SKIP_S, OutputErrorProblem, ParameterStd, RefineResult, RefineSetup,
+    RefineStage, SignSource, Start, Uncertainty, refine,
 };
 pub use regress::{EquationErrorCost, Regressors, Theta};
-pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Trace};
+pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Timing, Trace};
 
 /// Errors of the identification crate. Every variant carries the values needed to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -111,6 +131,19 @@ pub enum Error {
         dt: f64,
         /// Nominal (median) sample period, s.
         ts: f64,
+        /// Relative tolerance allowed.
+        tolerance: f64,
+    },
+    /// The period stated for a trace disagrees with its time column.
+    #[error(
+        "the stated sample period {given} s disagrees with the time column's {measured} s \
+         (relative tolerance {tolerance})"
+    )]
+    PeriodMismatch {
+        /// Period stated by the user, s.
+        given: f64,
+        /// Median step of the time column, s.
+        measured: f64,
         /// Relative tolerance allowed.
         tolerance: f64,
     },
@@ -190,6 +223,12 @@ pub enum Error {
         /// Upper limit $2(1+w)$ on the sum.
         limit: f64,
     },
+    /// The output-error refinement found no usable model from any start.
+    #[error("the output-error refinement of the {structure} structure failed from every start")]
+    RefinementFailed {
+        /// The structure being refined.
+        structure: ModelStructure,
+    },
     /// The drive model could not be simulated.
     #[error("model simulation failed: {0}")]
     Drive(#[from] vcnc_drive::Error),
@@ -213,8 +252,9 @@ impl Error {
             | Error::IllConditioned { .. }
             | Error::InvalidOption { .. }
             | Error::InvalidBounds { .. }
+            | Error::PeriodMismatch { .. }
             | Error::PsoDivergent { .. } => true,
-            Error::Drive(_) => false,
+            Error::Drive(_) | Error::RefinementFailed { .. } => false,
         }
     }
 }

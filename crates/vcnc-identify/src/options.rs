@@ -30,6 +30,131 @@ pub struct IdentifyOptions {
     /// Default 1e6 (the Table 1 run gives about 1e3; a single sine, which cannot separate the
     /// parameters, about 1e8).
     pub max_condition: f64,
+    /// Model structures to identify besides the paper's, chosen by validation error
+    /// ([`crate::identify`]). Default none: the paper's 7-parameter model only.
+    pub structures: Vec<ModelStructure>,
+    /// Search bounds of the extended structures' own parameters.
+    pub extended_bounds: ExtendedBounds,
+    /// Fraction of a single trace held out (at its end) to choose between structures, when no
+    /// separate validation trace is given. Default 0.3.
+    pub holdout_fraction: f64,
+    /// Relative margin by which a structure with more parameters must beat a simpler one's
+    /// validation error to be chosen. Default 0.05.
+    pub selection_margin: f64,
+}
+
+/// A model structure ([`vcnc_drive::DriveModel`], docs/identification.md): the paper's seven
+/// parameters, or those with one addition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelStructure {
+    /// The paper's 7-parameter model.
+    Paper,
+    /// With an input dead time $T_d$ (sub-sample resolution).
+    Delay,
+    /// With a first-order reference filter $1/(\tau s + 1)$.
+    FirstOrderFilter,
+    /// With a second-order reference filter.
+    SecondOrderFilter,
+    /// With one extra real pole of the whole loop.
+    ExtraPole,
+}
+
+impl ModelStructure {
+    /// Every structure, simplest first.
+    pub const ALL: [ModelStructure; 5] = [
+        ModelStructure::Paper,
+        ModelStructure::Delay,
+        ModelStructure::FirstOrderFilter,
+        ModelStructure::ExtraPole,
+        ModelStructure::SecondOrderFilter,
+    ];
+
+    /// Nonlinear parameters beyond the paper's three poles.
+    pub fn extra_parameters(&self) -> usize {
+        match self {
+            ModelStructure::Paper => 0,
+            ModelStructure::SecondOrderFilter => 2,
+            _ => 1,
+        }
+    }
+
+    /// Name as in the options file.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ModelStructure::Paper => "paper",
+            ModelStructure::Delay => "delay",
+            ModelStructure::FirstOrderFilter => "first-order-filter",
+            ModelStructure::SecondOrderFilter => "second-order-filter",
+            ModelStructure::ExtraPole => "extra-pole",
+        }
+    }
+}
+
+impl std::fmt::Display for ModelStructure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Search bounds `[min, max]` of the extended structures' parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExtendedBounds {
+    /// Dead time, s. Default `[0, 0.2]`.
+    pub delay_s: [f64; 2],
+    /// First-order filter time constant, s. Default `[1e-4, 0.2]`.
+    pub filter_tau_s: [f64; 2],
+    /// Second-order filter natural frequency, Hz. Default `[1, 200]`.
+    pub filter_wn_hz: [f64; 2],
+    /// Second-order filter damping ratio. Default `[0.3, 2.0]`.
+    pub filter_zeta: [f64; 2],
+    /// Extra pole, Hz. Default `[2, 2000]`.
+    pub extra_pole_hz: [f64; 2],
+}
+
+impl Default for ExtendedBounds {
+    fn default() -> Self {
+        ExtendedBounds {
+            delay_s: [0.0, 0.2],
+            filter_tau_s: [1e-4, 0.2],
+            filter_wn_hz: [1.0, 200.0],
+            filter_zeta: [0.3, 2.0],
+            extra_pole_hz: [2.0, 2000.0],
+        }
+    }
+}
+
+impl ExtendedBounds {
+    /// Checks order and positivity (the dead time may start at 0).
+    pub fn validate(&self) -> Result<(), Error> {
+        for (name, [lo, hi], zero_ok) in [
+            ("extended_bounds.delay_s", self.delay_s, true),
+            ("extended_bounds.filter_tau_s", self.filter_tau_s, false),
+            ("extended_bounds.filter_wn_hz", self.filter_wn_hz, false),
+            ("extended_bounds.filter_zeta", self.filter_zeta, false),
+            ("extended_bounds.extra_pole_hz", self.extra_pole_hz, false),
+        ] {
+            let lower_ok = if zero_ok { lo >= 0.0 } else { lo > 0.0 };
+            if !(lo.is_finite() && hi.is_finite() && lower_ok && hi > lo && hi <= 1e6) {
+                return Err(Error::InvalidBounds {
+                    name,
+                    min: lo,
+                    max: hi,
+                    expected: "finite bounds with 0 <= min < max (min > 0 but for the dead time)",
+                });
+            }
+        }
+        if self.delay_s[1] > vcnc_drive::MAX_DELAY_S {
+            return Err(Error::InvalidBounds {
+                name: "extended_bounds.delay_s",
+                min: self.delay_s[0],
+                max: self.delay_s[1],
+                expected: "a dead time of at most 10 s",
+            });
+        }
+        Ok(())
+    }
 }
 
 impl Default for IdentifyOptions {
@@ -43,6 +168,10 @@ impl Default for IdentifyOptions {
             seed: 1,
             start: StartCondition::Auto,
             max_condition: 1e6,
+            structures: vec![ModelStructure::Paper],
+            extended_bounds: ExtendedBounds::default(),
+            holdout_fraction: 0.3,
+            selection_margin: 0.05,
         }
     }
 }
@@ -75,6 +204,21 @@ impl IdentifyOptions {
                 expected: "a condition number above 1",
             });
         }
+        if !(self.holdout_fraction >= 0.05 && self.holdout_fraction <= 0.5) {
+            return Err(Error::InvalidOption {
+                name: "holdout_fraction",
+                value: self.holdout_fraction,
+                expected: "a fraction of the trace in [0.05, 0.5]",
+            });
+        }
+        if !(self.selection_margin >= 0.0 && self.selection_margin < 1.0) {
+            return Err(Error::InvalidOption {
+                name: "selection_margin",
+                value: self.selection_margin,
+                expected: "a relative margin in [0, 1)",
+            });
+        }
+        self.extended_bounds.validate()?;
         self.refine.validate()
     }
 }
@@ -284,6 +428,9 @@ pub struct RefineOptions {
     /// Stage-B passes with the friction input of the previous model's own free run (0 keeps
     /// the measured sign only; see [`crate::refine`]). Default 2.
     pub sign_iterations: usize,
+    /// Most starting points of the refinement: the swarm's distinct good particles, best
+    /// first. Default 3.
+    pub starts: usize,
 }
 
 impl Default for RefineOptions {
@@ -293,6 +440,7 @@ impl Default for RefineOptions {
             max_iterations: 40,
             tolerance: 1e-9,
             sign_iterations: 2,
+            starts: 3,
         }
     }
 }
@@ -305,6 +453,13 @@ impl RefineOptions {
                 name: "refine.tolerance",
                 value: self.tolerance,
                 expected: "a relative cost decrease in [0, 1)",
+            });
+        }
+        if self.starts < 1 {
+            return Err(Error::InvalidOption {
+                name: "refine.starts",
+                value: self.starts as f64,
+                expected: "at least 1 starting point",
             });
         }
         Ok(())
@@ -321,7 +476,8 @@ pub enum StartCondition {
     /// At rest: zero initial conditions after subtracting the initial position.
     Rest,
     /// Moving (a cut-out of a longer log, such as the EMPS benchmark): the equation-error
-    /// regression gets a constant column for the unknown integration constant, and the
-    /// output-error fit estimates the initial state (three free-response columns).
+    /// regression gets a constant column for the unknown integration constant; the
+    /// output-error fit and the free run start the model at rest at the measured $x_0$ one
+    /// sample before the first ([`crate::Trace::prefixed_reference`]).
     Moving,
 }

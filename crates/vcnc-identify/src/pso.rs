@@ -67,6 +67,43 @@ pub struct PsoResult {
     pub history: Vec<HistoryEntry>,
     /// Cost evaluations made.
     pub evaluations: usize,
+    /// The best distinct personal bests, best first, with their costs: no two within
+    /// [`DISTINCT`] (relative, in every coordinate) of each other. The first is `best`.
+    pub candidates: Vec<(Vec<f64>, f64)>,
+}
+
+/// Relative distance in some coordinate above which two positions count as distinct.
+pub const DISTINCT: f64 = 0.1;
+
+/// Most candidates kept.
+const ARCHIVE: usize = 8;
+
+/// Offers a position to the archive of distinct good candidates (sorted, best first).
+fn offer(archive: &mut Vec<(Vec<f64>, f64)>, p: &[f64], c: f64, floor: &[f64]) {
+    // Most offers are worse than every kept candidate: rejected before any distance check.
+    if !c.is_finite() || (archive.len() == ARCHIVE && c >= archive[ARCHIVE - 1].1) {
+        return;
+    }
+    let near = |q: &[f64]| {
+        p.iter()
+            .zip(q)
+            .zip(floor)
+            .all(|((a, b), f)| (a - b).abs() <= DISTINCT * a.abs().max(b.abs()).max(*f))
+    };
+    if let Some(i) = archive.iter().position(|(q, _)| near(q)) {
+        if c < archive[i].1 {
+            archive.remove(i);
+        } else {
+            return;
+        }
+    } else if archive.len() == ARCHIVE {
+        if c >= archive[ARCHIVE - 1].1 {
+            return;
+        }
+        archive.pop();
+    }
+    let at = archive.partition_point(|(_, q)| *q <= c);
+    archive.insert(at, (p.to_vec(), c));
 }
 
 /// The particle swarm solver: how the objective is optimised (paper section 3.3.2).
@@ -197,6 +234,10 @@ impl Pso {
         // `PARALLEL_ABOVE`. The schedule never changes the result (costs are pure, collected in
         // particle order), so this is invisible but for speed.
         let min_len = m.div_ceil(rayon::current_num_threads().max(1)).max(1);
+        let floor: Vec<f64> = (0..d)
+            .map(|j| 1e-3 * (self.upper[j] - self.lower[j]))
+            .collect();
+        let mut archive: Vec<(Vec<f64>, f64)> = Vec::with_capacity(ARCHIVE + 1);
         let mut parallel = false;
         for it in 0..self.settings.iterations {
             let eval = |p: &[f64]| {
@@ -263,11 +304,22 @@ impl Pso {
                 }
             }
         }
+        // Distinct good candidates from the personal bests (each particle's best position of the
+        // whole run; gbest among them).
+        for i in 0..m {
+            offer(
+                &mut archive,
+                &pbest[i * d..(i + 1) * d],
+                pbest_cost[i],
+                &floor,
+            );
+        }
         PsoResult {
             best: gbest,
             best_cost: gbest_cost,
             history,
             evaluations: m * self.settings.iterations,
+            candidates: archive,
         }
     }
 }

@@ -18,6 +18,20 @@ pub const TIME_JITTER: f64 = 1e-3;
 /// convention of [`Trace::prefixed_reference`] (the default sign deadband).
 pub const REST_SPEED: f64 = 1.5;
 
+/// How the sample instants of a logged trace are known ([`Trace::from_log`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Timing<'a> {
+    /// A time column, s: always checked (strictly increasing, uniform within [`TIME_JITTER`],
+    /// hence no gaps); the period is its median step.
+    Column(&'a [f64]),
+    /// A time column and a period the user states, s: the column is checked as for
+    /// [`Timing::Column`] and its period must agree with the stated one within
+    /// [`TIME_JITTER`]. A stated period never replaces the checks of an existing column.
+    ColumnWithPeriod(&'a [f64], f64),
+    /// No time column: the period, s.
+    Period(f64),
+}
+
 /// Reference $x_r$ and measured position $x$ of one axis, sampled at the period `ts`.
 ///
 /// Built by [`Trace::new`] or [`Trace::from_columns`], which validate the data; the fields are
@@ -186,6 +200,30 @@ impl Trace {
         Trace::new(ts, xr.to_vec(), x.to_vec())
     }
 
+    /// A trace from a log: the columns `xr`, `x` (axis units) with their timing. The only way
+    /// a user's file should become a trace: a time column, when the file has one, is always
+    /// checked, whatever period the user states ([`Timing`]).
+    pub fn from_log(timing: Timing<'_>, xr: Vec<f64>, x: Vec<f64>) -> Result<Trace, Error> {
+        match timing {
+            Timing::Column(t) => Trace::from_columns(t, &xr, &x),
+            Timing::ColumnWithPeriod(t, ts) => {
+                if !(ts > 0.0 && ts.is_finite()) {
+                    return Err(Error::BadSamplePeriod { ts });
+                }
+                let tr = Trace::from_columns(t, &xr, &x)?;
+                if (tr.ts - ts).abs() > TIME_JITTER * ts {
+                    return Err(Error::PeriodMismatch {
+                        given: ts,
+                        measured: tr.ts,
+                        tolerance: TIME_JITTER,
+                    });
+                }
+                Ok(tr)
+            }
+            Timing::Period(ts) => Trace::new(ts, xr, x),
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.x.len()
@@ -269,6 +307,38 @@ mod tests {
             .collect();
         let tr = Trace::from_columns(&t, &ramp(n), &ramp(n)).unwrap();
         assert!((tr.ts - 1e-3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_stated_period_never_skips_the_time_column_checks() {
+        // Regression (issue 18): a file whose time jumps back was accepted when a period was
+        // given on the command line.
+        let n = 200;
+        let mut t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        t[120] = t[110];
+        let back = Trace::from_log(Timing::ColumnWithPeriod(&t, 1e-3), ramp(n), ramp(n));
+        assert!(
+            matches!(back, Err(Error::TimeNotIncreasing { row: 120, .. })),
+            "{back:?}"
+        );
+        // A gap of one missing sample.
+        let gap: Vec<f64> = (0..n)
+            .map(|k| if k < 100 { k } else { k + 1 } as f64 * 1e-3)
+            .collect();
+        assert!(matches!(
+            Trace::from_log(Timing::ColumnWithPeriod(&gap, 1e-3), ramp(n), ramp(n)),
+            Err(Error::NonUniformTime { row: 100, .. })
+        ));
+        // A column at 1 ms stated as 2 ms.
+        let good: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        assert!(matches!(
+            Trace::from_log(Timing::ColumnWithPeriod(&good, 2e-3), ramp(n), ramp(n)),
+            Err(Error::PeriodMismatch { .. })
+        ));
+        // Agreeing: accepted; no column: the period alone.
+        let ok = Trace::from_log(Timing::ColumnWithPeriod(&good, 1e-3), ramp(n), ramp(n));
+        assert!((ok.unwrap().ts - 1e-3).abs() < 1e-12);
+        assert!(Trace::from_log(Timing::Period(1e-3), ramp(n), ramp(n)).is_ok());
     }
 
     #[test]

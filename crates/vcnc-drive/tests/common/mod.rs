@@ -142,7 +142,7 @@ pub fn standard_program() -> Program {
 pub fn realistic_table1() -> vcnc_drive::DriveParams {
     use vcnc_drive::{
         Compliance, CurrentLoop, CurrentLoopOrder, Feedback, FeedbackSource, Friction,
-        FrictionLocation, ReferenceFilter, ReferenceShaping,
+        FrictionLocation, ReferenceShaping, ShapingFilter,
     };
     let mut p = vcnc_drive::table1_drive();
     p.encoder.noise_std = 5e-5;
@@ -179,7 +179,7 @@ pub fn realistic_table1() -> vcnc_drive::DriveParams {
         motor_noise_std: 0.0,
     });
     p.reference = Some(ReferenceShaping {
-        filter: Some(ReferenceFilter::MovingAverage { window_s: 0.004 }),
+        filter: Some(ShapingFilter::MovingAverage { window_s: 0.004 }),
         interpolation_delay_s: 0.002,
     });
     p
@@ -193,7 +193,7 @@ pub fn realistic_table1() -> vcnc_drive::DriveParams {
 pub fn realistic_nmv5000_x() -> vcnc_drive::DriveParams {
     use vcnc_drive::{
         Compliance, CurrentLoop, CurrentLoopOrder, Encoder, Feedback, FeedbackSource, Friction,
-        FrictionLocation, ReferenceFilter, ReferenceShaping,
+        FrictionLocation, ReferenceShaping, ShapingFilter,
     };
     let mut p = vcnc_drive::nmv5000_axis_design(vcnc_drive::AxisName::X).expect("X exists");
     p.encoder = Encoder {
@@ -233,7 +233,7 @@ pub fn realistic_nmv5000_x() -> vcnc_drive::DriveParams {
         motor_noise_std: 0.0,
     });
     p.reference = Some(ReferenceShaping {
-        filter: Some(ReferenceFilter::MovingAverage { window_s: 0.002 }),
+        filter: Some(ShapingFilter::MovingAverage { window_s: 0.002 }),
         interpolation_delay_s: 0.002,
     });
     p

@@ -1,0 +1,955 @@
+//! Model structures beyond the paper's seven parameters (docs/drive-model.md, "extended
+//! models"): the closed-loop model of [`crate::model`] with an input dead time, a reference
+//! filter and one extra real pole.
+//!
+//! $$ x = P(s)\Big[\frac{N(s)}{D(s)}\,F(s)\,e^{-sT_d}\,x_r \;-\; \frac{d_c\,s}{D(s)}\,\mathcal{L}\{\operatorname{sgn}\dot x_c\}\Big],
+//!    \qquad N = b_0 s^3 + b_1 s^2 + b_2 s + a_3,\quad D = s^3 + a_1 s^2 + a_2 s + a_3, $$
+//!
+//! - $T_d$ (`delay_s`): a dead time of the reference, as the nominal position a commercial
+//!   control logs runs ahead of what its loop receives (interpolation and filter delays);
+//! - $F(s)$ (`reference_filter`): a nominal-position (jerk) filter of unit static gain, first
+//!   order $1/(\tau s + 1)$ or second order $\omega_f^2/(s^2 + 2\zeta_f\omega_f s + \omega_f^2)$;
+//! - $P(s) = p_e/(s + p_e)$ (`extra_pole_hz`): one extra real pole that the whole loop sees,
+//!   the reference and the friction alike (a current-loop or velocity-filter lag, or a filtered
+//!   position measurement). For the reference alone it spans the same transfer functions as a
+//!   first-order reference filter (four poles, a cubic numerator, unit static gain); the two
+//!   differ in the friction path, which the filter leaves to the core's poles.
+//!
+//! The friction acts on the core's velocity $\dot x_c$ (before $P$), with the same implicit
+//! sticking rule as [`ClosedLoopModel::simulate`].
+//!
+//! # Simulation
+//!
+//! The realisation keeps physical states: the filter's ($y_f$, $\dot y_f$), the core's
+//! $[q = \int (x_{r,f} - x_c)\,dt,\ x_c,\ v_c]$ and the lag's output. It is discretised exactly
+//! for inputs that are piecewise linear between their knots. Two input conventions:
+//!
+//! - [`DriveModel::simulate`]: reference position, velocity and acceleration samples, each held
+//!   first-order (as [`ClosedLoopModel::simulate`]; a simulated machine's interpolator knows
+//!   them exactly);
+//! - [`DriveModel::simulate_positions`]: the first-order hold of the position samples alone,
+//!   with its exact derivatives: a constant velocity over each sample and the velocity changes
+//!   as impulses of acceleration at the samples. A measured trace holds positions only; this
+//!   uses them without differencing, so no derivative estimate biases the model (central
+//!   differences of a trapezoidal profile are wrong next to every change of acceleration, and
+//!   a fit bends the poles to absorb that).
+//!
+//! A sub-sample dead time $T_d = (m + \varphi)T_s$ shifts the knots of the first-order hold
+//! to $t_k + \varphi T_s$: each sample period is integrated in two exact pieces, $\varphi T_s$
+//! and $(1 - \varphi)T_s$, so the delayed input is represented exactly (no re-interpolation
+//! between shifted samples, which would cut the corners of the reference by up to
+//! $a T_s^2/8$). Before the first sample the reference is at rest at its first value.
+//!
+//! Variables are named as in the paper and docs/drive-model.md (`a1`, `dc`, `wn`, `zeta`).
+
+use nalgebra::{Complex, DMatrix};
+use serde::{Deserialize, Serialize};
+
+use crate::Error;
+use crate::model::{
+    ClosedLoopModel, MAX_EXP_NORM, Reference, SimOptions, friction_sign, implicit_friction_level,
+};
+
+/// Largest dead time accepted, s.
+pub const MAX_DELAY_S: f64 = 10.0;
+
+/// A nominal-position filter of unit static gain, applied to the reference before the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ReferenceFilter {
+    /// $F(s) = 1/(\tau s + 1)$.
+    FirstOrder {
+        /// Time constant $\tau$, s. Positive.
+        tau_s: f64,
+    },
+    /// $F(s) = \omega_f^2/(s^2 + 2\zeta_f\omega_f s + \omega_f^2)$.
+    SecondOrder {
+        /// Natural frequency $\omega_f/2\pi$, Hz. Positive.
+        wn_hz: f64,
+        /// Damping ratio $\zeta_f$, dimensionless. Positive.
+        zeta: f64,
+    },
+}
+
+impl ReferenceFilter {
+    /// Frequency response $F(j\omega)$ at `w` rad/s.
+    pub fn frf(&self, w: f64) -> Complex<f64> {
+        let s = Complex::new(0.0, w);
+        match *self {
+            ReferenceFilter::FirstOrder { tau_s } => Complex::new(1.0, 0.0) / (s * tau_s + 1.0),
+            ReferenceFilter::SecondOrder { wn_hz, zeta } => {
+                let wf = std::f64::consts::TAU * wn_hz;
+                Complex::new(wf * wf, 0.0) / ((s + 2.0 * zeta * wf) * s + wf * wf)
+            }
+        }
+    }
+
+    /// Its poles, rad/s.
+    pub fn roots(&self) -> Vec<Complex<f64>> {
+        match *self {
+            ReferenceFilter::FirstOrder { tau_s } => vec![Complex::new(-1.0 / tau_s, 0.0)],
+            ReferenceFilter::SecondOrder { wn_hz, zeta } => {
+                let wf = std::f64::consts::TAU * wn_hz;
+                let d = zeta * zeta - 1.0;
+                if d >= 0.0 {
+                    let r = wf * d.sqrt();
+                    vec![
+                        Complex::new(-zeta * wf + r, 0.0),
+                        Complex::new(-zeta * wf - r, 0.0),
+                    ]
+                } else {
+                    let im = wf * (-d).sqrt();
+                    vec![Complex::new(-zeta * wf, im), Complex::new(-zeta * wf, -im)]
+                }
+            }
+        }
+    }
+
+    /// Number of states (1 or 2).
+    pub fn order(&self) -> usize {
+        match self {
+            ReferenceFilter::FirstOrder { .. } => 1,
+            ReferenceFilter::SecondOrder { .. } => 2,
+        }
+    }
+
+    fn validate(&self) -> Result<(), Error> {
+        let (name, v) = match *self {
+            ReferenceFilter::FirstOrder { tau_s } => ("reference_filter.tau_s", tau_s),
+            ReferenceFilter::SecondOrder { wn_hz, zeta } => {
+                if !(zeta > 0.0 && zeta.is_finite()) {
+                    return Err(Error::BadParameter {
+                        name: "reference_filter.zeta",
+                        value: zeta,
+                        expected: "positive and finite",
+                    });
+                }
+                ("reference_filter.wn_hz", wn_hz)
+            }
+        };
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(Error::BadParameter {
+                name,
+                value: v,
+                expected: "positive and finite",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A closed-loop model of any structure vcnc identifies: the paper's seven parameters
+/// (`core`) with an optional dead time, reference filter and extra pole (see the module
+/// documentation). Plain data; its serde form is flat (the seven coefficients beside
+/// `delay_s`, `reference_filter`, `extra_pole_hz`), checked on reading.
+///
+/// ```
+/// use vcnc_drive::{ClosedLoopModel, DriveModel, ReferenceFilter};
+/// let core = ClosedLoopModel { a1: 238.4, a2: 48421.6, a3: 2487140.3, b0: 0.0, b1: 117.5, b2: 37259.0, dc: 47.7 };
+/// let m = DriveModel { delay_s: 0.085, reference_filter: Some(ReferenceFilter::FirstOrder { tau_s: 0.004 }), ..DriveModel::from(core) };
+/// assert_eq!(m.roots().len(), 4);
+/// // The dead time adds phase, not gain.
+/// let g = m.tracking_frf(10.0);
+/// let g0 = m.core.tracking_frf(10.0) * m.reference_filter.unwrap().frf(10.0);
+/// assert!((g.norm() - g0.norm()).abs() < 1e-12);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawDriveModel", into = "RawDriveModel")]
+pub struct DriveModel {
+    /// The paper's 7-parameter closed loop (docs/drive-model.md).
+    pub core: ClosedLoopModel,
+    /// Dead time $T_d$ of the reference, s (0: none). At most [`MAX_DELAY_S`].
+    pub delay_s: f64,
+    /// Nominal-position filter of the reference, if any.
+    pub reference_filter: Option<ReferenceFilter>,
+    /// Extra real pole $p_e/2\pi$ of the whole loop, Hz, if any.
+    pub extra_pole_hz: Option<f64>,
+}
+
+impl From<ClosedLoopModel> for DriveModel {
+    fn from(core: ClosedLoopModel) -> DriveModel {
+        DriveModel {
+            core,
+            delay_s: 0.0,
+            reference_filter: None,
+            extra_pole_hz: None,
+        }
+    }
+}
+
+/// Flat serde form of [`DriveModel`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDriveModel {
+    a1: f64,
+    a2: f64,
+    a3: f64,
+    b0: f64,
+    b1: f64,
+    b2: f64,
+    dc: f64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    delay_s: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    reference_filter: Option<ReferenceFilter>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    extra_pole_hz: Option<f64>,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+impl TryFrom<RawDriveModel> for DriveModel {
+    type Error = Error;
+    fn try_from(r: RawDriveModel) -> Result<DriveModel, Error> {
+        let m = DriveModel {
+            core: ClosedLoopModel {
+                a1: r.a1,
+                a2: r.a2,
+                a3: r.a3,
+                b0: r.b0,
+                b1: r.b1,
+                b2: r.b2,
+                dc: r.dc,
+            },
+            delay_s: r.delay_s,
+            reference_filter: r.reference_filter,
+            extra_pole_hz: r.extra_pole_hz,
+        };
+        m.validate()?;
+        Ok(m)
+    }
+}
+
+impl From<DriveModel> for RawDriveModel {
+    fn from(m: DriveModel) -> RawDriveModel {
+        let c = m.core;
+        RawDriveModel {
+            a1: c.a1,
+            a2: c.a2,
+            a3: c.a3,
+            b0: c.b0,
+            b1: c.b1,
+            b2: c.b2,
+            dc: c.dc,
+            delay_s: m.delay_s,
+            reference_filter: m.reference_filter,
+            extra_pole_hz: m.extra_pole_hz,
+        }
+    }
+}
+
+/// The reference a [`DriveModel`] is driven by.
+#[derive(Debug, Clone, Copy)]
+pub enum ModelInput<'a> {
+    /// Position, velocity and acceleration samples, each held first-order.
+    Derivatives(Reference<'a>),
+    /// Position samples held first-order, with the exact derivatives of that hold.
+    Positions(&'a [f64]),
+}
+
+impl ModelInput<'_> {
+    fn check(&self) -> Result<usize, Error> {
+        match self {
+            ModelInput::Derivatives(r) => r.check(),
+            ModelInput::Positions(p) => {
+                if p.is_empty() {
+                    return Err(Error::EmptySignal);
+                }
+                if let Some(index) = p.iter().position(|v| !v.is_finite()) {
+                    return Err(Error::NonFinite {
+                        signal: "position",
+                        index,
+                    });
+                }
+                Ok(p.len())
+            }
+        }
+    }
+}
+
+/// A free run: the position and the friction level held over each sample.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModelRun {
+    /// Model position $\hat x_k$ at every sample, axis units.
+    pub position: Vec<f64>,
+    /// Friction level over $[t_k, t_{k+1}]$, in $[-1, 1]$ (a sign, or the fraction that holds
+    /// the axis while it sticks); the last entry is 0.
+    pub friction: Vec<f64>,
+}
+
+/// Continuous realisation: $\dot z = A z + B_u [r, \dot r, \ddot r]^T + b_f f$, position
+/// $x = c_x z$, core velocity $v_c = c_v z$.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Realisation {
+    /// State matrix, n×n.
+    pub a: DMatrix<f64>,
+    /// Input matrix of $[r, \dot r, \ddot r]$, n×3.
+    pub b: DMatrix<f64>,
+    /// Friction input column, n×1.
+    pub bf: DMatrix<f64>,
+    /// Output row of the position.
+    pub cx: Vec<f64>,
+    /// Output row of the core velocity (the friction acts on it).
+    pub cv: Vec<f64>,
+}
+
+/// Exact discretisation of one piece of length `h`: $z(h) = \Phi z_0 + \Gamma u_0 + R(u_1 - u_0) + \gamma_f f$.
+#[derive(Debug, Clone)]
+struct Piece {
+    /// Row-major n×n.
+    phi: Vec<f64>,
+    /// Row-major n×3.
+    gamma: Vec<f64>,
+    /// Row-major n×3.
+    ramp: Vec<f64>,
+    gf: Vec<f64>,
+}
+
+impl DriveModel {
+    /// Checks the parts: finite core coefficients, a dead time in $[0,$ [`MAX_DELAY_S`]$]$,
+    /// positive finite filter parameters and extra pole.
+    pub fn validate(&self) -> Result<(), Error> {
+        if !self.core.is_finite() {
+            return Err(Error::NonFiniteModel);
+        }
+        if !(self.delay_s >= 0.0 && self.delay_s <= MAX_DELAY_S) {
+            return Err(Error::BadParameter {
+                name: "delay_s",
+                value: self.delay_s,
+                expected: "a dead time between 0 and 10 s",
+            });
+        }
+        if let Some(f) = &self.reference_filter {
+            f.validate()?;
+        }
+        if let Some(pe) = self.extra_pole_hz
+            && !(pe > 0.0 && pe.is_finite())
+        {
+            return Err(Error::BadParameter {
+                name: "extra_pole_hz",
+                value: pe,
+                expected: "positive and finite",
+            });
+        }
+        Ok(())
+    }
+
+    /// Whether only the paper's seven parameters are used.
+    pub fn is_core_only(&self) -> bool {
+        self.delay_s == 0.0 && self.reference_filter.is_none() && self.extra_pole_hz.is_none()
+    }
+
+    /// Every pole, rad/s: the core's three, the filter's, the extra one.
+    pub fn roots(&self) -> Vec<Complex<f64>> {
+        let mut r = self.core.roots().to_vec();
+        if let Some(f) = &self.reference_filter {
+            r.extend(f.roots());
+        }
+        if let Some(pe) = self.extra_pole_hz {
+            r.push(Complex::new(-std::f64::consts::TAU * pe, 0.0));
+        }
+        r
+    }
+
+    /// Every pole strictly in the left half plane.
+    pub fn is_stable(&self) -> bool {
+        self.validate().is_ok() && self.core.is_stable()
+    }
+
+    /// Stable, or the core marginally so (a drive without integral action, docs/drive-model.md).
+    pub fn is_marginally_stable(&self) -> bool {
+        self.validate().is_ok() && self.core.is_marginally_stable()
+    }
+
+    fn lag(&self, w: f64) -> Complex<f64> {
+        match self.extra_pole_hz {
+            Some(pe) => {
+                let p = std::f64::consts::TAU * pe;
+                Complex::new(p, 0.0) / Complex::new(p, w)
+            }
+            None => Complex::new(1.0, 0.0),
+        }
+    }
+
+    /// Tracking frequency response $x/x_r = P\,F\,e^{-j\omega T_d}\,N/D$ at `w` rad/s.
+    pub fn tracking_frf(&self, w: f64) -> Complex<f64> {
+        let f = self
+            .reference_filter
+            .map_or(Complex::new(1.0, 0.0), |f| f.frf(w));
+        let delay = Complex::from_polar(1.0, -w * self.delay_s);
+        self.core.tracking_frf(w) * f * delay * self.lag(w)
+    }
+
+    /// Disturbance frequency response per unit friction acceleration, $-P\,s/D$ at `w` rad/s.
+    pub fn disturbance_frf(&self, w: f64) -> Complex<f64> {
+        self.core.disturbance_frf(w) * self.lag(w)
+    }
+
+    /// The continuous realisation (see the module documentation): states
+    /// [filter (0–2), $q$, $x_c$, $v_c$, lag (0–1)].
+    pub fn realisation(&self) -> Realisation {
+        let nf = self.reference_filter.map_or(0, |f| f.order());
+        let np = usize::from(self.extra_pole_hz.is_some());
+        let n = nf + 3 + np;
+        let (iq, ix, iv) = (nf, nf + 1, nf + 2);
+        // The filtered reference and its two derivatives as rows over [z | r, rd, rdd].
+        let mut rf = vec![0.0; n + 3];
+        let mut rfd = vec![0.0; n + 3];
+        let mut rfdd = vec![0.0; n + 3];
+        let mut a = DMatrix::zeros(n, n);
+        let mut b = DMatrix::zeros(n, 3);
+        match self.reference_filter {
+            None => {
+                rf[n] = 1.0;
+                rfd[n + 1] = 1.0;
+                rfdd[n + 2] = 1.0;
+            }
+            Some(ReferenceFilter::FirstOrder { tau_s }) => {
+                let k = 1.0 / tau_s;
+                // y' = (r - y)/tau; rf = y, rf' = (r - y)/tau, rf'' = (r' - rf')/tau.
+                a[(0, 0)] = -k;
+                b[(0, 0)] = k;
+                rf[0] = 1.0;
+                rfd[0] = -k;
+                rfd[n] = k;
+                rfdd[0] = k * k;
+                rfdd[n] = -k * k;
+                rfdd[n + 1] = k;
+            }
+            Some(ReferenceFilter::SecondOrder { wn_hz, zeta }) => {
+                let w = std::f64::consts::TAU * wn_hz;
+                // y1' = y2, y2' = w^2 (r - y1) - 2 zeta w y2.
+                a[(0, 1)] = 1.0;
+                a[(1, 0)] = -w * w;
+                a[(1, 1)] = -2.0 * zeta * w;
+                b[(1, 0)] = w * w;
+                rf[0] = 1.0;
+                rfd[1] = 1.0;
+                rfdd[0] = -w * w;
+                rfdd[1] = -2.0 * zeta * w;
+                rfdd[n] = w * w;
+            }
+        }
+        let c = &self.core;
+        // q' = rf - x.
+        for j in 0..n {
+            a[(iq, j)] += rf[j];
+        }
+        for j in 0..3 {
+            b[(iq, j)] += rf[n + j];
+        }
+        a[(iq, ix)] -= 1.0;
+        // x' = v.
+        a[(ix, iv)] = 1.0;
+        // v' = a3 q - a2 x - a1 v + b2 rf + b1 rf' + b0 rf'' - dc f.
+        for j in 0..n {
+            a[(iv, j)] += c.b2 * rf[j] + c.b1 * rfd[j] + c.b0 * rfdd[j];
+        }
+        for j in 0..3 {
+            b[(iv, j)] += c.b2 * rf[n + j] + c.b1 * rfd[n + j] + c.b0 * rfdd[n + j];
+        }
+        a[(iv, iq)] += c.a3;
+        a[(iv, ix)] -= c.a2;
+        a[(iv, iv)] -= c.a1;
+        let mut bf = DMatrix::zeros(n, 1);
+        bf[(iv, 0)] = -c.dc;
+        let mut cx = vec![0.0; n];
+        let mut cv = vec![0.0; n];
+        cv[iv] = 1.0;
+        match self.extra_pole_hz {
+            Some(pe) => {
+                let p = std::f64::consts::TAU * pe;
+                a[(n - 1, ix)] = p;
+                a[(n - 1, n - 1)] = -p;
+                cx[n - 1] = 1.0;
+            }
+            None => cx[ix] = 1.0,
+        }
+        Realisation { a, b, bf, cx, cv }
+    }
+
+    /// Free run from the samples `pos`, `vel`, `acc` (each held first-order) at period `ts`,
+    /// starting at rest at `pos[0]`. Returns the position at every sample. See the module
+    /// documentation; with no dead time, filter or extra pole this is
+    /// [`ClosedLoopModel::simulate`] up to rounding.
+    pub fn simulate(
+        &self,
+        reference: Reference<'_>,
+        ts: f64,
+        opts: &SimOptions,
+    ) -> Result<Vec<f64>, Error> {
+        Ok(self
+            .simulate_run(ModelInput::Derivatives(reference), ts, opts)?
+            .position)
+    }
+
+    /// Free run from the position samples alone, held first-order with the exact derivatives
+    /// of that hold (module documentation), starting at rest at `pos[0]`.
+    pub fn simulate_positions(
+        &self,
+        pos: &[f64],
+        ts: f64,
+        opts: &SimOptions,
+    ) -> Result<Vec<f64>, Error> {
+        Ok(self
+            .simulate_run(ModelInput::Positions(pos), ts, opts)?
+            .position)
+    }
+
+    /// Free run with the friction level of every sample (the identifier fits the friction the
+    /// model itself would apply). `opts.integrator` is ignored: the scheme is exact.
+    #[allow(clippy::needless_range_loop)] // small dense kernels: indices read best
+    pub fn simulate_run(
+        &self,
+        input: ModelInput<'_>,
+        ts: f64,
+        opts: &SimOptions,
+    ) -> Result<ModelRun, Error> {
+        self.validate()?;
+        if !(ts > 0.0 && ts.is_finite()) {
+            return Err(Error::BadSamplePeriod { ts });
+        }
+        let n = input.check()?;
+        let real = self.realisation();
+        let mut d = self.delay_s / ts;
+        // A dead time within rounding of whole samples is whole samples.
+        if (d - d.round()).abs() < 1e-9 {
+            d = d.round();
+        }
+        let m = d.floor();
+        let mut phi = d - m;
+        if phi < 1e-12 {
+            phi = 0.0;
+        }
+        let m = m as usize;
+        let pieces: Vec<Piece> = if phi == 0.0 {
+            vec![piece(&real, ts)?]
+        } else {
+            vec![piece(&real, phi * ts)?, piece(&real, (1.0 - phi) * ts)?]
+        };
+        let ns = real.a.nrows();
+        // Friction column over the whole step: through the second piece's transition.
+        let mut gf_total = pieces[pieces.len() - 1].gf.clone();
+        if pieces.len() == 2 {
+            let (p1, p2) = (&pieces[0], &pieces[1]);
+            for i in 0..ns {
+                gf_total[i] += (0..ns).map(|j| p2.phi[i * ns + j] * p1.gf[j]).sum::<f64>();
+            }
+        }
+        let l = -dot(&real.cv, &gf_total);
+        let b_acc: Vec<f64> = (0..ns).map(|i| real.b[(i, 2)]).collect();
+        let r0 = match input {
+            ModelInput::Derivatives(r) => r.pos[0],
+            ModelInput::Positions(p) => p[0],
+        };
+        // Input sample j as [r - r0, rd, rdd] (positions: rd is the slope after sample j,
+        // rdd 0, the slope changes are impulses), at rest before the first sample.
+        let sample = |j: isize| -> [f64; 3] {
+            if j < 0 {
+                return [0.0; 3];
+            }
+            let j = (j as usize).min(n - 1);
+            match input {
+                ModelInput::Derivatives(r) => [r.pos[j] - r0, r.vel[j], r.acc[j]],
+                ModelInput::Positions(p) => {
+                    let slope = if j + 1 < n {
+                        (p[j + 1] - p[j]) / ts
+                    } else {
+                        0.0
+                    };
+                    [p[j] - r0, slope, 0.0]
+                }
+            }
+        };
+        let positions = matches!(input, ModelInput::Positions(_));
+        // The input at time t_j - phi T within [t_{j-1}, t_j]: position interpolated; the
+        // slope of positions is constant over the interval.
+        let between = |j: isize| -> [f64; 3] {
+            let (a, b) = (sample(j - 1), sample(j));
+            if positions {
+                [a[0] + (1.0 - phi) * (b[0] - a[0]), a[1], 0.0]
+            } else {
+                std::array::from_fn(|i| a[i] + (1.0 - phi) * (b[i] - a[i]))
+            }
+        };
+        let slope_before = |j: isize| -> f64 { if j <= 0 { 0.0 } else { sample(j - 1)[1] } };
+        let mut z = vec![0.0; ns];
+        let mut next = vec![0.0; ns];
+        let mut out = ModelRun {
+            position: vec![0.0; n],
+            friction: vec![0.0; n],
+        };
+        out.position[0] = r0;
+        let advance = |p: &Piece, z: &[f64], u0: &[f64; 3], u1: &[f64; 3], out: &mut [f64]| {
+            for i in 0..ns {
+                let row = &p.phi[i * ns..(i + 1) * ns];
+                let mut s: f64 = row.iter().zip(z).map(|(a, b)| a * b).sum();
+                for j in 0..3 {
+                    s += p.gamma[i * 3 + j] * u0[j] + p.ramp[i * 3 + j] * (u1[j] - u0[j]);
+                }
+                out[i] = s;
+            }
+        };
+        for k in 0..n - 1 {
+            // Original sample whose knot lies in this step: j = k - m.
+            let j = k as isize - m as isize;
+            let v_start = dot(&real.cv, &z);
+            if phi == 0.0 {
+                let (u0, u1) = (sample(j), sample(j + 1));
+                if positions {
+                    let dv = u0[1] - slope_before(j);
+                    for i in 0..ns {
+                        z[i] += b_acc[i] * dv;
+                    }
+                }
+                let u1 = if positions { [u1[0], u0[1], 0.0] } else { u1 };
+                advance(&pieces[0], &z, &u0, &u1, &mut next);
+            } else {
+                // First piece: from t_k (between samples j-1 and j) to the knot of sample j.
+                let u0 = between(j);
+                let uk = sample(j);
+                let uk_in = if positions { [uk[0], u0[1], 0.0] } else { uk };
+                advance(&pieces[0], &z, &u0, &uk_in, &mut next);
+                std::mem::swap(&mut z, &mut next);
+                if positions {
+                    let dv = uk[1] - slope_before(j);
+                    for i in 0..ns {
+                        z[i] += b_acc[i] * dv;
+                    }
+                }
+                let u1 = between(j + 1);
+                let u1 = if positions { [u1[0], uk[1], 0.0] } else { u1 };
+                advance(&pieces[1], &z, &uk, &u1, &mut next);
+            }
+            let v_free = dot(&real.cv, &next);
+            let f = if opts.sticking {
+                implicit_friction_level(v_free, l)
+            } else {
+                friction_sign(v_start, opts.friction_deadband)
+            };
+            for i in 0..ns {
+                z[i] = next[i] + gf_total[i] * f;
+            }
+            out.friction[k] = f;
+            out.position[k + 1] = dot(&real.cx, &z) + r0;
+        }
+        if out.position.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFiniteModel);
+        }
+        Ok(out)
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Exact discretisation of one piece of length `h` with first-order hold on $[r, \dot r, \ddot r]$
+/// and zero-order hold on the friction: the exponential of the augmented matrix
+/// $\begin{bmatrix} A & B_u & b_f & 0 \\ 0 & 0 & 0 & I \\ 0 & 0 & 0 & 0 \end{bmatrix} h$.
+fn piece(r: &Realisation, h: f64) -> Result<Piece, Error> {
+    let n = r.a.nrows();
+    let size = n + 7;
+    let mut m = DMatrix::<f64>::zeros(size, size);
+    for i in 0..n {
+        for j in 0..n {
+            m[(i, j)] = r.a[(i, j)] * h;
+        }
+        for j in 0..3 {
+            m[(i, n + j)] = r.b[(i, j)] * h;
+        }
+        m[(i, n + 3)] = r.bf[(i, 0)] * h;
+    }
+    for j in 0..3 {
+        m[(n + j, n + 4 + j)] = h;
+    }
+    let norm = (0..size)
+        .map(|j| m.column(j).iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max);
+    if !(norm.is_finite() && norm <= MAX_EXP_NORM) {
+        return Err(Error::TooStiff {
+            norm,
+            limit: MAX_EXP_NORM,
+        });
+    }
+    let e = m.exp();
+    if e.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFiniteModel);
+    }
+    let rows = |c0: usize, w: usize, scale: f64| -> Vec<f64> {
+        (0..n)
+            .flat_map(|i| (0..w).map(move |j| (i, j)))
+            .map(|(i, j)| e[(i, c0 + j)] * scale)
+            .collect()
+    };
+    Ok(Piece {
+        phi: rows(0, n, 1.0),
+        gamma: rows(n, 3, 1.0),
+        ramp: rows(n + 4, 3, 1.0 / h),
+        gf: (0..n).map(|i| e[(i, n + 3)]).collect(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    fn table1() -> ClosedLoopModel {
+        ClosedLoopModel {
+            a1: 238.4335,
+            a2: 48421.586,
+            a3: 2487140.3,
+            b0: 0.3,
+            b1: 117.5424,
+            b2: 37258.98,
+            dc: 47.7,
+        }
+    }
+
+    /// Rest-to-rest smooth moves with reversals, sampled at `ts`: position, velocity,
+    /// acceleration, and the exact position at any time.
+    fn moves() -> impl Fn(f64) -> (f64, f64, f64) {
+        let list = [
+            (0.1, 0.25, 20.0),
+            (0.5, 0.3, -35.0),
+            (0.95, 0.12, 4.0),
+            (1.2, 0.4, 30.0),
+        ];
+        move |t: f64| {
+            let (mut p, mut v, mut a) = (0.0, 0.0, 0.0);
+            for &(t0, dur, d) in &list {
+                let s = ((t - t0) / dur).clamp(0.0, 1.0);
+                p += d * (3.0 * s * s - 2.0 * s * s * s);
+                if (0.0..1.0).contains(&s) && t > t0 {
+                    v += d * (6.0 * s - 6.0 * s * s) / dur;
+                    a += d * (6.0 - 12.0 * s) / (dur * dur);
+                }
+            }
+            (p + 5.0, v, a)
+        }
+    }
+
+    fn sampled(ts: f64, n: usize, shift: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let f = moves();
+        let (mut p, mut v, mut a) = (vec![], vec![], vec![]);
+        for k in 0..n {
+            let (x, y, z) = f(k as f64 * ts - shift);
+            p.push(x);
+            v.push(y);
+            a.push(z);
+        }
+        (p, v, a)
+    }
+
+    #[test]
+    fn core_only_matches_the_closed_loop_model() {
+        // Truth: ClosedLoopModel::simulate, the same exact scheme in another realisation.
+        let (p, v, a) = sampled(1e-3, 2000, 0.0);
+        let r = Reference {
+            pos: &p,
+            vel: &v,
+            acc: &a,
+        };
+        let o = SimOptions::default();
+        let x0 = table1().simulate(r, 1e-3, &o).unwrap();
+        let x1 = DriveModel::from(table1()).simulate(r, 1e-3, &o).unwrap();
+        let d = x0
+            .iter()
+            .zip(&x1)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(d < 1e-9, "{d}");
+    }
+
+    #[test]
+    fn whole_sample_delay_equals_a_shifted_reference() {
+        // Truth: the same model driven by the reference shifted by 7 samples (at rest before).
+        let (p, v, a) = sampled(1e-3, 2000, 0.0);
+        let shift = |s: &[f64], rest: f64| -> Vec<f64> {
+            (0..s.len())
+                .map(|k| if k < 7 { rest } else { s[k - 7] })
+                .collect()
+        };
+        let (ps, vs, as_) = (shift(&p, p[0]), shift(&v, 0.0), shift(&a, 0.0));
+        let o = SimOptions::default();
+        let m = DriveModel {
+            delay_s: 7e-3,
+            ..DriveModel::from(table1())
+        };
+        let x = m
+            .simulate(
+                Reference {
+                    pos: &p,
+                    vel: &v,
+                    acc: &a,
+                },
+                1e-3,
+                &o,
+            )
+            .unwrap();
+        let xs = DriveModel::from(table1())
+            .simulate(
+                Reference {
+                    pos: &ps,
+                    vel: &vs,
+                    acc: &as_,
+                },
+                1e-3,
+                &o,
+            )
+            .unwrap();
+        let d = x
+            .iter()
+            .zip(&xs)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(d < 1e-9, "{d}");
+    }
+
+    #[test]
+    fn sub_sample_delay_filter_and_pole_agree_with_a_fine_simulation() {
+        // Truth: the same model at a 100 times finer step, driven by the delayed first-order
+        // hold of the coarse samples evaluated exactly at the fine instants (with a fine step
+        // the knots fall on the grid, so the fine run's only approximation is its friction
+        // held per fine step). Friction off: the sticking rule acts per step by design.
+        let ts = 1e-3;
+        let (p, v, a) = sampled(ts, 1600, 0.0);
+        let mut core = table1();
+        core.dc = 0.0;
+        for m in [
+            DriveModel {
+                delay_s: 0.0374,
+                ..DriveModel::from(core)
+            },
+            DriveModel {
+                delay_s: 0.0123,
+                reference_filter: Some(ReferenceFilter::FirstOrder { tau_s: 0.006 }),
+                extra_pole_hz: Some(80.0),
+                ..DriveModel::from(core)
+            },
+            DriveModel {
+                delay_s: 0.0551,
+                reference_filter: Some(ReferenceFilter::SecondOrder {
+                    wn_hz: 20.0,
+                    zeta: 0.6,
+                }),
+                ..DriveModel::from(core)
+            },
+        ] {
+            let fine = 100;
+            let h = ts / fine as f64;
+            let interp = |s: &[f64], t: f64| {
+                let q = (t / ts).max(0.0);
+                let i = q.floor() as usize;
+                if i + 1 >= s.len() {
+                    return s[s.len() - 1];
+                }
+                s[i] + (q - i as f64) * (s[i + 1] - s[i])
+            };
+            let nf = (p.len() - 1) * fine + 1;
+            let t = |k: usize| k as f64 * h - m.delay_s;
+            let pf: Vec<f64> = (0..nf).map(|k| interp(&p, t(k))).collect();
+            let vf: Vec<f64> = (0..nf)
+                .map(|k| if t(k) < 0.0 { 0.0 } else { interp(&v, t(k)) })
+                .collect();
+            let af: Vec<f64> = (0..nf)
+                .map(|k| if t(k) < 0.0 { 0.0 } else { interp(&a, t(k)) })
+                .collect();
+            let undelayed = DriveModel { delay_s: 0.0, ..m };
+            let o = SimOptions::default();
+            let xf = undelayed
+                .simulate(
+                    Reference {
+                        pos: &pf,
+                        vel: &vf,
+                        acc: &af,
+                    },
+                    h,
+                    &o,
+                )
+                .unwrap();
+            let x = m
+                .simulate(
+                    Reference {
+                        pos: &p,
+                        vel: &v,
+                        acc: &a,
+                    },
+                    ts,
+                    &o,
+                )
+                .unwrap();
+            let d = (0..p.len())
+                .map(|k| (x[k] - xf[k * fine]).abs())
+                .fold(0.0, f64::max);
+            assert!(d < 1e-8, "{m:?}: {d} mm");
+        }
+    }
+
+    #[test]
+    fn positions_mode_tracks_a_ramp_like_the_final_value_theorem() {
+        // Truth: e_ss = v (a2 - b2) / a3 on a ramp; positions alone carry the velocity.
+        let mut m = table1();
+        m.dc = 0.0;
+        let v = 100.0;
+        let p: Vec<f64> = (0..4000).map(|k| 2.0 + v * k as f64 * 1e-3).collect();
+        let x = DriveModel::from(m)
+            .simulate_positions(&p, 1e-3, &SimOptions::default())
+            .unwrap();
+        let e = p[3999] - x[3999];
+        assert!((e - m.ramp_following_error(v)).abs() < 1e-9, "{e}");
+    }
+
+    #[test]
+    fn positions_mode_sine_matches_the_frequency_response() {
+        // Truth: the analytic FRF, delay and filter included; the first-order hold of a
+        // sampled sine is exact up to O((w Ts)^2/8) of the amplitude.
+        let mut core = table1();
+        core.dc = 0.0;
+        let m = DriveModel {
+            delay_s: 0.0213,
+            reference_filter: Some(ReferenceFilter::SecondOrder {
+                wn_hz: 25.0,
+                zeta: 0.8,
+            }),
+            extra_pole_hz: Some(60.0),
+            ..DriveModel::from(core)
+        };
+        let (ts, w, n) = (1e-3, TAU * 5.0, 6000);
+        let p: Vec<f64> = (0..n).map(|k| (w * k as f64 * ts).sin()).collect();
+        let x = m
+            .simulate_positions(&p, ts, &SimOptions::default())
+            .unwrap();
+        let g = m.tracking_frf(w);
+        let err = (4000..n)
+            .map(|k| (x[k] - g.norm() * (w * k as f64 * ts + g.arg()).sin()).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 2e-4, "{err}");
+    }
+
+    #[test]
+    fn serde_form_is_flat_and_checked() {
+        let m = DriveModel {
+            delay_s: 0.08,
+            reference_filter: Some(ReferenceFilter::SecondOrder {
+                wn_hz: 12.0,
+                zeta: 0.7,
+            }),
+            ..DriveModel::from(table1())
+        };
+        let s = serde_json::to_string(&m).unwrap();
+        assert!(
+            s.contains("\"a1\"") && s.contains("\"kind\":\"second-order\""),
+            "{s}"
+        );
+        let back: DriveModel = serde_json::from_str(&s).unwrap();
+        assert_eq!(back, m);
+        let bad = s.replace("0.08", "-0.08");
+        assert!(serde_json::from_str::<DriveModel>(&bad).is_err());
+        let unknown = s.replace("\"a1\"", "\"a9\":1,\"a1\"");
+        assert!(serde_json::from_str::<DriveModel>(&unknown).is_err());
+    }
+}

@@ -1,0 +1,729 @@
+//! Randomised accuracy suite (issue 18): independent random drives, identified from CSV files
+//! that hold only `t, xr, x`, as a user's scope recording would.
+//!
+//! Truth: the analytic closed-loop model of each drive's physical parameters
+//! (`DriveParams::closed_loop_model`, docs/drive-model.md). The traces come from the true drive
+//! simulator of `vcnc-drive` (plant with Coulomb friction and sticking, P-PI or PID controller
+//! with random feed-forward, quantised encoder) run at a servo rate of at least 200 kHz, so that
+//! the continuous model is the truth: each drive's true position is checked against a fine
+//! simulation of the analytic model (within 0.2 µm) before the drive counts.
+//!
+//! Two conventions of the simulated controls, stated because they decide that claim and the
+//! model's input:
+//! - the loop's encoder is ideal and the logged position is quantised (0.05–1 µm): an encoder
+//!   of 0.4 µm in a 200 kHz loop differentiated for velocity feedback made the drive depart
+//!   from the continuous model by 0.3 µm (limit cycling of the quantised velocity);
+//! - the control interpolates its logged setpoints linearly at the servo rate and derives its
+//!   feed-forward from them (velocity = slope, acceleration = slope changes), which is what
+//!   a model can know from a log of positions. A control that feeds forward the exact
+//!   derivatives of a trapezoidal profile instead differs from it by a sawtooth within each
+//!   sample: on one drive (Ts = 1.72 ms, 5000 mm/s²) that biased ζ by −5 % through the fit.
+//!
+//! Per drive (the issue's acceptance):
+//! - the identified model is stable;
+//! - ωn and p within 2 %, ζ within 5 % — or, where the reported relative standard deviation of
+//!   that parameter exceeds 1 % (a weakly determined pole), an error within three reported
+//!   standard deviations;
+//! - the free-run RMS error on a second, unseen program of the same drive is at most 1.2 × the
+//!   true model's;
+//! - and at least 90 % of the drives meet the fixed tolerances outright.
+//!
+//! Drives whose control shapes the reference before the loop (a dead time of 20–90 ms, or a
+//! first- or second-order nominal-position filter; the shaping is done here, at the fine
+//! rate, before the reference enters the drive simulator) are identified with the extended model
+//! structures; the table shows the 7-parameter model's validation error beside the extended one,
+//! which must come within 1.2 × the true extended model's.
+//!
+//! Run the whole suite (prints the table):
+//!
+//! ```text
+//! VCNC_SUITE=full cargo test --release -p vcnc-identify --test suite -- --nocapture
+//! ```
+//!
+//! Without `VCNC_SUITE=full` a bounded subset runs (the CI's share: four drives and two
+//! shaped ones, about 15 s). `VCNC_SUITE_IDS=3,56` runs only those drives.
+//! The per-drive step is [`identify_csv`]: CSV path in, identification out, the library route
+//! of `vcnc identify --trace FILE.csv`; swapping it for the binary changes nothing else.
+
+mod support;
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use support::RefSignal;
+use vcnc_drive::{ClosedLoopModel, ControllerSpec, DriveParams, Encoder, Plant, Poles, SimOptions};
+use vcnc_identify::{Identification, IdentifyOptions, Trace, identify};
+
+/// Drives of the full suite, and of the CI subset.
+const FULL_DRIVES: usize = 64;
+
+/// Smallest servo rate of the simulated drives, Hz.
+const MIN_SERVO_HZ: f64 = 200_000.0;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    PPi,
+    Pid,
+}
+
+/// How the control shapes the reference before the loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Shaping {
+    None,
+    /// Dead time, s.
+    Delay(f64),
+    /// First-order filter, time constant s.
+    Filter1(f64),
+    /// Second-order filter, natural frequency Hz and damping.
+    Filter2(f64, f64),
+}
+
+#[derive(Debug, Clone)]
+struct SuiteDrive {
+    id: usize,
+    kind: Kind,
+    params: DriveParams,
+    ts: f64,
+    moving: bool,
+    vmax: f64,
+    amax: f64,
+    shaping: Shaping,
+    /// Resolution of the logged position, axis units.
+    resolution: f64,
+}
+
+fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    (lo.ln() + (hi.ln() - lo.ln()) * rng.random::<f64>()).exp()
+}
+
+fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    lo + (hi - lo) * rng.random::<f64>()
+}
+
+/// A random drive: plant, controller kind and gains from random poles (both roots of the P-PI
+/// design), random feed-forward, encoder, sample period, start condition.
+fn random_drive(id: usize, shaping: Shaping) -> SuiteDrive {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5u64 << 32 | id as u64);
+    loop {
+        let j = log_uniform(&mut rng, 0.002, 0.05);
+        let b_over_j = log_uniform(&mut rng, 0.5, 20.0);
+        let kt = log_uniform(&mut rng, 0.3, 3.0);
+        let pitch = uniform(&mut rng, 5.0, 20.0);
+        let rg = pitch / std::f64::consts::TAU;
+        let dc = log_uniform(&mut rng, 20.0, 250.0);
+        let plant = Plant {
+            j,
+            b: b_over_j * j,
+            ka: 1.0,
+            kt,
+            rg,
+            coulomb_torque: dc * j / rg,
+            u_max: None,
+        };
+        let kind = if rng.random::<f64>() < 0.6 {
+            Kind::PPi
+        } else {
+            Kind::Pid
+        };
+        let poles = Poles::from_hz(
+            log_uniform(&mut rng, 3.0, 40.0),
+            log_uniform(&mut rng, 15.0, 90.0),
+            uniform(&mut rng, 0.3, 1.4),
+        );
+        let (vff, bff, jff) = (
+            rng.random::<f64>(),
+            rng.random::<f64>(),
+            0.5 * rng.random::<f64>(),
+        );
+        let larger_root = rng.random::<f64>() < 0.5;
+        let (a1, a2, a3) = poles.denominator();
+        let k = plant.ka_kt();
+        let controller = match kind {
+            Kind::PPi => {
+                // P = Ka Kt Kp / J = a1 - B/J; Kv rg solves P K^2 - a2 K + a3 = 0
+                // (docs/drive-model.md), either root.
+                let pp = a1 - b_over_j;
+                let disc = a2 * a2 - 4.0 * pp * a3;
+                if pp <= 0.0 || disc < 0.0 {
+                    continue;
+                }
+                let kk = if larger_root {
+                    (a2 + disc.sqrt()) / (2.0 * pp)
+                } else {
+                    2.0 * a3 / (a2 + disc.sqrt())
+                };
+                ControllerSpec::PPi {
+                    kv: Some(kk / rg),
+                    kp: Some(pp * j / k),
+                    ki: Some(a3 * j / (kk * k)),
+                    design: None,
+                    vff,
+                    bff,
+                    jff,
+                }
+            }
+            Kind::Pid => {
+                let kr = k * rg / j;
+                let kd = (a1 - b_over_j) / kr;
+                if kd <= 0.0 {
+                    continue;
+                }
+                ControllerSpec::Pid {
+                    kp: Some(a2 / kr),
+                    ki: Some(a3 / kr),
+                    kd: Some(kd),
+                    design: None,
+                    jff,
+                    bff,
+                }
+            }
+        };
+        let ts = (uniform(&mut rng, 0.5, 2.0) * 1e3).round() * 1e-6;
+        let resolution = log_uniform(&mut rng, 0.05e-3, 1e-3);
+        let moving = rng.random::<f64>() < 0.35;
+        let vmax = uniform(&mut rng, 100.0, 300.0);
+        let amax = uniform(&mut rng, 1000.0, 5000.0);
+        let params = DriveParams {
+            plant,
+            controller,
+            encoder: Encoder::ideal(),
+            servo_rate_hz: 1.0,
+            compliance: None,
+            friction: None,
+            current_loop: None,
+            feedback: None,
+            reference: None,
+        };
+        let sd = SuiteDrive {
+            id,
+            kind,
+            params,
+            ts,
+            moving,
+            vmax,
+            amax,
+            shaping,
+            resolution,
+        };
+        if sd.params_at(ts).validate().is_ok() {
+            return sd;
+        }
+    }
+}
+
+impl SuiteDrive {
+    /// The drive's parameters with the servo rate set for logging period `ts_log`: the smallest
+    /// whole multiple of the logging rate at or above [`MIN_SERVO_HZ`].
+    fn params_at(&self, ts_log: f64) -> DriveParams {
+        let ticks = (MIN_SERVO_HZ * ts_log).ceil();
+        DriveParams {
+            servo_rate_hz: ticks / ts_log,
+            ..self.params.clone()
+        }
+    }
+
+    fn truth(&self) -> ClosedLoopModel {
+        self.params_at(self.ts)
+            .closed_loop_model()
+            .expect("valid drive")
+    }
+
+    fn kind_name(&self) -> &'static str {
+        match self.kind {
+            Kind::PPi => "p-pi",
+            Kind::Pid => "pid",
+        }
+    }
+}
+
+/// One simulated run: what the CSV holds (t, xr, x at Ts) and the drive's true position.
+struct Run {
+    t: Vec<f64>,
+    xr: Vec<f64>,
+    x: Vec<f64>,
+    /// Largest gap between the drive's true position and a fine simulation of the analytic
+    /// model, over the whole run before any cut, axis units (see [`truth_gap`]).
+    gap: f64,
+}
+
+/// Linear interpolation of a sampled signal at fractional index `s` (held at the ends).
+fn interp(v: &[f64], s: f64) -> f64 {
+    if s <= 0.0 {
+        return v[0];
+    }
+    let i = s.floor() as usize;
+    if i + 1 >= v.len() {
+        return v[v.len() - 1];
+    }
+    let f = s - i as f64;
+    v[i] + f * (v[i + 1] - v[i])
+}
+
+/// The reference the loop receives, at the fine period `r.ts / m`: the control interpolates
+/// its logged setpoints linearly (first-order hold) and derives its feed-forward from them (the
+/// hold's slope as velocity, its slope changes as acceleration pulses of the same area), then
+/// shapes the result (dead time; reference filter integrated with RK4 at the fine step,
+/// independent of the library's discretisation). Only the setpoints `r.pos` are used.
+fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
+    let n = (r.pos.len() - 1) * m + 1;
+    let h = r.ts / m as f64;
+    let delay = match shaping {
+        Shaping::Delay(d) => d,
+        _ => 0.0,
+    };
+    let slope = |j: isize| -> f64 {
+        if j < 0 || j as usize + 1 >= r.pos.len() {
+            0.0
+        } else {
+            (r.pos[j as usize + 1] - r.pos[j as usize]) / r.ts
+        }
+    };
+    let mut pos = vec![0.0; n];
+    let mut vel = vec![0.0; n];
+    let mut acc = vec![0.0; n];
+    for k in 0..n {
+        let s = k as f64 / m as f64 - delay / r.ts;
+        pos[k] = interp(&r.pos, s);
+        vel[k] = slope(s.floor() as isize);
+    }
+    // Acceleration pulses at the (delayed) knots, on the nearest fine sample.
+    for j in 0..r.pos.len() as isize {
+        let kf = ((j as f64 * r.ts + delay) / h).round();
+        if kf >= 0.0 && (kf as usize) < n {
+            acc[kf as usize] += (slope(j) - slope(j - 1)) / h;
+        }
+    }
+    let (pos, vel, acc) = match shaping {
+        Shaping::None | Shaping::Delay(_) => (pos, vel, acc),
+        Shaping::Filter1(tau) => {
+            // y' = (u - y)/tau with u piecewise linear: RK4 is exact to O(h^5) per step.
+            let mut y = pos[0];
+            let (mut py, mut pv, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            for k in 0..n {
+                py[k] = y;
+                pv[k] = (pos[k] - y) / tau;
+                pa[k] = (vel[k] - pv[k]) / tau;
+                if k + 1 < n {
+                    let u = |s: f64| pos[k] + s * (pos[k + 1] - pos[k]);
+                    let f = |s: f64, y: f64| (u(s) - y) / tau;
+                    let k1 = f(0.0, y);
+                    let k2 = f(0.5, y + 0.5 * h * k1);
+                    let k3 = f(0.5, y + 0.5 * h * k2);
+                    let k4 = f(1.0, y + h * k3);
+                    y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+                }
+            }
+            (py, pv, pa)
+        }
+        Shaping::Filter2(f_hz, zeta) => {
+            let w = std::f64::consts::TAU * f_hz;
+            let (mut y, mut v) = (pos[0], 0.0);
+            let (mut py, mut pv, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            for k in 0..n {
+                py[k] = y;
+                pv[k] = v;
+                pa[k] = w * w * (pos[k] - y) - 2.0 * zeta * w * v;
+                if k + 1 < n {
+                    let u = |s: f64| pos[k] + s * (pos[k + 1] - pos[k]);
+                    let f = |s: f64, y: f64, v: f64| (v, w * w * (u(s) - y) - 2.0 * zeta * w * v);
+                    let (a1, b1) = f(0.0, y, v);
+                    let (a2, b2) = f(0.5, y + 0.5 * h * a1, v + 0.5 * h * b1);
+                    let (a3, b3) = f(0.5, y + 0.5 * h * a2, v + 0.5 * h * b2);
+                    let (a4, b4) = f(1.0, y + h * a3, v + h * b3);
+                    y += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+                    v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+                }
+            }
+            (py, pv, pa)
+        }
+    };
+    RefSignal {
+        ts: h,
+        pos,
+        vel,
+        acc,
+    }
+}
+
+/// Runs the drive through program `r` (sampled at the drive's Ts), logging at Ts. A shaped
+/// drive gets its reference at a fine period (shaped there) and its log is decimated back.
+fn run_drive(d: &SuiteDrive, r: &RefSignal, cut: bool) -> Run {
+    let m = (d.ts / 50e-6).round().max(1.0) as usize;
+    let lr = loop_reference(r, m, d.shaping);
+    let params = d.params_at(lr.ts);
+    let out = vcnc_drive::simulate_drive(&params, lr.as_ref(), lr.ts).expect("drive simulates");
+    let n = r.pos.len();
+    let q = d.resolution;
+    let x: Vec<f64> = (0..n)
+        .map(|k| q * (out.true_position[k * m] / q).round())
+        .collect();
+    let gap = truth_gap(d, &lr, &out.true_position);
+    let mut run = Run {
+        t: (0..n).map(|k| k as f64 * r.ts).collect(),
+        xr: r.pos.clone(),
+        x,
+        gap,
+    };
+    if cut && d.moving {
+        // A cut-out of a longer log: start 1.5 s in, within a move if there is one nearby.
+        let k0 = (1.5 / r.ts) as usize;
+        let k0 = (k0..n)
+            .find(|&k| r.vel[k].abs() > 20.0)
+            .unwrap_or(k0)
+            .min(n / 4);
+        run.t.drain(..k0);
+        run.xr.drain(..k0);
+        run.x.drain(..k0);
+    }
+    run
+}
+
+/// Largest difference between the drive's true position `x_true` (logged at `lr.ts`) and a
+/// fine simulation of the analytic model driven by the loop's reference `lr` (interpolated
+/// linearly to a step of at most 20 µs, as the servo does; sticking friction at that step),
+/// axis units. The drive and the model both start at rest at the first sample.
+fn truth_gap(d: &SuiteDrive, lr: &RefSignal, x_true: &[f64]) -> f64 {
+    let xm = d
+        .truth()
+        .simulate(lr.as_ref(), lr.ts, &SimOptions::default())
+        .expect("model simulates");
+    xm.iter()
+        .zip(x_true)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
+}
+
+fn write_csv(path: &Path, run: &Run) {
+    let mut s = String::with_capacity(run.t.len() * 48);
+    s.push_str("t,xr,x\n");
+    for k in 0..run.t.len() {
+        let _ = writeln!(s, "{},{},{}", run.t[k], run.xr[k], run.x[k]);
+    }
+    std::fs::write(path, s).expect("write csv");
+}
+
+/// Reads a `t, xr, x` CSV into a checked trace (the command's route: columns by header name,
+/// time column checked).
+fn read_csv(path: &Path) -> Result<Trace, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or("empty file")?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .ok_or(format!("no column {name}"))
+    };
+    let idx = [col("t")?, col("xr")?, col("x")?];
+    let mut cols: [Vec<f64>; 3] = Default::default();
+    for (row, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        for (c, &i) in idx.iter().enumerate() {
+            let v: f64 = f.get(i).and_then(|s| s.trim().parse().ok()).ok_or(format!(
+                "{}:{}: bad number",
+                path.display(),
+                row + 2
+            ))?;
+            cols[c].push(v);
+        }
+    }
+    let [t, xr, x] = cols;
+    Trace::from_columns(&t, &xr, &x).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The identification options of `vcnc identify --trace` (a measured drive may lack integral
+/// action: the real pole may approach 0).
+fn command_options() -> IdentifyOptions {
+    let mut opts = IdentifyOptions::default();
+    opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    opts
+}
+
+/// The per-drive step: CSV file in, identification out.
+fn identify_csv(path: &Path) -> Result<Identification, String> {
+    let trace = read_csv(path)?;
+    identify(&trace, &command_options()).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Free-run RMS error of `model` on a trace, axis units.
+fn freerun_rms(model: &ClosedLoopModel, tr: &Trace) -> f64 {
+    let xh = vcnc_identify::free_run(model, tr).expect("free run");
+    let s: f64 = xh.iter().zip(&tr.x).map(|(a, b)| (a - b) * (a - b)).sum();
+    (s / tr.len() as f64).sqrt()
+}
+
+/// Relative errors of (p, ωn, ζ) of `m` against `truth`; with three real poles, the split of
+/// the identified roots into p and a pair that matches the truth best.
+fn pole_errors(m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64; 3] {
+    // Every way of writing each model's roots as (p, pair): with three real roots any of them
+    // may be p (the split is a convention, not a property of the drive).
+    let splits = |m: &ClosedLoopModel| -> Vec<Poles> {
+        let mut out: Vec<Poles> = m.poles().into_iter().collect();
+        let roots = m.roots();
+        if roots.iter().all(|r| r.im == 0.0) {
+            for i in 0..3 {
+                let o: Vec<f64> = (0..3).filter(|&k| k != i).map(|k| roots[k].re).collect();
+                if o[0] * o[1] > 0.0 {
+                    let wn = (o[0] * o[1]).sqrt();
+                    out.push(Poles {
+                        p: -roots[i].re,
+                        wn,
+                        zeta: -(o[0] + o[1]) / (2.0 * wn),
+                    });
+                }
+            }
+        }
+        out
+    };
+    let rel = |a: f64, b: f64| (a - b) / b;
+    let worst = |e: &[f64; 3]| e.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let mut best = [f64::INFINITY; 3];
+    for pt in splits(truth) {
+        for p in splits(m) {
+            let e = [rel(p.p, pt.p), rel(p.wn, pt.wn), rel(p.zeta, pt.zeta)];
+            if worst(&e) < worst(&best) {
+                best = e;
+            }
+        }
+    }
+    best
+}
+
+struct Row {
+    line: String,
+    fixed_ok: bool,
+    ok: bool,
+    errs: [f64; 3],
+    ratio: f64,
+}
+
+fn run_one(d: &SuiteDrive, dir: &Path) -> Row {
+    let truth = d.truth();
+    let tp = truth.poles().expect("poles");
+    let prog = |seed: u64| support::identification_program(seed, 70, 50.0, d.vmax, d.amax, d.ts);
+    // The estimation trace of a "moving" drive is a cut-out of a longer log; the validation
+    // program starts at rest, so that the comparison with the true model is one of dynamics,
+    // not of a guessed initial state.
+    let est_run = run_drive(d, &prog(1000 + d.id as u64), true);
+    let val_run = run_drive(d, &prog(5000 + d.id as u64), false);
+    let gap = est_run.gap.max(val_run.gap);
+    let est_path = dir.join(format!("drive{:03}_est.csv", d.id));
+    let val_path = dir.join(format!("drive{:03}_val.csv", d.id));
+    write_csv(&est_path, &est_run);
+    write_csv(&val_path, &val_run);
+    let id = identify_csv(&est_path).expect("identifies");
+    let val = read_csv(&val_path).expect("validation trace");
+    let m = id.identified;
+    let errs = pole_errors(&m, &truth);
+    let rv = freerun_rms(&m, &val);
+    let rt = freerun_rms(&truth, &val);
+    let ratio = rv / rt;
+    let tol = [0.02, 0.02, 0.05];
+    let fixed_ok = (0..3).all(|i| errs[i].abs() <= tol[i]);
+    // Reported relative standard deviations of p, wn, zeta (issue 18 item 5).
+    let rel_std: [f64; 3] = match &id.uncertainty {
+        Some(u) => ["p_hz", "wn_hz", "zeta"].map(|n| u.get(n).map_or(f64::NAN, |q| q.relative())),
+        None => [f64::NAN; 3],
+    };
+    // A weakly determined pole (relative deviation above 1 %) may miss the fixed tolerance
+    // if it stays within three reported deviations.
+    let sigma_ok = (0..3).all(|i| {
+        errs[i].abs() <= tol[i] || (rel_std[i] > 0.01 && errs[i].abs() <= 3.0 * rel_std[i])
+    });
+    // The continuous model must be the truth within 0.2 µm for the drive to count.
+    assert!(gap <= 2e-4, "drive {}: truth gap {} µm", d.id, 1e3 * gap);
+    let ok = m.is_stable() && sigma_ok && ratio <= 1.2;
+    let ip = m.poles();
+    let line = format!(
+        "{:3} {:4} {:4.2} {:5.3} {:3} | {:6.2} {:6.2} {:5.3} | {:6.2} {:6.2} {:5.3} | {:+6.2} {:+6.2} {:+6.2} | {:5.2} {:5.2} {:5.2} | {:7.3} {:7.3} {:5.2} | {:6.3} {}",
+        d.id,
+        d.kind_name(),
+        1e3 * d.ts,
+        1e3 * d.resolution,
+        if d.moving { "mov" } else { "rest" },
+        tp.p_hz(),
+        tp.wn_hz(),
+        tp.zeta,
+        ip.map_or(f64::NAN, |p| p.p_hz()),
+        ip.map_or(f64::NAN, |p| p.wn_hz()),
+        ip.map_or(f64::NAN, |p| p.zeta),
+        100.0 * errs[0],
+        100.0 * errs[1],
+        100.0 * errs[2],
+        100.0 * rel_std[0],
+        100.0 * rel_std[1],
+        100.0 * rel_std[2],
+        1e3 * rv,
+        1e3 * rt,
+        ratio,
+        1e3 * gap,
+        if ok { "ok" } else { "FAIL" }
+    );
+    println!("{line}");
+    Row {
+        line,
+        fixed_ok,
+        ok,
+        errs,
+        ratio,
+    }
+}
+
+fn suite_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vcnc-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+#[test]
+fn randomised_drives_are_identified_from_csv() {
+    let full = std::env::var("VCNC_SUITE").is_ok_and(|v| v == "full");
+    let count = FULL_DRIVES;
+    let dir = suite_dir("suite");
+    println!(
+        "id  kind  Ts_ms q_um start | true p_Hz wn_Hz zeta | ident p_Hz wn_Hz zeta | err% p wn zeta | std% p wn zeta | val_rms_um ident true ratio | truth_gap_um"
+    );
+    // VCNC_SUITE_IDS=3,17 runs only those drives (to look at one).
+    let ids: Vec<usize> = match std::env::var("VCNC_SUITE_IDS") {
+        Ok(v) => v.split(',').filter_map(|s| s.trim().parse().ok()).collect(),
+        // The CI share: three drives from rest and one cut-out.
+        Err(_) if !full => vec![0, 1, 2, 5],
+        Err(_) => (0..count).collect(),
+    };
+    let rows: Vec<Row> = ids
+        .iter()
+        .map(|&i| run_one(&random_drive(i, Shaping::None), &dir))
+        .collect();
+    let _ = std::fs::remove_dir_all(&dir);
+    let n = rows.len();
+    let fixed = rows.iter().filter(|r| r.fixed_ok).count();
+    let ok = rows.iter().filter(|r| r.ok).count();
+    // Worst and median of |err| p, wn, zeta and of the validation ratio.
+    let stat = |f: &dyn Fn(&Row) -> f64| {
+        let mut v: Vec<f64> = rows.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        (v[v.len() - 1], v[v.len() / 2])
+    };
+    let (wp, mp) = stat(&|r| r.errs[0].abs());
+    let (ww, mw) = stat(&|r| r.errs[1].abs());
+    let (wz, mz) = stat(&|r| r.errs[2].abs());
+    let (wr, mr) = stat(&|r| r.ratio);
+    println!(
+        "{ok}/{n} pass, {fixed}/{n} within fixed tolerances; |err| worst/median: p {:.2}/{:.2} %, wn {:.2}/{:.2} %, zeta {:.2}/{:.2} %; validation ratio worst/median {:.2}/{:.2}",
+        100.0 * wp,
+        100.0 * mp,
+        100.0 * ww,
+        100.0 * mw,
+        100.0 * wz,
+        100.0 * mz,
+        wr,
+        mr
+    );
+    let failed: Vec<&str> = rows
+        .iter()
+        .filter(|r| !r.ok)
+        .map(|r| r.line.as_str())
+        .collect();
+    assert!(failed.is_empty(), "failed drives:\n{}", failed.join("\n"));
+    assert!(10 * fixed >= 9 * n);
+}
+
+/// Drives whose control delays (20–90 ms) or filters (first or second order) the reference
+/// before the loop: the 7-parameter model's validation error beside the extended structure's,
+/// which must come within 1.2 × the true extended model's (the analytic core with the true
+/// shaping, [`vcnc_drive::DriveModel`]). Each identification tries every structure and
+/// chooses by a held-out part of the estimation trace.
+#[test]
+fn shaped_references_are_identified_with_the_extended_structures() {
+    use vcnc_drive::{DriveModel, ReferenceFilter};
+    use vcnc_identify::ModelStructure;
+    let full = std::env::var("VCNC_SUITE").is_ok_and(|v| v == "full");
+    let mut cases = vec![
+        (100, Shaping::Delay(0.085)),
+        (101, Shaping::Filter2(12.0, 0.8)),
+    ];
+    if full {
+        cases.extend([
+            (102, Shaping::Delay(0.021)),
+            (103, Shaping::Delay(0.047)),
+            (104, Shaping::Filter1(0.008)),
+            (105, Shaping::Filter1(0.03)),
+            (106, Shaping::Filter2(25.0, 1.0)),
+            (107, Shaping::Delay(0.0633)),
+        ]);
+    }
+    let dir = suite_dir("shaped");
+    println!("id  shaping        | chosen               | val_rms_um 7-par  extended  true  ratio");
+    let mut failed = vec![];
+    for (id, shaping) in cases {
+        let mut d = random_drive(id, shaping);
+        d.moving = false;
+        let prog =
+            |seed: u64| support::identification_program(seed, 70, 50.0, d.vmax, d.amax, d.ts);
+        let est = run_drive(&d, &prog(1000 + id as u64), false);
+        let val = run_drive(&d, &prog(5000 + id as u64), false);
+        let (pe, pv) = (
+            dir.join(format!("shaped{id}_est.csv")),
+            dir.join(format!("shaped{id}_val.csv")),
+        );
+        write_csv(&pe, &est);
+        write_csv(&pv, &val);
+        let opts = IdentifyOptions {
+            structures: ModelStructure::ALL.to_vec(),
+            ..command_options()
+        };
+        let tr = read_csv(&pe).expect("trace");
+        let id_ = identify(&tr, &opts).expect("identifies");
+        let vt = read_csv(&pv).expect("trace");
+        let true_model = DriveModel {
+            delay_s: match shaping {
+                Shaping::Delay(t) => t,
+                _ => 0.0,
+            },
+            reference_filter: match shaping {
+                Shaping::Filter1(tau_s) => Some(ReferenceFilter::FirstOrder { tau_s }),
+                Shaping::Filter2(wn_hz, zeta) => Some(ReferenceFilter::SecondOrder { wn_hz, zeta }),
+                _ => None,
+            },
+            ..DriveModel::from(d.truth())
+        };
+        let rms = |m: &DriveModel| {
+            let xh = vcnc_identify::free_run_model(m, &vt).expect("free run");
+            let s: f64 = xh.iter().zip(&vt.x).map(|(a, b)| (a - b) * (a - b)).sum();
+            (s / vt.len() as f64).sqrt()
+        };
+        let (r7, rx, rt) = (
+            rms(&DriveModel::from(id_.identified)),
+            rms(&id_.model),
+            rms(&true_model),
+        );
+        let ok = rx <= 1.2 * rt && id_.model.is_stable();
+        let shaping_name = format!("{shaping:?}");
+        let line = format!(
+            "{id} {:14} | {:20} | {:9.3} {:9.3} {:7.3} {:5.2} {} Td {:.4} filter {:?} pole {:?}",
+            shaping_name,
+            id_.structure.name(),
+            1e3 * r7,
+            1e3 * rx,
+            1e3 * rt,
+            rx / rt,
+            if ok { "ok" } else { "FAIL" },
+            id_.model.delay_s,
+            id_.model.reference_filter,
+            id_.model.extra_pole_hz
+        );
+        println!("{line}");
+        if !ok {
+            failed.push(line);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(failed.is_empty(), "failed:\n{}", failed.join("\n"));
+}
