@@ -606,23 +606,22 @@ fn halsampler_overrun_is_refused_or_skipped_with_gaps_longest() {
 }
 
 #[test]
-#[ignore = "known bug: the refinement's free run starts a moving trace at rest (see docs/identification.md, Traces that start moving)"]
 fn longest_stretch_that_starts_moving_is_identified() {
     // Overrun early in the run: the stretch after it is the longer one and starts in the middle
-    // of a move. The equation-error stage (paper PSO, least squares with the constant column)
-    // identifies Z within 1.2 %; the refinement, whose free-run simulations start at rest one
-    // sample before, then fits the start transient instead (ζ +123 %, p +53 % today).
+    // of a move. A regression test: the refinement's free run starts at rest, so it used to fit
+    // the start transient (ζ +123 %, p +53 %); moving starts now leave their first 0.5 s out of
+    // the fit (docs/identification.md).
     let (s, _) = overrun_case(0.40);
     assert_eq!(s["axes"]["Z"]["moving_start"], true);
 }
 
 #[test]
-#[ignore = "known bug: identification of traces sampled at 2-3 ms is biased (reference derivatives by central differences)"]
 fn trace_sampled_at_3_ms_identifies_as_well_as_the_machine_route() {
     // The machine route identifies the NMV5000 at a 3 ms period within 0.4 % (X) and 1.6 % (C)
     // with the interpolator's exact reference velocity and acceleration; the same records as a
-    // 3 ms halscope log (a trace carries no derivatives) give X ζ +15 % and C ζ at its bound 1.0
-    // today. A control's scope often samples at 2-3 ms (interpolator cycle).
+    // 3 ms halscope log (a trace carries no derivatives) gave X ζ +15 % and C ζ at its bound 1.0
+    // while the model was driven by central differences; it is now driven by the first-order
+    // hold of the logged positions. A control's scope often samples at 2-3 ms.
     let rec = record(Some(3e-3));
     let dir = tempdir();
     let path = dir.path().join("xyzac-3ms.log");
