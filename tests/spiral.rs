@@ -3,7 +3,7 @@
 
 use std::sync::OnceLock;
 
-use vcnc_drive::{AxisName, ClosedLoopModel};
+use vcnc_drive::{AxisName, DriveModel};
 use vcnc_machine::{Machine, embedded};
 use vcnc_pipeline::run::Measured;
 use vcnc_pipeline::{AxisIdentification, Prediction, Run, identify, predict, run};
@@ -25,8 +25,8 @@ fn fixture() -> &'static Fixture {
             run::prepare(&machine, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
         let axes: Vec<_> = machine.axes.iter().collect();
         let ids = identify::identify_axes(&machine, &axes, None).expect("identification");
-        let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
-        let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
+        let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model.clone()).collect();
+        let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
         let [refined, paper]: [Prediction; 2] =
             predict::predict_many(&machine, &run, &[&refined, &paper])
                 .expect("prediction")

@@ -329,7 +329,12 @@ fn multi_axis_halscope_log_gives_one_model_that_predict_uses() {
             machine
                 .axes
                 .iter()
-                .map(|a| (a.name.to_string(), AxisModel::new(a.unit, &a.true_model())))
+                .map(|a| {
+                    (
+                        a.name.to_string(),
+                        AxisModel::new(a.unit, &a.true_model().into()),
+                    )
+                })
                 .collect::<BTreeMap<_, _>>()
         },
     };

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use serde::Serialize;
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::DriveModel;
 use vcnc_machine::{Machine, embedded};
 use vcnc_pipeline::identify::{self, AxisOverview, IdentifySummary};
 use vcnc_pipeline::predict::{self, ContourSummary};
@@ -52,8 +52,8 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     );
     let (ids, run) = (ids?, run?);
     print_warnings(&run.warnings);
-    let refined: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.identified).collect();
-    let paper: Vec<ClosedLoopModel> = ids.iter().map(|r| r.result.paper_pso).collect();
+    let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model.clone()).collect();
+    let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
     let mask = run.measured(Measured::Feed);
     let [p, pp]: [predict::Prediction; 2] =
         predict::predict_many(&machine, &run, &[&refined, &paper])?

@@ -1,6 +1,7 @@
 //! `vcnc frf`: tracking and disturbance frequency responses of each axis.
 
 use std::path::Path;
+use vcnc_drive::DriveModel;
 
 use anyhow::Result;
 use vcnc_machine::{Machine, ModelSet};
@@ -35,14 +36,14 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
             tag: "true",
             label: TRUE_MACHINE,
             role: Role::TrueMachine,
-            model: &truth,
+            model: DriveModel::from(truth),
         }];
         if let Some(m) = &models {
             list.push(FrfModel {
                 tag: "model",
                 label: VCNC_MODEL,
                 role: Role::Model,
-                model: &m[i],
+                model: m[i].clone(),
             });
         }
         figures::frf(

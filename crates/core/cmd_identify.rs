@@ -12,10 +12,10 @@ use vcnc_trace::{AxisMap, ChannelRef, GapPolicy, PairOptions};
 
 use crate::cli::{GapsArg, IdentifyArgs};
 use crate::output::ensure_dir;
-use crate::table::table;
+use crate::table::{print_warnings, table};
 use crate::writers::{
     MACHINE_MODELS, fmt_poles, identification_table, identify_machine_report,
-    identify_trace_report, write_identification,
+    identify_trace_report, model_table, write_identification,
 };
 use crate::{Ctx, bad_input};
 
@@ -50,6 +50,9 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let machine = Machine::load(path)?;
     let axes = identify::select_axes(&machine, &args.axes)?;
     let results = identify::identify_axes(&machine, &axes, args.seed)?;
+    for r in &results {
+        print_warnings(&identify::axis_warnings(r));
+    }
     ensure_dir(&args.out)?;
     let mut report = identify_machine_report(&args.out, &machine.name, path, &results, args.seed);
     write_identification(
@@ -61,6 +64,7 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     )?;
     if !ctx.quiet {
         print!("{}", identification_table(&results));
+        print!("{}", model_table(&results));
         println!("-> {}", args.out.display());
     }
     Ok(())
@@ -114,6 +118,9 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         );
     }
     let ids = traces::identify_measured(&measured, &options, args.seed)?;
+    for r in &ids {
+        print_warnings(&identify::axis_warnings(r));
+    }
     ensure_dir(&args.out)?;
     let mut report = identify_trace_report(
         &args.out,
@@ -172,6 +179,8 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                 )
             );
         }
+        print!("{}", model_table(&ids));
+        print!("{}", model_table(&ids));
         println!("-> {}", args.out.display());
     }
     Ok(())

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use anyhow::Result;
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::DriveModel;
 use vcnc_machine::{Machine, ModelSet};
 use vcnc_pipeline::identify;
 use vcnc_pipeline::predict::{self, ContourSummary, PredictSummary};
@@ -32,7 +32,7 @@ pub fn predict(
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
     let mask = run.measured(measured);
     print_warnings(&run.warnings);
-    let (models, source): (Vec<ClosedLoopModel>, String) = match model {
+    let (models, source): (Vec<DriveModel>, String) = match model {
         Some(p) => (
             ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?,
             p.display().to_string(),
@@ -41,7 +41,7 @@ pub fn predict(
             let axes = identify::select_axes(&machine, &[])?;
             let ids = identify::identify_axes(&machine, &axes, None)?;
             (
-                ids.iter().map(|r| r.result.identified).collect(),
+                ids.iter().map(|r| r.result.model.clone()).collect(),
                 "identified on the fly".to_string(),
             )
         }

@@ -10,7 +10,7 @@
 
 use anyhow::Result;
 use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::DriveModel;
 use vcnc_kinematics::Pose;
 use vcnc_pipeline::frf::{BodeData, standard_freqs};
 use vcnc_pipeline::stats::scaled_diff;
@@ -74,7 +74,7 @@ pub struct FrfModel<'a> {
     /// Role of the curve.
     pub role: Role,
     /// The model.
-    pub model: &'a ClosedLoopModel,
+    pub model: DriveModel,
 }
 
 /// Writes `<prefix>.csv` (tracking and disturbance Bode data of each model) into the report's
@@ -90,7 +90,7 @@ pub fn frf(
     let freqs = standard_freqs();
     let data: Vec<BodeData> = models
         .iter()
-        .map(|m| BodeData::of(m.model, &freqs))
+        .map(|m| BodeData::of(&m.model, &freqs))
         .collect();
     let mut header = vec!["f_hz".to_string()];
     let mut cols: Vec<&[f64]> = vec![&freqs];
@@ -166,20 +166,20 @@ pub fn identification(report: &mut RunReport, r: &AxisIdentification) -> Result<
             tag: "true",
             label: TRUE_MACHINE,
             role: Role::TrueMachine,
-            model: t,
+            model: DriveModel::from(*t),
         });
     }
     models.push(FrfModel {
         tag: "identified",
         label: VCNC_MODEL,
         role: Role::Model,
-        model: &r.result.identified,
+        model: r.result.model.clone(),
     });
     models.push(FrfModel {
         tag: "paper_PSO",
         label: PAPER,
         role: Role::Paper,
-        model: &r.result.paper_pso,
+        model: DriveModel::from(r.result.paper_pso),
     });
     frf(
         report,

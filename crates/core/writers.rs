@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use vcnc_drive::ClosedLoopModel;
-use vcnc_pipeline::identify::{IdentifySummary, model_set};
+use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
 use crate::figures;
@@ -34,6 +34,17 @@ pub fn write_identification(
     let set = model_set(model_machine, model_description, ids);
     write_atomic(&out.join("model.toml"), set.to_toml_string()?.as_bytes())?;
     identification_report_table(report, ids);
+    let (header, rows) = model_rows(ids);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    report.table(
+        "chosen model structure and parameter uncertainty",
+        &header,
+        rows,
+        "structure chosen by the validation error among those tried; ± one standard deviation \
+         from the refinement's Jacobian with the residual's autocorrelation (docs/identification.md)",
+    );
+    let warnings: Vec<String> = ids.iter().flat_map(axis_warnings).collect();
+    report.warnings(&warnings);
     for r in ids {
         let a = r.axis;
         report.file(
@@ -135,6 +146,63 @@ pub fn identification_report_table(report: &mut RunReport, ids: &[AxisIdentifica
         "dc: Coulomb friction acceleration, axis units/s²; validation on a second excitation run \
          not used to identify",
     );
+}
+
+/// Per axis: the chosen structure and each of its parameters with its standard deviation.
+pub fn model_rows(ids: &[AxisIdentification]) -> (Vec<String>, Vec<Vec<String>>) {
+    let header = ["axis", "structure", "parameter", "value", "± std", "± %"]
+        .map(String::from)
+        .to_vec();
+    let mut rows = Vec::new();
+    for r in ids {
+        let id = &r.result;
+        let Some(u) = &id.uncertainty else {
+            rows.push(vec![
+                r.axis.to_string(),
+                id.structure.to_string(),
+                "-".into(),
+                "-".into(),
+                "-".into(),
+                "-".into(),
+            ]);
+            continue;
+        };
+        for (i, p) in u.parameters.iter().enumerate() {
+            let rel = 100.0 * p.relative();
+            rows.push(vec![
+                if i == 0 {
+                    r.axis.to_string()
+                } else {
+                    String::new()
+                },
+                if i == 0 {
+                    id.structure.to_string()
+                } else {
+                    String::new()
+                },
+                p.name.to_string(),
+                format!("{:.6}", p.value),
+                if p.std.is_finite() {
+                    format!("{:.3e}", p.std)
+                } else {
+                    "undetermined".into()
+                },
+                if rel.is_finite() {
+                    format!("{rel:.2}")
+                } else {
+                    "-".into()
+                },
+            ]);
+        }
+    }
+    (header, rows)
+}
+
+/// The chosen structures and their parameters with standard deviations, for the terminal.
+pub fn model_table(ids: &[AxisIdentification]) -> String {
+    let (header, rows) = model_rows(ids);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    table(&header, &rows)
 }
 
 /// `wn [Hz] / zeta / p [Hz]` of a model, or `-`.

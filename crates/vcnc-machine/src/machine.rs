@@ -559,6 +559,10 @@ impl Checker<'_> {
             options: OptionsFile {
                 options: f.options.clone(),
                 sets_p_bounds,
+                sets_structures: table_has(
+                    &self.doc.table,
+                    &["identification", "options", "structures"],
+                ),
             },
         })
     }

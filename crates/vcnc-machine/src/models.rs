@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::{ClosedLoopModel, DriveModel, ReferenceFilter};
 
 use crate::file::Unit;
 use crate::locate::{error_offset, line_col, locate_key};
@@ -45,11 +45,25 @@ pub struct AxisModel {
     pub b2: f64,
     /// Coulomb friction acceleration, units/s².
     pub dc: f64,
+    /// Dead time of the reference, s (0 or absent: none; docs/identification.md).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub delay_s: f64,
+    /// The control's nominal-position filter, if the model has one:
+    /// `{ kind = "first-order", tau_s }` or `{ kind = "second-order", wn_hz, zeta }`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_filter: Option<ReferenceFilter>,
+    /// An extra real pole of the loop, Hz, if the model has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extra_pole_hz: Option<f64>,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl AxisModel {
-    /// The closed-loop model.
-    pub fn model(&self) -> ClosedLoopModel {
+    /// The 7-parameter core of the model.
+    pub fn core(&self) -> ClosedLoopModel {
         ClosedLoopModel {
             a1: self.a1,
             a2: self.a2,
@@ -61,17 +75,31 @@ impl AxisModel {
         }
     }
 
+    /// The model: the core with its dead time, reference filter and extra pole.
+    pub fn model(&self) -> DriveModel {
+        DriveModel {
+            core: self.core(),
+            delay_s: self.delay_s,
+            reference_filter: self.reference_filter,
+            extra_pole_hz: self.extra_pole_hz,
+        }
+    }
+
     /// From a model and its unit.
-    pub fn new(unit: Unit, m: &ClosedLoopModel) -> AxisModel {
+    pub fn new(unit: Unit, m: &DriveModel) -> AxisModel {
+        let c = &m.core;
         AxisModel {
             unit,
-            a1: m.a1,
-            a2: m.a2,
-            a3: m.a3,
-            b0: m.b0,
-            b1: m.b1,
-            b2: m.b2,
-            dc: m.dc,
+            a1: c.a1,
+            a2: c.a2,
+            a3: c.a3,
+            b0: c.b0,
+            b1: c.b1,
+            b2: c.b2,
+            dc: c.dc,
+            delay_s: m.delay_s,
+            reference_filter: m.reference_filter,
+            extra_pole_hz: m.extra_pole_hz,
         }
     }
 }
@@ -106,7 +134,15 @@ impl ModelSet {
             message: e.message().trim().to_string(),
         })?;
         for (name, m) in &set.axes {
-            let model = m.model();
+            if let Err(e) = m.model().validate() {
+                return Err(Error::Invalid {
+                    file: file.to_string(),
+                    at: locate_key(src, &["axes", name]),
+                    key: format!("axes.{name}"),
+                    message: format!("the model of axis {name}: {e}"),
+                });
+            }
+            let model = m.core();
             if !model.is_finite() || !model.is_marginally_stable() {
                 let poles = model
                     .roots()
@@ -127,11 +163,7 @@ impl ModelSet {
 
     /// The model of each machine axis, in the machine's order; errors if one is missing or has
     /// the wrong unit.
-    pub fn for_machine(
-        &self,
-        machine: &Machine,
-        file: &str,
-    ) -> Result<Vec<ClosedLoopModel>, Error> {
+    pub fn for_machine(&self, machine: &Machine, file: &str) -> Result<Vec<DriveModel>, Error> {
         machine
             .axes
             .iter()

@@ -19,15 +19,18 @@ use vcnc_identify::IdentifyOptions;
 use crate::Error;
 use crate::locate::{error_offset, line_col, locate_key};
 
-/// Identifier options read from a file, with whether the file sets the lower pole bound
-/// `bounds.p_hz` itself (callers relax its default for drives without integral action only
-/// when it does not).
+/// Identifier options read from a file, with whether the file sets the keys whose defaults
+/// depend on the data: the pole bound `bounds.p_hz` (relaxed for drives without integral action
+/// when not set) and `structures` (every structure is tried when not set).
+/// (docs/machine-file.md, "One bound rule for machines and traces".)
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct OptionsFile {
     /// The options, checked.
     pub options: IdentifyOptions,
     /// True when the file writes `bounds.p_hz`.
     pub sets_p_bounds: bool,
+    /// True when the file writes `structures`.
+    pub sets_structures: bool,
 }
 
 impl OptionsFile {
@@ -58,14 +61,16 @@ impl OptionsFile {
                 message: e.to_string(),
             });
         }
-        let sets_p_bounds = src
-            .parse::<toml::Table>()
-            .ok()
+        let table = src.parse::<toml::Table>().ok();
+        let sets_p_bounds = table
+            .as_ref()
             .and_then(|t| t.get("bounds")?.get("p_hz").map(|_| ()))
             .is_some();
+        let sets_structures = table.as_ref().is_some_and(|t| t.contains_key("structures"));
         Ok(OptionsFile {
             options,
             sets_p_bounds,
+            sets_structures,
         })
     }
 }

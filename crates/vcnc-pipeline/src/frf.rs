@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
 use serde::Serialize;
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::{ClosedLoopModel, DriveModel};
 use vcnc_kinematics::nalgebra::Complex;
 use vcnc_machine::Machine;
 
@@ -56,10 +56,24 @@ pub struct BodeData {
 }
 
 impl BodeData {
-    /// Bode data of `m` at `freqs` Hz.
-    pub fn of(m: &ClosedLoopModel, freqs: &[f64]) -> BodeData {
-        let (track_mag, track_phase) = bode(freqs, |w| m.tracking_frf(w));
-        let (dist_mag, dist_phase) = bode(freqs, |w| m.disturbance_frf(w));
+    /// Bode data of `m` at `freqs` Hz (a model without dead time, filter or extra pole as
+    /// its 7-parameter core).
+    pub fn of(m: &DriveModel, freqs: &[f64]) -> BodeData {
+        let core = m.is_core_only();
+        let (track_mag, track_phase) = bode(freqs, |w| {
+            if core {
+                m.core.tracking_frf(w)
+            } else {
+                m.tracking_frf(w)
+            }
+        });
+        let (dist_mag, dist_phase) = bode(freqs, |w| {
+            if core {
+                m.core.disturbance_frf(w)
+            } else {
+                m.disturbance_frf(w)
+            }
+        });
         BodeData {
             track_mag,
             track_phase,
@@ -120,7 +134,7 @@ pub struct FrfSummary {
 }
 
 /// The FRF summary of a machine (and of models, one per machine axis).
-pub fn frf_summary(machine: &Machine, models: Option<&[ClosedLoopModel]>) -> FrfSummary {
+pub fn frf_summary(machine: &Machine, models: Option<&[DriveModel]>) -> FrfSummary {
     FrfSummary {
         machine: machine.name.clone(),
         axes: machine
@@ -134,7 +148,7 @@ pub fn frf_summary(machine: &Machine, models: Option<&[ClosedLoopModel]>) -> Frf
                     AxisFrfSummary {
                         truth: ModelSummary::of(&truth),
                         bandwidth_3db_hz: bandwidth_hz(&truth),
-                        model: models.map(|m| ModelSummary::of(&m[i])),
+                        model: models.map(|m| ModelSummary::of_drive(&m[i])),
                     },
                 )
             })

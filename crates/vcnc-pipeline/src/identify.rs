@@ -23,9 +23,12 @@ use crate::run::AxisSignals;
 use crate::summary::{FitSummary, ModelSummary, PoleErrors};
 
 /// The identifier options a run uses: the file's, with the seed overridden when given, and the
-/// one bound rule of vcnc — unless the options set `bounds.p_hz` themselves, the real pole may
-/// approach 0 (lower bound 1e-4 Hz), so that drives without integral action ($a_3 = 0$, such as
-/// the EMPS benchmark) are identifiable.
+/// same two rules for machines and traces (docs/machine-file.md): unless the options set
+/// `bounds.p_hz`, the real pole may approach 0 (lower bound 1e-4 Hz), so that drives without
+/// integral action ($a_3 = 0$, such as the EMPS benchmark) are identifiable; unless they set
+/// `structures`, every model structure is tried (the paper's, dead time, first- and
+/// second-order reference filter, extra pole) and the one with the smallest validation error is
+/// kept (docs/identification.md).
 pub fn identifier_options(file: &OptionsFile, seed: Option<u64>) -> IdentifyOptions {
     let mut opts = file.options.clone();
     if let Some(s) = seed {
@@ -33,6 +36,9 @@ pub fn identifier_options(file: &OptionsFile, seed: Option<u64>) -> IdentifyOpti
     }
     if !file.sets_p_bounds {
         opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    }
+    if !file.sets_structures {
+        opts.structures = vcnc_identify::ModelStructure::ALL.to_vec();
     }
     opts
 }
@@ -228,13 +234,18 @@ pub fn identify_axis(
     let (est, val) = (est?, val?);
     let subject = format!("axis {}", a.name);
     let trace = est.identification_trace()?;
-    let result =
-        vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(&subject, e))?;
     let vtrace = val.identification_trace()?;
-    // One regressor pass over the validation run serves both models.
-    let regs = Regressors::build(&vtrace, &opts).map_err(|e| Error::identify(&subject, e))?;
-    let validation = fit_metrics_with(&result.identified, &vtrace, &regs)
+    // The structure is chosen by the validation run's error.
+    let result = vcnc_identify::identify_with_validation(&trace, &vtrace, &opts)
         .map_err(|e| Error::identify(&subject, e))?;
+    // One regressor pass over the validation run serves the 7-parameter models.
+    let regs = Regressors::build(&vtrace, &opts).map_err(|e| Error::identify(&subject, e))?;
+    let validation = if result.model.is_core_only() {
+        fit_metrics_with(&result.model.core, &vtrace, &regs)
+    } else {
+        vcnc_identify::score(&result.model, &vtrace, None, &opts)
+    }
+    .map_err(|e| Error::identify(&subject, e))?;
     let validation_paper = fit_metrics_with(&result.paper_pso, &vtrace, &regs)
         .map_err(|e| Error::identify(&subject, e))?;
     Ok(AxisIdentification {
@@ -274,8 +285,17 @@ pub fn identify_trace(
 ) -> Result<AxisIdentification, Error> {
     let file = &axis.provenance.file;
     let opts = identifier_options(options, seed);
-    let result = vcnc_identify::identify(&trace, &opts)
-        .map_err(|e| Error::identify(format!("{file} axis {}", axis.axis), e))?;
+    let subject = format!("{file} axis {}", axis.axis);
+    let result =
+        vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(&subject, e))?;
+    // The chosen model's fit on the whole trace (its structure was chosen on a held-out part,
+    // reported beside it in `structures`).
+    let validation = if result.model.is_core_only() {
+        Ok(result.fit_estimation.clone())
+    } else {
+        vcnc_identify::score(&result.model, &trace, None, &opts)
+    }
+    .map_err(|e| Error::identify(&subject, e))?;
     Ok(AxisIdentification {
         axis: axis.axis,
         unit: axis.unit,
@@ -284,7 +304,7 @@ pub fn identify_trace(
             provenance: Box::new(axis.provenance.clone()),
         },
         options: opts,
-        validation: result.fit_estimation.clone(),
+        validation,
         validation_paper: result.fit_estimation_paper.clone(),
         result,
         validation_trace: trace,
@@ -298,12 +318,7 @@ pub fn model_set(machine: &str, description: &str, ids: &[AxisIdentification]) -
         description: Some(description.to_string()),
         axes: ids
             .iter()
-            .map(|r| {
-                (
-                    r.axis.to_string(),
-                    AxisModel::new(r.unit, &r.result.identified),
-                )
-            })
+            .map(|r| (r.axis.to_string(), AxisModel::new(r.unit, &r.result.model)))
             .collect(),
     }
 }
@@ -366,7 +381,55 @@ pub struct AxisIdentifySummary {
     /// Where a measured axis' samples come from (measured traces).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub trace: Option<AxisTraceSummary>,
+    /// The structure chosen by validation error (`paper`, `delay`, `first-order-filter`,
+    /// `second-order-filter`, `extra-pole`).
+    pub structure: vcnc_identify::ModelStructure,
+    /// The chosen model, with its dead time, reference filter or extra pole: what model.toml
+    /// holds (`identified` is the paper structure's model).
+    pub model: ModelSummary,
+    /// Every structure tried, with its estimation fit and the validation error that chose.
+    pub structures: Vec<StructureSummary>,
+    /// Standard deviations of the chosen model's parameters (p_hz, wn_hz, zeta, dc, then its
+    /// structure's own), from the refinement's Jacobian with the residual's autocorrelation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<Vec<ParameterSummary>>,
+    /// Parameters of the chosen model that ended on a bound of their search region.
+    pub on_bounds: Vec<vcnc_identify::BoundHit>,
+    /// Warnings about this axis' model (parameters on bounds, relative deviations above 10 %).
+    pub warnings: Vec<String>,
 }
+
+/// One model structure as identified.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureSummary {
+    /// The structure.
+    pub structure: vcnc_identify::ModelStructure,
+    /// Its model.
+    pub model: ModelSummary,
+    /// Its fit on the estimation run.
+    pub fit_estimation: FitSummary,
+    /// Its error where the structure was chosen (the validation run, or the held-out end of a
+    /// single trace).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_validation: Option<FitSummary>,
+}
+
+/// A parameter and its standard deviation.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParameterSummary {
+    /// `p_hz`, `wn_hz`, `zeta`, `dc` (axis units/s²), `delay_s`, `filter_tau_s`,
+    /// `filter_wn_hz`, `filter_zeta`, `extra_pole_hz`.
+    pub name: &'static str,
+    /// Value, in the parameter's unit.
+    pub value: f64,
+    /// Standard deviation, same unit (null when undetermined).
+    pub std: Option<f64>,
+    /// Relative standard deviation, % (null when undetermined).
+    pub relative_percent: Option<f64>,
+}
+
+/// Relative deviation above which a parameter is called poorly determined.
+pub const UNCERTAIN_RELATIVE: f64 = 0.10;
 
 /// The samples of a measured axis: how many, their period, and their channels.
 #[derive(Debug, Clone, Serialize)]
@@ -410,6 +473,34 @@ impl AxisIdentifySummary {
             },
             regressor_condition: id.condition_number,
             moving_start: (!simulated).then_some(id.moving_start),
+            structure: id.structure,
+            model: ModelSummary::of_drive(&id.model),
+            structures: id
+                .structures
+                .iter()
+                .map(|s| StructureSummary {
+                    structure: s.structure,
+                    model: ModelSummary::of_drive(&s.model),
+                    fit_estimation: fit(&s.estimation),
+                    fit_validation: s.validation.as_ref().map(fit),
+                })
+                .collect(),
+            uncertainty: id.uncertainty.as_ref().map(|u| {
+                u.parameters
+                    .iter()
+                    .map(|p| {
+                        let finite = |v: f64| v.is_finite().then_some(v);
+                        ParameterSummary {
+                            name: p.name,
+                            value: p.value,
+                            std: finite(p.std),
+                            relative_percent: finite(100.0 * p.relative()),
+                        }
+                    })
+                    .collect()
+            }),
+            on_bounds: id.on_bounds.clone(),
+            warnings: axis_warnings(r),
             trace: match &r.source {
                 IdentificationSource::Measured { provenance, .. } => Some(AxisTraceSummary {
                     samples: r.validation_trace.len(),
@@ -420,6 +511,42 @@ impl AxisIdentifySummary {
             },
         }
     }
+}
+
+/// What a user must know about an axis' model: parameters that ended on a bound of their
+/// search region, and parameters whose relative standard deviation exceeds 10 % (they are not
+/// determined by the data; dc often is not).
+pub fn axis_warnings(r: &AxisIdentification) -> Vec<String> {
+    let id = &r.result;
+    let mut w: Vec<String> = id
+        .on_bounds
+        .iter()
+        .map(|b| {
+            format!(
+                "axis {}: {} = {} ended on its {} bound (widen identification.options bounds or check the data)",
+                r.axis, b.parameter, b.value, b.bound
+            )
+        })
+        .collect();
+    if let Some(u) = &id.uncertainty {
+        for name in u.flagged(UNCERTAIN_RELATIVE) {
+            if let Some(p) = u.parameters.iter().find(|p| p.name == name) {
+                let rel = 100.0 * p.relative();
+                w.push(if rel.is_finite() {
+                    format!(
+                        "axis {}: {name} = {:.4} is poorly determined by the data (± {rel:.0} %)",
+                        r.axis, p.value
+                    )
+                } else {
+                    format!(
+                        "axis {}: {name} = {:.4} is not determined by the data",
+                        r.axis, p.value
+                    )
+                });
+            }
+        }
+    }
+    w
 }
 
 /// `summary.json` of `vcnc identify`: a machine's axes, or a trace's.

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 use vcnc_contour::{ContourReport, contour_errors};
-use vcnc_drive::{ClosedLoopModel, DriveTrace};
+use vcnc_drive::{DriveModel, DriveTrace};
 use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 
@@ -265,11 +265,7 @@ pub struct PredictSummary {
 }
 
 /// Runs `run` through the true drives and through `models`, and evaluates both contour errors.
-pub fn predict(
-    machine: &Machine,
-    run: &Run,
-    models: &[ClosedLoopModel],
-) -> Result<Prediction, Error> {
+pub fn predict(machine: &Machine, run: &Run, models: &[DriveModel]) -> Result<Prediction, Error> {
     let mut all = predict_many(machine, run, &[models])?;
     Ok(all.remove(0))
 }
@@ -279,7 +275,7 @@ pub fn predict(
 pub fn predict_many(
     machine: &Machine,
     run: &Run,
-    model_sets: &[&[ClosedLoopModel]],
+    model_sets: &[&[DriveModel]],
 ) -> Result<Vec<Prediction>, Error> {
     use rayon::prelude::*;
     let truth = || -> Result<_, Error> {
@@ -326,7 +322,7 @@ pub struct ModelRun {
 pub fn model_contour(
     machine: &Machine,
     run: &Run,
-    models: &[ClosedLoopModel],
+    models: &[DriveModel],
 ) -> Result<ModelRun, Error> {
     let positions = simulate_models(models, run)?;
     let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();

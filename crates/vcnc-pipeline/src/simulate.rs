@@ -3,7 +3,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::{ClosedLoopModel, DriveTrace, SimOptions};
+use vcnc_drive::{ClosedLoopModel, DriveModel, DriveTrace, SimOptions};
 use vcnc_machine::Machine;
 
 use crate::Error;
@@ -28,8 +28,10 @@ pub fn simulate_true(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Er
         .collect()
 }
 
-/// Runs every axis reference through a closed-loop model (one per machine axis, in order).
-pub fn simulate_models(models: &[ClosedLoopModel], run: &Run) -> Result<Vec<Vec<f64>>, Error> {
+/// Runs every axis reference through its model (one per machine axis, in order). A model
+/// without dead time, reference filter or extra pole runs as the 7-parameter
+/// [`ClosedLoopModel::simulate`].
+pub fn simulate_models(models: &[DriveModel], run: &Run) -> Result<Vec<Vec<f64>>, Error> {
     if models.len() != run.axes.len() {
         return Err(Error::Usage(format!(
             "{} models for {} axes",
@@ -41,11 +43,16 @@ pub fn simulate_models(models: &[ClosedLoopModel], run: &Run) -> Result<Vec<Vec<
         .par_iter()
         .zip(run.axes.par_iter())
         .map(|(m, s)| {
-            m.simulate(s.reference(), run.ts, &SimOptions::default())
-                .map_err(|source| Error::Drive {
-                    axis: s.name,
-                    source,
-                })
+            let opts = SimOptions::default();
+            if m.is_core_only() {
+                m.core.simulate(s.reference(), run.ts, &opts)
+            } else {
+                m.simulate(s.reference(), run.ts, &opts)
+            }
+            .map_err(|source| Error::Drive {
+                axis: s.name,
+                source,
+            })
         })
         .collect()
 }
@@ -63,7 +70,7 @@ pub struct Simulation {
 pub fn simulate(
     machine: &Machine,
     run: &Run,
-    models: Option<&[ClosedLoopModel]>,
+    models: Option<&[DriveModel]>,
 ) -> Result<Simulation, Error> {
     let traces = simulate_true(machine, run)?;
     let predicted = models.map(|m| simulate_models(m, run)).transpose()?;
@@ -195,7 +202,7 @@ pub fn simulate_summary(
     machine: &Machine,
     run: &Run,
     tracking: &[AxisTracking],
-    models: Option<(&str, &[ClosedLoopModel])>,
+    models: Option<(&str, &[DriveModel])>,
 ) -> SimulateSummary {
     let axes = tracking
         .iter()
@@ -207,7 +214,7 @@ pub fn simulate_summary(
                     unit: t.unit,
                     tracking: (t.tracking_max, t.tracking_rms),
                     true_model: ModelSummary::of(&t.true_model),
-                    model: models.map(|(_, m)| ModelSummary::of(&m[i])),
+                    model: models.map(|(_, m)| ModelSummary::of_drive(&m[i])),
                     model_vs_true: t.model_vs_true_max.zip(t.model_vs_true_rms),
                     controller: t.controller,
                 },

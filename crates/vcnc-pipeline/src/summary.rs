@@ -7,7 +7,7 @@
 use serde::Serialize;
 use serde::ser::SerializeMap;
 use vcnc_axis::Unit;
-use vcnc_drive::{ClosedLoopModel, Poles};
+use vcnc_drive::{ClosedLoopModel, DriveModel, Poles, ReferenceFilter};
 use vcnc_identify::FitMetrics;
 
 use crate::stats::rel_pct;
@@ -53,6 +53,15 @@ pub struct ModelSummary {
     /// Whether an unstable model is at least marginally stable (a pole at the origin).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub marginally_stable: Option<bool>,
+    /// Dead time of the reference, s (models with one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delay_s: Option<f64>,
+    /// The control's nominal-position filter (models with one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_filter: Option<ReferenceFilter>,
+    /// An extra real pole of the loop, Hz (models with one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub extra_pole_hz: Option<f64>,
 }
 
 impl ModelSummary {
@@ -79,6 +88,19 @@ impl ModelSummary {
                     .collect()
             }),
             marginally_stable: (!stable).then(|| m.is_marginally_stable()),
+            delay_s: None,
+            reference_filter: None,
+            extra_pole_hz: None,
+        }
+    }
+
+    /// The summary of a model with its structure (dead time, filter, extra pole).
+    pub fn of_drive(m: &DriveModel) -> ModelSummary {
+        ModelSummary {
+            delay_s: (m.delay_s != 0.0).then_some(m.delay_s),
+            reference_filter: m.reference_filter,
+            extra_pole_hz: m.extra_pole_hz,
+            ..ModelSummary::of(&m.core)
         }
     }
 }

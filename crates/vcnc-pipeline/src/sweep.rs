@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use rayon::prelude::*;
 use serde::Serialize;
 use vcnc_contour::ContourReport;
-use vcnc_drive::ClosedLoopModel;
+use vcnc_drive::DriveModel;
 use vcnc_machine::{Machine, MachineDocument};
 
 use crate::predict::{contour, model_contour};
@@ -205,7 +205,7 @@ pub struct Sweep<'a> {
     indices: Vec<usize>,
     base_run: Run,
     reuse: bool,
-    models: Option<Vec<ClosedLoopModel>>,
+    models: Option<Vec<DriveModel>>,
     base_predicted: Option<ContourReport>,
     lenient: bool,
 }
@@ -221,7 +221,7 @@ impl<'a> Sweep<'a> {
         program_name: &'a str,
         sets: &[String],
         shard: Option<&str>,
-        models: Option<Vec<ClosedLoopModel>>,
+        models: Option<Vec<DriveModel>>,
         lenient: bool,
     ) -> Result<Sweep<'a>, Error> {
         let base = doc.check()?;
