@@ -25,7 +25,7 @@ fn fixture() -> &'static Fixture {
             run::prepare(&machine, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
         let axes: Vec<_> = machine.axes.iter().collect();
         let ids = identify::identify_axes(&machine, &axes, None).expect("identification");
-        let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model.clone()).collect();
+        let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
         let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
         let [refined, paper]: [Prediction; 2] =
             predict::predict_many(&machine, &run, &[&refined, &paper])

@@ -52,7 +52,7 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     );
     let (ids, run) = (ids?, run?);
     print_warnings(&run.warnings);
-    let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model.clone()).collect();
+    let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
     let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
     let mask = run.measured(Measured::Feed);
     let [p, pp]: [predict::Prediction; 2] =

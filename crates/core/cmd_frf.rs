@@ -43,7 +43,7 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
                 tag: "model",
                 label: VCNC_MODEL,
                 role: Role::Model,
-                model: m[i].clone(),
+                model: m[i],
             });
         }
         figures::frf(

@@ -41,7 +41,7 @@ pub fn predict(
             let axes = identify::select_axes(&machine, &[])?;
             let ids = identify::identify_axes(&machine, &axes, None)?;
             (
-                ids.iter().map(|r| r.result.model.clone()).collect(),
+                ids.iter().map(|r| r.result.model).collect(),
                 "identified on the fly".to_string(),
             )
         }

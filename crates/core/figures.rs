@@ -173,7 +173,7 @@ pub fn identification(report: &mut RunReport, r: &AxisIdentification) -> Result<
         tag: "identified",
         label: VCNC_MODEL,
         role: Role::Model,
-        model: r.result.model.clone(),
+        model: r.result.model,
     });
     models.push(FrfModel {
         tag: "paper_PSO",
