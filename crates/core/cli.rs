@@ -67,6 +67,47 @@ pub enum Command {
         #[command(flatten)]
         table: TableArgs,
     },
+    /// Compensate a program with identified models: set-points that make the drives follow the
+    /// programmed path, written as a fine-block program (G93 G64, one block per sample period)
+    /// and judged on the true machine against the original path (docs/compensation.md).
+    Compensate {
+        /// Machine file (TOML).
+        machine: PathBuf,
+        /// G-code program.
+        program: PathBuf,
+        /// Identified model file (from `vcnc identify`).
+        #[arg(long)]
+        model: PathBuf,
+        /// Most iterations of the learning loop on the models.
+        #[arg(long, default_value_t = 30)]
+        iterations: usize,
+        /// Output folder (compensated.ngc, references.csv, contour.csv, summary.json, plots).
+        #[arg(long, default_value = "vcnc-compensate")]
+        out: PathBuf,
+        #[command(flatten)]
+        table: TableArgs,
+    },
+    /// Plan per-block feeds (never above the programmed ones) that keep the predicted contour
+    /// error within a tolerance, and compare with the uniform feed scale that meets it
+    /// (docs/compensation.md).
+    FeedPlan {
+        /// Machine file (TOML).
+        machine: PathBuf,
+        /// G-code program.
+        program: PathBuf,
+        /// Identified model file (from `vcnc identify`).
+        #[arg(long)]
+        model: PathBuf,
+        /// Tool-tip contour-error tolerance with its unit: `10um` (or `µm`), `0.01mm`.
+        #[arg(long)]
+        tolerance: String,
+        /// Also keep the orientation contour error within this: `0.05mrad`, `0.003deg`.
+        #[arg(long)]
+        orientation_tolerance: Option<String>,
+        /// Output folder (planned.ngc, uniform.ngc, blocks.csv, summary.json, plots).
+        #[arg(long, default_value = "vcnc-feed-plan")]
+        out: PathBuf,
+    },
     /// Interpolate a program into the reference trajectory at the sample period.
     Interpolate {
         /// Machine file (TOML).

@@ -7,7 +7,9 @@
 //! and column where there is one).
 
 mod cli;
+mod cmd_compensate;
 mod cmd_demo;
+mod cmd_feed_plan;
 mod cmd_frf;
 mod cmd_gen;
 mod cmd_identify;
@@ -118,6 +120,38 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             model.as_deref(),
             &out,
             &table.options(),
+            ctx,
+        ),
+        Command::Compensate {
+            machine,
+            program,
+            model,
+            iterations,
+            out,
+            table,
+        } => cmd_compensate::compensate(
+            &machine,
+            &program,
+            &model,
+            iterations,
+            &out,
+            &table.options(),
+            ctx,
+        ),
+        Command::FeedPlan {
+            machine,
+            program,
+            model,
+            tolerance,
+            orientation_tolerance,
+            out,
+        } => cmd_feed_plan::feed_plan(
+            &machine,
+            &program,
+            &model,
+            &tolerance,
+            orientation_tolerance.as_deref(),
+            &out,
             ctx,
         ),
         Command::Interpolate {

@@ -893,6 +893,34 @@ pub fn on_true_machine(machine: &Machine, reference: &Run, run: &Run) -> Result<
     })
 }
 
+/// Where each sample of a contour report lies along the reference run's tool-tip path: the arc
+/// length of its foot point from the path's start, mm (for plotting runs of different
+/// durations over the same path).
+pub fn path_position_mm(reference: &Run, report: &vcnc_contour::ContourReport) -> Vec<f64> {
+    let poses = reference.poses.as_deref().unwrap_or(&[]);
+    let mut s = Vec::with_capacity(poses.len());
+    let mut acc = 0.0;
+    for (i, p) in poses.iter().enumerate() {
+        if i > 0 {
+            acc += (p.p - poses[i - 1].p).norm();
+        }
+        s.push(acc);
+    }
+    report
+        .foot
+        .iter()
+        .map(|f| {
+            if s.is_empty() {
+                return 0.0;
+            }
+            let j = (f.u.floor().max(0.0) as usize).min(s.len() - 1);
+            let frac = f.u - j as f64;
+            let next = s.get(j + 1).copied().unwrap_or(s[j]);
+            s[j] + frac * (next - s[j])
+        })
+        .collect()
+}
+
 /// The models' contour errors on `run` against the tool path of `reference` (the prediction a
 /// plan is made with).
 pub fn with_models(

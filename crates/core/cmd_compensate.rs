@@ -1,0 +1,319 @@
+//! `vcnc compensate`: compensated set-points from identified models, written as a fine-block
+//! program, and judged on the true machine against the original program's path
+//! (docs/compensation.md).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use vcnc_machine::{Machine, ModelSet};
+use vcnc_pipeline::compensate::{
+    self, AxisCompensateSummary, CompensateOptions, CompensateSummary, Compensation, ContourStats,
+    Judged, RunFigures,
+};
+use vcnc_pipeline::run::{self, Run};
+use vcnc_report::{Axis, LineFigure, Panel, Role, Series, line_figure};
+
+use crate::Ctx;
+use crate::output::{ensure_dir, write_atomic, write_json};
+use crate::sink::{TableOptions, write_table};
+use crate::table::{print_warnings, table as text_table};
+
+/// `vcnc compensate MACHINE PROGRAM --model MODEL [--iterations N] --out DIR`.
+pub fn compensate(
+    machine_path: &Path,
+    program: &Path,
+    model: &Path,
+    iterations: usize,
+    out: &Path,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> Result<()> {
+    let machine = Machine::load(machine_path)?;
+    let original = run::prepare_file(&machine, program, ctx.lenient)?;
+    print_warnings(&original.warnings);
+    let model_file = model.display().to_string();
+    let models = ModelSet::load(model)?.for_machine(&machine, &model_file)?;
+    let opts = CompensateOptions {
+        max_iterations: iterations,
+        ..CompensateOptions::default()
+    };
+    let comp = compensate::compensate_run(&machine, &original, &models, &opts)?;
+    // Refuse a set-point beyond the limits before writing anything.
+    comp.check_limits()?;
+    ensure_dir(out)?;
+    let program_path = out.join("compensated.ngc");
+    let header = vec![
+        format!(
+            "vcnc compensate: {} on machine {}, models {}",
+            original.file, machine.name, model_file
+        ),
+        format!(
+            "{} set-points at {} s, one G93 block each; lead {} s, tail {} s; docs/compensation.md",
+            comp.len(),
+            comp.ts,
+            comp.lead as f64 * comp.ts,
+            comp.tail as f64 * comp.ts
+        ),
+    ];
+    let text = comp.program(&header);
+    write_atomic(&program_path, text.as_bytes())?;
+    // The program as the control runs it: re-read and interpolated, it must reproduce the
+    // set-points; the true drives are judged on it.
+    let program_name = program_path.display().to_string();
+    let rerun = run::prepare(&machine, &text, &program_name, false)
+        .with_context(|| format!("re-reading {program_name}"))?;
+    let repro = compensate::reproduction(&comp, &rerun)?;
+    if let Some(r) = repro.iter().find(|r| r.position != 0.0) {
+        anyhow::bail!(
+            "internal error: {program_name} does not reproduce the set-points of axis {} (off by {:e})",
+            r.axis,
+            r.position
+        );
+    }
+    let before = compensate::on_true_machine(&machine, &original, &original)?;
+    let after = compensate::on_true_machine(&machine, &original, &rerun)?;
+    let after_models = compensate::with_models(&machine, &original, &rerun, &models)?;
+    write_tables(out, &original, &comp, &after, table)?;
+    write_figure(out, &original, &before, &after)?;
+    let summary = summary(
+        &machine,
+        &original,
+        &model_file,
+        &program_name,
+        &comp,
+        &opts,
+        (&before, &after, &after_models),
+        &repro,
+    );
+    write_json(&out.join("summary.json"), &summary)?;
+    if !ctx.quiet {
+        print_report(&summary, &comp);
+        println!("-> {}", out.display());
+    }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn summary(
+    machine: &Machine,
+    original: &Run,
+    model_file: &str,
+    program_name: &str,
+    comp: &Compensation,
+    opts: &CompensateOptions,
+    (before, after, after_models): (&Judged, &Judged, &vcnc_contour::ContourReport),
+    repro: &[compensate::Reproduction],
+) -> CompensateSummary {
+    let axes: BTreeMap<String, AxisCompensateSummary> = comp
+        .axes
+        .iter()
+        .zip(repro)
+        .zip(&after.traces)
+        .map(|((a, r), tr)| {
+            let k = a.reference.unit.micro_factor();
+            let true_tracking = a
+                .desired
+                .iter()
+                .zip(&tr.true_position)
+                .fold(0.0f64, |m, (d, x)| m.max((d - x).abs()));
+            (
+                a.reference.name.to_string(),
+                AxisCompensateSummary {
+                    unit: a.reference.unit,
+                    margin: a.margin,
+                    within_limits: a.margin.within(),
+                    iterations: a.history.len(),
+                    model_error_linear_inverse: a.history.first().copied().unwrap_or(0.0) * k,
+                    model_error: a
+                        .desired
+                        .iter()
+                        .zip(&a.model)
+                        .fold(0.0f64, |m, (d, y)| m.max((d - y).abs()))
+                        * k,
+                    reproduction: *r,
+                    true_tracking_max: true_tracking * k,
+                },
+            )
+        })
+        .collect();
+    CompensateSummary {
+        machine: machine.name.clone(),
+        program: original.file.clone(),
+        models: model_file.to_string(),
+        compensated_program: program_name.to_string(),
+        ts_s: comp.ts,
+        lead_s: comp.lead as f64 * comp.ts,
+        tail_s: comp.tail as f64 * comp.ts,
+        options: *opts,
+        before: RunFigures {
+            contour: ContourStats::of(&before.contour),
+            cycle_time_s: before.cycle_time_s,
+        },
+        after: RunFigures {
+            contour: ContourStats::of(&after.contour),
+            cycle_time_s: after.cycle_time_s,
+        },
+        after_models: ContourStats::of(after_models),
+        within_limits: comp.axes.iter().all(|a| a.margin.within()),
+        axes,
+    }
+}
+
+/// `references` (the set-points, the desired positions, the model's and the true drives'
+/// positions) and `contour` (the compensated program's contour errors on the true machine).
+fn write_tables(
+    out: &Path,
+    original: &Run,
+    comp: &Compensation,
+    after: &Judged,
+    opts: &TableOptions,
+) -> Result<()> {
+    let n = comp.len();
+    // Time from the original program's first sample (negative in the lead).
+    let t: Vec<f64> = (0..n)
+        .map(|k| (k as f64 - comp.lead as f64) * comp.ts)
+        .collect();
+    let mut header = vec!["t".to_string()];
+    let mut cols: Vec<&[f64]> = vec![&t];
+    for (a, tr) in comp.axes.iter().zip(&after.traces) {
+        let name = a.reference.name;
+        for (suffix, col) in [
+            ("", &a.reference.pos),
+            ("_vel", &a.reference.vel),
+            ("_acc", &a.reference.acc),
+            ("_desired", &a.desired),
+            ("_model", &a.model),
+            ("_true", &tr.true_position),
+        ] {
+            header.push(format!("{name}{suffix}"));
+            cols.push(col);
+        }
+    }
+    write_table(out, "references", header, &cols, opts)?;
+    let tip: Vec<f64> = after.contour.tip_mm.iter().map(|e| e * 1e3).collect();
+    let or: Vec<f64> = after
+        .contour
+        .orientation_rad
+        .iter()
+        .map(|e| e * 1e3)
+        .collect();
+    let s = compensate::path_position_mm(original, &after.contour);
+    write_table(
+        out,
+        "contour",
+        ["t", "path_mm", "contour_um", "orientation_mrad"]
+            .map(String::from)
+            .to_vec(),
+        &[&t, &s, &tip, &or],
+        opts,
+    )?;
+    Ok(())
+}
+
+/// `contour_before_after.svg`: tool-tip and orientation contour errors of the original and the
+/// compensated program on the true machine, along the original path (log scale).
+fn write_figure(out: &Path, original: &Run, before: &Judged, after: &Judged) -> Result<()> {
+    let floor = |v: &[f64], k: f64| -> Vec<f64> { v.iter().map(|e| (e * k).max(1e-4)).collect() };
+    let (sb, sa) = (
+        compensate::path_position_mm(original, &before.contour),
+        compensate::path_position_mm(original, &after.contour),
+    );
+    let (tb, ta) = (
+        floor(&before.contour.tip_mm, 1e3),
+        floor(&after.contour.tip_mm, 1e3),
+    );
+    let (ob, oa) = (
+        floor(&before.contour.orientation_rad, 1e3),
+        floor(&after.contour.orientation_rad, 1e3),
+    );
+    let series = |b, a| {
+        vec![
+            Series::line("original program", Role::Reference, &sb, b),
+            Series::line("compensated program", Role::TrueMachine, &sa, a),
+        ]
+    };
+    let fig = line_figure(&LineFigure::new(
+        "contour errors on the true machine, before and after compensation",
+        Axis::linear("position along the programmed tool-tip path", "mm"),
+        vec![
+            Panel::new(Axis::log("tool-tip contour error", "µm"), series(&tb, &ta)),
+            Panel::new(
+                Axis::log("orientation contour error", "mrad"),
+                series(&ob, &oa),
+            ),
+        ],
+    ))?;
+    fig.save(&out.join("contour_before_after.svg"))?;
+    Ok(())
+}
+
+fn print_report(s: &CompensateSummary, comp: &Compensation) {
+    let rows = vec![
+        vec![
+            "original, true machine".to_string(),
+            format!("{:.3}", s.before.contour.contour_max_um),
+            format!("{:.3}", s.before.contour.contour_rms_um),
+            format!("{:.4}", s.before.contour.orientation_max_mrad),
+            format!("{:.3}", s.before.cycle_time_s),
+        ],
+        vec![
+            "compensated, true machine".to_string(),
+            format!("{:.3}", s.after.contour.contour_max_um),
+            format!("{:.3}", s.after.contour.contour_rms_um),
+            format!("{:.4}", s.after.contour.orientation_max_mrad),
+            format!("{:.3}", s.after.cycle_time_s),
+        ],
+        vec![
+            "compensated, models".to_string(),
+            format!("{:.3}", s.after_models.contour_max_um),
+            format!("{:.3}", s.after_models.contour_rms_um),
+            format!("{:.4}", s.after_models.orientation_max_mrad),
+            format!("{:.3}", s.after.cycle_time_s),
+        ],
+    ];
+    print!(
+        "{}",
+        text_table(
+            &[
+                "program",
+                "contour max [um]",
+                "RMS [um]",
+                "orientation max [mrad]",
+                "cycle [s]"
+            ],
+            &rows
+        )
+    );
+    let rows: Vec<Vec<String>> = comp
+        .axes
+        .iter()
+        .map(|a| {
+            let m = &a.margin;
+            let u = a.reference.unit;
+            vec![
+                a.reference.name.to_string(),
+                format!("{:.1} / {} {u}/s", m.reference_velocity, m.velocity_limit),
+                format!(
+                    "{:.0} / {} {u}/s2",
+                    m.motion_acceleration, m.acceleration_limit
+                ),
+                format!("{:.0} {u}/s2", m.reference_acceleration),
+                (if m.within() { "ok" } else { "EXCEEDED" }).to_string(),
+            ]
+        })
+        .collect();
+    print!(
+        "{}",
+        text_table(
+            &[
+                "axis",
+                "set-point velocity / limit",
+                "motion acceleration / limit",
+                "set-point acceleration (not judged)",
+                "limits"
+            ],
+            &rows
+        )
+    );
+}
