@@ -8,8 +8,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use vcnc_machine::{Machine, ModelSet};
 use vcnc_pipeline::compensate::{
-    self, AxisCompensateSummary, CompensateOptions, CompensateSummary, Compensation, ContourStats,
-    Judged, RunFigures,
+    self, AxisCompensateSummary, AxisRunFigures, CompensateOptions, CompensateSummary,
+    Compensation, ContourStats, Judged, RunFigures,
 };
 use vcnc_pipeline::run::{self, Run};
 use vcnc_report::{Axis, LineFigure, Panel, Role, Series, line_figure};
@@ -40,7 +40,7 @@ pub fn compensate(
     };
     let comp = compensate::compensate_run(&machine, &original, &models, &opts)?;
     // Refuse a set-point beyond the limits before writing anything.
-    comp.check_limits()?;
+    comp.check_limits(&original)?;
     ensure_dir(out)?;
     let program_path = out.join("compensated.ngc");
     let header = vec![
@@ -73,9 +73,16 @@ pub fn compensate(
     }
     let before = compensate::on_true_machine(&machine, &original, &original)?;
     let after = compensate::on_true_machine(&machine, &original, &rerun)?;
-    let after_models = compensate::with_models(&machine, &original, &rerun, &models)?;
+    let after_models = match machine.kinematics {
+        Some(_) => Some(compensate::with_models(
+            &machine, &original, &rerun, &models,
+        )?),
+        None => None,
+    };
     write_tables(out, &original, &comp, &after, table)?;
-    write_figure(out, &original, &before, &after)?;
+    if let (Some(b), Some(a)) = (&before.contour, &after.contour) {
+        write_figure(out, &original, b, a)?;
+    }
     let summary = summary(
         &machine,
         &original,
@@ -83,7 +90,7 @@ pub fn compensate(
         &program_name,
         &comp,
         &opts,
-        (&before, &after, &after_models),
+        (&before, &after, after_models.as_ref()),
         &repro,
     );
     write_json(&out.join("summary.json"), &summary)?;
@@ -102,25 +109,22 @@ fn summary(
     program_name: &str,
     comp: &Compensation,
     opts: &CompensateOptions,
-    (before, after, after_models): (&Judged, &Judged, &vcnc_contour::ContourReport),
+    (before, after, after_models): (&Judged, &Judged, Option<&vcnc_contour::ContourReport>),
     repro: &[compensate::Reproduction],
 ) -> CompensateSummary {
     let axes: BTreeMap<String, AxisCompensateSummary> = comp
         .axes
         .iter()
         .zip(repro)
-        .zip(&after.traces)
-        .map(|((a, r), tr)| {
-            let k = a.reference.unit.micro_factor();
-            let true_tracking = a
-                .desired
-                .iter()
-                .zip(&tr.true_position)
-                .fold(0.0f64, |m, (d, x)| m.max((d - x).abs()));
+        .zip(before.traces.iter().zip(&after.traces))
+        .zip(&original.axes)
+        .map(|(((a, r), (tb, ta)), o)| {
+            let unit = a.reference.unit;
+            let k = unit.micro_factor();
             (
                 a.reference.name.to_string(),
                 AxisCompensateSummary {
-                    unit: a.reference.unit,
+                    unit,
                     margin: a.margin,
                     within_limits: a.margin.within(),
                     iterations: a.history.len(),
@@ -132,11 +136,16 @@ fn summary(
                         .fold(0.0f64, |m, (d, y)| m.max((d - y).abs()))
                         * k,
                     reproduction: *r,
-                    true_tracking_max: true_tracking * k,
+                    before: AxisRunFigures::of(tb, &o.pos, unit),
+                    after: AxisRunFigures::of(ta, &a.desired, unit),
                 },
             )
         })
         .collect();
+    let figures = |j: &Judged| RunFigures {
+        contour: j.contour.as_ref().map(ContourStats::of),
+        cycle_time_s: j.cycle_time_s,
+    };
     CompensateSummary {
         machine: machine.name.clone(),
         program: original.file.clone(),
@@ -146,15 +155,9 @@ fn summary(
         lead_s: comp.lead as f64 * comp.ts,
         tail_s: comp.tail as f64 * comp.ts,
         options: *opts,
-        before: RunFigures {
-            contour: ContourStats::of(&before.contour),
-            cycle_time_s: before.cycle_time_s,
-        },
-        after: RunFigures {
-            contour: ContourStats::of(&after.contour),
-            cycle_time_s: after.cycle_time_s,
-        },
-        after_models: ContourStats::of(after_models),
+        before: figures(before),
+        after: figures(after),
+        after_models: after_models.map(ContourStats::of),
         within_limits: comp.axes.iter().all(|a| a.margin.within()),
         axes,
     }
@@ -191,14 +194,12 @@ fn write_tables(
         }
     }
     write_table(out, "references", header, &cols, opts)?;
-    let tip: Vec<f64> = after.contour.tip_mm.iter().map(|e| e * 1e3).collect();
-    let or: Vec<f64> = after
-        .contour
-        .orientation_rad
-        .iter()
-        .map(|e| e * 1e3)
-        .collect();
-    let s = compensate::path_position_mm(original, &after.contour);
+    let Some(contour) = &after.contour else {
+        return Ok(());
+    };
+    let tip: Vec<f64> = contour.tip_mm.iter().map(|e| e * 1e3).collect();
+    let or: Vec<f64> = contour.orientation_rad.iter().map(|e| e * 1e3).collect();
+    let s = compensate::path_position_mm(original, contour);
     write_table(
         out,
         "contour",
@@ -213,19 +214,21 @@ fn write_tables(
 
 /// `contour_before_after.svg`: tool-tip and orientation contour errors of the original and the
 /// compensated program on the true machine, along the original path (log scale).
-fn write_figure(out: &Path, original: &Run, before: &Judged, after: &Judged) -> Result<()> {
+fn write_figure(
+    out: &Path,
+    original: &Run,
+    before: &vcnc_contour::ContourReport,
+    after: &vcnc_contour::ContourReport,
+) -> Result<()> {
     let floor = |v: &[f64], k: f64| -> Vec<f64> { v.iter().map(|e| (e * k).max(1e-4)).collect() };
     let (sb, sa) = (
-        compensate::path_position_mm(original, &before.contour),
-        compensate::path_position_mm(original, &after.contour),
+        compensate::path_position_mm(original, before),
+        compensate::path_position_mm(original, after),
     );
-    let (tb, ta) = (
-        floor(&before.contour.tip_mm, 1e3),
-        floor(&after.contour.tip_mm, 1e3),
-    );
+    let (tb, ta) = (floor(&before.tip_mm, 1e3), floor(&after.tip_mm, 1e3));
     let (ob, oa) = (
-        floor(&before.contour.orientation_rad, 1e3),
-        floor(&after.contour.orientation_rad, 1e3),
+        floor(&before.orientation_rad, 1e3),
+        floor(&after.orientation_rad, 1e3),
     );
     let series = |b, a| {
         vec![
@@ -249,28 +252,28 @@ fn write_figure(out: &Path, original: &Run, before: &Judged, after: &Judged) -> 
 }
 
 fn print_report(s: &CompensateSummary, comp: &Compensation) {
+    let row = |name: &str, c: Option<ContourStats>, cycle: f64| {
+        let f = |v: Option<f64>, d: usize| v.map_or("-".to_string(), |v| format!("{v:.d$}"));
+        vec![
+            name.to_string(),
+            f(c.map(|c| c.contour_max_um), 3),
+            f(c.map(|c| c.contour_rms_um), 3),
+            f(c.map(|c| c.orientation_max_mrad), 4),
+            format!("{cycle:.3}"),
+        ]
+    };
     let rows = vec![
-        vec![
-            "original, true machine".to_string(),
-            format!("{:.3}", s.before.contour.contour_max_um),
-            format!("{:.3}", s.before.contour.contour_rms_um),
-            format!("{:.4}", s.before.contour.orientation_max_mrad),
-            format!("{:.3}", s.before.cycle_time_s),
-        ],
-        vec![
-            "compensated, true machine".to_string(),
-            format!("{:.3}", s.after.contour.contour_max_um),
-            format!("{:.3}", s.after.contour.contour_rms_um),
-            format!("{:.4}", s.after.contour.orientation_max_mrad),
-            format!("{:.3}", s.after.cycle_time_s),
-        ],
-        vec![
-            "compensated, models".to_string(),
-            format!("{:.3}", s.after_models.contour_max_um),
-            format!("{:.3}", s.after_models.contour_rms_um),
-            format!("{:.4}", s.after_models.orientation_max_mrad),
-            format!("{:.3}", s.after.cycle_time_s),
-        ],
+        row(
+            "original, true machine",
+            s.before.contour,
+            s.before.cycle_time_s,
+        ),
+        row(
+            "compensated, true machine",
+            s.after.contour,
+            s.after.cycle_time_s,
+        ),
+        row("compensated, models", s.after_models, s.after.cycle_time_s),
     ];
     print!(
         "{}",
@@ -291,14 +294,24 @@ fn print_report(s: &CompensateSummary, comp: &Compensation) {
         .map(|a| {
             let m = &a.margin;
             let u = a.reference.unit;
+            let ax = &s.axes[a.reference.name.as_str()];
+            let l = u.micro_label();
             vec![
                 a.reference.name.to_string(),
+                format!(
+                    "{:.2} -> {:.3} {l}",
+                    ax.before.tracking_max, ax.after.tracking_max
+                ),
                 format!("{:.1} / {} {u}/s", m.reference_velocity, m.velocity_limit),
                 format!(
                     "{:.0} / {} {u}/s2",
                     m.motion_acceleration, m.acceleration_limit
                 ),
                 format!("{:.0} {u}/s2", m.reference_acceleration),
+                format!(
+                    "{:.3} -> {:.3}",
+                    ax.before.torque_peak_nm, ax.after.torque_peak_nm
+                ),
                 (if m.within() { "ok" } else { "EXCEEDED" }).to_string(),
             ]
         })
@@ -308,9 +321,11 @@ fn print_report(s: &CompensateSummary, comp: &Compensation) {
         text_table(
             &[
                 "axis",
+                "true tracking max",
                 "set-point velocity / limit",
                 "motion acceleration / limit",
                 "set-point acceleration (not judged)",
+                "torque peak [N m]",
                 "limits"
             ],
             &rows

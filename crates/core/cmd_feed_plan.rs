@@ -93,13 +93,19 @@ pub fn feed_plan(
     write_figure(
         out,
         &plan,
-        [&original, &planned, &uniform],
+        [
+            original.contour(&machine)?,
+            planned.contour(&machine)?,
+            uniform.contour(&machine)?,
+        ],
         tolerance_mm * 1e3,
     )?;
-    let figures = |p: &vcnc_contour::ContourReport, j: &Judged| PlanFigures {
-        cycle_time_s: j.cycle_time_s,
-        predicted: ContourStats::of(p),
-        true_machine: ContourStats::of(&j.contour),
+    let figures = |p: &vcnc_contour::ContourReport, j: &Judged| -> Result<PlanFigures> {
+        Ok(PlanFigures {
+            cycle_time_s: j.cycle_time_s,
+            predicted: ContourStats::of(p),
+            true_machine: ContourStats::of(j.contour(&machine)?),
+        })
     };
     let summary = FeedPlanSummary {
         machine: machine.name.clone(),
@@ -109,9 +115,9 @@ pub fn feed_plan(
         options: opts,
         lag_s: plan.lag_s,
         tolerance_um: tolerance_mm * 1e3,
-        original: figures(&plan.original_predicted, &original),
-        planned: figures(&plan.plan.predicted, &planned),
-        uniform: figures(&plan.uniform.predicted, &uniform),
+        original: figures(&plan.original_predicted, &original)?,
+        planned: figures(&plan.plan.predicted, &planned)?,
+        uniform: figures(&plan.uniform.predicted, &uniform)?,
         uniform_factor: plan.uniform_factor,
         saving_vs_uniform: 1.0 - planned.cycle_time_s / uniform.cycle_time_s,
         lines: plan.lines.len(),
@@ -177,7 +183,7 @@ fn speed_along(run: &Run) -> (Vec<f64>, Vec<f64>) {
 fn write_figure(
     out: &Path,
     plan: &FeedPlan,
-    judged: [&Judged; 3],
+    judged: [&vcnc_contour::ContourReport; 3],
     tolerance_um: f64,
 ) -> Result<()> {
     let runs: [(&str, Role, &Run); 3] = [
@@ -187,17 +193,11 @@ fn write_figure(
     ];
     let pos: Vec<Vec<f64>> = judged
         .iter()
-        .map(|j| compensate::path_position_mm(&plan.original, &j.contour))
+        .map(|j| compensate::path_position_mm(&plan.original, j))
         .collect();
     let err: Vec<Vec<f64>> = judged
         .iter()
-        .map(|j| {
-            j.contour
-                .tip_mm
-                .iter()
-                .map(|e| (e * 1e3).max(1e-3))
-                .collect()
-        })
+        .map(|j| j.tip_mm.iter().map(|e| (e * 1e3).max(1e-3)).collect())
         .collect();
     let speeds: Vec<(Vec<f64>, Vec<f64>)> = runs.iter().map(|r| speed_along(r.2)).collect();
     let tol = vec![tolerance_um; 2];

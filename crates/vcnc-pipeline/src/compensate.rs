@@ -206,7 +206,7 @@ impl SampledModel {
         let residual = (nb + 1..g.len())
             .map(conv)
             .fold(0.0f64, |m, v| m.max(v.abs()));
-        if !(residual <= 1e-7 * scale) {
+        if residual.is_nan() || residual > 1e-7 * scale {
             return Err(Error::Internal(format!(
                 "the sampled model of {model:?} is not of the expected order (residual {residual:e} of {scale:e})"
             )));
@@ -481,8 +481,12 @@ pub struct LimitMargin {
     pub velocity_limit: f64,
     /// The axis' acceleration limit, units/s².
     pub acceleration_limit: f64,
-    /// Largest |velocity| of the set-point (central differences), units/s. Judged.
+    /// Largest speed of a fine block of the set-point, $|r_k - r_{k-1}|/T_s$, units/s: what
+    /// the interpolator checks block by block (docs/gcode.md). Judged.
     pub reference_velocity: f64,
+    /// The set-point's sample (lead included) where that speed is reached (the end of the
+    /// block).
+    pub reference_velocity_sample: usize,
     /// Largest |acceleration| of the set-point (central differences), units/s². Reported only.
     pub reference_acceleration: f64,
     /// Largest |acceleration| of the motion the model predicts on the set-point (central
@@ -492,6 +496,10 @@ pub struct LimitMargin {
     /// differences), units/s²: where it exceeds the limit (velocity jumps at polyline
     /// junctions), the motion may reach it too.
     pub desired_acceleration: f64,
+    /// The acceleration the motion may reach, units/s²: the limit (or the desired motion's own
+    /// peak where that is higher) plus $4\delta/T_s^2$, the resolution of a second difference of
+    /// positions known to $\delta$ = the model's largest |motion − desired|.
+    pub acceleration_allowed: f64,
 }
 
 impl LimitMargin {
@@ -504,30 +512,40 @@ impl LimitMargin {
         desired: &[f64],
         ts: f64,
     ) -> LimitMargin {
-        let (rv, ra) = time_exact_rates(reference, ts);
+        let (_, ra) = time_exact_rates(reference, ts);
+        let (block_speed, at) =
+            reference
+                .windows(2)
+                .enumerate()
+                .fold((0.0f64, 0), |(m, at), (k, w)| {
+                    let v = (w[1] - w[0]).abs() / ts;
+                    if v > m { (v, k + 1) } else { (m, at) }
+                });
         let (_, ma) = time_exact_rates(motion, ts);
         let (_, da) = time_exact_rates(desired, ts);
+        let delta = motion
+            .iter()
+            .zip(desired)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let desired_acceleration = max_abs(&da);
         LimitMargin {
+            acceleration_allowed: axis.max_acceleration.max(desired_acceleration)
+                + 4.0 * delta / (ts * ts),
             axis: axis.name,
             velocity_limit: axis.max_velocity,
             acceleration_limit: axis.max_acceleration,
-            reference_velocity: max_abs(&rv),
+            reference_velocity: block_speed,
+            reference_velocity_sample: at,
             reference_acceleration: max_abs(&ra),
             motion_acceleration: max_abs(&ma),
-            desired_acceleration: max_abs(&da),
+            desired_acceleration,
         }
-    }
-
-    /// The acceleration the motion may reach: the limit, or the desired motion's own peak where
-    /// that is higher, with 0.1 % for the model's residual.
-    pub fn acceleration_allowed(&self) -> f64 {
-        self.acceleration_limit.max(self.desired_acceleration) * 1.001
     }
 
     /// Set-point velocity and motion acceleration within what is allowed.
     pub fn within(&self) -> bool {
         self.reference_velocity <= self.velocity_limit * (1.0 + 1e-9)
-            && self.motion_acceleration <= self.acceleration_allowed()
+            && self.motion_acceleration <= self.acceleration_allowed
     }
 }
 
@@ -583,10 +601,10 @@ impl Compensation {
         self.axes.iter().map(|a| a.margin).collect()
     }
 
-    /// Refuses ([`Error::Limit`]) a compensation whose set-point velocity or predicted motion
-    /// acceleration exceeds an axis limit (the worst excess first), saying by how much the
-    /// program's feed would have to drop.
-    pub fn check_limits(&self) -> Result<(), Error> {
+    /// Refuses ([`Error::Limit`]) a compensation of `run` whose set-point velocity or
+    /// predicted motion acceleration exceeds an axis limit (the worst excess first), saying
+    /// where and by how much the program's feed would have to drop.
+    pub fn check_limits(&self, run: &Run) -> Result<(), Error> {
         let mut worst: Option<(f64, Error)> = None;
         for a in &self.axes {
             let m = &a.margin;
@@ -602,13 +620,14 @@ impl Compensation {
                         limit: m.velocity_limit,
                         unit: format!("{u}/s"),
                         advice: format!(
-                            "lower the program's feed to at most {:.1} % (velocities scale with the feed)",
+                            "{}; lower the program's feeds there to at most {:.1} % (velocities scale with the feed; a set-point leads the motion, so a move at the velocity limit cannot be compensated)",
+                            self.place(run, m.reference_velocity_sample),
                             100.0 / vr
                         ),
                     },
                 ));
             }
-            let ar = m.motion_acceleration / m.acceleration_allowed();
+            let ar = m.motion_acceleration / m.acceleration_allowed;
             if ar > 1.0 && worst.as_ref().is_none_or(|w| ar > w.0) {
                 worst = Some((
                     ar,
@@ -629,6 +648,26 @@ impl Compensation {
         match worst {
             Some((_, e)) => Err(e),
             None => Ok(()),
+        }
+    }
+
+    /// "at t = … s, line … (a rapid)" for set-point sample `k` (lead included) of `run`'s
+    /// compensation.
+    fn place(&self, run: &Run, k: usize) -> String {
+        let t = (k as f64 - self.lead as f64) * self.ts;
+        let j = k.saturating_sub(self.lead).min(run.len().saturating_sub(1));
+        match run.loaded.trajectory.block_at(j) {
+            Some(b) => format!(
+                "at t = {t:.3} s, {}:{} (a {} move)",
+                run.file,
+                b.line,
+                match b.class {
+                    vcnc_gcode::MoveClass::Rapid => "rapid",
+                    vcnc_gcode::MoveClass::Feed => "feed",
+                    vcnc_gcode::MoveClass::Dwell => "dwell",
+                }
+            ),
+            None => format!("at t = {t:.3} s"),
         }
     }
 
@@ -874,18 +913,37 @@ impl ContourStats {
 pub struct Judged {
     /// The true drives' traces on the program.
     pub traces: Vec<vcnc_drive::DriveTrace>,
-    /// Contour and orientation errors of the true tool poses against the reference run's path.
-    pub contour: vcnc_contour::ContourReport,
+    /// Contour and orientation errors of the true tool poses against the reference run's path;
+    /// `None` on a machine without kinematics.
+    pub contour: Option<vcnc_contour::ContourReport>,
     /// The program's duration, s.
     pub cycle_time_s: f64,
 }
 
-/// Runs `run` through the true drives and measures its contour errors against the tool path
-/// and tool axis of `reference` (the ORIGINAL program's poses, whatever program `run` is).
+impl Judged {
+    /// The contour errors, or the error a machine without kinematics gives.
+    pub fn contour(&self, machine: &Machine) -> Result<&vcnc_contour::ContourReport, Error> {
+        self.contour.as_ref().ok_or_else(|| {
+            vcnc_machine::Error::NoKinematics {
+                file: machine.source.clone(),
+            }
+            .into()
+        })
+    }
+}
+
+/// Runs `run` through the true drives and, on a machine with kinematics, measures its contour
+/// errors against the tool path and tool axis of `reference` (the ORIGINAL program's poses,
+/// whatever program `run` is).
 pub fn on_true_machine(machine: &Machine, reference: &Run, run: &Run) -> Result<Judged, Error> {
     let traces = crate::simulate::simulate_true(machine, run)?;
-    let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
-    let (_, contour) = crate::predict::contour(machine, reference, &pos)?;
+    let contour = match machine.kinematics {
+        Some(_) => {
+            let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
+            Some(crate::predict::contour(machine, reference, &pos)?.1)
+        }
+        None => None,
+    };
     Ok(Judged {
         traces,
         contour,
@@ -934,6 +992,35 @@ pub fn with_models(
     Ok(crate::predict::contour(machine, reference, &pos)?.1)
 }
 
+/// One program's true drives on one axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AxisRunFigures {
+    /// Largest |true position − desired position|, µm or mdeg (the desired positions are the
+    /// original program's references).
+    pub tracking_max: f64,
+    /// Largest |acceleration| of the true motion (central differences of the true positions),
+    /// units/s².
+    pub motion_acceleration: f64,
+    /// Largest |motor torque|, N·m.
+    pub torque_peak_nm: f64,
+}
+
+impl AxisRunFigures {
+    /// Of a true drive's trace against desired positions (same sample times).
+    pub fn of(trace: &vcnc_drive::DriveTrace, desired: &[f64], unit: Unit) -> AxisRunFigures {
+        let (_, acc) = time_exact_rates(&trace.true_position, trace.ts);
+        AxisRunFigures {
+            tracking_max: desired
+                .iter()
+                .zip(&trace.true_position)
+                .fold(0.0f64, |m, (d, x)| m.max((d - x).abs()))
+                * unit.micro_factor(),
+            motion_acceleration: max_abs(&acc),
+            torque_peak_nm: max_abs(&trace.motor_torque),
+        }
+    }
+}
+
 /// One axis of [`CompensateSummary`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AxisCompensateSummary {
@@ -951,17 +1038,19 @@ pub struct AxisCompensateSummary {
     pub model_error: f64,
     /// The program re-read and interpolated against the set-points.
     pub reproduction: Reproduction,
-    /// Largest |true drive − desired| on the compensated program (its true positions), µm or
-    /// mdeg.
-    pub true_tracking_max: f64,
+    /// The original program on the true drive.
+    pub before: AxisRunFigures,
+    /// The compensated program on the true drive.
+    pub after: AxisRunFigures,
 }
 
 /// Before and after figures of one program on the true machine.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RunFigures {
-    /// Contour statistics against the original program's path.
+    /// Contour statistics against the original program's path (absent on a machine without
+    /// kinematics).
     #[serde(flatten)]
-    pub contour: ContourStats,
+    pub contour: Option<ContourStats>,
     /// The program's duration, s.
     pub cycle_time_s: f64,
 }
@@ -989,8 +1078,9 @@ pub struct CompensateSummary {
     pub before: RunFigures,
     /// The compensated program on the true machine.
     pub after: RunFigures,
-    /// The models on the compensated program (what the compensation aims at).
-    pub after_models: ContourStats,
+    /// The models on the compensated program (what the compensation aims at; absent without
+    /// kinematics).
+    pub after_models: Option<ContourStats>,
     /// Per axis.
     pub axes: std::collections::BTreeMap<String, AxisCompensateSummary>,
     /// Every axis within its judged limits.

@@ -106,8 +106,8 @@ pub enum Error {
     /// A compensated or re-planned reference would exceed an axis limit
     /// (docs/compensation.md#limits).
     #[error(
-        "axis {axis}: the {what} reaches {value:.3} {unit}, above its limit {limit} {unit} ({:.2} times the limit); {advice}",
-        value / limit
+        "axis {axis}: the {what} reaches {value:.3} {unit}, {:.2} % above its limit {limit} {unit}; {advice}",
+        100.0 * (value / limit - 1.0)
     )]
     Limit {
         /// The axis.
