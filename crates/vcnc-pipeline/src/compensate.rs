@@ -251,7 +251,7 @@ pub struct StableInverse {
 
 /// Closest a zero may come to the unit circle, $||\zeta| - 1|$: a mode closer than this would
 /// take more than ~70 000 samples to decay by 10⁻¹².
-const UNIT_CIRCLE_GAP: f64 = 4e-4;
+pub const UNIT_CIRCLE_GAP: f64 = 4e-4;
 
 impl StableInverse {
     /// The inverse of `h`. Refused when a zero of $H$ lies on (or within
