@@ -81,6 +81,10 @@ pub enum Command {
         /// Most iterations of the learning loop on the models.
         #[arg(long, default_value_t = 30)]
         iterations: usize,
+        /// Plan the program with every velocity limit times this (0 < H ≤ 1), so that the
+        /// set-points can lead moves that run at a limit (rapids).
+        #[arg(long, default_value_t = 1.0)]
+        headroom: f64,
         /// Output folder (compensated.ngc, references.csv, contour.csv, summary.json, plots).
         #[arg(long, default_value = "vcnc-compensate")]
         out: PathBuf,

@@ -19,12 +19,13 @@ use crate::output::{ensure_dir, write_atomic, write_json};
 use crate::sink::{TableOptions, write_table};
 use crate::table::{print_warnings, table as text_table};
 
-/// `vcnc compensate MACHINE PROGRAM --model MODEL [--iterations N] --out DIR`.
+/// `vcnc compensate MACHINE PROGRAM --model MODEL [--iterations N] [--headroom H] --out DIR`.
 pub fn compensate(
     machine_path: &Path,
     program: &Path,
     model: &Path,
     iterations: usize,
+    headroom: f64,
     out: &Path,
     table: &TableOptions,
     ctx: &Ctx,
@@ -38,9 +39,17 @@ pub fn compensate(
         max_iterations: iterations,
         ..CompensateOptions::default()
     };
-    let comp = compensate::compensate_run(&machine, &original, &models, &opts)?;
+    // The motion to follow: the program as planned with the velocity headroom (the original
+    // itself without one); its path is the original's either way.
+    let planned = if headroom < 1.0 {
+        let slower = compensate::with_velocity_headroom(&machine, headroom)?;
+        run::prepare_file(&slower, program, ctx.lenient)?
+    } else {
+        original.clone()
+    };
+    let comp = compensate::compensate_run(&machine, &planned, &models, &opts)?;
     // Refuse a set-point beyond the limits before writing anything.
-    comp.check_limits(&original)?;
+    comp.check_limits(&planned, headroom)?;
     ensure_dir(out)?;
     let program_path = out.join("compensated.ngc");
     let header = vec![
@@ -49,7 +58,7 @@ pub fn compensate(
             original.file, machine.name, model_file
         ),
         format!(
-            "{} set-points at {} s, one G93 block each; lead {} s, tail {} s; docs/compensation.md",
+            "{} set-points at {} s, one G93 block each; lead {} s, tail {} s; velocity headroom {headroom}; docs/compensation.md",
             comp.len(),
             comp.ts,
             comp.lead as f64 * comp.ts,
@@ -89,7 +98,7 @@ pub fn compensate(
         &model_file,
         &program_name,
         &comp,
-        &opts,
+        (&opts, headroom),
         (&before, &after, after_models.as_ref()),
         &repro,
     );
@@ -108,7 +117,7 @@ fn summary(
     model_file: &str,
     program_name: &str,
     comp: &Compensation,
-    opts: &CompensateOptions,
+    (opts, headroom): (&CompensateOptions, f64),
     (before, after, after_models): (&Judged, &Judged, Option<&vcnc_contour::ContourReport>),
     repro: &[compensate::Reproduction],
 ) -> CompensateSummary {
@@ -155,6 +164,7 @@ fn summary(
         lead_s: comp.lead as f64 * comp.ts,
         tail_s: comp.tail as f64 * comp.ts,
         options: *opts,
+        velocity_headroom: headroom,
         before: figures(before),
         after: figures(after),
         after_models: after_models.map(ContourStats::of),

@@ -127,6 +127,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             program,
             model,
             iterations,
+            headroom,
             out,
             table,
         } => cmd_compensate::compensate(
@@ -134,6 +135,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             &program,
             &model,
             iterations,
+            headroom,
             &out,
             &table.options(),
             ctx,

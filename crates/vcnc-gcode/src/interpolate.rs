@@ -850,16 +850,22 @@ fn fine_block(mv: &Move, ts: f64) -> bool {
         && matches!(mv.feed, Some(Feed::InverseTime(f)) if (60.0 / (f * ts) - 1.0).abs() <= 1e-9)
 }
 
-/// The time-exact chain of fine blocks starting at move `i` (module doc): `Ok` with its piece
-/// and the index of the first move after it, or `Err` with that index and a warning when a block
-/// is faster than the limits allow (the chain then runs as before, block by block).
-#[allow(clippy::type_complexity)]
+/// What became of a chain of fine blocks; `next` is the index of the first move after it.
+enum Chain {
+    /// Run time-exactly as this piece.
+    Exact { piece: Piece, next: usize },
+    /// A block is faster than the limits allow: the blocks run as before, block by block, with
+    /// this warning.
+    Refused { next: usize, warning: Diagnostic },
+}
+
+/// The time-exact chain of fine blocks starting at move `i` (module doc).
 fn time_exact_chain(
     tp: &Toolpath,
     i: usize,
     limits: &Limits,
     opts: &InterpolateOptions,
-) -> Result<Result<(Piece, usize), (usize, Diagnostic)>, Error> {
+) -> Result<Chain, Error> {
     let ts = opts.ts;
     let first = &tp.moves[i];
     let mut points = vec![first.start];
@@ -901,11 +907,14 @@ fn time_exact_chain(
             start: 0,
             end: 0,
         };
-        return Ok(Err((j, Diagnostic::warning(span, message))));
+        return Ok(Chain::Refused {
+            next: j,
+            warning: Diagnostic::warning(span, message),
+        });
     }
     let n = moves.len() as u64;
-    Ok(Ok((
-        Piece {
+    Ok(Chain::Exact {
+        piece: Piece {
             n,
             lambda: 1.0,
             segs: Vec::new(),
@@ -914,8 +923,8 @@ fn time_exact_chain(
             tcp: first.tcp,
             exact: Some(Exact { points, moves }),
         },
-        j,
-    )))
+        next: j,
+    })
 }
 
 fn continuous(mv: &Move) -> bool {
@@ -1048,12 +1057,12 @@ pub fn interpolate(
         }
         if i >= not_exact_until && fine_block(mv, ts) {
             match time_exact_chain(tp, i, limits, opts)? {
-                Ok((p, next)) => {
-                    push(p, &mut total, &mut pieces)?;
+                Chain::Exact { piece, next } => {
+                    push(piece, &mut total, &mut pieces)?;
                     i = next;
                     continue;
                 }
-                Err((next, warning)) => {
+                Chain::Refused { next, warning } => {
                     // Run these blocks as before (each an exact stop), and say why.
                     warnings_early.push(warning);
                     not_exact_until = next;

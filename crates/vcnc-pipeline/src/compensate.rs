@@ -601,10 +601,11 @@ impl Compensation {
         self.axes.iter().map(|a| a.margin).collect()
     }
 
-    /// Refuses ([`Error::Limit`]) a compensation of `run` whose set-point velocity or
-    /// predicted motion acceleration exceeds an axis limit (the worst excess first), saying
-    /// where and by how much the program's feed would have to drop.
-    pub fn check_limits(&self, run: &Run) -> Result<(), Error> {
+    /// Refuses ([`Error::Limit`]) a compensation of `run` (planned with the velocity
+    /// `headroom`, 1 for none) whose set-point velocity or predicted motion acceleration exceeds
+    /// an axis limit (the worst excess first), saying where and by how much the program's feed,
+    /// or the headroom, would have to drop.
+    pub fn check_limits(&self, run: &Run, headroom: f64) -> Result<(), Error> {
         let mut worst: Option<(f64, Error)> = None;
         for a in &self.axes {
             let m = &a.margin;
@@ -620,9 +621,10 @@ impl Compensation {
                         limit: m.velocity_limit,
                         unit: format!("{u}/s"),
                         advice: format!(
-                            "{}; lower the program's feeds there to at most {:.1} % (velocities scale with the feed; a set-point leads the motion, so a move at the velocity limit cannot be compensated)",
+                            "{}; lower the program's feeds there to at most {:.1} %, or, where it runs at the axis limits (rapids), plan it with a velocity headroom of at most {:.3} (a set-point leads the motion: a move at the velocity limit cannot be compensated)",
                             self.place(run, m.reference_velocity_sample),
-                            100.0 / vr
+                            100.0 / vr,
+                            headroom / vr
                         ),
                     },
                 ));
@@ -738,6 +740,24 @@ fn fmt_exact(v: f64) -> String {
     } else {
         format!("{v}")
     }
+}
+
+/// `machine` with every axis velocity limit and the tool-tip path velocity limit times
+/// `headroom` (in (0, 1]): a program prepared on it leaves the set-points room to lead the
+/// motion where the original runs at a limit (rapids, feeds above the limits). Accelerations are
+/// kept: the motion the compensation produces is the desired one.
+pub fn with_velocity_headroom(machine: &Machine, headroom: f64) -> Result<Machine, Error> {
+    if !(headroom > 0.0 && headroom <= 1.0) {
+        return Err(Error::Usage(format!(
+            "the velocity headroom must lie in (0, 1], got {headroom}"
+        )));
+    }
+    let mut m = machine.clone();
+    for a in &mut m.axes {
+        a.max_velocity *= headroom;
+    }
+    m.tcp_max_vel *= headroom;
+    Ok(m)
 }
 
 /// `v` with `lead` copies of its first and `tail` copies of its last value around it.
@@ -1074,6 +1094,9 @@ pub struct CompensateSummary {
     pub tail_s: f64,
     /// Options of the compensation.
     pub options: CompensateOptions,
+    /// The velocity headroom the program was planned with ([`with_velocity_headroom`]; 1:
+    /// none).
+    pub velocity_headroom: f64,
     /// The original program on the true machine.
     pub before: RunFigures,
     /// The compensated program on the true machine.
