@@ -70,27 +70,7 @@ pub enum Command {
     /// Compensate a program with identified models: set-points that make the drives follow the
     /// programmed path, written as a fine-block program (G93 G64, one block per sample period)
     /// and judged on the true machine against the original path (docs/compensation.md).
-    Compensate {
-        /// Machine file (TOML).
-        machine: PathBuf,
-        /// G-code program.
-        program: PathBuf,
-        /// Identified model file (from `vcnc identify`).
-        #[arg(long)]
-        model: PathBuf,
-        /// Most iterations of the learning loop on the models.
-        #[arg(long, default_value_t = 30)]
-        iterations: usize,
-        /// Plan the program with every velocity limit times this (0 < H ≤ 1), so that the
-        /// set-points can lead moves that run at a limit (rapids).
-        #[arg(long, default_value_t = 1.0)]
-        headroom: f64,
-        /// Output folder (compensated.ngc, references.csv, contour.csv, summary.json, plots).
-        #[arg(long, default_value = "vcnc-compensate")]
-        out: PathBuf,
-        #[command(flatten)]
-        table: TableArgs,
-    },
+    Compensate(CompensateArgs),
     /// Plan per-block feeds (never above the programmed ones) that keep the predicted contour
     /// error within a tolerance, and compare with the uniform feed scale that meets it
     /// (docs/compensation.md).
@@ -198,6 +178,29 @@ impl TableArgs {
             columns: self.columns.as_deref().map(crate::sink::parse_columns),
         }
     }
+}
+
+#[derive(Debug, Args)]
+pub struct CompensateArgs {
+    /// Machine file (TOML).
+    pub machine: PathBuf,
+    /// G-code program.
+    pub program: PathBuf,
+    /// Identified model file (from `vcnc identify`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Most iterations of the learning loop on the models.
+    #[arg(long, default_value_t = 30)]
+    pub iterations: usize,
+    /// Plan the program with every velocity limit times this (0 < H ≤ 1), so that the
+    /// set-points can lead moves that run at a limit (rapids).
+    #[arg(long, default_value_t = 1.0)]
+    pub headroom: f64,
+    /// Output folder (compensated.ngc, references.csv, contour.csv, summary.json, plots).
+    #[arg(long, default_value = "vcnc-compensate")]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub table: TableArgs,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

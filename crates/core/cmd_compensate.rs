@@ -15,21 +15,23 @@ use vcnc_pipeline::run::{self, Run};
 use vcnc_report::{Axis, LineFigure, Panel, Role, Series, line_figure};
 
 use crate::Ctx;
+use crate::cli::CompensateArgs;
 use crate::output::{ensure_dir, write_atomic, write_json};
 use crate::sink::{TableOptions, write_table};
 use crate::table::{print_warnings, table as text_table};
 
 /// `vcnc compensate MACHINE PROGRAM --model MODEL [--iterations N] [--headroom H] --out DIR`.
-pub fn compensate(
-    machine_path: &Path,
-    program: &Path,
-    model: &Path,
-    iterations: usize,
-    headroom: f64,
-    out: &Path,
-    table: &TableOptions,
-    ctx: &Ctx,
-) -> Result<()> {
+pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
+    let CompensateArgs {
+        machine: machine_path,
+        program,
+        model,
+        iterations,
+        headroom,
+        out,
+        table,
+    } = args;
+    let (iterations, headroom, table) = (*iterations, *headroom, &table.options());
     let machine = Machine::load(machine_path)?;
     let original = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&original.warnings);
