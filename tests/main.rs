@@ -6,6 +6,7 @@ mod util;
 
 mod bad_inputs;
 mod cli;
+mod compensate;
 mod identify;
 mod report;
 mod spiral;

@@ -71,6 +71,31 @@ pub enum Command {
         #[command(flatten)]
         table: TableArgs,
     },
+    /// Compensate a program with identified models: set-points that make the drives follow the
+    /// programmed path, written as a fine-block program (G93 G64, one block per sample period)
+    /// and judged on the true machine against the original path (docs/compensation.md).
+    Compensate(CompensateArgs),
+    /// Plan per-block feeds (never above the programmed ones) that keep the predicted contour
+    /// error within a tolerance, and compare with the uniform feed scale that meets it
+    /// (docs/compensation.md).
+    FeedPlan {
+        /// Machine file (TOML).
+        machine: PathBuf,
+        /// G-code program.
+        program: PathBuf,
+        /// Identified model file (from `vcnc identify`).
+        #[arg(long)]
+        model: PathBuf,
+        /// Tool-tip contour-error tolerance with its unit: `10um` (or `µm`), `0.01mm`.
+        #[arg(long)]
+        tolerance: String,
+        /// Also keep the orientation contour error within this: `0.05mrad`, `0.003deg`.
+        #[arg(long)]
+        orientation_tolerance: Option<String>,
+        /// Output folder (planned.ngc, uniform.ngc, blocks.csv, summary.json, plots).
+        #[arg(long, default_value = "vcnc-feed-plan")]
+        out: PathBuf,
+    },
     /// Interpolate a program into the reference trajectory at the sample period.
     Interpolate {
         /// Machine file (TOML).
@@ -163,6 +188,30 @@ impl TableArgs {
             columns: self.columns.as_deref().map(crate::sink::parse_columns),
         }
     }
+}
+
+#[derive(Debug, Args)]
+pub struct CompensateArgs {
+    /// Machine file (TOML).
+    pub machine: PathBuf,
+    /// G-code program.
+    pub program: PathBuf,
+    /// Identified model file (from `vcnc identify`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Most iterations of the learning loop on the models.
+    #[arg(long, default_value_t = 30)]
+    pub iterations: usize,
+    /// Plan the program with every velocity limit times this (0 < H ≤ 1), so that the
+    /// set-points can lead moves that run at a limit (rapids). Default: 1, lowered just enough
+    /// (and reported) when a set-point would exceed a velocity limit.
+    #[arg(long)]
+    pub headroom: Option<f64>,
+    /// Output folder (compensated.ngc, references.csv, contour.csv, summary.json, plots).
+    #[arg(long, default_value = "vcnc-compensate")]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub table: TableArgs,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

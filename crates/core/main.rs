@@ -8,7 +8,9 @@
 //! and column where there is one).
 
 mod cli;
+mod cmd_compensate;
 mod cmd_demo;
+mod cmd_feed_plan;
 mod cmd_frf;
 mod cmd_gen;
 mod cmd_identify;
@@ -126,6 +128,23 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
                 vcnc_pipeline::run::Measured::Feed
             },
             &table.options(),
+            ctx,
+        ),
+        Command::Compensate(args) => cmd_compensate::compensate(&args, ctx),
+        Command::FeedPlan {
+            machine,
+            program,
+            model,
+            tolerance,
+            orientation_tolerance,
+            out,
+        } => cmd_feed_plan::feed_plan(
+            &machine,
+            &program,
+            &model,
+            &tolerance,
+            orientation_tolerance.as_deref(),
+            &out,
             ctx,
         ),
         Command::Interpolate {

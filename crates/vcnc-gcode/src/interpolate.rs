@@ -57,6 +57,21 @@
 //! number of samples (exact when $60/F$ is a multiple of $T_s$): a rest-to-rest trapezoid with
 //! the acceleration $A$ and the peak speed lowered as above to fit that duration.
 //!
+//! **Time-exact chains of fine blocks** (`G93` + `G64`, every block's $1/F$ exactly one sample
+//! period $T_s$, `G1` only): such a program is a stream of set-points, one per interpolation
+//! cycle, as a pre-compensated program is (docs/compensation.md). A maximal run of such blocks
+//! is not re-planned: the position at sample $k$ of the chain is the end point of its block $k$,
+//! and the velocity and acceleration are the central differences of those positions, the chain
+//! at rest before its first and after its last block ([`time_exact_rates`]):
+//! $$ \dot{\mathbf x}_k = \frac{\mathbf x_{k+1} - \mathbf x_{k-1}}{2T_s}, \qquad
+//!    \ddot{\mathbf x}_k = \frac{\mathbf x_{k+1} - 2\mathbf x_k + \mathbf x_{k-1}}{T_s^2}. $$
+//! Each block's speed along its path parameter must stay within the speed cap $V$ above
+//! (axis, tool-tip and feed-independent limits); its acceleration is the program's affair (a
+//! pre-compensated set-point has acceleration spikes the axis does not perform). A chain with
+//! a block too fast for the limits runs as before — every `G93` block an exact stop — with a
+//! warning naming the block. Blocks with a longer $1/F$, arcs and `G61` blocks are never part
+//! of such a chain, so no other program changes.
+//!
 //! **Feeds the machine cannot follow** are run at its limits, as a control does, never refused:
 //! a `G94` feed above a block's speed cap $V_{\lim}$ (the axis, tool-tip or centripetal limits
 //! above) runs at $V_{\lim}$, slowed by the factor $F/(60 V_{\lim})$; a `G93` block whose $1/F$
@@ -266,6 +281,25 @@ impl Trajectory {
                 .map(|_| next)
         })
     }
+}
+
+/// Velocity and acceleration of a time-exact chain at its samples (module doc): central
+/// differences of the sampled positions, the chain at rest before its first and after its last
+/// sample ($x_{-1} = x_0$, $x_n = x_{n-1}$):
+/// $$ \dot x_k = \frac{x_{k+1} - x_{k-1}}{2T_s}, \qquad
+///    \ddot x_k = \frac{x_{k+1} - 2x_k + x_{k-1}}{T_s^2}. $$
+/// Returns `(vel, acc)` (units/s, units/s²). Reference pre-compensation uses the same function,
+/// so that a compensated program reproduces the references it was computed with.
+pub fn time_exact_rates(pos: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = pos.len();
+    let at = |k: isize| pos[k.clamp(0, n as isize - 1) as usize];
+    let (mut vel, mut acc) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for k in 0..n as isize {
+        let (a, b, c) = (at(k - 1), at(k), at(k + 1));
+        vel.push((c - a) / (2.0 * ts));
+        acc.push((c - 2.0 * b + a) / (ts * ts));
+    }
+    (vel, acc)
 }
 
 /// Trapezoidal (or triangular) speed profile from $v_0$ to $v_1$ over length $L$, unscaled time.
@@ -681,6 +715,16 @@ struct Piece {
     /// Move index of a dwell.
     dwell_move: Option<usize>,
     tcp: bool,
+    /// A time-exact chain of fine blocks (module doc): its positions at the samples.
+    exact: Option<Exact>,
+}
+
+/// The samples of a time-exact chain: `points[j]` is the position at the piece's sample `j`
+/// (`points[0]` the start, `points[n]` the end); `moves[j]` the move that ends on `points[j + 1]`.
+#[derive(Debug, Clone)]
+struct Exact {
+    points: Vec<[f64; 6]>,
+    moves: Vec<usize>,
 }
 
 /// Number of whole samples covering `t` seconds (tolerating round-off just above a multiple).
@@ -715,6 +759,7 @@ fn single(seg: Seg, tcp: bool, t_req: Option<f64>, ts: f64, max: usize) -> Resul
         hold: [0.0; 6],
         dwell_move: None,
         tcp,
+        exact: None,
     })
 }
 
@@ -793,6 +838,92 @@ fn chain(
         hold: [0.0; 6],
         dwell_move: None,
         tcp,
+        exact: None,
+    })
+}
+
+/// A fine block: `G1` under `G93` and `G64` whose $1/F$ is exactly one sample period (within
+/// $10^{-9}$ relative), the element of a time-exact chain (module doc).
+fn fine_block(mv: &Move, ts: f64) -> bool {
+    !mv.exact_stop
+        && matches!(mv.kind, MoveKind::Linear)
+        && matches!(mv.feed, Some(Feed::InverseTime(f)) if (60.0 / (f * ts) - 1.0).abs() <= 1e-9)
+}
+
+/// What became of a chain of fine blocks; `next` is the index of the first move after it.
+enum Chain {
+    /// Run time-exactly as this piece.
+    Exact { piece: Piece, next: usize },
+    /// A block is faster than the limits allow: the blocks run as before, block by block, with
+    /// this warning.
+    Refused { next: usize, warning: Diagnostic },
+}
+
+/// The time-exact chain of fine blocks starting at move `i` (module doc).
+fn time_exact_chain(
+    tp: &Toolpath,
+    i: usize,
+    limits: &Limits,
+    opts: &InterpolateOptions,
+) -> Result<Chain, Error> {
+    let ts = opts.ts;
+    let first = &tp.moves[i];
+    let mut points = vec![first.start];
+    let mut moves = Vec::new();
+    let mut refusal: Option<(f64, f64, &Move, bool)> = None;
+    let mut j = i;
+    while j < tp.moves.len() {
+        let m = &tp.moves[j];
+        if !fine_block(m, ts) || m.tcp != first.tcp {
+            break;
+        }
+        if let Some(seg) = segment(m, j, limits, opts)? {
+            // The block's speed along its path parameter against the limits' speed cap.
+            let speed = seg.len / ts;
+            if speed > seg.vlim * (1.0 + 1e-9)
+                && refusal.is_none_or(|r| speed / seg.vlim > r.0 / r.1)
+            {
+                refusal = Some((speed, seg.vlim, m, !seg.xyz_basis));
+            }
+            points.push(m.end);
+            moves.push(j);
+        }
+        j += 1;
+        if m.stop_after {
+            break;
+        }
+    }
+    if let Some((speed, cap, m, deg)) = refusal {
+        let unit = if deg { "deg" } else { "mm" };
+        let message = format!(
+            "the {} fine blocks from line {} (G93 G64, 1/F = one sample period) are not run as set-points: line {} needs {speed:.3} {unit}/s along its path, the limits allow {cap:.3} {unit}/s; each block runs as an exact stop",
+            j - i,
+            first.line,
+            m.line
+        );
+        let span = Span {
+            line: m.line,
+            col: m.col,
+            start: 0,
+            end: 0,
+        };
+        return Ok(Chain::Refused {
+            next: j,
+            warning: Diagnostic::warning(span, message),
+        });
+    }
+    let n = moves.len() as u64;
+    Ok(Chain::Exact {
+        piece: Piece {
+            n,
+            lambda: 1.0,
+            segs: Vec::new(),
+            hold: first.start,
+            dwell_move: None,
+            tcp: first.tcp,
+            exact: Some(Exact { points, moves }),
+        },
+        next: j,
     })
 }
 
@@ -904,6 +1035,9 @@ pub fn interpolate(
         Ok(())
     };
     let mut i = 0;
+    // Fine blocks before this move index run as exact stops (their chain was refused).
+    let mut not_exact_until = 0;
+    let mut warnings_early: Vec<Diagnostic> = Vec::new();
     while i < tp.moves.len() {
         let mv = &tp.moves[i];
         if let MoveKind::Dwell { seconds } = mv.kind {
@@ -915,10 +1049,25 @@ pub fn interpolate(
                 hold: mv.start,
                 dwell_move: Some(i),
                 tcp: mv.tcp,
+                exact: None,
             };
             push(p, &mut total, &mut pieces)?;
             i += 1;
             continue;
+        }
+        if i >= not_exact_until && fine_block(mv, ts) {
+            match time_exact_chain(tp, i, limits, opts)? {
+                Chain::Exact { piece, next } => {
+                    push(piece, &mut total, &mut pieces)?;
+                    i = next;
+                    continue;
+                }
+                Chain::Refused { next, warning } => {
+                    // Run these blocks as before (each an exact stop), and say why.
+                    warnings_early.push(warning);
+                    not_exact_until = next;
+                }
+            }
         }
         if continuous(mv) {
             // Gather the chain.
@@ -992,7 +1141,7 @@ pub fn interpolate(
         }
         i += 1;
     }
-    let mut warnings = Vec::new();
+    let mut warnings = warnings_early;
     let slowdown = slowed.finish(&mut warnings);
     let mut t = sample(tp, &pieces, total, opts, warnings)?;
     t.slowdown = slowdown;
@@ -1062,7 +1211,34 @@ fn sample(
         let base = k0 as usize;
         let n = piece.n as usize;
         let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
-        if piece.segs.is_empty() {
+        if let Some(ex) = &piece.exact {
+            // Time-exact: the positions are the block end points; velocity and acceleration
+            // are their central differences, at rest before and after (time_exact_rates).
+            for (j, &mi) in ex.moves.iter().enumerate() {
+                blocks.push(BlockSpan {
+                    move_index: mi,
+                    line: tp.moves.get(mi).map_or(0, |m| m.line),
+                    class: class(mi),
+                    t_start_s: t0 + j as f64 * ts,
+                    t_end_s: t0 + (j + 1) as f64 * ts,
+                    first_sample: base + j + 1,
+                    end_sample: base + j + 2,
+                    tcp: piece.tcp,
+                });
+            }
+            let last = ex.points.len() - 1;
+            for j in 0..n {
+                let (a, b, c) = (
+                    &ex.points[j.saturating_sub(1)],
+                    &ex.points[j],
+                    &ex.points[(j + 1).min(last)],
+                );
+                let v: [f64; 6] = std::array::from_fn(|i| (c[i] - a[i]) / (2.0 * ts));
+                let acc: [f64; 6] = std::array::from_fn(|i| (c[i] - 2.0 * b[i] + a[i]) / (ts * ts));
+                emit(b, &v, &acc, &mut axes);
+                tcp.push(piece.tcp);
+            }
+        } else if piece.segs.is_empty() {
             if let Some(mi) = piece.dwell_move {
                 blocks.push(BlockSpan {
                     move_index: mi,
@@ -1472,6 +1648,99 @@ mod tests {
         let vmax = (0..t.len()).map(|k| speed(&t, k)).fold(0.0, f64::max);
         assert!((vmax - 50.0).abs() < 1e-9);
         assert!(t.tcp[0]);
+    }
+
+    /// Fine-block program text: `G0` to the first point, then one `G93 G64 G1 … F60000` block
+    /// (1 ms) per further point.
+    fn fine_program(points: &[[f64; 2]]) -> String {
+        let mut src = format!("G0 X{} Y{}\nG93 G64\n", points[0][0], points[0][1]);
+        for p in &points[1..] {
+            src.push_str(&format!("G1 X{} Y{} F60000\n", p[0], p[1]));
+        }
+        src
+    }
+
+    #[test]
+    fn fine_blocks_run_as_set_points() {
+        // Truth: the definition of a time-exact chain (docs/gcode.md) — sample k sits exactly on
+        // the end point of block k, velocity and acceleration are the central differences
+        // (time_exact_rates) with rest at both ends, and block k spans sample k alone.
+        let limits = Limits::uniform(500.0, 5000.0);
+        let points: Vec<[f64; 2]> = (0..60)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                [20.0 * t * t + 1e-7 * (k % 7) as f64, (40.0 * t).sin()]
+            })
+            .collect();
+        let t = traj(
+            &fine_program(&points),
+            &limits,
+            &InterpolateOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(t.len(), points.len());
+        assert!((t.duration_s() - 0.059).abs() < 1e-12);
+        for (i, name) in [AxisName::X, AxisName::Y].into_iter().enumerate() {
+            let a = t.axis(name).unwrap();
+            let pos: Vec<f64> = points.iter().map(|p| p[i]).collect();
+            assert_eq!(
+                a.pos, pos,
+                "{name}: positions are the end points, bit for bit"
+            );
+            let (vel, acc) = time_exact_rates(&pos, t.ts);
+            // The last sample is the trajectory's final rest.
+            assert_eq!(a.vel[..pos.len() - 1], vel[..pos.len() - 1]);
+            assert_eq!(a.acc[..pos.len() - 1], acc[..pos.len() - 1]);
+        }
+        for (k, b) in t.blocks.iter().enumerate() {
+            assert_eq!(
+                (b.first_sample, b.end_sample),
+                (if k == 0 { 0 } else { k + 1 }, k + 2)
+            );
+            assert!((b.t_end_s - b.t_start_s - 1e-3).abs() < 1e-12);
+            assert_eq!(b.line as usize, k + 3);
+        }
+        assert!(t.warnings.is_empty());
+    }
+
+    #[test]
+    fn fine_blocks_too_fast_for_the_limits_run_as_exact_stops_with_a_warning() {
+        // 1 mm in 1 ms is 1000 mm/s, twice the 500 mm/s limit: the chain is refused, every block
+        // runs as the G93 exact stop it was before (the same trajectory as under G61), and one
+        // warning names the block.
+        let limits = Limits::uniform(500.0, 5000.0);
+        let src = "G0 X0\nG93 G64\nG1 X0.1 F60000\nG1 X1.1 F60000\nG1 X1.2 F60000\n";
+        let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
+        let g61 = traj(
+            &src.replace("G64", "G61"),
+            &limits,
+            &InterpolateOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(t.axes, g61.axes);
+        let w: Vec<&Diagnostic> = t
+            .warnings
+            .iter()
+            .filter(|d| d.message.contains("fine blocks"))
+            .collect();
+        assert_eq!(w.len(), 1, "{:?}", t.warnings);
+        assert_eq!(w[0].line, 4);
+        assert!(w[0].message.contains("1000.000 mm/s"), "{}", w[0].message);
+    }
+
+    #[test]
+    fn longer_inverse_time_blocks_under_g64_are_not_set_points() {
+        // 1/F = 2 ms is not one sample period: the blocks keep their exact-stop trapezoids.
+        let limits = Limits::uniform(500.0, 5000.0);
+        let src = "G0 X0\nG93 G64\nG1 X0.001 F30000\nG1 X0.002 F30000\n";
+        let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
+        let g61 = traj(
+            &src.replace("G64", "G61"),
+            &limits,
+            &InterpolateOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(t, g61);
     }
 
     #[test]

@@ -103,6 +103,26 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A compensated or re-planned reference would exceed an axis limit
+    /// (docs/compensation.md#limits).
+    #[error(
+        "axis {axis}: the {what} reaches {value:.3} {unit}, {:.2} % above its limit {limit} {unit}; {advice}",
+        100.0 * (value / limit - 1.0)
+    )]
+    Limit {
+        /// The axis.
+        axis: AxisName,
+        /// What exceeds (e.g. `compensated reference velocity`).
+        what: &'static str,
+        /// The peak reached, in `unit`.
+        value: f64,
+        /// The axis limit, in `unit`.
+        limit: f64,
+        /// `mm/s`, `deg/s²`, …
+        unit: String,
+        /// What the user can do.
+        advice: String,
+    },
     /// An option or argument that does not fit the inputs (an axis the machine lacks, a bad
     /// `--set` or `--shard`).
     #[error("{0}")]
@@ -137,6 +157,7 @@ impl Error {
             | Error::Travel { .. }
             | Error::Table { .. }
             | Error::Trace(_)
+            | Error::Limit { .. }
             | Error::Usage(_) => true,
             Error::SweepFailed { .. } | Error::Internal(_) => false,
         }

@@ -28,6 +28,8 @@
 //! | [`frf`] | Bode data and bandwidth of models | [`BodeData`] |
 //! | [`kinematics`] | forward/inverse kinematics of tables | — |
 //! | [`sweep`] | configuration sweeps, shards, merge | [`Sweep`], [`SweepRow`] |
+//! | [`compensate`] | compensated set-points from identified models, the fine-block program, judging on the true machine | [`compensate::Compensation`] |
+//! | [`feed_plan`] | per-block feeds within a contour tolerance, the uniform baseline | [`feed_plan::FeedPlan`] |
 //! | [`summary`] | the objects of `summary.json` | [`ModelSummary`], [`FitSummary`] |
 //!
 //! Every function is deterministic: axes and configurations run in parallel (rayon) but
@@ -36,6 +38,7 @@
 
 pub mod compensate;
 mod error;
+pub mod feed_plan;
 pub mod frf;
 pub mod identify;
 pub mod kinematics;
