@@ -577,8 +577,92 @@ fn cases() -> Vec<Case> {
             args: &["identify", NMV, "--axis", "B", "--out", "out"],
             expect: &["--axis B", "no axis B"],
         },
+        Case {
+            name: "validate: the trace's axis has no model",
+            files: &[
+                ("t.csv", VALID_TRACE),
+                (
+                    "model.toml",
+                    "[axes.Y]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\n",
+                ),
+            ],
+            args: &[
+                "validate",
+                "--model",
+                "model.toml",
+                "--trace",
+                "t.csv",
+                "--out",
+                "out",
+            ],
+            expect: &["t.csv", "(X)", "model.toml", "(Y)"],
+        },
+        Case {
+            name: "validate: a model of another unit",
+            files: &[
+                ("t.csv", VALID_TRACE),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"deg\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\n",
+                ),
+            ],
+            args: &[
+                "validate",
+                "--model",
+                "model.toml",
+                "--trace",
+                "t.csv",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml", "axis X", "deg", "mm"],
+        },
+        Case {
+            name: "validate: a model file with an unknown key",
+            files: &[
+                ("t.csv", VALID_TRACE),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\ngain = 3\n",
+                ),
+            ],
+            args: &[
+                "validate",
+                "--model",
+                "model.toml",
+                "--trace",
+                "t.csv",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml", "gain"],
+        },
+        Case {
+            name: "validate: a trace whose time runs back",
+            files: &[
+                ("t.csv", "t,xr,x\n0,0,0\n0.001,0,0\n0.0005,0,0\n0.002,0,0\n"),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\n",
+                ),
+            ],
+            args: &[
+                "validate",
+                "--model",
+                "model.toml",
+                "--trace",
+                "t.csv",
+                "--out",
+                "out",
+            ],
+            expect: &["t.csv", "0.0005"],
+        },
     ]
 }
+
+/// A short valid single-axis trace (t, xr, x in mm), made for these cases: a raised-cosine
+/// 1 mm move in 0.1 s, the actual position the nominal one 2 ms late.
+const VALID_TRACE: &str = include_str!("data/validate-trace.csv");
 
 /// Generated trace files (too long to write inline).
 fn generated(marker: &str) -> Option<Vec<u8>> {

@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use vcnc_axis::AxisName;
+use vcnc_trace::{AxisMap, ChannelRef, GapPolicy, PairOptions, ReadOptions};
 
 /// vcnc — a virtual 5-axis CNC: identify the closed-loop dynamics of each feed drive from an
 /// air-cutting run, then predict the contour errors a 5-axis toolpath will leave on the part.
@@ -36,6 +38,9 @@ pub enum Command {
     /// Identify each axis' closed-loop model: from a simulated machine (interpolate the
     /// identification program, run the true drive, identify, validate) or from a measured trace.
     Identify(IdentifyArgs),
+    /// Score an identified model on a measured trace it was not fitted on: free-run and
+    /// one-step errors, fit %, tracking error, residual plots (docs/identification.md).
+    Validate(ValidateArgs),
     /// Run a program through the machine's true drives.
     Simulate {
         /// Machine file (TOML).
@@ -263,6 +268,37 @@ pub struct IdentifyArgs {
     pub out: PathBuf,
 }
 
+/// `vcnc validate --model MODEL.toml --trace TRACE [--axis A] --out DIR`.
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// Identified model file (from `vcnc identify`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Measured trace, any supported format (as `identify --trace`).
+    #[arg(long)]
+    pub trace: PathBuf,
+    /// Axes to score (default: every axis of the trace that has a model).
+    #[arg(long = "axis", value_name = "A")]
+    pub axes: Vec<AxisName>,
+    #[command(flatten)]
+    pub read: TraceReadArgs,
+    /// Delimited text: name of the time column [default: t, time, zeit or timestamp].
+    #[arg(long)]
+    pub t_col: Option<String>,
+    /// Delimited text: the reference (nominal) position column of the (first) --axis.
+    #[arg(long)]
+    pub xr_col: Option<String>,
+    /// Delimited text: the actual position column of the (first) --axis.
+    #[arg(long)]
+    pub x_col: Option<String>,
+    /// Lost samples in the trace: refuse, or score the longest stretch without any.
+    #[arg(long, value_enum)]
+    pub gaps: Option<GapsArg>,
+    /// Output folder (summary.json, residual plots, report.html).
+    #[arg(long, default_value = "vcnc-validate")]
+    pub out: PathBuf,
+}
+
 /// How a trace file is read (shared by `identify --trace` and `trace info`).
 #[derive(Debug, Clone, Args)]
 pub struct TraceReadArgs {
@@ -282,6 +318,52 @@ pub struct TraceReadArgs {
     /// LinuxCNC joint-to-axis map, e.g. XYZAC for a table-tilting machine [default: XYZABC].
     #[arg(long, value_name = "AXES")]
     pub joints: Option<String>,
+}
+
+/// How to read and pair a trace (`identify --trace`, `validate`): the read options with
+/// `--t-col`, and the pairing with the axes, `--xr-col`/`--x-col` (one axis' nominal and actual
+/// columns, for the first `--axis` or X) and `--gaps`.
+pub fn trace_pairing(
+    read: &TraceReadArgs,
+    axes: &[AxisName],
+    t_col: Option<&str>,
+    (xr_col, x_col): (Option<&str>, Option<&str>),
+    gaps: Option<GapsArg>,
+) -> anyhow::Result<(ReadOptions, PairOptions)> {
+    let (mut options, unit) = read.options()?;
+    if let Some(t) = t_col {
+        options.time_column = Some(ChannelRef::Name(t.to_string()));
+    }
+    let mut pair = PairOptions {
+        axes: axes.to_vec(),
+        gaps: match gaps {
+            Some(GapsArg::Longest) => GapPolicy::LongestSegment,
+            _ => GapPolicy::Refuse,
+        },
+        ..PairOptions::default()
+    };
+    if let Some(u) = unit
+        && !pair.set_unit(u)
+    {
+        return Err(crate::bad_input(format!(
+            "--units {}: not a position unit",
+            read.units.as_deref().unwrap_or_default()
+        )));
+    }
+    match (xr_col, x_col) {
+        (Some(xr), Some(x)) => pair.map.push(AxisMap {
+            axis: axes.first().copied().unwrap_or(AxisName::X),
+            nominal: ChannelRef::Name(xr.to_string()),
+            actual: ChannelRef::Name(x.to_string()),
+        }),
+        (None, None) => {}
+        _ => {
+            return Err(crate::bad_input(
+                "--xr-col and --x-col go together: they name one axis' nominal and actual columns",
+            ));
+        }
+    }
+    Ok((options, pair))
 }
 
 /// `--gaps`.

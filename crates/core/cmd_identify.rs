@@ -4,13 +4,11 @@
 use std::path::Path;
 
 use anyhow::Result;
-use vcnc_axis::AxisName;
 use vcnc_machine::{Machine, OptionsFile};
 use vcnc_pipeline::identify::{self, IdentifySummary};
 use vcnc_pipeline::traces;
-use vcnc_trace::{AxisMap, ChannelRef, GapPolicy, PairOptions};
 
-use crate::cli::{GapsArg, IdentifyArgs};
+use crate::cli::IdentifyArgs;
 use crate::output::ensure_dir;
 use crate::table::{print_warnings, table};
 use crate::writers::{
@@ -77,39 +75,13 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         Some(p) => OptionsFile::load(p)?,
         None => OptionsFile::default(),
     };
-    let (mut read, unit) = args.read.options()?;
-    if let Some(t) = &args.t_col {
-        read.time_column = Some(ChannelRef::Name(t.clone()));
-    }
-    let mut pair = PairOptions {
-        axes: args.axes.clone(),
-        gaps: match args.gaps {
-            Some(GapsArg::Longest) => GapPolicy::LongestSegment,
-            _ => GapPolicy::Refuse,
-        },
-        ..PairOptions::default()
-    };
-    if let Some(u) = unit
-        && !pair.set_unit(u)
-    {
-        return Err(bad_input(format!(
-            "--units {}: not a position unit",
-            args.read.units.as_deref().unwrap_or_default()
-        )));
-    }
-    match (&args.xr_col, &args.x_col) {
-        (Some(xr), Some(x)) => pair.map.push(AxisMap {
-            axis: args.axes.first().copied().unwrap_or(AxisName::X),
-            nominal: ChannelRef::Name(xr.clone()),
-            actual: ChannelRef::Name(x.clone()),
-        }),
-        (None, None) => {}
-        _ => {
-            return Err(bad_input(
-                "--xr-col and --x-col go together: they name one axis' nominal and actual columns",
-            ));
-        }
-    }
+    let (read, pair) = crate::cli::trace_pairing(
+        &args.read,
+        &args.axes,
+        args.t_col.as_deref(),
+        (args.xr_col.as_deref(), args.x_col.as_deref()),
+        args.gaps,
+    )?;
     let measured = traces::read_trace(path, &read, &pair)?;
     for s in &measured.paired.skipped {
         eprintln!(
@@ -179,7 +151,6 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                 )
             );
         }
-        print!("{}", model_table(&ids));
         print!("{}", model_table(&ids));
         println!("-> {}", args.out.display());
     }

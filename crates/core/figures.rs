@@ -273,6 +273,48 @@ fn validation(report: &mut RunReport, r: &AxisIdentification) -> Result<()> {
     )
 }
 
+/// `validation_<AXIS>.svg` of `vcnc validate`: the measured tracking error and the model's
+/// free-run prediction of it on a trace it was not fitted on, and the residual below.
+pub fn validation_measured(
+    report: &mut RunReport,
+    v: &vcnc_pipeline::validate::AxisValidation,
+) -> Result<()> {
+    let trace = &v.trace;
+    let (k, u) = (v.unit.micro_factor(), v.unit.micro_symbol());
+    let t = times(trace.len(), trace.ts);
+    let measured = scaled_diff(&trace.xr, &trace.x, k);
+    let model = scaled_diff(&trace.xr, &v.fit.predicted_x, k);
+    let note = format!(
+        "free-run error RMS / max {:.3} / {:.3} {u}, fit {:.2} %, tracking error RMS {:.3} {u}",
+        v.fit.freerun_rms * k,
+        v.fit.freerun_max * k,
+        v.fit.fit_percent,
+        v.fit.tracking_rms * k,
+    );
+    report.figure(
+        &format!("validation_{}.svg", v.axis),
+        vr::comparison_figure(
+            &format!("axis {}: model on the measured trace", v.axis),
+            &note,
+            Axis::linear("time t", units::S),
+            &[Comparison {
+                title: None,
+                y: Axis::linear("tracking error x_r − x", u),
+                truth: Series::line(MEASUREMENT, Role::Measurement, &t, &measured),
+                others: vec![Series::line(VCNC_MODEL, Role::Model, &t, &model)],
+                difference: Some(Quantity::new(format!("model − {MEASUREMENT}"), u)),
+            }],
+            Vec::new(),
+        ),
+        &format!(
+            "Axis {}: tracking error x_r − x measured, and as the model predicts it in free run \
+             from the nominal position alone; below, the residual (model − measurement).",
+            v.axis
+        ),
+        section::IDENTIFICATION,
+    )
+}
+
 /// A model whose errors are drawn against the true machine's.
 pub struct ModelErrors<'a> {
     /// Legend label.

@@ -20,6 +20,7 @@ mod cmd_report;
 mod cmd_simulate;
 mod cmd_sweep;
 mod cmd_trace;
+mod cmd_validate;
 mod figures;
 mod output;
 mod report;
@@ -96,6 +97,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
     match command {
         Command::Demo { out, table } => cmd_demo::demo(&out, &table.options(), ctx),
         Command::Identify(args) => cmd_identify::identify(&args, ctx),
+        Command::Validate(args) => cmd_validate::validate(&args, ctx),
         Command::Simulate {
             machine,
             program,

@@ -51,6 +51,7 @@ pub mod summary;
 pub mod sweep;
 pub mod table;
 pub mod traces;
+pub mod validate;
 
 pub use error::Error;
 pub use frf::BodeData;
