@@ -1,6 +1,6 @@
 //! The dynamics real feed drives have beyond the rigid plant: mechanical compliance and backlash,
 //! Stribeck and pre-sliding friction, the current loop and torque limit, feedback delay, filters
-//! and noise, and the control's reference shaping (crates/vcnc-drive/REALISM.md).
+//! and noise, and the control's reference shaping (docs/machine-file.md#drive-effects).
 //!
 //! Each effect is an optional machine-file table of the axis; an absent table is today's ideal
 //! behaviour, bit for bit (the simulator then runs the unmodified rigid-plant loop). Two levels,
@@ -12,7 +12,7 @@
 //!   (alternatives resolved, e.g. `mode_hz` into a stiffness; defaults that depend on the plant
 //!   filled in; delays turned into whole servo ticks).
 //!
-//! Symbols follow REALISM.md: $J_m, J_L$ motor- and load-side inertia, $k, c$ transmission
+//! Symbols follow docs/machine-file.md#drive-effects: $J_m, J_L$ motor- and load-side inertia, $k, c$ transmission
 //! stiffness and damping, $b$ backlash, $T_c, T_s, v_s, \delta$ Coulomb and static friction,
 //! Stribeck velocity and exponent.
 
@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use crate::Error;
 use crate::params::{Encoder, Plant};
 
-/// Two-mass transmission between motor and load (REALISM.md §1), in the plant's motor-side units:
+/// Two-mass transmission between motor and load (docs/machine-file.md#compliance), in the plant's motor-side units:
 ///
 /// $$ J_m\ddot\theta_m = T_m - T_k - B_m\dot\theta_m,\qquad J_L\ddot\theta_L = T_k - B_L\dot\theta_L - T_f, $$
 /// $$ T_k = k\,\mathrm{dz}_b(\theta_m - \theta_L) + c\,(\dot\theta_m - \dot\theta_L)\ [\text{in contact}], $$
@@ -78,7 +78,7 @@ pub enum FrictionLocation {
     Motor,
 }
 
-/// Friction beyond the plant's symmetric Coulomb torque (REALISM.md §2). The positive-direction
+/// Friction beyond the plant's symmetric Coulomb torque (docs/machine-file.md#friction). The positive-direction
 /// Coulomb level is always `plant.coulomb_torque` $T_c$; viscous friction is `plant.b`. Sliding
 /// friction (torque opposing the velocity $v$, in axis units/s) follows the Stribeck law
 ///
@@ -129,7 +129,7 @@ pub enum Friction {
     /// Pre-sliding friction as a Maxwell-slip model: `elements` elasto-plastic elements in
     /// parallel (spring in series with a slider), whose slip levels follow the Stribeck law, so
     /// the steady sliding friction is exactly $F(v)$ and small motions are elastic with
-    /// hysteresis (REALISM.md §2).
+    /// hysteresis (docs/machine-file.md#friction).
     MaxwellSlip {
         /// Pre-sliding displacement $x_{ps}$, axis units: the virgin curve reaches $T_c$ after
         /// this much motion (typically 1–5 µm on guideways). Required; positive.
@@ -170,7 +170,7 @@ pub enum CurrentLoopOrder {
     SecondOrder,
 }
 
-/// The amplifier's current loop and torque limit (REALISM.md §4). The controller output $u$
+/// The amplifier's current loop and torque limit (docs/machine-file.md#current_loop). The controller output $u$
 /// commands the torque $T^* = K_aK_t u$; the motor receives $T$, the current loop's response to
 /// $T^*$, after the limit $|T^*| \le T_{max}$.
 ///
@@ -212,7 +212,7 @@ pub enum FeedbackSource {
     Motor,
 }
 
-/// Feedback path of the loop (REALISM.md §5): sensor, position-loop dead time, velocity filter.
+/// Feedback path of the loop (docs/machine-file.md#feedback): sensor, position-loop dead time, velocity filter.
 /// The position encoder (`encoder`: quantisation, noise, seed) reads the `source`; in a
 /// closed-loop two-mass drive the velocity comes from a second, motor encoder.
 ///
@@ -272,7 +272,7 @@ pub enum ShapingFilter {
     },
 }
 
-/// Reference shaping between the logged nominal position and the position loop (REALISM.md §6).
+/// Reference shaping between the logged nominal position and the position loop (docs/machine-file.md#reference).
 /// The trace's reference (what a control's scope records as nominal position) is the unshaped
 /// one; the loop sees it delayed by `interpolation_delay_s` and filtered by `filter` (position,
 /// velocity and acceleration feed-forward alike).
@@ -344,7 +344,7 @@ pub struct TwoMass {
 
 impl TwoMass {
     /// Resonance of the free two-mass system, $\omega_r = \sqrt{k(J_m + J_L)/(J_m J_L)}$, Hz:
-    /// the peak of the motor-side admittance (REALISM.md §1).
+    /// the peak of the motor-side admittance (docs/machine-file.md#compliance).
     pub fn resonance_hz(&self) -> f64 {
         (self.stiffness * (self.j_motor + self.j_load) / (self.j_motor * self.j_load)).sqrt() / TAU
     }
@@ -942,7 +942,7 @@ const MAX_PRESLIDING_WH: f64 = 0.1;
 
 /// Element stiffnesses $k_i = T_c/(N\,x_i)$, $x_i = i\,x_{ps}/N$ (N·m per axis unit): element
 /// $i$ slips after $x_i$, so the virgin curve is the concave piecewise-linear
-/// $F(x) = \sum_i \min(k_i x, T_c/N)$, reaching $T_c$ at $x_{ps}$ (REALISM.md §2).
+/// $F(x) = \sum_i \min(k_i x, T_c/N)$, reaching $T_c$ at $x_{ps}$ (docs/machine-file.md#friction).
 pub fn maxwell_slip_stiffness(tc: f64, elements: usize, xps: f64) -> [f64; MAX_ELEMENTS] {
     let mut k = [0.0; MAX_ELEMENTS];
     let n = elements as f64;

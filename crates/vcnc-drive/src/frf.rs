@@ -1,6 +1,6 @@
 //! The true drive's frequency response, measured as a drive commissioning tool measures it: by
 //! simulating the drive (every effect included) under a multisine excitation and dividing the
-//! spectra of output and input at the excited lines (crates/vcnc-drive/REALISM.md §7).
+//! spectra of output and input at the excited lines (docs/machine-file.md#frequency-response-of-the-true-drive).
 //!
 //! # Method
 //!

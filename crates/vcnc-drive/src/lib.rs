@@ -9,7 +9,7 @@
 //!   [`DriveTrace`]) and the effective poles of the sampled loop.
 //! - [`model`]: the closed-loop model ([`ClosedLoopModel`]) with poles, FRFs and simulation.
 //! - [`effects`]: what real drives add to the rigid plant, each an optional table with physical
-//!   units (crates/vcnc-drive/REALISM.md): two-mass compliance and backlash ([`Compliance`]),
+//!   units (docs/machine-file.md#drive-effects): two-mass compliance and backlash ([`Compliance`]),
 //!   Stribeck and pre-sliding friction ([`Friction`]), current loop and torque limit
 //!   ([`CurrentLoop`]), feedback sensor, dead time and velocity filter ([`Feedback`]), the
 //!   control's reference filter and interpolation delay ([`ReferenceShaping`]). Absent tables

@@ -1,4 +1,4 @@
-//! The servo loop of a drive with effects (crates/vcnc-drive/REALISM.md): two-mass mechanics
+//! The servo loop of a drive with effects (docs/machine-file.md#drive-effects): two-mass mechanics
 //! with backlash, Stribeck and Maxwell-slip friction, current loop and torque limit, feedback
 //! dead time, velocity filter, noisy motor and load encoders, and the reference filter and
 //! interpolation delay. A drive without effects never comes here: [`crate::Drive::simulate`]
@@ -8,7 +8,7 @@
 //!
 //! 1. Reference: the fine-interpolated nominal sample (as in [`crate::sim`]) goes through the
 //!    interpolation delay (a ring of whole ticks) and the nominal-position filter (exact for a
-//!    reference that is linear between ticks, REALISM.md §6).
+//!    reference that is linear between ticks, docs/machine-file.md#reference).
 //! 2. Readings: the position sensor (load scale or motor encoder) is read with quantisation and
 //!    seeded noise, and the position loop takes the reading of $n$ ticks ago (dead time). The
 //!    velocity path reads the motor encoder (the same reading in a rigid or semi-closed drive),
@@ -433,7 +433,7 @@ impl DelayLine {
 // Reference shaping.
 
 /// Interpolation delay and nominal-position filter applied to position, velocity and
-/// acceleration alike (REALISM.md §6).
+/// acceleration alike (docs/machine-file.md#reference).
 pub(crate) struct Shaper {
     delay: Vec<RefSample>,
     delay_pos: usize,
@@ -583,7 +583,7 @@ impl Shaper {
 }
 
 #[allow(clippy::needless_range_loop)] // 2×2 blocks: indices read best
-/// FOH discretisation of $\dot s = A s + B u$ (REALISM.md §6): with $u$ linear between ticks,
+/// FOH discretisation of $\dot s = A s + B u$ (docs/machine-file.md#reference): with $u$ linear between ticks,
 /// $s^+ = \Phi s + \Gamma_a u_k + \Gamma_l (u_{k+1} - u_k)$ where the exponential of
 /// $\begin{bmatrix}A & B & 0\\0 & 0 & 1\\0 & 0 & 0\end{bmatrix}h$ holds $\Phi$,
 /// $\Gamma_a = \int_0^h e^{A\sigma}d\sigma B$ and $h\Gamma_l = \int_0^h e^{A\sigma}(h - \sigma)d\sigma B$.

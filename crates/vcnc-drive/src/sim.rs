@@ -75,7 +75,7 @@ pub struct DriveTrace {
     /// Servo ticks at which $u$ was saturated (0 without a limit).
     pub saturated_ticks: u64,
     /// True motor-side position $r_g\theta_m$, axis units: equal to `true_position` for a rigid
-    /// drive, different with a compliant transmission or backlash (crates/vcnc-drive/REALISM.md).
+    /// drive, different with a compliant transmission or backlash (docs/machine-file.md#drive-effects).
     pub motor_position: Vec<f64>,
     /// Motor torque at the sample instant, N·m: $K_aK_t u$, or the current loop's output when
     /// the drive has one.

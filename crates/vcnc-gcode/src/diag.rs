@@ -39,7 +39,7 @@ impl fmt::Display for Severity {
 }
 
 /// What kind of problem a [`Diagnostic`] reports, for programs that act on it (the message is
-/// for people). The bad-input cases of `LANGUAGE.md` each have their own kind.
+/// for people). The bad-input cases of docs/gcode.md ("Bad input") each have their own kind.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DiagnosticKind {
     /// Malformed text: numbers, comments, words without values, stray characters.

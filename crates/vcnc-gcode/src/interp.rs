@@ -1,7 +1,7 @@
 //! G-code *meaning*: the interpreter that runs a parsed [`Program`] and produces a
 //! [`Toolpath`], as LinuxCNC's RS274/NGC interpreter does. The supported language — codes,
 //! parameters, expressions, O-word control flow, offsets, canned cycles — and every deliberate
-//! difference from LinuxCNC are listed in this crate's `LANGUAGE.md`.
+//! difference from LinuxCNC are listed in docs/gcode.md.
 //!
 //! Stages, in the order LinuxCNC's interpreter uses for each block (`Interp::read` →
 //! `check_items` → `execute_block`):

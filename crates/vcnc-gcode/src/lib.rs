@@ -1,7 +1,7 @@
 //! G-code front end of vcnc: parsing, interpretation, trapezoidal interpolation at the sample
 //! period, and the program generators (docs/gcode.md). The language — RS274/NGC as LinuxCNC
 //! runs it, with parameters, expressions, O-word control flow, offsets and canned cycles — is
-//! described in this crate's `LANGUAGE.md`, and checked against LinuxCNC's own interpreter
+//! described in docs/gcode.md, and checked against LinuxCNC's own interpreter
 //! (`tests/linuxcnc.rs`).
 //!
 //! The stages are kept apart (STYLE, the gcode-rs model):

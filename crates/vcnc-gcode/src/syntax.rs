@@ -1,6 +1,6 @@
 //! G-code *syntax*: lines, words, expressions, parameter assignments, O-word statements,
 //! comments and their source spans (no machine meaning; the dialect is described in this
-//! crate's `LANGUAGE.md`).
+//! repository's docs/gcode.md, "Syntax").
 //!
 //! - one block per line (`\n` or `\r\n`); blank lines are dropped;
 //! - `%` alone on a line delimits the program;

@@ -1,7 +1,7 @@
 //! The machine's set-up tables, in LinuxCNC's file formats: the parameter file (`.var`: work
 //! offsets, G28/G30 positions, G92 offsets) and the tool table (`.tbl`). Both hold lengths in
 //! the machine's units ([`LengthUnit`], LinuxCNC `[TRAJ] LINEAR_UNITS`); the interpreter
-//! converts them to mm. See `LANGUAGE.md` ("Offsets") for how they are used.
+//! converts them to mm. See docs/gcode.md ("Coordinates and offsets") for how they are used.
 
 use std::collections::BTreeMap;
 

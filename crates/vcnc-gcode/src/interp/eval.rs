@@ -1,4 +1,4 @@
-//! Expression evaluation and parameter storage (LinuxCNC semantics: `LANGUAGE.md`,
+//! Expression evaluation and parameter storage (LinuxCNC semantics: docs/gcode.md,
 //! "Parameters" and "Expressions").
 //!
 //! Numbered parameters `#1`–`#5601` are one global table (lengths of the machine's tables in

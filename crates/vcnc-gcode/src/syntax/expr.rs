@@ -1,5 +1,5 @@
 //! Expressions, parameter references and their parser (RS274/NGC as LinuxCNC documents it;
-//! `LANGUAGE.md` of this crate).
+//! docs/gcode.md, "Expressions").
 //!
 //! A *real value* is a number, a bracketed expression `[ … ]`, a parameter `#…`, a function
 //! call (`SIN[…]`, `ATAN[…]/[…]`, `EXISTS[#<name>]`) or a signed real value (`-#1`). Inside
