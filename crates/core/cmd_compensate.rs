@@ -17,6 +17,7 @@ use vcnc_report::{Axis, LineFigure, Panel, Role, Series, line_figure};
 use crate::Ctx;
 use crate::cli::CompensateArgs;
 use crate::output::{ensure_dir, write_atomic, write_json};
+use crate::report::RunReport;
 use crate::sink::{TableOptions, write_table};
 use crate::table::{print_warnings, table as text_table};
 
@@ -116,9 +117,24 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         None => None,
     };
     write_tables(out, &original, &comp, &after, table)?;
+    let mut report = RunReport::new(
+        out,
+        format!(
+            "vcnc compensate: {}",
+            crate::figures::program_name(&original.file)
+        ),
+    );
+    report.input("machine", machine.name.as_str());
+    report.input("program", original.file.as_str());
+    report.input("models", model_file.as_str());
+    report.input("velocity headroom", headroom.to_string());
     if let (Some(b), Some(a)) = (&before.contour, &after.contour) {
-        write_figure(out, &original, b, a)?;
+        write_figure(&mut report, &original, b, a)?;
     }
+    report.file(
+        "compensated.ngc",
+        "the compensated program: one G93 G1 block per sample period (docs/compensation.md)",
+    );
     let summary = summary(
         &machine,
         &original,
@@ -130,6 +146,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         &repro,
     );
     write_json(&out.join("summary.json"), &summary)?;
+    report.finish()?;
     if !ctx.quiet {
         print_report(&summary, &comp);
         println!("-> {}", out.display());
@@ -255,7 +272,7 @@ fn write_tables(
 /// `contour_before_after.svg`: tool-tip and orientation contour errors of the original and the
 /// compensated program on the true machine, along the original path (log scale).
 fn write_figure(
-    out: &Path,
+    report: &mut RunReport,
     original: &Run,
     before: &vcnc_contour::ContourReport,
     after: &vcnc_contour::ContourReport,
@@ -286,9 +303,14 @@ fn write_figure(
                 series(&ob, &oa),
             ),
         ],
-    ))?;
-    fig.save(&out.join("contour_before_after.svg"))?;
-    Ok(())
+    ));
+    report.figure(
+        "contour_before_after.svg",
+        fig,
+        "Tool-tip and orientation contour errors of the true machine along the programmed \
+         path: the original program and the compensated one, both against the original path.",
+        crate::figures::section::CONTOUR,
+    )
 }
 
 fn print_report(s: &CompensateSummary, comp: &Compensation) {

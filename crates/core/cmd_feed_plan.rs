@@ -12,6 +12,7 @@ use vcnc_pipeline::run::{self, Run};
 use vcnc_report::{Axis, LineFigure, Panel, Role, Series, line_figure};
 
 use crate::output::{ensure_dir, write_atomic, write_csv, write_json};
+use crate::report::RunReport;
 use crate::table::{print_warnings, table as text_table};
 use crate::{Ctx, bad_input};
 
@@ -90,8 +91,21 @@ pub fn feed_plan(
     let planned = compensate::on_true_machine(&machine, &plan.original, &plan.plan.run)?;
     let uniform = compensate::on_true_machine(&machine, &plan.original, &plan.uniform.run)?;
     write_blocks(out, &plan)?;
-    write_figure(
+    let mut report = RunReport::new(
         out,
+        format!("vcnc feed-plan: {}", crate::figures::program_name(&file)),
+    );
+    report.input("machine", machine.name.as_str());
+    report.input("program", file.as_str());
+    report.input("models", model_file.as_str());
+    report.input("tolerance", format!("{} µm", tolerance_mm * 1e3));
+    report.file("planned.ngc", "the program with the planned per-line feeds");
+    report.file(
+        "uniform.ngc",
+        "the program with the uniform feed scale that meets the tolerance",
+    );
+    write_figure(
+        &mut report,
         &plan,
         [
             original.contour(&machine)?,
@@ -126,6 +140,7 @@ pub fn feed_plan(
         history: plan.history.clone(),
     };
     write_json(&out.join("summary.json"), &summary)?;
+    report.finish()?;
     if !ctx.quiet {
         print_report(&summary);
         println!("-> {}", out.display());
@@ -181,7 +196,7 @@ fn speed_along(run: &Run) -> (Vec<f64>, Vec<f64>) {
 /// `feed_plan.svg`: contour errors on the true machine (log) and tool-tip speeds along the
 /// original path, for the original, the per-line plan and the uniform scale.
 fn write_figure(
-    out: &Path,
+    report: &mut RunReport,
     plan: &FeedPlan,
     judged: [&vcnc_contour::ContourReport; 3],
     tolerance_um: f64,
@@ -220,9 +235,15 @@ fn write_figure(
             Panel::new(Axis::log("tool-tip contour error", "µm"), e_series),
             Panel::new(Axis::log("tool-tip speed", "mm/s"), v_series),
         ],
-    ))?;
-    fig.save(&out.join("feed_plan.svg"))?;
-    Ok(())
+    ));
+    report.figure(
+        "feed_plan.svg",
+        fig,
+        "Tool-tip contour errors of the true machine along the programmed path (the original, \
+         the per-line feeds and the uniform feed scale, all against the original path) with the \
+         tolerance; below, the tool-tip speed of each.",
+        crate::figures::section::CONTOUR,
+    )
 }
 
 fn print_report(s: &FeedPlanSummary) {

@@ -183,7 +183,7 @@ impl Uncertainty {
     }
 
     /// Names of the parameters whose relative standard deviation exceeds `threshold` (the
-    /// issue's warning uses 0.1: such a number should not be printed as if it were known).
+    /// command line warns at 0.1: such a number should not be printed as if it were known).
     pub fn flagged(&self, threshold: f64) -> Vec<&'static str> {
         self.parameters
             .iter()
