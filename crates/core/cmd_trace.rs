@@ -8,6 +8,13 @@ use crate::cli::TraceCommand;
 pub fn trace(what: &TraceCommand, _ctx: &Ctx) -> Result<()> {
     match what {
         TraceCommand::Info { file, read, json } => {
+            if let Some(u) = &read.units {
+                // Refused rather than ignored: info lists the units the file states.
+                return Err(crate::bad_input(format!(
+                    "--units {u}: trace info shows the units the file states; --units applies \
+                     where positions are paired (identify --trace, validate)"
+                )));
+            }
             let (opts, _) = read.options()?;
             let info = vcnc_trace::read_path(file, &opts)
                 .map_err(vcnc_pipeline::Error::from)?
