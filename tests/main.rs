@@ -9,6 +9,7 @@ mod cli;
 mod compensate;
 mod identify;
 mod report;
+mod realistic;
 mod spiral;
 mod sweep;
 mod traces;

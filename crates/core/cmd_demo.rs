@@ -328,8 +328,9 @@ fn demo_realistic(out: &Path, budget: bool, table: &TableOptions, ctx: &Ctx) -> 
         &h.iter().map(String::as_str).collect::<Vec<_>>(),
         id_rows.clone(),
         "true: the rigid 7-parameter model of the drive's plant and gains (the drive itself is \
-         not of that structure); validation: free-run error max on a second excitation run, \
-         µm or mdeg; * the structure chosen",
+         not of that structure); validation: free-run error RMS / max on a second excitation \
+         run, µm or mdeg; * the structure chosen (smallest RMS, simpler structures preferred \
+         within the identifier's selection margin)",
     );
     if let Some(b) = &summary.effect_budget {
         report.table(
@@ -337,8 +338,7 @@ fn demo_realistic(out: &Path, budget: bool, table: &TableOptions, ctx: &Ctx) -> 
              time",
             &BUDGET_HEADER,
             budget_rows(b),
-            "ideal: the drives without any effect table and without encoder noise; each other \
-             row adds one group of machines/nmv5000-realistic.toml (crates/vcnc-drive/REALISM.md)",
+            BUDGET_NOTE,
         );
     }
     report.finish()?;
@@ -351,8 +351,8 @@ fn demo_realistic(out: &Path, budget: bool, table: &TableOptions, ctx: &Ctx) -> 
             run.duration_s()
         );
         println!(
-            "Identification (poles as wn [Hz] / zeta / p [Hz]; validation: free-run error max, \
-             um or mdeg, * chosen):"
+            "Identification (poles as wn [Hz] / zeta / p [Hz]; validation: free-run error RMS / \
+             max, um or mdeg, * chosen):"
         );
         print!(
             "{}",
@@ -376,6 +376,7 @@ fn demo_realistic(out: &Path, budget: bool, table: &TableOptions, ctx: &Ctx) -> 
         if let Some(b) = &summary.effect_budget {
             println!("\nEffect budget (one effect group at a time on the ideal drives):");
             print!("{}", text_table(&BUDGET_HEADER, &budget_rows(b)));
+            println!("({BUDGET_NOTE})");
         }
         println!(
             "\n{elapsed:.2} s (evaluation {t_eval:.2} s); report: {}",
@@ -409,13 +410,31 @@ fn budget_rows(rows: &[BudgetRow]) -> Vec<Vec<String>> {
                 format!("{:.4}", r.paper_pso.orientation_max_mrad),
                 r.structures
                     .iter()
-                    .map(|(_, s)| structure_tag(*s))
+                    .map(|(_, s)| short_tag(*s))
                     .collect::<Vec<_>>()
                     .join(" "),
             ]
         })
         .collect()
 }
+
+/// A two-letter tag of a structure for the budget table ([`BUDGET_NOTE`]).
+fn short_tag(s: vcnc_identify::ModelStructure) -> &'static str {
+    use vcnc_identify::ModelStructure as M;
+    match s {
+        M::Paper => "P",
+        M::Delay => "D",
+        M::FirstOrderFilter => "F1",
+        M::SecondOrderFilter => "F2",
+        M::ExtraPole => "XP",
+    }
+}
+
+/// The budget table's note.
+const BUDGET_NOTE: &str = "ideal: the drives without any effect table and without encoder \
+     noise; each other row adds one group of machines/nmv5000-realistic.toml \
+     (crates/vcnc-drive/REALISM.md); |prediction − true| over the feed moves; structures chosen \
+     per axis: P paper, D delay, F1/F2 first/second-order reference filter, XP extra pole";
 
 /// A short tag of a structure for tables.
 fn structure_tag(s: vcnc_identify::ModelStructure) -> String {
@@ -470,11 +489,12 @@ fn realistic_identification_rows(
                     .and_then(|f| f.validation.as_ref())
                     .map_or("-".to_string(), |v| {
                         let star = if *s == r.result.structure { "*" } else { "" };
-                        format!("{:.2}{star}", v.freerun_max * k)
+                        format!("{:.2} / {:.1}{star}", v.freerun_rms * k, v.freerun_max * k)
                     });
                 row.push(cell);
             }
-            row.push(format!("{:.2}", r.validation_paper.freerun_max * k));
+            let v = &r.validation_paper;
+            row.push(format!("{:.2} / {:.1}", v.freerun_rms * k, v.freerun_max * k));
             row
         })
         .collect();
