@@ -12,7 +12,12 @@ use crate::util::{json, num, ok, repo, tempdir, vcnc};
 fn demo_realistic_reports_identification_and_both_discrepancies() {
     let dir = tempdir();
     let out = dir.path().join("demo");
-    let stdout = ok(&vcnc(&["demo", "--realistic", "--out", out.to_str().unwrap()]));
+    let stdout = ok(&vcnc(&[
+        "demo",
+        "--realistic",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
     assert!(stdout.contains("Target |pred - true| max"), "{stdout}");
     let s = json(&out.join("summary.json"));
     // Truth: the spiral's true contour error on the ideal NMV5000 is 450.57 µm
@@ -34,7 +39,10 @@ fn demo_realistic_reports_identification_and_both_discrepancies() {
     // vcnc's chosen models predict no worse than the paper's method (measured: 9.1 vs 30.0 µm,
     // 0.098 vs 0.27 mrad).
     assert!(model <= paper, "vcnc {model} µm vs paper {paper} µm");
-    assert!(model_o <= paper_o, "vcnc {model_o} mrad vs paper {paper_o} mrad");
+    assert!(
+        model_o <= paper_o,
+        "vcnc {model_o} mrad vs paper {paper_o} mrad"
+    );
     // The summary's target block repeats the figures and judges them against 2 µm, 0.02 mrad.
     assert_eq!(num(&s, "target.model.tip_max_um"), model);
     assert_eq!(num(&s, "target.tip_max_um"), 2.0);
@@ -156,11 +164,12 @@ fn frf_measures_the_realistic_drives_resonance() {
     let s = json(&out.join("summary.json"));
     let m = Machine::load(&repo("machines/nmv5000-realistic.toml")).unwrap();
     // (axis, index, mode_hz, j_motor, plant.j) from machines/nmv5000-realistic.toml.
-    for (axis, i, mode_hz, j_motor, j) in [
+    let axes: [(&str, usize, f64, f64, f64); 3] = [
         ("X", 0, 110.0, 0.007, 0.012),
         ("Y", 1, 150.0, 0.006, 0.010),
         ("Z", 2, 160.0, 0.0045, 0.008),
-    ] {
+    ];
+    for (axis, i, mode_hz, j_motor, j) in axes {
         // Truth: the two-mass formulas (crates/vcnc-drive/REALISM.md §1):
         // ω_r² = k (J_m + J_L)/(J_m J_L), ω_a² = k/J_L, so ω_a = ω_r sqrt(J_m/(J_m + J_L)).
         let fa = mode_hz * (j_motor / j).sqrt();
@@ -210,7 +219,10 @@ fn frf_measures_the_realistic_drives_resonance() {
         // The compliance makes a resonance the 7-parameter model cannot have: at least 10 dB
         // above the model (measured: 21, 27, 22 dB peaks), between the rigid loop's own mode
         // and the transmission's anti-resonance.
-        assert!(db_peak > db_model + 10.0, "{axis}: {db_peak} dB vs model {db_model} dB");
+        assert!(
+            db_peak > db_model + 10.0,
+            "{axis}: {db_peak} dB vs model {db_model} dB"
+        );
         let wn = num(a, "true.wn_hz");
         assert!(wn < f_peak && f_peak < fa, "{axis}: peak at {f_peak} Hz");
         // Independent truth for where: the least-damped pole of the drive linearised in motion

@@ -244,7 +244,10 @@ fn print_contour_table(
     a_name: &str,
     b_name: &str,
 ) {
-    let (a, b) = (contour_rows(&p.figures(mask)), contour_rows(&pp.figures(mask)));
+    let (a, b) = (
+        contour_rows(&p.figures(mask)),
+        contour_rows(&pp.figures(mask)),
+    );
     let rows: Vec<Vec<String>> = a
         .iter()
         .zip(&b)
@@ -264,10 +267,7 @@ fn print_contour_table(
         format!("tip [um] {b_name}"),
         format!("orient. [mrad] {b_name}"),
     ];
-    print!(
-        "{}",
-        text_table(&["", &h[0], &h[1], &h[2], &h[3]], &rows)
-    );
+    print!("{}", text_table(&["", &h[0], &h[1], &h[2], &h[3]], &rows));
 }
 
 /// `vcnc demo --realistic [--budget]`: the demo on machines/nmv5000-realistic.toml.
@@ -494,7 +494,11 @@ fn realistic_identification_rows(
                 row.push(cell);
             }
             let v = &r.validation_paper;
-            row.push(format!("{:.2} / {:.1}", v.freerun_rms * k, v.freerun_max * k));
+            row.push(format!(
+                "{:.2} / {:.1}",
+                v.freerun_rms * k,
+                v.freerun_max * k
+            ));
             row
         })
         .collect();

@@ -136,8 +136,12 @@ pub fn frf_with_measured(
     }
     if let Some(m) = &measured {
         header.extend(
-            ["measured_f_hz", "measured_track_mag_db", "measured_track_phase_deg"]
-                .map(String::from),
+            [
+                "measured_f_hz",
+                "measured_track_mag_db",
+                "measured_track_phase_deg",
+            ]
+            .map(String::from),
         );
         cols.extend([
             m.frf.freq_hz.as_slice(),

@@ -27,11 +27,11 @@ use vcnc_drive::{DriveModel, DriveParams, Feedback};
 use vcnc_identify::ModelStructure;
 use vcnc_machine::Machine;
 
+use crate::Error;
 use crate::identify::{self, AxisIdentification};
 use crate::predict::{self, ContourFigures, Prediction};
 use crate::run::{Measured, Run};
 use crate::summary::{FitSummary, ModelSummary, PoleErrors};
-use crate::Error;
 
 /// The target for vcnc's prediction of a realistic machine: largest tool-tip
 /// discrepancy |predicted − true| over the feed moves, µm.
