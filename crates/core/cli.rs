@@ -32,6 +32,16 @@ pub enum Command {
         /// Output folder.
         #[arg(long, default_value = "vcnc-demo")]
         out: PathBuf,
+        /// Run the demo on the realistic NMV5000 (machines/nmv5000-realistic.toml: compliance,
+        /// friction, backlash, current loop, noise, delays, reference filter): identification
+        /// accuracy, each structure's validation error, and the prediction discrepancy of the
+        /// paper's method and of vcnc's chosen models.
+        #[arg(long)]
+        realistic: bool,
+        /// With --realistic: also the effect budget, the same evaluation with one effect group
+        /// at a time (eight identifications of the machine: about a minute).
+        #[arg(long, requires = "realistic")]
+        budget: bool,
         #[command(flatten)]
         table: TableArgs,
     },

@@ -5,11 +5,11 @@ use vcnc_drive::DriveModel;
 
 use anyhow::Result;
 use vcnc_machine::{Machine, ModelSet};
-use vcnc_pipeline::frf::frf_summary;
+use vcnc_pipeline::frf::{frf_summary, measure_tracking};
 use vcnc_report::Role;
 
 use crate::Ctx;
-use crate::figures::{self, FrfModel, TRUE_MACHINE, VCNC_MODEL, section};
+use crate::figures::{self, FrfModel, MEASUREMENT, MeasuredFrf, TRUE_MACHINE, VCNC_MODEL, section};
 use crate::output::{ensure_dir, write_json};
 use crate::report::RunReport;
 use crate::table::table;
@@ -21,6 +21,7 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
         Some(p) => Some(ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?),
         None => None,
     };
+    let measured = measure_tracking(&machine)?;
     ensure_dir(out)?;
     let mut report = RunReport::new(out, format!("vcnc frf: {}", machine.name));
     report.input(
@@ -30,11 +31,23 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
     if let Some(p) = model {
         report.input("models", p.display().to_string());
     }
+    report.input(
+        "measurement",
+        "each true drive simulated on a multisine (1-500 Hz, about 120 log-spaced lines, 5 axis \
+         units/s peak on a 25 axis units/s bias), every drive effect included \
+         (crates/vcnc-drive/REALISM.md section 7)",
+    );
     for (i, a) in machine.axes.iter().enumerate() {
         let truth = a.true_model();
+        // A drive with effects is not its rigid model: say which curve is which.
+        let rigid = !a.drive.effects().is_ideal();
         let mut list = vec![FrfModel {
             tag: "true",
-            label: TRUE_MACHINE,
+            label: if rigid {
+                "true machine, rigid model"
+            } else {
+                TRUE_MACHINE
+            },
             role: Role::TrueMachine,
             model: DriveModel::from(truth),
         }];
@@ -46,23 +59,29 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
                 model: m[i],
             });
         }
-        figures::frf(
+        figures::frf_with_measured(
             &mut report,
             &format!("frf_{}", a.name),
             a.name,
             &list,
+            Some(MeasuredFrf {
+                label: MEASUREMENT,
+                role: Role::Measurement,
+                frf: &measured[i],
+            }),
             section::FRF,
         )?;
         report.file(
             &format!("frf_{}.csv", a.name),
             &format!(
                 "axis {}: Bode data (f_hz; per model tracking and disturbance magnitude, dB, and \
-                 phase, deg)",
+                 phase, deg; measured_f_hz and the measured tracking magnitude and phase at the \
+                 multisine's lines)",
                 a.name
             ),
         );
     }
-    let summary = frf_summary(&machine, models.as_deref());
+    let summary = frf_summary(&machine, models.as_deref(), Some(&measured));
     write_json(&out.join("summary.json"), &summary)?;
     report.finish()?;
     if !ctx.quiet {

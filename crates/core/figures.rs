@@ -77,6 +77,16 @@ pub struct FrfModel<'a> {
     pub model: DriveModel,
 }
 
+/// A measured frequency response drawn beside the models' (tracking group only).
+pub struct MeasuredFrf<'a> {
+    /// Legend label.
+    pub label: &'a str,
+    /// Role of the curve.
+    pub role: Role,
+    /// The response (its lines need not be the models' frequencies).
+    pub frf: &'a vcnc_drive::Frf,
+}
+
 /// Writes `<prefix>.csv` (tracking and disturbance Bode data of each model) into the report's
 /// folder and adds `<prefix>.svg`: magnitude and phase of both responses over a log frequency
 /// axis.
@@ -87,11 +97,30 @@ pub fn frf(
     models: &[FrfModel],
     section: &str,
 ) -> Result<()> {
+    frf_with_measured(report, prefix, axis, models, None, section)
+}
+
+/// [`frf`] with a measured tracking response too: its curve in the tracking panels, and three
+/// columns appended to `<prefix>.csv` — `measured_f_hz`, `measured_track_mag_db`,
+/// `measured_track_phase_deg`, one row per measured line (empty below the last line: the lines
+/// are the multisine's, not the models' grid).
+pub fn frf_with_measured(
+    report: &mut RunReport,
+    prefix: &str,
+    axis: AxisName,
+    models: &[FrfModel],
+    measured: Option<MeasuredFrf>,
+    section: &str,
+) -> Result<()> {
     let freqs = standard_freqs();
     let data: Vec<BodeData> = models
         .iter()
         .map(|m| BodeData::of(&m.model, &freqs))
         .collect();
+    let measured_db: Vec<f64> = measured
+        .as_ref()
+        .map(|m| m.frf.magnitude.iter().map(|g| 20.0 * g.log10()).collect())
+        .unwrap_or_default();
     let mut header = vec!["f_hz".to_string()];
     let mut cols: Vec<&[f64]> = vec![&freqs];
     for (m, d) in models.iter().zip(&data) {
@@ -104,6 +133,21 @@ pub fn frf(
             header.push(format!("{}_{suffix}", m.tag));
             cols.push(col);
         }
+    }
+    if let Some(m) = &measured {
+        header.extend(
+            [
+                "measured_f_hz",
+                "measured_track_mag_db",
+                "measured_track_phase_deg",
+            ]
+            .map(String::from),
+        );
+        cols.extend([
+            m.frf.freq_hz.as_slice(),
+            measured_db.as_slice(),
+            m.frf.phase_deg.as_slice(),
+        ]);
     }
     write_csv(&report.dir().join(format!("{prefix}.csv")), &header, &cols)?;
     let group = |name: &str, pick: fn(&BodeData) -> (&Vec<f64>, &Vec<f64>)| BodeGroup {
@@ -123,13 +167,30 @@ pub fn frf(
             })
             .collect(),
     };
+    let mut tracking = group("tracking x/x_r", |d| (&d.track_mag, &d.track_phase));
+    if let Some(m) = &measured {
+        // Drawn first: the measurement under the models.
+        tracking.curves.insert(
+            0,
+            BodeCurve {
+                label: m.label.to_string(),
+                role: m.role,
+                freq_hz: &m.frf.freq_hz,
+                mag_db: &measured_db,
+                phase_deg: &m.frf.phase_deg,
+            },
+        );
+    }
     let groups = [
-        group("tracking x/x_r", |d| (&d.track_mag, &d.track_phase)),
+        tracking,
         group("disturbance x/d (d: acceleration)", |d| {
             (&d.dist_mag, &d.dist_phase)
         }),
     ];
-    let names: Vec<&str> = models.iter().map(|m| m.label).collect();
+    let mut names: Vec<&str> = models.iter().map(|m| m.label).collect();
+    if let Some(m) = &measured {
+        names.push(m.label);
+    }
     report.figure(
         &format!("{prefix}.svg"),
         vr::bode(

@@ -95,7 +95,12 @@ fn main() -> ExitCode {
 
 fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
     match command {
-        Command::Demo { out, table } => cmd_demo::demo(&out, &table.options(), ctx),
+        Command::Demo {
+            out,
+            realistic,
+            budget,
+            table,
+        } => cmd_demo::demo(&out, realistic, budget, &table.options(), ctx),
         Command::Identify(args) => cmd_identify::identify(&args, ctx),
         Command::Validate(args) => cmd_validate::validate(&args, ctx),
         Command::Simulate {

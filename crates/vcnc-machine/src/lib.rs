@@ -33,6 +33,10 @@ pub use options_file::OptionsFile;
 pub mod embedded {
     /// `machines/nmv5000.toml`.
     pub const NMV5000_TOML: &str = include_str!("../../../machines/nmv5000.toml");
+    /// `machines/nmv5000-realistic.toml`: the same machine with every drive effect of
+    /// crates/vcnc-drive/REALISM.md (it uses `machines/nmv5000.urdf` too).
+    pub const NMV5000_REALISTIC_TOML: &str =
+        include_str!("../../../machines/nmv5000-realistic.toml");
     /// `machines/nmv5000.urdf`.
     pub const NMV5000_URDF: &str = include_str!("../../../machines/nmv5000.urdf");
     /// `gcode/spiral.ngc`, the 5-axis spiral of docs/contour.md.

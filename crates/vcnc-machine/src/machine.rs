@@ -177,6 +177,16 @@ impl MachineDocument {
         )
     }
 
+    /// The embedded realistic NMV5000 (machines/nmv5000-realistic.toml; its URDF is the
+    /// embedded NMV5000's).
+    pub fn embedded_nmv5000_realistic() -> Result<MachineDocument, Error> {
+        MachineDocument::new(
+            embedded::NMV5000_REALISTIC_TOML,
+            "<embedded>/machines/nmv5000-realistic.toml",
+            Base::Embedded,
+        )
+    }
+
     fn new(src: &str, source: &str, base: Base) -> Result<MachineDocument, Error> {
         let table: toml::Table = toml::from_str(src).map_err(|e| toml_error(src, source, &e))?;
         Ok(MachineDocument {
@@ -234,6 +244,12 @@ impl Machine {
     /// The embedded default: the NMV5000 with the paper's Table 3 drives (URDF embedded too).
     pub fn embedded_nmv5000() -> Result<Machine, Error> {
         MachineDocument::embedded_nmv5000()?.check()
+    }
+
+    /// The embedded realistic NMV5000: the same machine with every drive effect
+    /// (machines/nmv5000-realistic.toml).
+    pub fn embedded_nmv5000_realistic() -> Result<Machine, Error> {
+        MachineDocument::embedded_nmv5000_realistic()?.check()
     }
 
     /// Checks a machine file given as text. `source` names it in messages; `base_dir` resolves

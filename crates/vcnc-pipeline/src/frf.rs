@@ -1,14 +1,19 @@
 //! Frequency responses of closed-loop models: Bode data of the tracking and disturbance
-//! transfer functions (docs/drive-model.md), and the tracking bandwidth.
+//! transfer functions (docs/drive-model.md), and the tracking bandwidth; and the true drive's
+//! tracking response measured by simulating it on a multisine (every drive effect included:
+//! crates/vcnc-drive/REALISM.md §7), which shows what no 7-parameter model can have — the
+//! resonance of a compliant transmission.
 
 use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
+use rayon::prelude::*;
 use serde::Serialize;
-use vcnc_drive::{ClosedLoopModel, DriveModel};
+use vcnc_drive::{ClosedLoopModel, DriveModel, Frf, FrfKind, FrfOptions};
 use vcnc_kinematics::nalgebra::Complex;
 use vcnc_machine::Machine;
 
+use crate::Error;
 use crate::summary::ModelSummary;
 
 /// `n` log-spaced frequencies from `f0` to `f1` Hz (both included).
@@ -111,6 +116,80 @@ pub fn bandwidth_hz(m: &ClosedLoopModel) -> Option<f64> {
     Some(0.5 * (lo + hi))
 }
 
+/// The options of the measured tracking response: the drive's default multisine (1 to 500 Hz,
+/// about 120 log-spaced lines, 5 axis units/s peak on a 25 axis units/s bias, 2 periods
+/// settled and 4 averaged at 1 Hz resolution).
+pub fn measured_tracking_options() -> FrfOptions {
+    FrfOptions {
+        kind: FrfKind::Tracking,
+        ..FrfOptions::default()
+    }
+}
+
+/// Measures every axis' true tracking response (nominal → measured position) by simulating
+/// its drive ([`vcnc_drive::Drive::measure_frf`]); axes in parallel, results in machine order.
+pub fn measure_tracking(machine: &Machine) -> Result<Vec<Frf>, Error> {
+    let o = measured_tracking_options();
+    machine
+        .axes
+        .par_iter()
+        .map(|a| {
+            a.drive.measure_frf(&o).map_err(|source| Error::Drive {
+                axis: a.name,
+                source,
+            })
+        })
+        .collect()
+}
+
+/// A measured response in a summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeasuredFrfSummary {
+    /// Lines measured.
+    pub lines: usize,
+    /// Lowest line, Hz.
+    pub f_min_hz: f64,
+    /// Highest line, Hz.
+    pub f_max_hz: f64,
+    /// Line of the largest magnitude, Hz.
+    pub peak_hz: f64,
+    /// Largest magnitude, dB.
+    pub peak_db: f64,
+    /// Smallest load velocity while measuring, axis units/s (≤ 0: the axis stopped, friction
+    /// and backlash were not linearised).
+    pub min_load_velocity: f64,
+}
+
+impl MeasuredFrfSummary {
+    /// The summary of a measured response (`None` when it has no line).
+    pub fn of(f: &Frf) -> Option<MeasuredFrfSummary> {
+        let (i, peak) = f
+            .magnitude
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))?;
+        Some(MeasuredFrfSummary {
+            lines: f.freq_hz.len(),
+            f_min_hz: *f.freq_hz.first()?,
+            f_max_hz: *f.freq_hz.last()?,
+            peak_hz: f.freq_hz[i],
+            peak_db: 20.0 * peak.log10(),
+            min_load_velocity: f.velocity_range.0,
+        })
+    }
+}
+
+/// The two-mass transmission's modes by formula (crates/vcnc-drive/REALISM.md §1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TwoMassSummary {
+    /// Resonance $\omega_r/2\pi = \sqrt{k(J_m + J_L)/(J_m J_L)}/2\pi$, Hz.
+    pub resonance_hz: f64,
+    /// Anti-resonance $\omega_a/2\pi = \sqrt{k/J_L}/2\pi$, Hz.
+    pub antiresonance_hz: f64,
+    /// Damping ratio of the resonance.
+    pub zeta: f64,
+}
+
 /// One axis of `vcnc frf`'s summary.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AxisFrfSummary {
@@ -122,6 +201,12 @@ pub struct AxisFrfSummary {
     /// The model given with `--model`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub model: Option<ModelSummary>,
+    /// The true drive's tracking response measured by simulation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub measured_tracking: Option<MeasuredFrfSummary>,
+    /// The transmission's modes, for a two-mass drive.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub two_mass: Option<TwoMassSummary>,
 }
 
 /// `summary.json` of `vcnc frf`.
@@ -133,8 +218,13 @@ pub struct FrfSummary {
     pub axes: BTreeMap<String, AxisFrfSummary>,
 }
 
-/// The FRF summary of a machine (and of models, one per machine axis).
-pub fn frf_summary(machine: &Machine, models: Option<&[DriveModel]>) -> FrfSummary {
+/// The FRF summary of a machine (and of models and measured tracking responses, one per
+/// machine axis).
+pub fn frf_summary(
+    machine: &Machine,
+    models: Option<&[DriveModel]>,
+    measured: Option<&[Frf]>,
+) -> FrfSummary {
     FrfSummary {
         machine: machine.name.clone(),
         axes: machine
@@ -149,6 +239,12 @@ pub fn frf_summary(machine: &Machine, models: Option<&[DriveModel]>) -> FrfSumma
                         truth: ModelSummary::of(&truth),
                         bandwidth_3db_hz: bandwidth_hz(&truth),
                         model: models.map(|m| ModelSummary::of_drive(&m[i])),
+                        measured_tracking: measured.and_then(|f| MeasuredFrfSummary::of(&f[i])),
+                        two_mass: a.drive.effects().compliance.map(|c| TwoMassSummary {
+                            resonance_hz: c.resonance_hz(),
+                            antiresonance_hz: c.antiresonance_hz(),
+                            zeta: c.zeta(),
+                        }),
                     },
                 )
             })

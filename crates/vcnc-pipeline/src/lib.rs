@@ -30,6 +30,7 @@
 //! | [`sweep`] | configuration sweeps, shards, merge | [`Sweep`], [`SweepRow`] |
 //! | [`compensate`] | compensated set-points from identified models, the fine-block program, judging on the true machine | [`compensate::Compensation`] |
 //! | [`feed_plan`] | per-block feeds within a contour tolerance, the uniform baseline | [`feed_plan::FeedPlan`] |
+//! | [`realistic`] | a realistic machine: identification accuracy, prediction discrepancy of both methods, the effect budget | [`realistic::Evaluation`], [`realistic::BudgetRow`] |
 //! | [`summary`] | the objects of `summary.json` | [`ModelSummary`], [`FitSummary`] |
 //!
 //! Every function is deterministic: axes and configurations run in parallel (rayon) but
@@ -44,6 +45,7 @@ pub mod identify;
 pub mod kinematics;
 pub mod predict;
 pub mod programs;
+pub mod realistic;
 pub mod run;
 pub mod simulate;
 pub mod stats;
