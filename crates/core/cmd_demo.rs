@@ -206,6 +206,7 @@ fn demo_report(
     figures::prediction(
         &mut report,
         run,
+        &mask,
         &[
             ModelErrors {
                 label: VCNC_MODEL,

@@ -90,6 +90,7 @@ pub fn predict(
     figures::prediction(
         &mut report,
         &run,
+        &mask,
         &[ModelErrors {
             label: VCNC_MODEL,
             role: Role::Model,

@@ -510,13 +510,29 @@ fn scaled(v: &[f64], k: f64) -> Vec<f64> {
 ///   reference path, with model − true machine under each;
 /// - `tracking_errors.svg`: the axes the program moves;
 /// - `toolpath.vtp`: the path with both errors, the tool axis and the block lines (ParaView).
-pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> Result<()> {
+///
+/// `measured` selects the samples whose blocks may be marked as worst (feed moves unless
+/// `--include-rapids`).
+pub fn prediction(
+    report: &mut RunReport,
+    run: &Run,
+    measured: &[bool],
+    models: &[ModelErrors],
+) -> Result<()> {
     let Some(first) = models.first() else {
         return Ok(());
     };
     let p = first.prediction;
     let name = program_name(&run.file);
-    let lines = &run.lines;
+    // The worst blocks are marked among the measured samples only (feed moves unless
+    // --include-rapids), as summary.json's worst_blocks; line 0 is left unmarked.
+    let lines: Vec<u32> = run
+        .lines
+        .iter()
+        .zip(measured)
+        .map(|(l, m)| if *m { *l } else { 0 })
+        .collect();
+    let lines = &lines;
     let true_tip = tips(&p.true_poses);
     let ref_tip = run.poses.as_deref().map_or_else(|| true_tip.clone(), tips);
     let s = vr::arc_length_mm(&ref_tip);
@@ -607,7 +623,7 @@ pub fn prediction(report: &mut RunReport, run: &Run, models: &[ModelErrors]) -> 
 
     // The 3-D export: the true machine's path with its errors, the models' errors beside them.
     let tool_axis = axes_of(&p.true_poses);
-    let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(lines));
+    let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&run.lines));
     let tags: Vec<String> = models
         .iter()
         .map(|m| m.label.replace('\'', "").replace(' ', "_"))

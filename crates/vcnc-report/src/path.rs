@@ -57,11 +57,12 @@ pub struct WorstBlock {
 }
 
 /// The `n` blocks with the largest value, largest first (ties: lower line first). Each block
-/// (source line) appears once, at its worst sample; non-finite values are ignored.
+/// (source line) appears once, at its worst sample; non-finite values and samples of line 0 (no
+/// source line, or not measured) are ignored.
 pub fn worst_blocks(values: &[f64], block_line: &[u32], n: usize) -> Vec<WorstBlock> {
     let mut best: std::collections::BTreeMap<u32, (usize, f64)> = Default::default();
     for (i, (&v, &l)) in values.iter().zip(block_line).enumerate() {
-        if !v.is_finite() {
+        if !v.is_finite() || l == 0 {
             continue;
         }
         let e = best.entry(l).or_insert((i, v));
