@@ -11,7 +11,7 @@ use vcnc_machine::Machine;
 
 use crate::Error;
 use crate::run::{Measured, Run, forward_poses};
-use crate::simulate::{simulate_models, simulate_true};
+use crate::simulate::simulate_models;
 use crate::stats::{max_abs, rms};
 
 /// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
@@ -35,7 +35,8 @@ pub fn contour(
 /// Tool-tip and orientation contour errors with the true and the predicted drives.
 #[derive(Debug, Clone)]
 pub struct Prediction {
-    /// True drives: encoder traces per axis.
+    /// True drives per axis: their true positions (`true_position`, `ts`, `saturated_ticks`);
+    /// the other channels are left empty (docs/performance.md).
     pub true_traces: Vec<DriveTrace>,
     /// Identified models: positions per axis.
     pub predicted: Vec<Vec<f64>>,
@@ -43,9 +44,9 @@ pub struct Prediction {
     pub true_poses: Vec<Pose>,
     /// Tool poses with the identified models.
     pub predicted_poses: Vec<Pose>,
-    /// Contour errors with the true drives.
+    /// Contour errors with the true drives (without foot points: `foot` is empty).
     pub true_contour: ContourReport,
-    /// Contour errors with the identified models.
+    /// Contour errors with the identified models (without foot points).
     pub predicted_contour: ContourReport,
 }
 
@@ -270,6 +271,46 @@ pub fn predict(machine: &Machine, run: &Run, models: &[DriveModel]) -> Result<Pr
     Ok(all.remove(0))
 }
 
+/// The true drives' traces as a prediction keeps them: the true position alone (the encoder
+/// reading, velocity, control, motor position and torque are dropped as soon as each axis is
+/// simulated: no output of a prediction needs them, and on a long run they would be most of
+/// its memory; docs/performance.md).
+fn simulate_true_positions(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Error> {
+    use rayon::prelude::*;
+    machine
+        .axes
+        .par_iter()
+        .zip(run.axes.par_iter())
+        .map(|(axis, s)| {
+            let t = axis
+                .drive
+                .simulate(s.reference(), run.ts)
+                .map_err(|source| Error::Drive {
+                    axis: axis.name,
+                    source,
+                })?;
+            Ok(DriveTrace {
+                true_position: t.true_position,
+                saturated_ticks: t.saturated_ticks,
+                ts: t.ts,
+                ..DriveTrace::default()
+            })
+        })
+        .collect()
+}
+
+/// [`contour`] as a prediction keeps it: no tool poses of the actual path beyond the table's,
+/// and no foot points (only the compensation, through [`contour`], needs them).
+fn prediction_contour(
+    machine: &Machine,
+    run: &Run,
+    actual: &[&[f64]],
+) -> Result<(Vec<Pose>, ContourReport), Error> {
+    let (poses, mut report) = contour(machine, run, actual)?;
+    report.foot = Vec::new();
+    Ok((poses, report))
+}
+
 /// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
 /// one run: the true drives, the costly half, are simulated and evaluated once and shared.
 pub fn predict_many(
@@ -279,9 +320,9 @@ pub fn predict_many(
 ) -> Result<Vec<Prediction>, Error> {
     use rayon::prelude::*;
     let truth = || -> Result<_, Error> {
-        let traces = simulate_true(machine, run)?;
+        let traces = simulate_true_positions(machine, run)?;
         let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
-        let (poses, report) = contour(machine, run, &pos)?;
+        let (poses, report) = prediction_contour(machine, run, &pos)?;
         Ok((traces, poses, report))
     };
     let (truth, halves) = rayon::join(truth, || {
@@ -291,16 +332,25 @@ pub fn predict_many(
             .collect::<Vec<_>>()
     });
     let (true_traces, true_poses, true_contour) = truth?;
+    let last = halves.len().saturating_sub(1);
+    let mut truth = Some((true_traces, true_poses, true_contour));
     halves
         .into_iter()
-        .map(|h| {
+        .enumerate()
+        .map(|(i, h)| {
             let m = h?;
+            // The last prediction takes the truth, the others a copy: one model set, no copy.
+            let (true_traces, true_poses, true_contour) = if i == last {
+                truth.take().expect("taken once, by the last")
+            } else {
+                truth.clone().expect("taken only by the last")
+            };
             Ok(Prediction {
-                true_traces: true_traces.clone(),
+                true_traces,
                 predicted: m.positions,
-                true_poses: true_poses.clone(),
+                true_poses,
                 predicted_poses: m.poses,
-                true_contour: true_contour.clone(),
+                true_contour,
                 predicted_contour: m.contour,
             })
         })
@@ -326,7 +376,7 @@ pub fn model_contour(
 ) -> Result<ModelRun, Error> {
     let positions = simulate_models(models, run)?;
     let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
-    let (poses, contour) = contour(machine, run, &pos)?;
+    let (poses, contour) = prediction_contour(machine, run, &pos)?;
     Ok(ModelRun {
         positions,
         poses,
