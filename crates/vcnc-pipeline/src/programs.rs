@@ -109,11 +109,7 @@ pub fn write_long_tcp_program(
         let theta = k as f64 * dtheta;
         let [x, y, z] = tip(theta);
         let (a, c) = axes(theta);
-        writeln!(
-            out,
-            "G1 X{x:.3} Y{y:.3} Z{z:.3} A{a:.3} C{c:.3} F{f:.3}"
-        )
-        .map_err(io)?;
+        writeln!(out, "G1 X{x:.3} Y{y:.3} Z{z:.3} A{a:.3} C{c:.3} F{f:.3}").map_err(io)?;
     }
     writeln!(out, "G94").map_err(io)?;
     writeln!(out, "M2").map_err(io)?;

@@ -67,7 +67,12 @@ fn fingerprint(p: &Prediction) -> Vec<Vec<u64>> {
     for c in [&p.true_contour, &p.predicted_contour] {
         f.push(bits(&c.tip_mm));
         f.push(bits(&c.orientation_rad));
-        f.push(bits(&[c.tip_max_mm, c.tip_rms_mm, c.orientation_max_rad, c.orientation_rms_rad]));
+        f.push(bits(&[
+            c.tip_max_mm,
+            c.tip_rms_mm,
+            c.orientation_max_rad,
+            c.orientation_rms_rad,
+        ]));
     }
     f
 }
@@ -95,13 +100,24 @@ fn prediction_equals_the_full_trace_path_bit_for_bit() {
         let p = predict::predict(&machine, &run, &models).expect("prediction");
         let full = simulate::simulate_true(&machine, &run).expect("full traces");
         for (kept, all) in p.true_traces.iter().zip(&full) {
-            assert_eq!(bits(&kept.true_position), bits(&all.true_position), "{name}");
+            assert_eq!(
+                bits(&kept.true_position),
+                bits(&all.true_position),
+                "{name}"
+            );
             assert_eq!(kept.saturated_ticks, all.saturated_ticks, "{name}");
         }
         let pos: Vec<&[f64]> = full.iter().map(|t| t.true_position.as_slice()).collect();
         let (poses, report) = predict::contour(&machine, &run, &pos).expect("contour");
-        assert_eq!(report.foot.len(), run.len(), "{name}: the full path keeps its feet");
-        assert!(p.true_contour.foot.is_empty(), "{name}: a prediction does not");
+        assert_eq!(
+            report.foot.len(),
+            run.len(),
+            "{name}: the full path keeps its feet"
+        );
+        assert!(
+            p.true_contour.foot.is_empty(),
+            "{name}: a prediction does not"
+        );
         assert_eq!(bits(&report.tip_mm), bits(&p.true_contour.tip_mm), "{name}");
         assert_eq!(
             bits(&report.orientation_rad),
@@ -111,7 +127,11 @@ fn prediction_equals_the_full_trace_path_bit_for_bit() {
         assert_eq!(poses, p.true_poses, "{name}");
         let m = predict::model_contour(&machine, &run, &models).expect("models");
         assert_eq!(m.positions, p.predicted, "{name}");
-        assert_eq!(bits(&m.contour.tip_mm), bits(&p.predicted_contour.tip_mm), "{name}");
+        assert_eq!(
+            bits(&m.contour.tip_mm),
+            bits(&p.predicted_contour.tip_mm),
+            "{name}"
+        );
     }
 }
 
@@ -121,8 +141,12 @@ fn prediction_is_bit_identical_on_one_and_two_threads() {
     let models = models(&machine);
     for (name, src) in programs() {
         let run = run::prepare(&machine, &src, name, false).expect("prepared");
-        let one = in_pool(1, || predict::predict(&machine, &run, &models).expect("1 thread"));
-        let two = in_pool(2, || predict::predict(&machine, &run, &models).expect("2 threads"));
+        let one = in_pool(1, || {
+            predict::predict(&machine, &run, &models).expect("1 thread")
+        });
+        let two = in_pool(2, || {
+            predict::predict(&machine, &run, &models).expect("2 threads")
+        });
         assert_eq!(fingerprint(&one), fingerprint(&two), "{name}");
     }
 }
