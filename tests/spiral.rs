@@ -164,7 +164,9 @@ fn windowed_contour_error_equals_brute_force_on_every_spiral_sample() {
     // Truth: the O(N·M) brute-force foot-point search (issue 5).
     let f = fixture();
     let reference = f.run.poses.as_ref().unwrap();
-    let brute = vcnc_contour::contour_errors_brute_force(reference, &f.refined.true_poses).unwrap();
+    let true_poses =
+        predict::poses_at(&f.machine, &f.refined.true_positions(), 0..f.run.len()).unwrap();
+    let brute = vcnc_contour::contour_errors_brute_force(reference, &true_poses).unwrap();
     assert_eq!(brute.tip_mm.len(), f.refined.true_contour.tip_mm.len());
     for (k, (a, b)) in brute
         .tip_mm

@@ -89,7 +89,7 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
         identification: identify::overview(&ids),
     };
     write_json(&out.join("summary.json"), &summary)?;
-    let table_path = write_contour_table(out, &run, &p, table)?;
+    let table_path = write_contour_table(out, &machine, &run, &p, table)?;
 
     let mut report = RunReport::new(out, format!("vcnc demo: {} + spiral", machine.name));
     report.input("machine", machine_input);
@@ -119,6 +119,7 @@ pub fn demo(out: &Path, table: &TableOptions, ctx: &Ctx) -> Result<()> {
     let (tp, tpp) = (p.tracking(&machine, &run), pp.tracking(&machine, &run));
     figures::prediction(
         &mut report,
+        &machine,
         &run,
         &[
             ModelErrors {

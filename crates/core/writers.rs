@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use vcnc_drive::ClosedLoopModel;
+use vcnc_machine::Machine;
 use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
+use vcnc_pipeline::predict::poses_at;
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
 use crate::figures;
@@ -270,6 +272,7 @@ pub fn identification_table(results: &[AxisIdentification]) -> String {
 /// orientation errors of both.
 pub fn write_contour_table(
     out: &Path,
+    machine: &Machine,
     run: &Run,
     p: &Prediction,
     opts: &TableOptions,
@@ -317,7 +320,9 @@ pub fn write_contour_table(
     ];
     // Computed a row group at a time: the poses' components and the errors in µm / mrad never
     // exist for the whole run at once.
-    write_table_rows(out, "contour", header, n, opts, |rows, cols| {
+    let (true_pos, pred_pos) = (p.true_positions(), p.predicted_positions());
+    let mut failed = None;
+    let path = write_table_rows(out, "contour", header, n, opts, |rows, cols| {
         let mut c = cols.iter_mut();
         let mut next = || c.next().expect("one buffer per header column");
         let t = next();
@@ -330,8 +335,15 @@ pub fn write_contour_table(
                 next().extend_from_slice(&s[rows.clone()]);
             }
         }
-        for poses in [reference, &p.true_poses, &p.predicted_poses] {
-            let poses = poses.get(rows.clone()).unwrap_or(&[]);
+        // The actual poses, by the forward kinematics of this chunk's positions.
+        let [true_poses, pred_poses] = [&true_pos, &pred_pos].map(|x| {
+            poses_at(machine, x, rows.clone()).unwrap_or_else(|e| {
+                failed.get_or_insert(e);
+                Vec::new()
+            })
+        });
+        let ref_poses = reference.get(rows.clone()).unwrap_or(&[]);
+        for poses in [ref_poses, &true_poses, &pred_poses] {
             for i in 0..6 {
                 next().extend(
                     poses
@@ -343,7 +355,11 @@ pub fn write_contour_table(
         for e in errors {
             next().extend(e[rows.clone()].iter().map(|x| x * 1000.0));
         }
-    })
+    });
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    path
 }
 
 /// The per-sample table as a report lists it.

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use vcnc_contour::{ContourReport, contour_errors};
+use vcnc_contour::{ContourPath, ContourReport, ContourSearch, SearchWindow, contour_errors};
 use vcnc_drive::{DriveModel, DriveTrace};
 use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
@@ -40,10 +40,6 @@ pub struct Prediction {
     pub true_traces: Vec<DriveTrace>,
     /// Identified models: positions per axis.
     pub predicted: Vec<Vec<f64>>,
-    /// Tool poses with the true drives.
-    pub true_poses: Vec<Pose>,
-    /// Tool poses with the identified models.
-    pub predicted_poses: Vec<Pose>,
     /// Contour errors with the true drives (without foot points: `foot` is empty).
     pub true_contour: ContourReport,
     /// Contour errors with the identified models (without foot points).
@@ -51,6 +47,19 @@ pub struct Prediction {
 }
 
 impl Prediction {
+    /// The true drives' positions per machine axis (axis units).
+    pub fn true_positions(&self) -> Vec<&[f64]> {
+        self.true_traces
+            .iter()
+            .map(|t| t.true_position.as_slice())
+            .collect()
+    }
+
+    /// The models' positions per machine axis (axis units).
+    pub fn predicted_positions(&self) -> Vec<&[f64]> {
+        self.predicted.iter().map(Vec::as_slice).collect()
+    }
+
     /// Per-sample |predicted − true| tool-tip contour error, mm.
     pub fn tip_discrepancy(&self) -> Vec<f64> {
         self.true_contour
@@ -299,16 +308,47 @@ fn simulate_true_positions(machine: &Machine, run: &Run) -> Result<Vec<DriveTrac
         .collect()
 }
 
-/// [`contour`] as a prediction keeps it: no tool poses of the actual path beyond the table's,
-/// and no foot points (only the compensation, through [`contour`], needs them).
+/// The run's reference tool path for the contour search.
+fn reference_path(machine: &Machine, run: &Run) -> Result<ContourPath, Error> {
+    let reference = run
+        .poses
+        .as_ref()
+        .ok_or_else(|| vcnc_machine::Error::NoKinematics {
+            file: machine.source.clone(),
+        })?;
+    Ok(ContourPath::new(reference)?)
+}
+
+/// [`contour`] as a prediction computes it: each actual pose is computed by the forward
+/// kinematics, searched for and dropped (a long run never holds them), and no foot points
+/// are kept (only the compensation, through [`contour`], needs them). Bit-identical to
+/// [`contour`]'s errors: the same poses in the same order through the same search.
 fn prediction_contour(
     machine: &Machine,
-    run: &Run,
+    path: &ContourPath,
     actual: &[&[f64]],
-) -> Result<(Vec<Pose>, ContourReport), Error> {
-    let (poses, mut report) = contour(machine, run, actual)?;
-    report.foot = Vec::new();
-    Ok((poses, report))
+) -> Result<ContourReport, Error> {
+    let kin = machine.require_kinematics()?;
+    let n = actual.first().map_or(0, |p| p.len());
+    let mut search = ContourSearch::new(path, &SearchWindow::default(), false, n)?;
+    for k in 0..n {
+        search.push(&kin.model.forward(&kin.axes.at(actual, k)))?;
+    }
+    Ok(search.finish()?)
+}
+
+/// Tool poses (mm, unit tool axis; workpiece frame) of axis positions given per machine axis
+/// (mm, deg) at the samples `rows`, by the closed-form forward kinematics: a prediction keeps
+/// axis positions, and its poses are computed a chunk at a time where they are written.
+pub fn poses_at(
+    machine: &Machine,
+    axis_pos: &[&[f64]],
+    rows: std::ops::Range<usize>,
+) -> Result<Vec<Pose>, Error> {
+    let kin = machine.require_kinematics()?;
+    Ok(rows
+        .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
+        .collect())
 }
 
 /// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
@@ -319,39 +359,44 @@ pub fn predict_many(
     model_sets: &[&[DriveModel]],
 ) -> Result<Vec<Prediction>, Error> {
     use rayon::prelude::*;
+    // One reference path, shared by the true machine's search and the models'.
+    let path = reference_path(machine, run)?;
     let truth = || -> Result<_, Error> {
         let traces = simulate_true_positions(machine, run)?;
         let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
-        let (poses, report) = prediction_contour(machine, run, &pos)?;
-        Ok((traces, poses, report))
+        let report = prediction_contour(machine, &path, &pos)?;
+        Ok((traces, report))
     };
     let (truth, halves) = rayon::join(truth, || {
         model_sets
             .par_iter()
-            .map(|m| model_contour(machine, run, m))
+            .map(|m| -> Result<_, Error> {
+                let positions = simulate_models(m, run)?;
+                let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
+                let contour = prediction_contour(machine, &path, &pos)?;
+                Ok((positions, contour))
+            })
             .collect::<Vec<_>>()
     });
-    let (true_traces, true_poses, true_contour) = truth?;
+    let (true_traces, true_contour) = truth?;
     let last = halves.len().saturating_sub(1);
-    let mut truth = Some((true_traces, true_poses, true_contour));
+    let mut truth = Some((true_traces, true_contour));
     halves
         .into_iter()
         .enumerate()
         .map(|(i, h)| {
-            let m = h?;
+            let (predicted, predicted_contour) = h?;
             // The last prediction takes the truth, the others a copy: one model set, no copy.
-            let (true_traces, true_poses, true_contour) = if i == last {
+            let (true_traces, true_contour) = if i == last {
                 truth.take().expect("taken once, by the last")
             } else {
                 truth.clone().expect("taken only by the last")
             };
             Ok(Prediction {
                 true_traces,
-                predicted: m.positions,
-                true_poses,
-                predicted_poses: m.poses,
+                predicted,
                 true_contour,
-                predicted_contour: m.contour,
+                predicted_contour,
             })
         })
         .collect()
@@ -376,7 +421,7 @@ pub fn model_contour(
 ) -> Result<ModelRun, Error> {
     let positions = simulate_models(models, run)?;
     let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
-    let (poses, contour) = prediction_contour(machine, run, &pos)?;
+    let (poses, contour) = contour(machine, run, &pos)?;
     Ok(ModelRun {
         positions,
         poses,
