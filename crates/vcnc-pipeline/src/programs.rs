@@ -46,7 +46,8 @@ pub fn spiral_program(feed_mm_s: f64, segment_mm: f64) -> Result<String, Error> 
 ///
 /// The tip runs turn after turn round a wavy band (angle $\theta$, radius
 /// $r = 30 + 5\sin 7\theta$ mm, height $z = 20 + 4\sin(\theta/5)$ mm) with the table turning
-/// with it ($C = \theta$ in degrees, unwrapped) and the tilt swinging
+/// with it ($C = \theta$ in degrees; $\theta$ runs back and forth over 50 turns) and the tilt
+/// swinging
 /// ($A = -40 + 15\sin 3\theta$ deg); consecutive tips are about `segment_mm` apart and each
 /// move lasts `segment_s`. Deterministic: the same arguments give the same text.
 pub fn long_tcp_program(
@@ -105,8 +106,11 @@ pub fn write_long_tcp_program(
     let f = 60.0 / segment_s;
     // θ steps of about segment_mm of tip travel (r ≥ 25 mm, so at most segment_mm · 35/30).
     let dtheta = segment_mm / 30.0;
+    // Back and forth every 50 turns, so that C stays within ±9000° however long the program.
+    let turns = 100.0 * std::f64::consts::PI;
     for k in 1..=segments {
-        let theta = k as f64 * dtheta;
+        let s = (k as f64 * dtheta) % (2.0 * turns);
+        let theta = if s <= turns { s } else { 2.0 * turns - s };
         let [x, y, z] = tip(theta);
         let (a, c) = axes(theta);
         writeln!(out, "G1 X{x:.3} Y{y:.3} Z{z:.3} A{a:.3} C{c:.3} F{f:.3}").map_err(io)?;

@@ -124,9 +124,11 @@ impl Run {
     }
 }
 
-/// Largest program file accepted, bytes. A toolpath this long already asks for more samples
-/// than the interpolator's cap; refusing it up front keeps a huge junk file from costing
-/// seconds and gigabytes in the parser.
+/// Largest program file accepted, bytes. The parser holds the whole program and its syntax
+/// tree (about 16 bytes of memory per byte of G-code: 64 MiB of text peak at about 1 GB), so
+/// a larger file is refused up front instead of costing seconds and gigabytes; a streaming
+/// parser would lift this (docs/performance.md). A toolpath this long also asks for about as
+/// many samples as the interpolator's cap.
 pub const MAX_PROGRAM_BYTES: u64 = 64 << 20;
 
 /// Reads a program file (lossy UTF-8: the parser reports the replacement characters).
@@ -138,7 +140,8 @@ pub fn read_program(path: &Path) -> Result<String, Error> {
     let size = std::fs::metadata(path).map_err(cannot)?.len();
     if size > MAX_PROGRAM_BYTES {
         return Err(Error::Usage(format!(
-            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts; split it",
+            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts (the parser \
+             holds the whole program in memory, about 16 bytes per byte of G-code); split it",
             path.display(),
             MAX_PROGRAM_BYTES >> 20
         )));
