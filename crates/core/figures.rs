@@ -434,12 +434,11 @@ fn tips(poses: &[Pose]) -> Vec<[f64; 3]> {
     poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]).collect()
 }
 
+/// Points as `[x, y, z]` per sample.
+type Points = Vec<[f64; 3]>;
+
 /// Tool tips (mm) and tool axes of the true machine's path, computed 65 536 samples at a time.
-fn true_tips_and_axes(
-    machine: &Machine,
-    run: &Run,
-    p: &Prediction,
-) -> Result<(Vec<[f64; 3]>, Vec<[f64; 3]>)> {
+fn true_tips_and_axes(machine: &Machine, run: &Run, p: &Prediction) -> Result<(Points, Points)> {
     let n = run.len();
     let pos = p.true_positions();
     let (mut tip, mut axis) = (Vec::with_capacity(n), Vec::with_capacity(n));
