@@ -164,7 +164,9 @@ fn windowed_contour_error_equals_brute_force_on_every_spiral_sample() {
     // Truth: the O(N·M) brute-force foot-point search (issue 5).
     let f = fixture();
     let reference = f.run.poses.as_ref().unwrap();
-    let brute = vcnc_contour::contour_errors_brute_force(reference, &f.refined.true_poses).unwrap();
+    let true_poses =
+        predict::poses_at(&f.machine, &f.refined.true_positions(), 0..f.run.len()).unwrap();
+    let brute = vcnc_contour::contour_errors_brute_force(reference, &true_poses).unwrap();
     assert_eq!(brute.tip_mm.len(), f.refined.true_contour.tip_mm.len());
     for (k, (a, b)) in brute
         .tip_mm
@@ -188,7 +190,16 @@ fn windowed_contour_error_equals_brute_force_on_every_spiral_sample() {
 fn reference_poses_round_trip_the_programmed_tool_tip() {
     // FK(IK(programmed tip pose)) = programmed pose within 1e-9 mm at every TCP sample.
     let f = fixture();
-    let traj = &f.run.loaded.trajectory;
+    // The programmed tip, as the interpolator returns it (a prepared run moves the tracks into
+    // its axis references, which the inverse kinematics then turns into machine axes).
+    let loaded = vcnc_gcode::load(
+        embedded::SPIRAL_NGC,
+        &f.machine.interp_options(false),
+        &f.machine.limits(),
+        &f.machine.interpolate_options(),
+    )
+    .unwrap();
+    let traj = &loaded.trajectory;
     let poses = f.run.poses.as_ref().unwrap();
     let (x, y, z) = (
         traj.axis(AxisName::X).unwrap(),

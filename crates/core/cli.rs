@@ -451,6 +451,19 @@ pub enum GenCommand {
         #[arg(long, default_value_t = 0.5)]
         segment: f64,
     },
+    /// A long 5-axis program for speed and memory measurements (docs/performance.md): TCP
+    /// switched on by M428, inverse-time feeds (G93), short segments round a wavy band.
+    Long {
+        /// Number of G1 segments (20 000 at the defaults give about 1 M samples at 1 ms).
+        #[arg(long, default_value_t = 20_000)]
+        segments: usize,
+        /// Tip travel per segment, mm.
+        #[arg(long, default_value_t = 0.5)]
+        segment: f64,
+        /// Duration of each segment, s (its inverse-time F word).
+        #[arg(long, default_value_t = 0.05)]
+        segment_s: f64,
+    },
 }
 
 impl TraceReadArgs {

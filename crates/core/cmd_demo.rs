@@ -175,7 +175,7 @@ fn demo_report(
         MACHINE_MODELS,
         ids,
     )?;
-    let table_path = write_contour_table(out, run, p, table)?;
+    let table_path = write_contour_table(out, machine, run, p, table)?;
 
     let mut report = RunReport::new(out, format!("vcnc demo: {} + spiral", machine.name));
     report.input("machine", machine_input);
@@ -205,6 +205,7 @@ fn demo_report(
     let (tp, tpp) = (p.tracking(machine, run), pp.tracking(machine, run));
     figures::prediction(
         &mut report,
+        machine,
         run,
         &mask,
         &[

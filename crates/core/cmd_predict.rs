@@ -55,7 +55,7 @@ pub fn predict(
         models: source,
         warnings: run.warnings.clone(),
     };
-    let table_path = write_contour_table(out, &run, &p, table)?;
+    let table_path = write_contour_table(out, &machine, &run, &p, table)?;
     write_json(&out.join("summary.json"), &summary)?;
     let mut report = RunReport::new(
         out,
@@ -89,6 +89,7 @@ pub fn predict(
     let tracking = p.tracking(&machine, &run);
     figures::prediction(
         &mut report,
+        &machine,
         &run,
         &mask,
         &[ModelErrors {

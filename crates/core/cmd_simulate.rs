@@ -11,7 +11,7 @@ use crate::Ctx;
 use crate::figures::{self, program_name};
 use crate::output::{ensure_dir, write_json};
 use crate::report::RunReport;
-use crate::sink::{TableOptions, write_table};
+use crate::sink::{TableOptions, write_table, write_table_rows};
 use crate::table::{print_warnings, table as text_table};
 use crate::writers::report_table_file;
 
@@ -27,30 +27,35 @@ pub fn interpolate(
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&run.warnings);
     ensure_dir(out)?;
-    let t = run.times();
+    let tcp = run.has_tcp();
     let mut header = vec!["t".to_string()];
-    let mut cols: Vec<&[f64]> = vec![&t];
-    let px: Vec<Vec<f64>>;
-    if run.has_tcp() {
+    if tcp {
         // Tool tip in the workpiece frame (the reference poses), then every machine axis.
-        let poses = run.poses.as_deref().unwrap_or(&[]);
-        px = (0..3)
-            .map(|i| poses.iter().map(|p| p.p[i]).collect())
-            .collect();
-        for (i, name) in ["px", "py", "pz"].iter().enumerate() {
-            header.push(name.to_string());
-            cols.push(&px[i]);
-        }
+        header.extend(["px", "py", "pz"].map(String::from));
     }
     for a in &run.axes {
         header.push(a.name.to_string());
         header.push(format!("{}_vel", a.name));
         header.push(format!("{}_acc", a.name));
-        cols.push(&a.pos);
-        cols.push(&a.vel);
-        cols.push(&a.acc);
     }
-    let table_path = write_table(out, "reference", header, &cols, table)?;
+    let poses = run.poses.as_deref().unwrap_or(&[]);
+    // Computed a row group at a time (docs/performance.md).
+    let table_path = write_table_rows(out, "reference", header, run.len(), table, |rows, cols| {
+        let mut c = cols.iter_mut();
+        let mut next = || c.next().expect("one buffer per header column");
+        next().extend(rows.clone().map(|k| run.time(k)));
+        if tcp {
+            let p = poses.get(rows.clone()).unwrap_or(&[]);
+            for i in 0..3 {
+                next().extend(p.iter().map(|q| q.p[i]));
+            }
+        }
+        for a in &run.axes {
+            for s in [&a.pos, &a.vel, &a.acc] {
+                next().extend_from_slice(&s[rows.clone()]);
+            }
+        }
+    })?;
     write_json(
         &out.join("summary.json"),
         &InterpolateSummary::of(&machine, &run),

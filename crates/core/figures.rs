@@ -12,7 +12,9 @@ use anyhow::Result;
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::DriveModel;
 use vcnc_kinematics::Pose;
+use vcnc_machine::Machine;
 use vcnc_pipeline::frf::{BodeData, standard_freqs};
+use vcnc_pipeline::predict::poses_at;
 use vcnc_pipeline::stats::scaled_diff;
 use vcnc_pipeline::sweep::SweepOutcome;
 use vcnc_pipeline::{AxisIdentification, AxisTracking, IdentificationSource, Prediction, Run};
@@ -493,8 +495,20 @@ fn tips(poses: &[Pose]) -> Vec<[f64; 3]> {
     poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]).collect()
 }
 
-fn axes_of(poses: &[Pose]) -> Vec<[f64; 3]> {
-    poses.iter().map(|q| [q.o.x, q.o.y, q.o.z]).collect()
+/// Points as `[x, y, z]` per sample.
+type Points = Vec<[f64; 3]>;
+
+/// Tool tips (mm) and tool axes of the true machine's path, computed 65 536 samples at a time.
+fn true_tips_and_axes(machine: &Machine, run: &Run, p: &Prediction) -> Result<(Points, Points)> {
+    let n = run.len();
+    let pos = p.true_positions();
+    let (mut tip, mut axis) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for start in (0..n).step_by(1 << 16) {
+        let poses = poses_at(machine, &pos, start..(start + (1 << 16)).min(n))?;
+        tip.extend(poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]));
+        axis.extend(poses.iter().map(|q| [q.o.x, q.o.y, q.o.z]));
+    }
+    Ok((tip, axis))
 }
 
 fn scaled(v: &[f64], k: f64) -> Vec<f64> {
@@ -515,6 +529,7 @@ fn scaled(v: &[f64], k: f64) -> Vec<f64> {
 /// `--include-rapids`).
 pub fn prediction(
     report: &mut RunReport,
+    machine: &Machine,
     run: &Run,
     measured: &[bool],
     models: &[ModelErrors],
@@ -533,7 +548,9 @@ pub fn prediction(
         .map(|(l, m)| if *m { *l } else { 0 })
         .collect();
     let lines = &lines;
-    let true_tip = tips(&p.true_poses);
+    // The true machine's tool tips and axes, by the forward kinematics a chunk at a time (a
+    // prediction keeps axis positions, not poses).
+    let (true_tip, tool_axis) = true_tips_and_axes(machine, run, p)?;
     let ref_tip = run.poses.as_deref().map_or_else(|| true_tip.clone(), tips);
     let s = vr::arc_length_mm(&ref_tip);
     let tip_t = scaled(&p.true_contour.tip_mm, 1e3);
@@ -622,7 +639,6 @@ pub fn prediction(
     )?;
 
     // The 3-D export: the true machine's path with its errors, the models' errors beside them.
-    let tool_axis = axes_of(&p.true_poses);
     let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&run.lines));
     let tags: Vec<String> = models
         .iter()

@@ -307,7 +307,8 @@ fn select(header: &[String], patterns: Option<&[String]>, stem: &str) -> Result<
         .collect())
 }
 
-/// Writes a whole per-sample table (`DIR/STEM.csv` or `.parquet`) at once.
+/// Writes a whole per-sample table (`DIR/STEM.csv` or `.parquet`), handing it to the writer
+/// [`ROW_GROUP_ROWS`] rows at a time (so the writer never copies the whole table).
 pub fn write_table(
     out: &Path,
     stem: &str,
@@ -315,8 +316,43 @@ pub fn write_table(
     cols: &[&[f64]],
     opts: &TableOptions,
 ) -> Result<PathBuf> {
+    let n = cols.first().map_or(0, |c| c.len());
     let mut w = TableWriter::create(out, stem, header, opts)?;
-    w.write(cols)?;
+    for start in (0..n).step_by(ROW_GROUP_ROWS) {
+        let end = (start + ROW_GROUP_ROWS).min(n);
+        let part: Vec<&[f64]> = cols.iter().map(|c| &c[start..end]).collect();
+        w.write(&part)?;
+    }
+    if n == 0 {
+        w.write(cols)?;
+    }
+    w.finish()
+}
+
+/// Writes a per-sample table of `n` rows whose columns are computed [`ROW_GROUP_ROWS`] rows at
+/// a time: `fill(rows, columns)` pushes rows `rows` onto each (emptied) column of the header,
+/// in header order. Derived columns (unit changes, pose components) then never exist for the
+/// whole run at once (docs/performance.md).
+pub fn write_table_rows(
+    out: &Path,
+    stem: &str,
+    header: Vec<String>,
+    n: usize,
+    opts: &TableOptions,
+    mut fill: impl FnMut(std::ops::Range<usize>, &mut [Vec<f64>]),
+) -> Result<PathBuf> {
+    let width = header.len();
+    let mut w = TableWriter::create(out, stem, header, opts)?;
+    let mut bufs: Vec<Vec<f64>> = (0..width)
+        .map(|_| Vec::with_capacity(ROW_GROUP_ROWS.min(n)))
+        .collect();
+    for start in (0..n).step_by(ROW_GROUP_ROWS) {
+        let end = (start + ROW_GROUP_ROWS).min(n);
+        bufs.iter_mut().for_each(Vec::clear);
+        fill(start..end, &mut bufs);
+        let cols: Vec<&[f64]> = bufs.iter().map(Vec::as_slice).collect();
+        w.write(&cols)?;
+    }
     w.finish()
 }
 

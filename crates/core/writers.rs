@@ -5,13 +5,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use vcnc_drive::ClosedLoopModel;
+use vcnc_machine::Machine;
 use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
+use vcnc_pipeline::predict::poses_at;
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
 use crate::figures;
 use crate::output::{write_atomic, write_json};
 use crate::report::RunReport;
-use crate::sink::{TableOptions, write_table};
+use crate::sink::{TableOptions, write_table_rows};
 use crate::table::table;
 
 /// How `model.toml` describes models identified on a simulated machine.
@@ -270,48 +272,23 @@ pub fn identification_table(results: &[AxisIdentification]) -> String {
 /// orientation errors of both.
 pub fn write_contour_table(
     out: &Path,
+    machine: &Machine,
     run: &Run,
     p: &Prediction,
     opts: &TableOptions,
 ) -> Result<PathBuf> {
     let n = run.len();
-    let t = run.times();
     let reference = run.poses.as_deref().unwrap_or(&[]);
-    let pose_cols = |poses: &[vcnc_kinematics::Pose]| -> Vec<Vec<f64>> {
-        let mut cols: Vec<Vec<f64>> = (0..6).map(|_| Vec::with_capacity(n)).collect();
-        for q in poses {
-            for i in 0..3 {
-                cols[i].push(q.p[i]);
-                cols[3 + i].push(q.o[i]);
-            }
-        }
-        cols
-    };
-    let rc = pose_cols(reference);
-    let tc = pose_cols(&p.true_poses);
-    let pc = pose_cols(&p.predicted_poses);
-    let to_um = |v: &[f64]| v.iter().map(|x| x * 1000.0).collect::<Vec<f64>>();
-    let tip_t = to_um(&p.true_contour.tip_mm);
-    let tip_p = to_um(&p.predicted_contour.tip_mm);
-    let or_t = to_um(&p.true_contour.orientation_rad);
-    let or_p = to_um(&p.predicted_contour.orientation_rad);
-    // The source line of the block running at each sample, so a user finds it in the program.
-    let lines: Vec<f64> = run.lines.iter().map(|l| f64::from(*l)).collect();
     let mut header = vec!["t".to_string(), "line".to_string()];
-    let mut cols: Vec<&[f64]> = vec![&t, &lines];
-    for (i, a) in run.axes.iter().enumerate() {
+    for a in &run.axes {
         header.push(format!("{}_ref", a.name));
-        cols.push(&a.pos);
         header.push(format!("{}_true", a.name));
-        cols.push(&p.true_traces[i].true_position);
         header.push(format!("{}_pred", a.name));
-        cols.push(&p.predicted[i]);
     }
     let names = ["px", "py", "pz", "ox", "oy", "oz"];
-    for (prefix, c) in [("ref", &rc), ("true", &tc), ("pred", &pc)] {
-        for (i, nm) in names.iter().enumerate() {
+    for prefix in ["ref", "true", "pred"] {
+        for nm in names {
             header.push(format!("{prefix}_{nm}"));
-            cols.push(&c[i]);
         }
     }
     header.extend(
@@ -323,13 +300,66 @@ pub fn write_contour_table(
         ]
         .map(String::from),
     );
-    cols.extend([
-        tip_t.as_slice(),
-        tip_p.as_slice(),
-        or_t.as_slice(),
-        or_p.as_slice(),
-    ]);
-    write_table(out, "contour", header, &cols, opts)
+    let axis_cols: Vec<[&[f64]; 3]> = run
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            [
+                a.pos.as_slice(),
+                p.true_traces[i].true_position.as_slice(),
+                p.predicted[i].as_slice(),
+            ]
+        })
+        .collect();
+    let errors = [
+        &p.true_contour.tip_mm,
+        &p.predicted_contour.tip_mm,
+        &p.true_contour.orientation_rad,
+        &p.predicted_contour.orientation_rad,
+    ];
+    // Computed a row group at a time: the poses' components and the errors in µm / mrad never
+    // exist for the whole run at once.
+    let (true_pos, pred_pos) = (p.true_positions(), p.predicted_positions());
+    let mut failed = None;
+    let path = write_table_rows(out, "contour", header, n, opts, |rows, cols| {
+        let mut c = cols.iter_mut();
+        let mut next = || c.next().expect("one buffer per header column");
+        let t = next();
+        t.extend(rows.clone().map(|k| run.time(k)));
+        // The source line of the block running at each sample, so a user finds it in the
+        // program.
+        next().extend(run.lines[rows.clone()].iter().map(|l| f64::from(*l)));
+        for a in &axis_cols {
+            for s in a {
+                next().extend_from_slice(&s[rows.clone()]);
+            }
+        }
+        // The actual poses, by the forward kinematics of this chunk's positions.
+        let [true_poses, pred_poses] = [&true_pos, &pred_pos].map(|x| {
+            poses_at(machine, x, rows.clone()).unwrap_or_else(|e| {
+                failed.get_or_insert(e);
+                Vec::new()
+            })
+        });
+        let ref_poses = reference.get(rows.clone()).unwrap_or(&[]);
+        for poses in [ref_poses, &true_poses, &pred_poses] {
+            for i in 0..6 {
+                next().extend(
+                    poses
+                        .iter()
+                        .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
+                );
+            }
+        }
+        for e in errors {
+            next().extend(e[rows.clone()].iter().map(|x| x * 1000.0));
+        }
+    });
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    path
 }
 
 /// The per-sample table as a report lists it.

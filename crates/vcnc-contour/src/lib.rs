@@ -64,7 +64,7 @@ pub struct ContourReport {
     pub tip_mm: Vec<f64>,
     /// Orientation contour error per actual sample, rad.
     pub orientation_rad: Vec<f64>,
-    /// Foot point per actual sample.
+    /// Foot point per actual sample (empty from a [`ContourSearch`] told not to keep them).
     pub foot: Vec<Foot>,
     /// Largest tool-tip contour error, mm.
     pub tip_max_mm: f64,
@@ -155,22 +155,87 @@ pub fn contour_errors_with(
     window: &SearchWindow,
 ) -> Result<ContourReport> {
     window.validate()?;
-    let path = ReferencePath::new(reference)?;
+    let path = ContourPath::new(reference)?;
     if actual.is_empty() {
         return Err(Error::Empty(Sequence::Actual));
     }
-    let mut acc = Accumulator::new(actual.len());
-    let mut prev: Option<usize> = None;
-    for (k, pose) in actual.iter().enumerate() {
-        let (x, o) = checked(pose, Sequence::Actual, k)?;
-        let c = match prev {
-            None => path.nearest_global(&x, &mut acc.evals),
-            Some(s) => path.nearest_windowed(&x, s, window, &mut acc.evals),
-        };
-        prev = Some(c.seg);
-        acc.push(&x, &o, path.foot(&c));
+    let mut search = ContourSearch::new(&path, window, true, actual.len())?;
+    for pose in actual {
+        search.push(pose)?;
     }
-    Ok(acc.finish())
+    search.finish()
+}
+
+/// The reference path of the windowed search, built once and shared by any number of
+/// [`ContourSearch`]es (for example the true machine's and a model's, run side by side).
+#[derive(Debug, Clone)]
+pub struct ContourPath {
+    path: ReferencePath,
+}
+
+impl ContourPath {
+    /// The reference poses as a path (runs of identical poses merged into one knot).
+    pub fn new(reference: &[Pose]) -> Result<Self> {
+        Ok(Self {
+            path: ReferencePath::new(reference)?,
+        })
+    }
+}
+
+/// The windowed contour search fed one actual pose at a time, so that a long run never holds
+/// its actual poses; [`contour_errors_with`] is this search over a slice, and the two give the
+/// same report bit for bit.
+#[derive(Debug)]
+pub struct ContourSearch<'a> {
+    path: &'a ReferencePath,
+    window: SearchWindow,
+    acc: Accumulator,
+    prev: Option<usize>,
+    k: usize,
+}
+
+impl<'a> ContourSearch<'a> {
+    /// A search along `path`. `keep_feet`: whether the report keeps each sample's [`Foot`] (56
+    /// bytes a sample); `capacity`: the expected number of actual samples (a hint).
+    pub fn new(
+        path: &'a ContourPath,
+        window: &SearchWindow,
+        keep_feet: bool,
+        capacity: usize,
+    ) -> Result<Self> {
+        window.validate()?;
+        Ok(Self {
+            path: &path.path,
+            window: *window,
+            acc: Accumulator::new(capacity, keep_feet),
+            prev: None,
+            k: 0,
+        })
+    }
+
+    /// The contour errors of the next actual sample: the first is located by a global search,
+    /// every later one in a window around the previous foot.
+    pub fn push(&mut self, pose: &Pose) -> Result<()> {
+        let (x, o) = checked(pose, Sequence::Actual, self.k)?;
+        let c = match self.prev {
+            None => self.path.nearest_global(&x, &mut self.acc.evals),
+            Some(s) => self
+                .path
+                .nearest_windowed(&x, s, &self.window, &mut self.acc.evals),
+        };
+        self.prev = Some(c.seg);
+        self.acc.push(&x, &o, self.path.foot(&c));
+        self.k += 1;
+        Ok(())
+    }
+
+    /// The report of the samples pushed (an error when there were none).
+    pub fn finish(self) -> Result<ContourReport> {
+        if self.k == 0 {
+            return Err(Error::Empty(Sequence::Actual));
+        }
+        Ok(self.acc.finish())
+    }
 }
 
 /// Contour errors with a brute-force foot search over every reference segment (O(N·M)); the
@@ -187,7 +252,7 @@ pub fn contour_errors_brute_force(reference: &[Pose], actual: &[Pose]) -> Result
         .enumerate()
         .map(|(k, pose)| checked(pose, Sequence::Reference, k))
         .collect::<Result<Vec<_>>>()?;
-    let mut acc = Accumulator::new(actual.len());
+    let mut acc = Accumulator::new(actual.len(), true);
     let per_sample = reference.len().saturating_sub(1).max(1) as u64;
     for (k, pose) in actual.iter().enumerate() {
         let (x, o) = checked(pose, Sequence::Actual, k)?;
@@ -201,22 +266,25 @@ pub fn contour_errors_brute_force(reference: &[Pose], actual: &[Pose]) -> Result
 }
 
 /// Collects the per-sample series and the statistics.
+#[derive(Debug)]
 struct Accumulator {
     report: ContourReport,
+    keep_feet: bool,
     evals: u64,
     sum_tip2: f64,
     sum_ori2: f64,
 }
 
 impl Accumulator {
-    fn new(n: usize) -> Self {
+    fn new(n: usize, keep_feet: bool) -> Self {
         Self {
             report: ContourReport {
                 tip_mm: Vec::with_capacity(n),
                 orientation_rad: Vec::with_capacity(n),
-                foot: Vec::with_capacity(n),
+                foot: Vec::with_capacity(if keep_feet { n } else { 0 }),
                 ..ContourReport::default()
             },
+            keep_feet,
             evals: 0,
             sum_tip2: 0.0,
             sum_ori2: 0.0,
@@ -233,7 +301,9 @@ impl Accumulator {
         self.sum_ori2 += ori * ori;
         r.tip_mm.push(tip);
         r.orientation_rad.push(ori);
-        r.foot.push(foot);
+        if self.keep_feet {
+            r.foot.push(foot);
+        }
     }
 
     fn finish(mut self) -> ContourReport {

@@ -4,14 +4,14 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use vcnc_contour::{ContourReport, contour_errors};
+use vcnc_contour::{ContourPath, ContourReport, ContourSearch, SearchWindow, contour_errors};
 use vcnc_drive::{DriveModel, DriveTrace};
 use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 
 use crate::Error;
 use crate::run::{Measured, Run, forward_poses};
-use crate::simulate::{simulate_models, simulate_true};
+use crate::simulate::simulate_models;
 use crate::stats::{max_abs, rms};
 
 /// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
@@ -35,21 +35,31 @@ pub fn contour(
 /// Tool-tip and orientation contour errors with the true and the predicted drives.
 #[derive(Debug, Clone)]
 pub struct Prediction {
-    /// True drives: encoder traces per axis.
+    /// True drives per axis: their true positions (`true_position`, `ts`, `saturated_ticks`);
+    /// the other channels are left empty (docs/performance.md).
     pub true_traces: Vec<DriveTrace>,
     /// Identified models: positions per axis.
     pub predicted: Vec<Vec<f64>>,
-    /// Tool poses with the true drives.
-    pub true_poses: Vec<Pose>,
-    /// Tool poses with the identified models.
-    pub predicted_poses: Vec<Pose>,
-    /// Contour errors with the true drives.
+    /// Contour errors with the true drives (without foot points: `foot` is empty).
     pub true_contour: ContourReport,
-    /// Contour errors with the identified models.
+    /// Contour errors with the identified models (without foot points).
     pub predicted_contour: ContourReport,
 }
 
 impl Prediction {
+    /// The true drives' positions per machine axis (axis units).
+    pub fn true_positions(&self) -> Vec<&[f64]> {
+        self.true_traces
+            .iter()
+            .map(|t| t.true_position.as_slice())
+            .collect()
+    }
+
+    /// The models' positions per machine axis (axis units).
+    pub fn predicted_positions(&self) -> Vec<&[f64]> {
+        self.predicted.iter().map(Vec::as_slice).collect()
+    }
+
     /// Per-sample |predicted − true| tool-tip contour error, mm.
     pub fn tip_discrepancy(&self) -> Vec<f64> {
         self.true_contour
@@ -270,6 +280,77 @@ pub fn predict(machine: &Machine, run: &Run, models: &[DriveModel]) -> Result<Pr
     Ok(all.remove(0))
 }
 
+/// The true drives' traces as a prediction keeps them: the true position alone (the encoder
+/// reading, velocity, control, motor position and torque are dropped as soon as each axis is
+/// simulated: no output of a prediction needs them, and on a long run they would be most of
+/// its memory; docs/performance.md).
+fn simulate_true_positions(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Error> {
+    use rayon::prelude::*;
+    machine
+        .axes
+        .par_iter()
+        .zip(run.axes.par_iter())
+        .map(|(axis, s)| {
+            let t = axis
+                .drive
+                .simulate(s.reference(), run.ts)
+                .map_err(|source| Error::Drive {
+                    axis: axis.name,
+                    source,
+                })?;
+            Ok(DriveTrace {
+                true_position: t.true_position,
+                saturated_ticks: t.saturated_ticks,
+                ts: t.ts,
+                ..DriveTrace::default()
+            })
+        })
+        .collect()
+}
+
+/// The run's reference tool path for the contour search.
+fn reference_path(machine: &Machine, run: &Run) -> Result<ContourPath, Error> {
+    let reference = run
+        .poses
+        .as_ref()
+        .ok_or_else(|| vcnc_machine::Error::NoKinematics {
+            file: machine.source.clone(),
+        })?;
+    Ok(ContourPath::new(reference)?)
+}
+
+/// [`contour`] as a prediction computes it: each actual pose is computed by the forward
+/// kinematics, searched for and dropped (a long run never holds them), and no foot points
+/// are kept (only the compensation, through [`contour`], needs them). Bit-identical to
+/// [`contour`]'s errors: the same poses in the same order through the same search.
+fn prediction_contour(
+    machine: &Machine,
+    path: &ContourPath,
+    actual: &[&[f64]],
+) -> Result<ContourReport, Error> {
+    let kin = machine.require_kinematics()?;
+    let n = actual.first().map_or(0, |p| p.len());
+    let mut search = ContourSearch::new(path, &SearchWindow::default(), false, n)?;
+    for k in 0..n {
+        search.push(&kin.model.forward(&kin.axes.at(actual, k)))?;
+    }
+    Ok(search.finish()?)
+}
+
+/// Tool poses (mm, unit tool axis; workpiece frame) of axis positions given per machine axis
+/// (mm, deg) at the samples `rows`, by the closed-form forward kinematics: a prediction keeps
+/// axis positions, and its poses are computed a chunk at a time where they are written.
+pub fn poses_at(
+    machine: &Machine,
+    axis_pos: &[&[f64]],
+    rows: std::ops::Range<usize>,
+) -> Result<Vec<Pose>, Error> {
+    let kin = machine.require_kinematics()?;
+    Ok(rows
+        .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
+        .collect())
+}
+
 /// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
 /// one run: the true drives, the costly half, are simulated and evaluated once and shared.
 pub fn predict_many(
@@ -278,30 +359,44 @@ pub fn predict_many(
     model_sets: &[&[DriveModel]],
 ) -> Result<Vec<Prediction>, Error> {
     use rayon::prelude::*;
+    // One reference path, shared by the true machine's search and the models'.
+    let path = reference_path(machine, run)?;
     let truth = || -> Result<_, Error> {
-        let traces = simulate_true(machine, run)?;
+        let traces = simulate_true_positions(machine, run)?;
         let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
-        let (poses, report) = contour(machine, run, &pos)?;
-        Ok((traces, poses, report))
+        let report = prediction_contour(machine, &path, &pos)?;
+        Ok((traces, report))
     };
     let (truth, halves) = rayon::join(truth, || {
         model_sets
             .par_iter()
-            .map(|m| model_contour(machine, run, m))
+            .map(|m| -> Result<_, Error> {
+                let positions = simulate_models(m, run)?;
+                let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
+                let contour = prediction_contour(machine, &path, &pos)?;
+                Ok((positions, contour))
+            })
             .collect::<Vec<_>>()
     });
-    let (true_traces, true_poses, true_contour) = truth?;
+    let (true_traces, true_contour) = truth?;
+    let last = halves.len().saturating_sub(1);
+    let mut truth = Some((true_traces, true_contour));
     halves
         .into_iter()
-        .map(|h| {
-            let m = h?;
+        .enumerate()
+        .map(|(i, h)| {
+            let (predicted, predicted_contour) = h?;
+            // The last prediction takes the truth, the others a copy: one model set, no copy.
+            let (true_traces, true_contour) = if i == last {
+                truth.take().expect("taken once, by the last")
+            } else {
+                truth.clone().expect("taken only by the last")
+            };
             Ok(Prediction {
-                true_traces: true_traces.clone(),
-                predicted: m.positions,
-                true_poses: true_poses.clone(),
-                predicted_poses: m.poses,
-                true_contour: true_contour.clone(),
-                predicted_contour: m.contour,
+                true_traces,
+                predicted,
+                true_contour,
+                predicted_contour,
             })
         })
         .collect()

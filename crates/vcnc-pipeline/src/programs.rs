@@ -38,3 +38,84 @@ pub fn spiral_program(feed_mm_s: f64, segment_mm: f64) -> Result<String, Error> 
     };
     vcnc_gcode::tcp_program(&program_points, &popts).map_err(|e| Error::gcode(name, e))
 }
+
+/// A long 5-axis tool-centre-point program for measuring speed and memory
+/// (docs/performance.md): `segments` short `G1` moves of the tool tip, switched into TCP mode by
+/// `tcp_on_mcode` (the machine's `gcode.tcp_on_mcodes`, e.g. `M428`), with inverse-time feeds
+/// (`G93`, each `F` = 1 / the move's duration in minutes), as CAM post-processors write them.
+///
+/// The tip runs turn after turn round a wavy band (angle $\theta$, radius
+/// $r = 30 + 5\sin 7\theta$ mm, height $z = 20 + 4\sin(\theta/5)$ mm) with the table turning
+/// with it ($C = \theta$ in degrees; $\theta$ runs back and forth over 50 turns) and the tilt
+/// swinging
+/// ($A = -40 + 15\sin 3\theta$ deg); consecutive tips are about `segment_mm` apart and each
+/// move lasts `segment_s`. Deterministic: the same arguments give the same text.
+pub fn long_tcp_program(
+    segments: usize,
+    segment_mm: f64,
+    segment_s: f64,
+    tcp_on_mcode: u32,
+) -> Result<String, Error> {
+    let mut out = String::with_capacity(segments * 64 + 256);
+    write_long_tcp_program(&mut out, segments, segment_mm, segment_s, tcp_on_mcode)?;
+    Ok(out)
+}
+
+/// [`long_tcp_program`] written into any `fmt::Write` (a 1 GB program need not be held as
+/// a string: pass an adapter over a buffered file).
+pub fn write_long_tcp_program(
+    out: &mut impl std::fmt::Write,
+    segments: usize,
+    segment_mm: f64,
+    segment_s: f64,
+    tcp_on_mcode: u32,
+) -> Result<(), Error> {
+    let bad = |what: &str, v: f64| {
+        Error::Usage(format!(
+            "long program: {what} must be positive and finite, not {v}"
+        ))
+    };
+    if !(segment_mm.is_finite() && segment_mm > 0.0) {
+        return Err(bad("the segment length (mm)", segment_mm));
+    }
+    if !(segment_s.is_finite() && segment_s > 0.0) {
+        return Err(bad("the segment duration (s)", segment_s));
+    }
+    let io = |_| Error::Usage("long program: cannot write the text".to_string());
+    let tip = |theta: f64| {
+        let r = 30.0 + 5.0 * (7.0 * theta).sin();
+        [
+            r * theta.cos(),
+            r * theta.sin(),
+            20.0 + 4.0 * (theta / 5.0).sin(),
+        ]
+    };
+    let axes = |theta: f64| (-40.0 + 15.0 * (3.0 * theta).sin(), theta.to_degrees());
+    writeln!(
+        out,
+        "(vcnc long 5-axis TCP program: {segments} segments of about {segment_mm} mm, {segment_s} s each, inverse-time feeds)"
+    )
+    .map_err(io)?;
+    writeln!(out, "G21 G90 G17 G64").map_err(io)?;
+    writeln!(out, "M{tcp_on_mcode}").map_err(io)?;
+    let [x, y, z] = tip(0.0);
+    let (a, c) = axes(0.0);
+    writeln!(out, "G0 X{x:.3} Y{y:.3} Z{z:.3} A{a:.3} C{c:.3}").map_err(io)?;
+    writeln!(out, "G93").map_err(io)?;
+    // Inverse time: F = 1 / (duration in minutes).
+    let f = 60.0 / segment_s;
+    // θ steps of about segment_mm of tip travel (r ≥ 25 mm, so at most segment_mm · 35/30).
+    let dtheta = segment_mm / 30.0;
+    // Back and forth every 50 turns, so that C stays within ±9000° however long the program.
+    let turns = 100.0 * std::f64::consts::PI;
+    for k in 1..=segments {
+        let s = (k as f64 * dtheta) % (2.0 * turns);
+        let theta = if s <= turns { s } else { 2.0 * turns - s };
+        let [x, y, z] = tip(theta);
+        let (a, c) = axes(theta);
+        writeln!(out, "G1 X{x:.3} Y{y:.3} Z{z:.3} A{a:.3} C{c:.3} F{f:.3}").map_err(io)?;
+    }
+    writeln!(out, "G94").map_err(io)?;
+    writeln!(out, "M2").map_err(io)?;
+    Ok(())
+}

@@ -52,7 +52,8 @@ impl AxisSignals {
 pub struct Run {
     /// The program's path (for messages).
     pub file: String,
-    /// Parse tree, moves, trajectory and warnings.
+    /// Parse tree, moves, trajectory and warnings. The trajectory's axis tracks are empty:
+    /// their samples were moved into [`Run::axes`].
     pub loaded: Loaded,
     /// Sample period, s.
     pub ts: f64,
@@ -123,9 +124,11 @@ impl Run {
     }
 }
 
-/// Largest program file accepted, bytes. A toolpath this long already asks for more samples
-/// than the interpolator's cap; refusing it up front keeps a huge junk file from costing
-/// seconds and gigabytes in the parser.
+/// Largest program file accepted, bytes. The parser holds the whole program and its syntax
+/// tree (about 16 bytes of memory per byte of G-code: 64 MiB of text peak at about 1 GB), so
+/// a larger file is refused up front instead of costing seconds and gigabytes; a streaming
+/// parser would lift this (docs/performance.md). A toolpath this long also asks for about as
+/// many samples as the interpolator's cap.
 pub const MAX_PROGRAM_BYTES: u64 = 64 << 20;
 
 /// Reads a program file (lossy UTF-8: the parser reports the replacement characters).
@@ -137,7 +140,8 @@ pub fn read_program(path: &Path) -> Result<String, Error> {
     let size = std::fs::metadata(path).map_err(cannot)?.len();
     if size > MAX_PROGRAM_BYTES {
         return Err(Error::Usage(format!(
-            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts; split it",
+            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts (the parser \
+             holds the whole program in memory, about 16 bytes per byte of G-code); split it",
             path.display(),
             MAX_PROGRAM_BYTES >> 20
         )));
@@ -163,7 +167,7 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
     let (program, toolpath, diags) =
         vcnc_gcode::parse_and_interpret(src, &interp).map_err(|e| Error::gcode(file, e))?;
     check_axes_exist(machine, &toolpath, file)?;
-    let loaded = vcnc_gcode::load_toolpath(
+    let mut loaded = vcnc_gcode::load_toolpath(
         program,
         toolpath,
         diags,
@@ -176,22 +180,8 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         .iter()
         .map(|d| format!("{file}:{}:{}: warning: {}", d.line, d.col, d.message))
         .collect();
+    let mut axes = take_axis_signals(machine, &mut loaded.trajectory);
     let traj = &loaded.trajectory;
-    let n = traj.len();
-    let mut axes: Vec<AxisSignals> = machine
-        .axes
-        .iter()
-        .map(|a| {
-            let t = traj.axis(a.name);
-            AxisSignals {
-                name: a.name,
-                unit: a.unit,
-                pos: t.map_or_else(|| vec![0.0; n], |t| t.pos.clone()),
-                vel: t.map_or_else(|| vec![0.0; n], |t| t.vel.clone()),
-                acc: t.map_or_else(|| vec![0.0; n], |t| t.acc.clone()),
-            }
-        })
-        .collect();
     let any_tcp = traj.tcp.iter().any(|t| *t);
     if any_tcp {
         let kin = machine.require_kinematics()?;
@@ -238,6 +228,41 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         lines,
         classes,
     })
+}
+
+/// The machine axes' references, moved out of the trajectory's tracks (an axis the program
+/// never names stays at 0). Every track is left empty afterwards, so that a long run holds its
+/// samples once, in [`Run::axes`] (docs/performance.md).
+fn take_axis_signals(machine: &Machine, traj: &mut vcnc_gcode::Trajectory) -> Vec<AxisSignals> {
+    let n = traj.len();
+    let axes = machine
+        .axes
+        .iter()
+        .map(|a| {
+            let t = traj.axes.iter_mut().find(|t| t.name == a.name);
+            let (pos, vel, acc) = match t {
+                Some(t) => (
+                    std::mem::take(&mut t.pos),
+                    std::mem::take(&mut t.vel),
+                    std::mem::take(&mut t.acc),
+                ),
+                None => (vec![0.0; n], vec![0.0; n], vec![0.0; n]),
+            };
+            AxisSignals {
+                name: a.name,
+                unit: a.unit,
+                pos,
+                vel,
+                acc,
+            }
+        })
+        .collect();
+    for t in &mut traj.axes {
+        t.pos = Vec::new();
+        t.vel = Vec::new();
+        t.acc = Vec::new();
+    }
+    axes
 }
 
 /// Axes the program moves but the machine lacks: a clear error before interpolation.

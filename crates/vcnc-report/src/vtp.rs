@@ -18,7 +18,6 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::error::Error;
-use crate::figure::write_atomic;
 use crate::svg::escape;
 
 /// A per-point scalar array.
@@ -253,6 +252,15 @@ fn data_array(out: &mut String, name: Option<&str>, comps: usize, v: &Values, en
 
 /// The `.vtp` document of a path.
 pub fn vtp_string(path: &VtpPath, enc: VtpEncoding) -> Result<String, Error> {
+    let mut doc = String::new();
+    vtp_pieces(path, enc, &mut |piece| doc.push_str(piece))?;
+    Ok(doc)
+}
+
+/// The `.vtp` document of a path, handed to `emit` a piece at a time (the header, then one
+/// data array after another), so that a long path is never one string in memory
+/// (docs/performance.md).
+fn vtp_pieces(path: &VtpPath, enc: VtpEncoding, emit: &mut dyn FnMut(&str)) -> Result<(), Error> {
     let kept = path.check()?;
     // Polylines: runs of consecutive kept samples (a left-out point breaks the line).
     let mut offsets: Vec<i64> = Vec::new();
@@ -262,8 +270,12 @@ pub fn vtp_string(path: &VtpPath, enc: VtpEncoding) -> Result<String, Error> {
         }
     }
     offsets.push(kept.len() as i64);
-    let connectivity: Vec<i64> = (0..kept.len() as i64).collect();
     let mut out = String::new();
+    let mut flush = |out: &mut String| {
+        emit(out);
+        out.clear();
+        out.shrink_to(1 << 16);
+    };
     out.push_str("<?xml version=\"1.0\"?>\n");
     out.push_str("<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<PolyData>\n");
     let _ = writeln!(
@@ -280,40 +292,55 @@ pub fn vtp_string(path: &VtpPath, enc: VtpEncoding) -> Result<String, Error> {
         let _ = write!(out, " Vectors=\"{}\"", escape(&v.name));
     }
     out.push_str(">\n");
+    flush(&mut out);
     for s in &path.scalars {
         let v = Values::F64(kept.iter().map(|&i| s.values[i]).collect());
         data_array(&mut out, Some(&s.name), 1, &v, enc);
+        flush(&mut out);
     }
     for vec in &path.vectors {
         let v = Values::F64(kept.iter().flat_map(|&i| vec.values[i]).collect());
         data_array(&mut out, Some(&vec.name), 3, &v, enc);
+        flush(&mut out);
     }
     if let Some(l) = path.block_line {
         let v = Values::U32(kept.iter().map(|&i| l[i]).collect());
         data_array(&mut out, Some("block_line"), 1, &v, enc);
+        flush(&mut out);
     }
     let idx = Values::I64(kept.iter().map(|&i| i as i64).collect());
     data_array(&mut out, Some("sample_index"), 1, &idx, enc);
+    drop(idx);
     out.push_str("</PointData>\n<Points>\n");
+    flush(&mut out);
     let pts = Values::F64(kept.iter().flat_map(|&i| path.points_mm[i]).collect());
     data_array(&mut out, Some("Points"), 3, &pts, enc);
+    drop(pts);
     out.push_str("</Points>\n<Lines>\n");
-    data_array(
-        &mut out,
-        Some("connectivity"),
-        1,
-        &Values::I64(connectivity),
-        enc,
-    );
+    flush(&mut out);
+    let connectivity = Values::I64((0..kept.len() as i64).collect());
+    data_array(&mut out, Some("connectivity"), 1, &connectivity, enc);
+    drop(connectivity);
+    flush(&mut out);
     data_array(&mut out, Some("offsets"), 1, &Values::I64(offsets), enc);
     out.push_str("</Lines>\n</Piece>\n</PolyData>\n</VTKFile>\n");
-    Ok(out)
+    flush(&mut out);
+    Ok(())
 }
 
-/// Writes the `.vtp` file atomically.
+/// Writes the `.vtp` file atomically, a data array at a time.
 pub fn write_vtp(file: &Path, path: &VtpPath, enc: VtpEncoding) -> Result<(), Error> {
-    let s = vtp_string(path, enc)?;
-    write_atomic(file, s.as_bytes())
+    crate::figure::write_atomic_with(file, |w| {
+        let mut failed: Option<std::io::Error> = None;
+        vtp_pieces(path, enc, &mut |piece| {
+            if failed.is_none()
+                && let Err(e) = w.write_all(piece.as_bytes())
+            {
+                failed = Some(e);
+            }
+        })?;
+        failed.map_or(Ok(()), |e| Err(Error::io(file, e)))
+    })
 }
 
 #[cfg(test)]

@@ -1,0 +1,65 @@
+//! Long programs (issue 15, docs/performance.md): a generated 5-axis tool-centre-point program
+//! of 1 000 000 samples at 1 ms (20 000 short segments, TCP on by `M428`, inverse-time feeds
+//! `G93`; [`programs::long_tcp_program`]) prepared (parse, interpret, interpolate, inverse
+//! kinematics, travel checks, reference poses) and predicted (true drives and models, forward
+//! kinematics, both contour errors); and the G-code parser alone on about 100 MB of the same
+//! kind of text.
+//!
+//! `cargo bench -p vcnc-pipeline --bench scale`
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use vcnc_drive::DriveModel;
+use vcnc_machine::Machine;
+use vcnc_pipeline::{predict, programs, run};
+
+fn long_program(c: &mut Criterion) {
+    let Ok(machine) = Machine::embedded_nmv5000() else {
+        return;
+    };
+    let Ok(src) = programs::long_tcp_program(20_000, 0.5, 0.05, 428) else {
+        return;
+    };
+    let models: Vec<DriveModel> = machine
+        .axes
+        .iter()
+        .map(|a| DriveModel::from(a.true_model()))
+        .collect();
+    let mut group = c.benchmark_group("long_tcp_1M_samples");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(30));
+    group.bench_function("prepare", |b| {
+        b.iter(|| run::prepare(&machine, black_box(&src), "long.ngc", false))
+    });
+    let Ok(prepared) = run::prepare(&machine, &src, "long.ngc", false) else {
+        return;
+    };
+    group.bench_function("predict", |b| {
+        b.iter(|| predict::predict(&machine, black_box(&prepared), &models))
+    });
+    group.bench_function("prepare_and_predict", |b| {
+        b.iter(|| {
+            run::prepare(&machine, black_box(&src), "long.ngc", false)
+                .and_then(|r| predict::predict(&machine, &r, &models))
+        })
+    });
+    group.finish();
+}
+
+fn parser(c: &mut Criterion) {
+    // About 57 bytes a line: 1 750 000 segments make about 100 MB.
+    let Ok(src) = programs::long_tcp_program(1_750_000, 0.5, 0.05, 428) else {
+        return;
+    };
+    let mut group = c.benchmark_group("parse_100MB");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(20));
+    group.throughput(Throughput::Bytes(src.len() as u64));
+    group.bench_function("parse", |b| b.iter(|| vcnc_gcode::parse(black_box(&src))));
+    group.finish();
+}
+
+criterion_group!(benches, long_program, parser);
+criterion_main!(benches);

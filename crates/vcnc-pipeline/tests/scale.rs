@@ -1,0 +1,157 @@
+//! Long runs in bounded memory (docs/performance.md): what a prediction keeps is bit-identical
+//! to what the whole-run path computes, and to itself for any thread count.
+//!
+//! Truth: the full-trace path — every drive channel simulated and kept
+//! ([`simulate::simulate_true`]), every pose of the actual paths and the contour errors with
+//! their foot points ([`predict::contour`], [`predict::model_contour`]) and the trajectory as
+//! the interpolator returns it ([`vcnc_gcode::load`]) — on the embedded
+//! spiral and on a generated 5-axis TCP program with inverse-time feeds
+//! ([`programs::long_tcp_program`], 150 000 samples).
+
+use vcnc_drive::DriveModel;
+use vcnc_machine::{Machine, embedded};
+use vcnc_pipeline::predict::{self, Prediction};
+use vcnc_pipeline::{programs, run, simulate};
+
+fn machine() -> Machine {
+    Machine::embedded_nmv5000().expect("embedded machine")
+}
+
+fn models(machine: &Machine) -> Vec<DriveModel> {
+    machine
+        .axes
+        .iter()
+        .map(|a| DriveModel::from(a.true_model()))
+        .collect()
+}
+
+fn programs() -> Vec<(&'static str, String)> {
+    vec![
+        ("spiral.ngc", embedded::SPIRAL_NGC.to_string()),
+        (
+            "long.ngc",
+            programs::long_tcp_program(3_000, 0.5, 0.05, 428).expect("generated program"),
+        ),
+    ]
+}
+
+fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool")
+        .install(f)
+}
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Everything a prediction's outputs are made of, as bits.
+fn fingerprint(p: &Prediction) -> Vec<Vec<u64>> {
+    let mut f = Vec::new();
+    for t in &p.true_traces {
+        f.push(bits(&t.true_position));
+    }
+    for x in &p.predicted {
+        f.push(bits(x));
+    }
+    for c in [&p.true_contour, &p.predicted_contour] {
+        f.push(bits(&c.tip_mm));
+        f.push(bits(&c.orientation_rad));
+        f.push(bits(&[
+            c.tip_max_mm,
+            c.tip_rms_mm,
+            c.orientation_max_rad,
+            c.orientation_rms_rad,
+        ]));
+    }
+    f
+}
+
+#[test]
+fn prediction_equals_the_full_trace_path_bit_for_bit() {
+    let machine = machine();
+    let models = models(&machine);
+    for (name, src) in programs() {
+        let run = run::prepare(&machine, &src, name, false).expect("prepared");
+        // The references are the interpolator's own samples, moved, not recomputed (A and C
+        // are not touched by the TCP inverse kinematics).
+        let loaded = vcnc_gcode::load(
+            &src,
+            &machine.interp_options(false),
+            &machine.limits(),
+            &machine.interpolate_options(),
+        )
+        .expect("loaded");
+        for a in run.axes.iter().filter(|a| a.name.is_rotary()) {
+            let t = loaded.trajectory.axis(a.name).expect("track");
+            assert_eq!(bits(&a.pos), bits(&t.pos), "{name}: axis {}", a.name);
+            assert_eq!(bits(&a.acc), bits(&t.acc), "{name}: axis {}", a.name);
+        }
+        let p = predict::predict(&machine, &run, &models).expect("prediction");
+        let full = simulate::simulate_true(&machine, &run).expect("full traces");
+        for (kept, all) in p.true_traces.iter().zip(&full) {
+            assert_eq!(
+                bits(&kept.true_position),
+                bits(&all.true_position),
+                "{name}"
+            );
+            assert_eq!(kept.saturated_ticks, all.saturated_ticks, "{name}");
+        }
+        let pos: Vec<&[f64]> = full.iter().map(|t| t.true_position.as_slice()).collect();
+        let (poses, report) = predict::contour(&machine, &run, &pos).expect("contour");
+        assert_eq!(
+            report.foot.len(),
+            run.len(),
+            "{name}: the full path keeps its feet"
+        );
+        assert!(
+            p.true_contour.foot.is_empty(),
+            "{name}: a prediction does not"
+        );
+        assert_eq!(bits(&report.tip_mm), bits(&p.true_contour.tip_mm), "{name}");
+        assert_eq!(
+            bits(&report.orientation_rad),
+            bits(&p.true_contour.orientation_rad),
+            "{name}"
+        );
+        let n = run.len();
+        assert_eq!(
+            poses,
+            predict::poses_at(&machine, &p.true_positions(), 0..n).expect("poses"),
+            "{name}"
+        );
+        // The poses a table computes a chunk at a time are the whole run's.
+        let mut chunked = Vec::new();
+        for start in (0..n).step_by(65_536) {
+            let rows = start..(start + 65_536).min(n);
+            chunked.extend(predict::poses_at(&machine, &pos, rows).expect("chunk"));
+        }
+        assert_eq!(poses, chunked, "{name}");
+        let m = predict::model_contour(&machine, &run, &models).expect("models");
+        assert_eq!(m.positions, p.predicted, "{name}");
+        assert_eq!(m.contour.foot.len(), n, "{name}");
+        assert_eq!(
+            bits(&m.contour.tip_mm),
+            bits(&p.predicted_contour.tip_mm),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn prediction_is_bit_identical_on_one_and_two_threads() {
+    let machine = machine();
+    let models = models(&machine);
+    for (name, src) in programs() {
+        let run = run::prepare(&machine, &src, name, false).expect("prepared");
+        let one = in_pool(1, || {
+            predict::predict(&machine, &run, &models).expect("1 thread")
+        });
+        let two = in_pool(2, || {
+            predict::predict(&machine, &run, &models).expect("2 threads")
+        });
+        assert_eq!(fingerprint(&one), fingerprint(&two), "{name}");
+    }
+}
