@@ -192,6 +192,10 @@ pub struct ContourSearch<'a> {
     acc: Accumulator,
     prev: Option<usize>,
     k: usize,
+    /// Knot cursor of the time hint (see [`ContourSearch::push`]).
+    hint: usize,
+    /// Path parameter of the previous foot, reference samples.
+    prev_u: f64,
 }
 
 impl<'a> ContourSearch<'a> {
@@ -210,19 +214,53 @@ impl<'a> ContourSearch<'a> {
             acc: Accumulator::new(capacity, keep_feet),
             prev: None,
             k: 0,
+            hint: 0,
+            prev_u: f64::NEG_INFINITY,
         })
     }
 
     /// The contour errors of the next actual sample: the first is located by a global search,
-    /// every later one in a window around the previous foot.
+    /// every later one in a window around the previous foot. When that foot has moved
+    /// backwards along the path, or the segment at the reference sample of the same index is
+    /// closer than it, a second window is searched, started at that segment, and the closer of
+    /// the two candidates is kept.
+    ///
+    /// The second window is the time hint: actual sample $k$ is where the machine was when
+    /// reference sample $k$ was commanded, so its foot lies a tracking lag behind that sample.
+    /// It catches the foot when the path turns back on itself close to where it came from (a
+    /// raster's reversal to the next pass a few mm over). There the previous foot's window can
+    /// stay on the pass just left, whose points are close but not the closest, and never reach
+    /// the new pass, whose start leaves the window's ball at the corner. The sign of that is a
+    /// foot running backwards while the machine runs forwards, or a commanded point closer than
+    /// the foot found. Taking the closer of two candidates never moves the result away from the
+    /// global foot; the test costs one projection a sample, the second window is searched only
+    /// when it fires, so the cost stays O(N + M).
     pub fn push(&mut self, pose: &Pose) -> Result<()> {
         let (x, o) = checked(pose, Sequence::Actual, self.k)?;
         let c = match self.prev {
             None => self.path.nearest_global(&x, &mut self.acc.evals),
-            Some(s) => self
-                .path
-                .nearest_windowed(&x, s, &self.window, &mut self.acc.evals),
+            Some(s) => {
+                let a = self
+                    .path
+                    .nearest_windowed(&x, s, &self.window, &mut self.acc.evals);
+                let h = self.path.segment_of_sample(self.k, &mut self.hint);
+                let far = h.abs_diff(a.seg) > 2 * self.window.min_margin;
+                if far
+                    && (a.u < self.prev_u || {
+                        self.acc.evals += 1;
+                        self.path.eval(h, &x).better_than(&a)
+                    })
+                {
+                    let b = self
+                        .path
+                        .nearest_windowed(&x, h, &self.window, &mut self.acc.evals);
+                    if b.better_than(&a) { b } else { a }
+                } else {
+                    a
+                }
+            }
         };
+        self.prev_u = c.u;
         self.prev = Some(c.seg);
         self.acc.push(&x, &o, self.path.foot(&c));
         self.k += 1;

@@ -147,6 +147,17 @@ impl ReferencePath {
         Ok(path)
     }
 
+    /// The segment that starts at the knot holding reference sample `k` (the last segment for a
+    /// `k` past the end), with `cursor` a knot index no greater than the answer, advanced in
+    /// place: calls with increasing `k` cost O(1) each on average.
+    pub fn segment_of_sample(&self, k: usize, cursor: &mut usize) -> usize {
+        let n = self.last.len();
+        while *cursor + 1 < n && self.last[*cursor] < k {
+            *cursor += 1;
+        }
+        (*cursor).min(self.segments().saturating_sub(1))
+    }
+
     /// Number of segments (knots − 1).
     fn segments(&self) -> usize {
         self.p.len().saturating_sub(1)
@@ -155,7 +166,7 @@ impl ReferencePath {
     /// Projection on segment `s` (knot `s` → knot `s + 1`), in reference-sample parameter:
     /// $u = \text{last}_s + t$, or the first sample of the knot's run when $t = 0$.
     #[inline]
-    fn eval(&self, s: usize, x: &Vector3<f64>) -> Candidate {
+    pub fn eval(&self, s: usize, x: &Vector3<f64>) -> Candidate {
         let a = &self.p[s];
         let b = &self.p[s + 1];
         let (t, q, d2) = project(x, a, b);
