@@ -254,21 +254,8 @@ pub struct IdentifyArgs {
     pub trace: Option<PathBuf>,
     #[command(flatten)]
     pub read: TraceReadArgs,
-    // The column options below have no clap defaults, so that giving one next to a machine file
-    // can be refused instead of ignored.
-    /// Delimited text: name of the time column [default: t, time, zeit or timestamp].
-    #[arg(long, requires = "trace")]
-    pub t_col: Option<String>,
-    /// Delimited text: the reference (nominal) position column of the (first) --axis.
-    #[arg(long, requires = "trace")]
-    pub xr_col: Option<String>,
-    /// Delimited text: the actual position column of the (first) --axis.
-    #[arg(long, requires = "trace")]
-    pub x_col: Option<String>,
-    /// Lost samples in the trace (halsampler overruns, jumps in time): refuse to identify
-    /// across them, or identify on the longest stretch without any.
-    #[arg(long, value_enum, requires = "trace")]
-    pub gaps: Option<GapsArg>,
+    #[command(flatten)]
+    pub columns: TraceColumnArgs,
     /// Identifier options for the trace: a TOML file with the keys of a machine file's
     /// `[identification.options]` table (deadband, bounds, prefilter, pso, refine, seed, ...).
     #[arg(long, value_name = "OPTIONS.toml", requires = "trace")]
@@ -292,18 +279,8 @@ pub struct ValidateArgs {
     pub axes: Vec<AxisName>,
     #[command(flatten)]
     pub read: TraceReadArgs,
-    /// Delimited text: name of the time column [default: t, time, zeit or timestamp].
-    #[arg(long)]
-    pub t_col: Option<String>,
-    /// Delimited text: the reference (nominal) position column of the (first) --axis.
-    #[arg(long)]
-    pub xr_col: Option<String>,
-    /// Delimited text: the actual position column of the (first) --axis.
-    #[arg(long)]
-    pub x_col: Option<String>,
-    /// Lost samples in the trace: refuse, or score the longest stretch without any.
-    #[arg(long, value_enum)]
-    pub gaps: Option<GapsArg>,
+    #[command(flatten)]
+    pub columns: TraceColumnArgs,
     /// Output folder (summary.json, residual plots, report.html).
     #[arg(long, default_value = "vcnc-validate")]
     pub out: PathBuf,
@@ -330,50 +307,73 @@ pub struct TraceReadArgs {
     pub joints: Option<String>,
 }
 
-/// How to read and pair a trace (`identify --trace`, `validate`): the read options with
-/// `--t-col`, and the pairing with the axes, `--xr-col`/`--x-col` (one axis' nominal and actual
-/// columns, for the first `--axis` or X) and `--gaps`.
-pub fn trace_pairing(
-    read: &TraceReadArgs,
-    axes: &[AxisName],
-    t_col: Option<&str>,
-    (xr_col, x_col): (Option<&str>, Option<&str>),
-    gaps: Option<GapsArg>,
-) -> anyhow::Result<(ReadOptions, PairOptions)> {
-    let (mut options, unit) = read.options()?;
-    if let Some(t) = t_col {
-        options.time_column = Some(ChannelRef::Name(t.to_string()));
+/// Which columns and stretch of a trace to pair (`identify --trace`, `validate`). No clap
+/// defaults, so that `identify` can refuse them next to a machine file instead of ignoring them.
+#[derive(Debug, Clone, Args)]
+pub struct TraceColumnArgs {
+    /// Delimited text: name of the time column [default: t, time, zeit or timestamp].
+    #[arg(long)]
+    pub t_col: Option<String>,
+    /// Delimited text: the reference (nominal) position column of the (first) --axis.
+    #[arg(long)]
+    pub xr_col: Option<String>,
+    /// Delimited text: the actual position column of the (first) --axis.
+    #[arg(long)]
+    pub x_col: Option<String>,
+    /// Lost samples in the trace (halsampler overruns, jumps in time): refuse to use a trace
+    /// across them, or use the longest stretch without any.
+    #[arg(long, value_enum)]
+    pub gaps: Option<GapsArg>,
+}
+
+impl TraceColumnArgs {
+    /// Whether any is given.
+    pub fn any(&self) -> bool {
+        self.t_col.is_some() || self.xr_col.is_some() || self.x_col.is_some() || self.gaps.is_some()
     }
-    let mut pair = PairOptions {
-        axes: axes.to_vec(),
-        gaps: match gaps {
-            Some(GapsArg::Longest) => GapPolicy::LongestSegment,
-            _ => GapPolicy::Refuse,
-        },
-        ..PairOptions::default()
-    };
-    if let Some(u) = unit
-        && !pair.set_unit(u)
-    {
-        return Err(crate::bad_input(format!(
-            "--units {}: not a position unit",
-            read.units.as_deref().unwrap_or_default()
-        )));
-    }
-    match (xr_col, x_col) {
-        (Some(xr), Some(x)) => pair.map.push(AxisMap {
-            axis: axes.first().copied().unwrap_or(AxisName::X),
-            nominal: ChannelRef::Name(xr.to_string()),
-            actual: ChannelRef::Name(x.to_string()),
-        }),
-        (None, None) => {}
-        _ => {
-            return Err(crate::bad_input(
-                "--xr-col and --x-col go together: they name one axis' nominal and actual columns",
-            ));
+
+    /// The read options (`read` with `--t-col`) and the pairing (the axes, `--xr-col`/`--x-col`
+    /// as one axis' nominal and actual columns, for the first of `axes` or X, and `--gaps`).
+    pub fn pairing(
+        &self,
+        read: &TraceReadArgs,
+        axes: &[AxisName],
+    ) -> anyhow::Result<(ReadOptions, PairOptions)> {
+        let (mut options, unit) = read.options()?;
+        if let Some(t) = &self.t_col {
+            options.time_column = Some(ChannelRef::Name(t.clone()));
         }
+        let mut pair = PairOptions {
+            axes: axes.to_vec(),
+            gaps: match self.gaps {
+                Some(GapsArg::Longest) => GapPolicy::LongestSegment,
+                _ => GapPolicy::Refuse,
+            },
+            ..PairOptions::default()
+        };
+        if let Some(u) = unit
+            && !pair.set_unit(u)
+        {
+            return Err(crate::bad_input(format!(
+                "--units {}: not a position unit",
+                read.units.as_deref().unwrap_or_default()
+            )));
+        }
+        match (&self.xr_col, &self.x_col) {
+            (Some(xr), Some(x)) => pair.map.push(AxisMap {
+                axis: axes.first().copied().unwrap_or(AxisName::X),
+                nominal: ChannelRef::Name(xr.clone()),
+                actual: ChannelRef::Name(x.clone()),
+            }),
+            (None, None) => {}
+            _ => {
+                return Err(crate::bad_input(
+                    "--xr-col and --x-col go together: they name one axis' nominal and actual columns",
+                ));
+            }
+        }
+        Ok((options, pair))
     }
-    Ok((options, pair))
 }
 
 /// `--gaps`.

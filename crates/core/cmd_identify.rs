@@ -27,10 +27,7 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                 || args.read.units.is_some()
                 || args.read.trace_format.is_some()
                 || args.read.joints.is_some()
-                || args.gaps.is_some()
-                || args.t_col.is_some()
-                || args.xr_col.is_some()
-                || args.x_col.is_some() =>
+                || args.columns.any() =>
         {
             Err(bad_input(
                 "--ts, --units, --trace-format, --joints, --gaps, --t-col, --xr-col, --x-col and \
@@ -75,13 +72,7 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         Some(p) => OptionsFile::load(p)?,
         None => OptionsFile::default(),
     };
-    let (read, pair) = crate::cli::trace_pairing(
-        &args.read,
-        &args.axes,
-        args.t_col.as_deref(),
-        (args.xr_col.as_deref(), args.x_col.as_deref()),
-        args.gaps,
-    )?;
+    let (read, pair) = args.columns.pairing(&args.read, &args.axes)?;
     let measured = traces::read_trace(path, &read, &pair)?;
     for s in &measured.paired.skipped {
         eprintln!(

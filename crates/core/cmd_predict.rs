@@ -11,12 +11,13 @@ use vcnc_pipeline::run;
 use vcnc_report::Role;
 
 use crate::Ctx;
-use crate::figures::{self, ModelErrors, VCNC_MODEL, program_name};
+use crate::figures::{self, ModelErrors, VCNC_MODEL};
 use crate::output::{ensure_dir, write_json};
-use crate::report::RunReport;
 use crate::sink::TableOptions;
 use crate::table::{print_warnings, table as text_table};
-use crate::writers::{contour_report_table, contour_rows, report_table_file, write_contour_table};
+use crate::writers::{
+    contour_report_table, contour_rows, report_table_file, run_report, write_contour_table,
+};
 
 /// `vcnc predict MACHINE PROGRAM [--model MODEL] --out DIR`.
 pub fn predict(
@@ -57,34 +58,16 @@ pub fn predict(
     };
     let table_path = write_contour_table(out, &machine, &run, &p, table)?;
     write_json(&out.join("summary.json"), &summary)?;
-    let mut report = RunReport::new(
+    let mut report = run_report(
         out,
-        format!(
-            "vcnc predict: {} on {}",
-            program_name(&run.file),
-            machine.name
-        ),
+        "predict",
+        machine_path,
+        &machine,
+        &run,
+        Some(summary.models.as_str()),
+        table,
+        ctx,
     );
-    report.input(
-        "machine",
-        format!("{} ({})", machine.name, machine_path.display()),
-    );
-    report.input(
-        "program",
-        format!(
-            "{} ({} samples, {:.2} s at Ts = {} s)",
-            run.file,
-            run.len(),
-            run.duration_s(),
-            run.ts
-        ),
-    );
-    report.input("models", summary.models.as_str());
-    report.input("table options", table.describe());
-    if ctx.lenient {
-        report.input("option", "--lenient");
-    }
-    report.warnings(&run.warnings);
     contour_report_table(&mut report, &[(VCNC_MODEL, &p.figures(&mask))]);
     let tracking = p.tracking(&machine, &run);
     figures::prediction(

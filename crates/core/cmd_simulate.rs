@@ -8,12 +8,11 @@ use vcnc_pipeline::run::{self, InterpolateSummary};
 use vcnc_pipeline::simulate;
 
 use crate::Ctx;
-use crate::figures::{self, program_name};
+use crate::figures;
 use crate::output::{ensure_dir, write_json};
-use crate::report::RunReport;
 use crate::sink::{TableOptions, write_table, write_table_rows};
 use crate::table::{print_warnings, table as text_table};
-use crate::writers::report_table_file;
+use crate::writers::{report_table_file, run_report};
 
 /// `vcnc interpolate MACHINE PROGRAM --out DIR`: `reference.csv` and `summary.json`.
 pub fn interpolate(
@@ -60,7 +59,16 @@ pub fn interpolate(
         &out.join("summary.json"),
         &InterpolateSummary::of(&machine, &run),
     )?;
-    let mut report = run_report(out, "interpolate", machine_path, &machine, &run, table, ctx);
+    let mut report = run_report(
+        out,
+        "interpolate",
+        machine_path,
+        &machine,
+        &run,
+        None,
+        table,
+        ctx,
+    );
     figures::reference(&mut report, &run)?;
     report_table_file(
         &mut report,
@@ -125,21 +133,27 @@ pub fn simulate(
         models.as_ref().map(|(f, m)| (f.as_str(), m.as_slice())),
     );
     write_json(&out.join("summary.json"), &summary)?;
-    let mut report = run_report(out, "simulate", machine_path, &machine, &run, table, ctx);
-    if let Some((file, _)) = &models {
-        report.input("models", file.as_str());
-    }
+    let mut report = run_report(
+        out,
+        "simulate",
+        machine_path,
+        &machine,
+        &run,
+        models.as_ref().map(|(f, _)| f.as_str()),
+        table,
+        ctx,
+    );
     let mut header = vec!["axis", "controller", "max", "RMS"];
     if sim.predicted.is_some() {
         header.push("|model − true| max");
     }
-    report.table(
-        "tracking errors x_r − x",
-        &header,
+    // Per axis: controller, tracking max and RMS, and the model's largest departure from the
+    // true drive; errors labelled by `unit_label` (µm in reports, um on the terminal).
+    let tracking_rows = |unit_label: fn(vcnc_axis::Unit) -> &'static str| -> Vec<Vec<String>> {
         tracking
             .iter()
             .map(|a| {
-                let u = a.unit.micro_symbol();
+                let u = unit_label(a.unit);
                 let mut row = vec![
                     a.axis.to_string(),
                     a.controller.to_string(),
@@ -151,7 +165,12 @@ pub fn simulate(
                 }
                 row
             })
-            .collect(),
+            .collect()
+    };
+    report.table(
+        "tracking errors x_r − x",
+        &header,
+        tracking_rows(vcnc_axis::Unit::micro_symbol),
         "the true drives' encoder readings against the reference; µm for linear axes, mdeg for \
          rotary axes",
     );
@@ -164,22 +183,7 @@ pub fn simulate(
     );
     report.finish()?;
     if !ctx.quiet {
-        let rows: Vec<Vec<String>> = tracking
-            .iter()
-            .map(|a| {
-                let l = a.unit.micro_label();
-                let mut row = vec![
-                    a.axis.to_string(),
-                    a.controller.to_string(),
-                    format!("{:.2} {l}", a.tracking_max),
-                    format!("{:.2} {l}", a.tracking_rms),
-                ];
-                if let Some(m) = a.model_vs_true_max {
-                    row.push(format!("{m:.3} {l}"));
-                }
-                row
-            })
-            .collect();
+        let rows = tracking_rows(vcnc_axis::Unit::micro_label);
         let mut header = vec!["axis", "controller", "tracking max", "tracking RMS"];
         if sim.predicted.is_some() {
             header.push("|model - true| max");
@@ -188,44 +192,4 @@ pub fn simulate(
         println!("-> {}", out.display());
     }
     Ok(())
-}
-
-/// The report of a run of `command` on a machine and a program: its inputs and warnings.
-fn run_report(
-    out: &Path,
-    command: &str,
-    machine_path: &Path,
-    machine: &Machine,
-    run: &run::Run,
-    table: &TableOptions,
-    ctx: &Ctx,
-) -> RunReport {
-    let mut report = RunReport::new(
-        out,
-        format!(
-            "vcnc {command}: {} on {}",
-            program_name(&run.file),
-            machine.name
-        ),
-    );
-    report.input(
-        "machine",
-        format!("{} ({})", machine.name, machine_path.display()),
-    );
-    report.input(
-        "program",
-        format!(
-            "{} ({} samples, {:.3} s at Ts = {} s)",
-            run.file,
-            run.len(),
-            run.duration_s(),
-            run.ts
-        ),
-    );
-    report.input("table options", table.describe());
-    if ctx.lenient {
-        report.input("option", "--lenient");
-    }
-    report.warnings(&run.warnings);
-    report
 }

@@ -6,7 +6,7 @@ use vcnc_pipeline::traces;
 use vcnc_pipeline::validate::{ValidateSummary, validate_measured};
 
 use crate::Ctx;
-use crate::cli::{ValidateArgs, trace_pairing};
+use crate::cli::ValidateArgs;
 use crate::output::{ensure_dir, write_json};
 use crate::report::RunReport;
 use crate::sink::{TableOptions, write_table};
@@ -17,13 +17,7 @@ pub fn validate(args: &ValidateArgs, ctx: &Ctx) -> Result<()> {
     let model_file = args.model.display().to_string();
     // The model file first: a mistake in it is reported before the trace is read.
     let models = ModelSet::load(&args.model)?;
-    let (read, pair) = trace_pairing(
-        &args.read,
-        &args.axes,
-        args.t_col.as_deref(),
-        (args.xr_col.as_deref(), args.x_col.as_deref()),
-        args.gaps,
-    )?;
+    let (read, pair) = args.columns.pairing(&args.read, &args.axes)?;
     let measured = traces::read_trace(&args.trace, &read, &pair)?;
     let file = measured.paired.file.clone();
     let scored = validate_measured(&measured, &models, &model_file, &args.axes)?;

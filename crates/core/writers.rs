@@ -10,6 +10,7 @@ use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
 use vcnc_pipeline::predict::poses_at;
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
+use crate::Ctx;
 use crate::figures;
 use crate::output::{write_atomic, write_json};
 use crate::report::RunReport;
@@ -416,4 +417,50 @@ pub fn contour_rows(f: &ContourFigures) -> Vec<(String, f64, f64)> {
         .iter()
         .map(|(label, _, v)| (label.to_string(), v.tip_um, v.orientation_mrad))
         .collect()
+}
+
+/// The report of a run of `command` on a machine and a program: its inputs (machine, program,
+/// the model file when there is one, table options, --lenient) and warnings.
+#[allow(clippy::too_many_arguments)]
+pub fn run_report(
+    out: &Path,
+    command: &str,
+    machine_path: &Path,
+    machine: &Machine,
+    run: &Run,
+    models: Option<&str>,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> RunReport {
+    let mut report = RunReport::new(
+        out,
+        format!(
+            "vcnc {command}: {} on {}",
+            figures::program_name(&run.file),
+            machine.name
+        ),
+    );
+    report.input(
+        "machine",
+        format!("{} ({})", machine.name, machine_path.display()),
+    );
+    report.input(
+        "program",
+        format!(
+            "{} ({} samples, {:.3} s at Ts = {} s)",
+            run.file,
+            run.len(),
+            run.duration_s(),
+            run.ts
+        ),
+    );
+    if let Some(m) = models {
+        report.input("models", m);
+    }
+    report.input("table options", table.describe());
+    if ctx.lenient {
+        report.input("option", "--lenient");
+    }
+    report.warnings(&run.warnings);
+    report
 }

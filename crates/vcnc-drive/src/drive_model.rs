@@ -353,6 +353,18 @@ impl DriveModel {
         r
     }
 
+    /// Decay rate $-\operatorname{Re} s$ (rad/s) of the slowest pole decaying faster than
+    /// `floor` rad/s, if any: the time scale of the model's transients (a pole at or near
+    /// $s = 0$, the near-integrator of a drive without integral action, is left out by
+    /// `floor`).
+    pub fn slowest_decay_rate(&self, floor: f64) -> Option<f64> {
+        self.roots()
+            .iter()
+            .map(|r| -r.re)
+            .filter(|r| *r > floor)
+            .min_by(f64::total_cmp)
+    }
+
     /// Every pole strictly in the left half plane.
     pub fn is_stable(&self) -> bool {
         self.validate().is_ok() && self.core.is_stable()

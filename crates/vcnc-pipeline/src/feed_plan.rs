@@ -603,14 +603,11 @@ pub fn lag_window(models: &[DriveModel]) -> f64 {
     let delay = models.iter().map(|m| m.delay_s).fold(0.0f64, f64::max);
     let slowest = models
         .iter()
-        .flat_map(|m| m.roots())
-        .map(|r| -r.re)
-        .filter(|r| *r > 1e-9)
-        .fold(f64::INFINITY, f64::min);
-    if slowest.is_finite() {
-        (3.0 / slowest + delay).clamp(0.01, 1.0)
-    } else {
-        0.05 + delay
+        .filter_map(|m| m.slowest_decay_rate(1e-9))
+        .min_by(f64::total_cmp);
+    match slowest {
+        Some(r) => (3.0 / r + delay).clamp(0.01, 1.0),
+        None => 0.05 + delay,
     }
 }
 

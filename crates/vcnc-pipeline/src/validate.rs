@@ -49,6 +49,8 @@ pub struct AxisValidation {
     /// has decayed (five time constants of the model's slowest pole faster than 0.5 Hz), and
     /// where they start.
     pub settled: Option<(usize, FitMetrics)>,
+    /// Whether the trace starts in motion (the model starts at rest: a start transient).
+    pub moving_start: bool,
     /// Where the samples come from.
     pub provenance: vcnc_trace::Provenance,
 }
@@ -125,24 +127,18 @@ pub fn validate_measured(
                 .map_err(|e| Error::identify(&subject, e))?;
             let fit = vcnc_identify::score(&model, &trace, None, &opts)
                 .map_err(|e| Error::identify(&subject, e))?;
-            let settled = if trace.starts_at_rest(vcnc_identify::REST_SPEED) {
-                None
-            } else {
-                let slowest = model
-                    .roots()
-                    .iter()
-                    .map(|r| -r.re)
-                    .filter(|r| *r > SETTLE_MIN_RATE)
-                    .fold(f64::INFINITY, f64::min);
-                let k = ((5.0 / slowest + model.delay_s) / trace.ts).ceil();
-                if k.is_finite() && (k as usize) < trace.len() / 2 {
-                    let k = k as usize;
-                    let f = vcnc_identify::score(&model, &trace, Some(k..trace.len()), &opts)
-                        .map_err(|e| Error::identify(&subject, e))?;
-                    Some((k, f))
-                } else {
-                    None
-                }
+            let moving_start = !trace.starts_at_rest(vcnc_identify::REST_SPEED);
+            let settle = model
+                .slowest_decay_rate(SETTLE_MIN_RATE)
+                .map(|r| ((5.0 / r + model.delay_s) / trace.ts).ceil() as usize)
+                .filter(|k| moving_start && *k < trace.len() / 2);
+            let settled = match settle {
+                Some(k) => Some((
+                    k,
+                    vcnc_identify::score(&model, &trace, Some(k..trace.len()), &opts)
+                        .map_err(|e| Error::identify(&subject, e))?,
+                )),
+                None => None,
             };
             if !fit.freerun_rms.is_finite() {
                 return Err(Error::Usage(format!(
@@ -157,6 +153,7 @@ pub fn validate_measured(
                 trace,
                 fit,
                 settled,
+                moving_start,
                 provenance: t.provenance.clone(),
             })
         })
@@ -222,7 +219,7 @@ impl ValidateSummary {
                                 unit: a.unit,
                                 fit: a.fit.clone(),
                             },
-                            moving_start: !a.trace.starts_at_rest(vcnc_identify::REST_SPEED),
+                            moving_start: a.moving_start,
                             fit_settled: a.settled.as_ref().map(|(_, f)| FitSummary {
                                 unit: a.unit,
                                 fit: f.clone(),

@@ -292,6 +292,13 @@ impl std::fmt::Display for Ctx {
 pub(super) struct Abandon;
 
 impl LineParser<'_, '_> {
+    /// Reports a syntax error spanning from `from` to here and abandons the value.
+    fn abandon<T>(&mut self, from: Mark, msg: impl Into<String>) -> Result<T, Abandon> {
+        let span = self.lx.span_from(from);
+        self.error(span, DiagnosticKind::Syntax, msg.into());
+        Err(Abandon)
+    }
+
     fn push_expr(&mut self, kind: ExprKind, span: Span) -> Result<ExprId, Abandon> {
         self.builder.push_expr(Expr { kind, span }).ok_or_else(|| {
             self.error(
@@ -314,13 +321,10 @@ impl LineParser<'_, '_> {
     pub(super) fn real_value(&mut self, depth: usize, what: Ctx) -> Result<(Value, Span), Abandon> {
         if depth > MAX_DEPTH {
             let m = self.lx.mark();
-            let span = self.lx.span_from(m);
-            self.error(
-                span,
-                DiagnosticKind::Syntax,
+            return self.abandon(
+                m,
                 format!("expression nested more than {MAX_DEPTH} levels deep"),
             );
-            return Err(Abandon);
         }
         self.lx.skip_ws();
         let m = self.lx.mark();
@@ -486,28 +490,19 @@ impl LineParser<'_, '_> {
                 match BinOp::from_keyword(&name) {
                     Some(op) => op,
                     None => {
-                        let span = self.lx.span_from(m);
-                        self.error(
-                            span,
-                            DiagnosticKind::Syntax,
+                        return self.abandon(
+                            m,
                             format!(
                                 "unknown operator '{name}' in the expression opened at column {}",
                                 open.col
                             ),
                         );
-                        return Err(Abandon);
                     }
                 }
             }
             Some(_) => {
                 let c = self.lx.bump_char().unwrap_or('\u{FFFD}');
-                let span = self.lx.span_from(m);
-                self.error(
-                    span,
-                    DiagnosticKind::Syntax,
-                    format!("expected an operator or ']' in the expression opened at column {}, found '{c}'", open.col),
-                );
-                return Err(Abandon);
+                return self.abandon(m, format!("expected an operator or ']' in the expression opened at column {}, found '{c}'", open.col));
             }
         };
         Ok(Some(op))
@@ -532,24 +527,12 @@ impl LineParser<'_, '_> {
             let y = self.bracketed(depth)?;
             self.lx.skip_ws();
             if self.lx.peek() != Some(b'/') {
-                let span = self.lx.span_from(m);
-                self.error(
-                    span,
-                    DiagnosticKind::Syntax,
-                    "ATAN needs two arguments: ATAN[y]/[x]".into(),
-                );
-                return Err(Abandon);
+                return self.abandon(m, "ATAN needs two arguments: ATAN[y]/[x]");
             }
             self.lx.bump();
             self.lx.skip_ws();
             if self.lx.peek() != Some(b'[') {
-                let span = self.lx.span_from(m);
-                self.error(
-                    span,
-                    DiagnosticKind::Syntax,
-                    "ATAN needs two arguments: ATAN[y]/[x]".into(),
-                );
-                return Err(Abandon);
+                return self.abandon(m, "ATAN needs two arguments: ATAN[y]/[x]");
             }
             let x = self.bracketed(depth)?;
             ExprKind::Atan { y, x }
@@ -559,24 +542,12 @@ impl LineParser<'_, '_> {
             self.lx.skip_ws();
             let hash = self.lx.mark();
             if self.lx.peek() != Some(b'#') {
-                let span = self.lx.span_from(open);
-                self.error(
-                    span,
-                    DiagnosticKind::Syntax,
-                    "EXISTS needs a named parameter: EXISTS[#<name>]".into(),
-                );
-                return Err(Abandon);
+                return self.abandon(open, "EXISTS needs a named parameter: EXISTS[#<name>]");
             }
             self.lx.bump();
             self.lx.skip_ws();
             if self.lx.peek() != Some(b'<') {
-                let span = self.lx.span_from(hash);
-                self.error(
-                    span,
-                    DiagnosticKind::Syntax,
-                    "EXISTS needs a named parameter: EXISTS[#<name>]".into(),
-                );
-                return Err(Abandon);
+                return self.abandon(hash, "EXISTS needs a named parameter: EXISTS[#<name>]");
             }
             let id = self.name(hash)?;
             self.lx.skip_ws();
@@ -645,13 +616,7 @@ impl LineParser<'_, '_> {
         loop {
             match self.lx.peek() {
                 None => {
-                    let span = self.lx.span_from(start);
-                    self.error(
-                        span,
-                        DiagnosticKind::Syntax,
-                        "name opened with '<' is never closed with '>'".into(),
-                    );
-                    return Err(Abandon);
+                    return self.abandon(start, "name opened with '<' is never closed with '>'");
                 }
                 Some(b'>') => {
                     self.lx.bump();
