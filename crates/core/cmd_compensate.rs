@@ -42,42 +42,26 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         max_iterations: iterations,
         ..CompensateOptions::default()
     };
-    // The motion to follow: the program as planned with the velocity headroom (the original
-    // itself without one); its path is the original's either way. Without --headroom, a
-    // set-point that must lead a move at a velocity limit (a rapid, usually) makes the
-    // headroom just small enough, at most three times, and says so.
-    let mut headroom = headroom.unwrap_or(1.0);
-    let mut tries = 0;
-    let (_planned, comp) = loop {
-        let planned = if headroom < 1.0 {
-            let slower = compensate::with_velocity_headroom(&machine, headroom)?;
-            run::prepare_file(&slower, program, ctx.lenient)?
-        } else {
-            original.clone()
-        };
-        let comp = compensate::compensate_run(&machine, &planned, &models, &opts)?;
-        // Refuse a set-point beyond the limits before writing anything.
-        match comp.check_limits(&planned, headroom) {
-            Ok(()) => break (planned, comp),
-            Err(e) => {
-                let ratio = comp
-                    .margins()
-                    .iter()
-                    .map(|m| m.reference_velocity / m.velocity_limit)
-                    .fold(0.0f64, f64::max);
-                if args.headroom.is_some() || tries == 3 || ratio <= 1.0 {
-                    return Err(e.into());
-                }
-                headroom = (headroom / ratio * 0.99).min(1.0);
-                tries += 1;
-                if !ctx.quiet {
-                    eprintln!(
-                        "note: a set-point leads a move at a velocity limit; planned again with a velocity headroom of {headroom:.3} (give --headroom to fix it)"
-                    );
-                }
-            }
+    let compensate::Planned {
+        compensation: comp,
+        headroom,
+        replanned,
+    } = compensate::compensate_within_limits(
+        &machine,
+        program,
+        &original,
+        &models,
+        &opts,
+        headroom,
+        ctx.lenient,
+    )?;
+    if !ctx.quiet {
+        for h in &replanned {
+            eprintln!(
+                "note: a set-point leads a move at a velocity limit; planned again with a velocity headroom of {h:.3} (give --headroom to fix it)"
+            );
         }
-    };
+    }
     ensure_dir(out)?;
     let program_path = out.join("compensated.ngc");
     let header = vec![

@@ -796,6 +796,68 @@ pub fn with_velocity_headroom(machine: &Machine, headroom: f64) -> Result<Machin
     Ok(m)
 }
 
+/// Replanning rounds [`compensate_within_limits`] may take when no headroom is given.
+pub const MAX_REPLANS: usize = 3;
+
+/// A compensation within the axes' limits and the velocity headroom it was planned with.
+#[derive(Debug, Clone)]
+pub struct Planned {
+    /// The compensation.
+    pub compensation: Compensation,
+    /// The velocity headroom the program was planned with (1: none).
+    pub headroom: f64,
+    /// The headrooms planned again with, in order, when none was given (empty: none needed).
+    pub replanned: Vec<f64>,
+}
+
+/// Compensates `original` (the program at `program` prepared on `machine`) with `models` and
+/// refuses ([`Error::Limit`]) a set-point beyond an axis limit. With `headroom` the program is
+/// planned with it; without, it is planned as it is, and a set-point that must lead a move at a
+/// velocity limit (a rapid, usually) makes the headroom just small enough, up to
+/// [`MAX_REPLANS`] times. The path followed is the original's either way.
+pub fn compensate_within_limits(
+    machine: &Machine,
+    program: &std::path::Path,
+    original: &Run,
+    models: &[DriveModel],
+    opts: &CompensateOptions,
+    headroom: Option<f64>,
+    lenient: bool,
+) -> Result<Planned, Error> {
+    let mut h = headroom.unwrap_or(1.0);
+    let mut replanned = Vec::new();
+    loop {
+        let slower;
+        let planned = if h < 1.0 {
+            slower =
+                crate::run::prepare_file(&with_velocity_headroom(machine, h)?, program, lenient)?;
+            &slower
+        } else {
+            original
+        };
+        let compensation = compensate_run(machine, planned, models, opts)?;
+        let Err(e) = compensation.check_limits(planned, h) else {
+            return Ok(Planned {
+                compensation,
+                headroom: h,
+                replanned,
+            });
+        };
+        // The set-points' largest velocity over its limit (an excess of acceleration is not
+        // helped by a headroom).
+        let ratio = compensation
+            .margins()
+            .iter()
+            .map(|m| m.reference_velocity / m.velocity_limit)
+            .fold(0.0f64, f64::max);
+        if headroom.is_some() || replanned.len() == MAX_REPLANS || ratio <= 1.0 {
+            return Err(e);
+        }
+        h = (h / ratio * 0.99).min(1.0);
+        replanned.push(h);
+    }
+}
+
 /// `v` with `lead` copies of its first and `tail` copies of its last value around it.
 fn padded(v: &[f64], lead: usize, tail: usize) -> Vec<f64> {
     let (first, last) = (v[0], v[v.len() - 1]);
