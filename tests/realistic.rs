@@ -123,7 +123,7 @@ fn demo_realistic_effect_budget() {
         }
         assert_eq!(r["structures"].as_array().unwrap().len(), 5);
     }
-    // The two largest single costs (measured: 0.38 and 2.09 µm against a 0.16 µm floor) show
+    // The compliance and friction rows (measured: 0.38 and 2.09 µm against a 0.16 µm floor) show
     // that the groups are really switched on.
     let floor = num(&rows[0], "model.tip_max_um");
     for r in &rows[1..3] {
