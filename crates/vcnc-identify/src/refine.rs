@@ -161,8 +161,12 @@ pub struct ParameterStd {
     pub name: &'static str,
     /// Value, in the parameter's unit (Hz, dimensionless, axis units/s², s).
     pub value: f64,
-    /// Standard deviation, same unit.
+    /// Standard deviation, same unit: the linearised one (`linear_std`) or, for a weakly
+    /// determined pole whose cost profile is flatter than its curvature says, the profile's
+    /// (see the module documentation).
     pub std: f64,
+    /// Linearised (sandwich, delta-method) standard deviation, same unit.
+    pub linear_std: f64,
 }
 
 impl ParameterStd {
@@ -595,6 +599,11 @@ pub const MOVING_START_SKIP_S: f64 = 0.5;
 /// traces, where leaving out the start ([`MOVING_START_SKIP_S`]) did. Kept for the next
 /// round of work.
 const FREE_RESPONSES: bool = false;
+
+/// Stage B stops when a stage's cost comes within this fraction of the previous stage's: the
+/// friction input and the model have reached their fixed point
+/// ([`RefineOptions::sign_iterations`] bounds the number of stages).
+const SIGN_CONVERGED: f64 = 1e-6;
 
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
 const KMAX: usize = 9;
@@ -1200,6 +1209,12 @@ pub fn refine(
         if fr < stages[chosen_run.0].freerun_rms {
             chosen_run = (stages.len() - 1, r.eta.clone(), r.history.clone(), r.cost);
         }
+        // Converged: the stage's cost repeats the previous stage's (the friction input and
+        // the model have stopped moving each other).
+        let last = stages[stages.len() - 2].cost;
+        if it > 1 && (last - r.cost).abs() <= SIGN_CONVERGED * r.cost {
+            break;
+        }
         prev = m;
         eta = r.eta;
     }
@@ -1229,7 +1244,7 @@ pub fn refine(
                 zeta: 0.0,
             })
     };
-    let uncertainty = uncertainty(&prob, &lay, &eta);
+    let uncertainty = uncertainty(&prob, &lay, &eta, &setup);
     let n = prob.n().max(1) as f64;
     Ok(RefineResult {
         poles,
@@ -1321,7 +1336,12 @@ fn physical(lay: &Layout, eta: &[f64], lin: &[f64]) -> Option<Vec<f64>> {
 
 /// Sandwich covariance with overlapping batch means (module documentation), mapped onto the
 /// physical parameters by the delta method.
-fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<Uncertainty> {
+fn uncertainty(
+    prob: &OutputErrorProblem,
+    lay: &Layout,
+    eta: &[f64],
+    setup: &RefineSetup<'_>,
+) -> Option<Uncertainty> {
     let n = prob.n();
     let mdim = lay.m();
     let mut base = Work::new(n);
@@ -1441,25 +1461,126 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
         }
     }
     let cp = &g * cov * g.transpose();
+    // (J^T J)^-1 on the physical parameters: the curvature that the profile is compared with.
+    let bread_u = DMatrix::from_fn(np, np, |i, j| bread[(i, j)] * scale[i] * scale[j]);
+    let hinv = &g * bread_u * g.transpose();
     let mut names = vec!["p_hz", "wn_hz", "zeta", "dc"];
     names.extend(lay.extra_names());
-    let parameters = names
-        .into_iter()
-        .enumerate()
-        .map(|(i, name)| ParameterStd {
-            name,
-            value: p0[i],
-            std: if vanishing.iter().any(|&j| g[(i, j)] != 0.0) {
+    let linear: Vec<f64> = (0..names.len())
+        .map(|i| {
+            if vanishing.iter().any(|&j| g[(i, j)] != 0.0) {
                 f64::NAN
             } else {
                 cp[(i, i)].max(0.0).sqrt()
-            },
+            }
+        })
+        .collect();
+    // Profiles of the weakly determined poles (module documentation).
+    let weak: Vec<usize> = (0..3)
+        .filter(|&i| linear[i].is_finite() && linear[i] > PROFILE_RELATIVE * p0[i].abs())
+        .collect();
+    let profiled: Vec<f64> = weak
+        .par_iter()
+        .map(|&i| {
+            let level = 0.5 * cp[(i, i)] / hinv[(i, i)];
+            profile_std(prob, lay, eta, setup, base.cost, &p0, i, linear[i], level)
+        })
+        .collect();
+    let parameters = names
+        .into_iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let prof = weak
+                .iter()
+                .position(|&w| w == i)
+                .map_or(0.0, |k| profiled[k]);
+            ParameterStd {
+                name,
+                value: p0[i],
+                std: linear[i].max(prof),
+                linear_std: linear[i],
+            }
         })
         .collect();
     Some(Uncertainty {
         parameters,
         window_samples: window,
     })
+}
+
+/// Relative linearised standard deviation above which a pole's deviation is checked against
+/// its profile ([`profile_std`]).
+pub const PROFILE_RELATIVE: f64 = 0.005;
+
+/// Level of the profile interval: the likelihood-ratio interval of about 95 %, two standard
+/// deviations wide on either side.
+const PROFILE_LEVEL: f64 = 2.0;
+
+/// Profile evaluations per side at most.
+const PROFILE_STEPS: usize = 3;
+
+/// Standard deviation of physical pole `i` (0 = $p$, 1 = $\omega_n$, 2 = $\zeta$) from the
+/// profile of the cost (module documentation): with the pole held at $v_i \pm \delta$ and
+/// every other parameter re-fitted (bounded pole coordinates), the cost rise $\Delta C(\delta)$
+/// is compared with the rise $k^2 \Delta C_1$ that the linearised covariance puts at
+/// $k = 2$ standard deviations, $\Delta C_1 = \tfrac12 V_{ii} / (J^TJ)^{-1}_{ii}$; the
+/// deviation is the half-width, divided by $k$, where the profile reaches that level (secant
+/// steps from $\delta = k\sigma_{lin}$, at most [`PROFILE_STEPS`] per side, each at most 4×
+/// the previous). Returns the larger side's, or 0 when the profile cannot be evaluated.
+#[allow(clippy::too_many_arguments)]
+fn profile_std(
+    prob: &OutputErrorProblem,
+    lay: &Layout,
+    eta: &[f64],
+    setup: &RefineSetup<'_>,
+    cost0: f64,
+    phys: &[f64],
+    i: usize,
+    linear: f64,
+    level: f64,
+) -> f64 {
+    if !(level > 0.0 && level.is_finite() && cost0.is_finite()) {
+        return 0.0;
+    }
+    let boxed = Layout::new(lay.structure, true, setup.bounds, setup.extended);
+    let extra = eta[3..].to_vec();
+    let start: Vec<f64> = phys[..3].iter().copied().chain(extra).collect();
+    let target = PROFILE_LEVEL * PROFILE_LEVEL * level;
+    let side = |sign: f64| -> f64 {
+        let mut sigma = linear;
+        for _ in 0..PROFILE_STEPS {
+            let want = phys[i] + sign * PROFILE_LEVEL * sigma;
+            let v = want.clamp(boxed.lo[i], boxed.hi[i]);
+            let delta = (v - phys[i]).abs();
+            if delta <= 0.0 {
+                break;
+            }
+            let mut pinned = boxed.clone();
+            pinned.lo[i] = v;
+            pinned.hi[i] = v;
+            let mut e = start.clone();
+            e[i] = v;
+            let Some(run) = levenberg_marquardt(prob, &pinned, &e, setup.opts) else {
+                break;
+            };
+            let rise = run.cost - cost0;
+            // Where the profile reaches the target, by the secant through the optimum (a
+            // quadratic profile gives it in one step); at most 4x further out per step.
+            let factor = if rise > 0.0 {
+                (target / rise).sqrt().clamp(0.25, 4.0)
+            } else {
+                4.0
+            };
+            let next = (delta * factor / PROFILE_LEVEL).max(linear);
+            let done = (next / sigma - 1.0).abs() < 0.1 || v != want;
+            sigma = next;
+            if done {
+                break;
+            }
+        }
+        sigma
+    };
+    side(-1.0).max(side(1.0))
 }
 
 /// Bartlett window by Andrews' (1991) AR(1) plug-in rule,
