@@ -52,8 +52,10 @@
 //! Stage A takes $F$ as the sign of the measured motion. The model's own free run applies
 //! friction according to its velocity, with sticking; stage B repeats the fit with the friction
 //! input of the previous model's free run ([`DriveModel::simulate_run`]), a fixed-point
-//! iteration whose fixed point minimises the true free-run error. Of every stage the model with
-//! the smallest true free-run error is returned.
+//! iteration whose fixed point minimises the true free-run error, run until the friction input
+//! stops changing or a stage's cost repeats the previous one's (each stage restarts
+//! Levenberg–Marquardt, which carries the fit down a long curved valley of the cost). Of every
+//! stage the model with the smallest true free-run error is returned.
 //!
 //! # Uncertainty
 //!
@@ -65,6 +67,19 @@
 //! $\sigma^2 (J^TJ)^{-1}$ assumes white residuals and is too small by orders of magnitude). The
 //! window $b$ follows Andrews' (1991) AR(1) plug-in rule. The standard deviations of $p$,
 //! $\omega_n$, $\zeta$, $d_c$ and the extra parameters follow by the delta method.
+//!
+//! Along a flat or curved valley of the cost the curvature at the optimum overstates how fast
+//! the cost rises, and the linearised deviation is too small. Each pole of $p$, $\omega_n$,
+//! $\zeta$ whose linearised relative deviation exceeds [`PROFILE_RELATIVE`] is therefore checked
+//! against its profile $\Delta C_i(\delta)$, the cost rise with the pole held $\delta$ away and
+//! everything else re-fitted. A quadratic cost has $\Delta C_i = \tfrac12\delta^2 /
+//! (J^TJ)^{-1}_{ii}$, and the sandwich variance $V_{ii}$ puts one standard deviation at
+//! $$ \Delta C_1 = \frac{V_{ii}}{2\,(J^TJ)^{-1}_{ii}}; $$
+//! the reported deviation is the half-width, over $k = 2$, of the interval where the profile
+//! stays below $k^2 \Delta C_1$ (a likelihood-ratio interval of about 95 % calibrated by the
+//! sandwich: the linearised $\pm2\sigma$ when the cost is quadratic, wider when it is flatter),
+//! and never less than the linearised deviation (docs/identification.md, Parameter
+//! uncertainty).
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
