@@ -1523,8 +1523,9 @@ fn uncertainty(
     })
 }
 
-/// Relative linearised standard deviation above which a pole's deviation is checked against
-/// its profile ([`profile_std`]).
+/// Relative linearised standard deviation (0.5 %) above which the deviation of $p$, $\omega_n$
+/// or $\zeta$ is checked against the profile of the cost (module documentation; below it the
+/// pole is determined so well that a correction would change no decision).
 pub const PROFILE_RELATIVE: f64 = 0.005;
 
 /// Level of the profile interval: the likelihood-ratio interval of about 95 %, two standard
