@@ -423,7 +423,8 @@ pub struct RefineOptions {
     pub enabled: bool,
     /// Largest number of Levenberg–Marquardt iterations per stage. Default 40.
     pub max_iterations: usize,
-    /// Stop when an accepted step lowers the cost by less than this fraction. Default 1e-9.
+    /// Stop when an accepted step, or the predicted undamped Gauss–Newton step, lowers the cost
+    /// by less than this fraction. Default 1e-9.
     pub tolerance: f64,
     /// Most stage-B passes with the friction input of the previous model's own free run (0
     /// keeps the measured sign only; see [`crate::refine`]); the passes stop earlier when the

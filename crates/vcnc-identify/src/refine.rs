@@ -989,6 +989,13 @@ fn levenberg_marquardt(
             }
             qtr_v[i] = sum / r[(i, i)];
         }
+        // Converged: even the undamped Gauss-Newton step, which lowers the linearised cost by
+        // ||Q^T r||^2 / 2, would lower it by less than the tolerance (Moré's relative-reduction
+        // test). Without it a converged start rejects steps until the damping gives up.
+        let predicted = 0.5 * dot(&qtr_v, &qtr_v);
+        if predicted <= opts.tolerance * base.cost {
+            break;
+        }
         // Marquardt scaling by the column norms of J.
         let dscale: Vec<f64> = (0..k)
             .map(|c| {
