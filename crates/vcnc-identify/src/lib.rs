@@ -80,8 +80,8 @@ pub use options::{
 };
 pub use pso::{CostFunction, DISTINCT, HistoryEntry, Pso, PsoResult};
 pub use refine::{
-    BoundHit, MOVING_START_SKIP_S, OutputErrorProblem, ParameterStd, RefineResult, RefineSetup,
-    RefineStage, SignSource, Start, Uncertainty, refine,
+    BoundHit, MOVING_START_SKIP_S, OutputErrorProblem, PROFILE_RELATIVE, ParameterStd,
+    RefineResult, RefineSetup, RefineStage, SignSource, Start, Uncertainty, refine,
 };
 pub use regress::{EquationErrorCost, Regressors, Theta};
 pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Timing, Trace};

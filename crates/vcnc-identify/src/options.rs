@@ -423,10 +423,13 @@ pub struct RefineOptions {
     pub enabled: bool,
     /// Largest number of Levenberg–Marquardt iterations per stage. Default 40.
     pub max_iterations: usize,
-    /// Stop when an accepted step lowers the cost by less than this fraction. Default 1e-9.
+    /// Stop when an accepted step, or the predicted undamped Gauss–Newton step, lowers the cost
+    /// by less than this fraction. Default 1e-9.
     pub tolerance: f64,
-    /// Stage-B passes with the friction input of the previous model's own free run (0 keeps
-    /// the measured sign only; see [`crate::refine`]). Default 2.
+    /// Most stage-B passes with the friction input of the previous model's own free run (0
+    /// keeps the measured sign only; see [`crate::refine`]); the passes stop earlier when the
+    /// friction input no longer changes or a pass's cost repeats the previous one's within
+    /// 10⁻⁶. Default 8.
     pub sign_iterations: usize,
     /// Most starting points of the refinement: the swarm's distinct good particles, best
     /// first. Default 3.
@@ -439,7 +442,7 @@ impl Default for RefineOptions {
             enabled: true,
             max_iterations: 40,
             tolerance: 1e-9,
-            sign_iterations: 2,
+            sign_iterations: 8,
             starts: 3,
         }
     }

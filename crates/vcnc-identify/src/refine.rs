@@ -52,8 +52,10 @@
 //! Stage A takes $F$ as the sign of the measured motion. The model's own free run applies
 //! friction according to its velocity, with sticking; stage B repeats the fit with the friction
 //! input of the previous model's free run ([`DriveModel::simulate_run`]), a fixed-point
-//! iteration whose fixed point minimises the true free-run error. Of every stage the model with
-//! the smallest true free-run error is returned.
+//! iteration whose fixed point minimises the true free-run error, run until the friction input
+//! stops changing or a stage's cost repeats the previous one's (each stage restarts
+//! Levenberg–Marquardt, which carries the fit down a long curved valley of the cost). Of every
+//! stage the model with the smallest true free-run error is returned.
 //!
 //! # Uncertainty
 //!
@@ -65,6 +67,19 @@
 //! $\sigma^2 (J^TJ)^{-1}$ assumes white residuals and is too small by orders of magnitude). The
 //! window $b$ follows Andrews' (1991) AR(1) plug-in rule. The standard deviations of $p$,
 //! $\omega_n$, $\zeta$, $d_c$ and the extra parameters follow by the delta method.
+//!
+//! Along a flat or curved valley of the cost the curvature at the optimum overstates how fast
+//! the cost rises, and the linearised deviation is too small. Each pole of $p$, $\omega_n$,
+//! $\zeta$ whose linearised relative deviation exceeds [`PROFILE_RELATIVE`] is therefore checked
+//! against its profile $\Delta C_i(\delta)$, the cost rise with the pole held $\delta$ away and
+//! everything else re-fitted. A quadratic cost has $\Delta C_i = \tfrac12\delta^2 /
+//! (J^TJ)^{-1}_{ii}$, and the sandwich variance $V_{ii}$ puts one standard deviation at
+//! $$ \Delta C_1 = \frac{V_{ii}}{2\,(J^TJ)^{-1}_{ii}}; $$
+//! the reported deviation is the half-width, over $k = 2$, of the interval where the profile
+//! stays below $k^2 \Delta C_1$ (a likelihood-ratio interval of about 95 % calibrated by the
+//! sandwich: the linearised $\pm2\sigma$ when the cost is quadratic, wider when it is flatter),
+//! and never less than the linearised deviation (docs/identification.md, Parameter
+//! uncertainty).
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -161,8 +176,12 @@ pub struct ParameterStd {
     pub name: &'static str,
     /// Value, in the parameter's unit (Hz, dimensionless, axis units/s², s).
     pub value: f64,
-    /// Standard deviation, same unit.
+    /// Standard deviation, same unit: the linearised one (`linear_std`) or, for a weakly
+    /// determined pole whose cost profile is flatter than its curvature says, the profile's
+    /// (see the module documentation).
     pub std: f64,
+    /// Linearised (sandwich, delta-method) standard deviation, same unit.
+    pub linear_std: f64,
 }
 
 impl ParameterStd {
@@ -596,6 +615,11 @@ pub const MOVING_START_SKIP_S: f64 = 0.5;
 /// round of work.
 const FREE_RESPONSES: bool = false;
 
+/// Stage B stops when a stage's cost comes within this fraction of the previous stage's: the
+/// friction input and the model have reached their fixed point
+/// ([`RefineOptions::sign_iterations`] bounds the number of stages).
+const SIGN_CONVERGED: f64 = 1e-6;
+
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
 const KMAX: usize = 9;
 
@@ -965,6 +989,13 @@ fn levenberg_marquardt(
             }
             qtr_v[i] = sum / r[(i, i)];
         }
+        // Converged: even the undamped Gauss-Newton step, which lowers the linearised cost by
+        // ||Q^T r||^2 / 2, would lower it by less than the tolerance (Moré's relative-reduction
+        // test). Without it a converged start rejects steps until the damping gives up.
+        let predicted = 0.5 * dot(&qtr_v, &qtr_v);
+        if predicted <= opts.tolerance * base.cost {
+            break;
+        }
         // Marquardt scaling by the column norms of J.
         let dscale: Vec<f64> = (0..k)
             .map(|c| {
@@ -1200,6 +1231,12 @@ pub fn refine(
         if fr < stages[chosen_run.0].freerun_rms {
             chosen_run = (stages.len() - 1, r.eta.clone(), r.history.clone(), r.cost);
         }
+        // Converged: the stage's cost repeats the previous stage's (the friction input and
+        // the model have stopped moving each other).
+        let last = stages[stages.len() - 2].cost;
+        if it > 1 && (last - r.cost).abs() <= SIGN_CONVERGED * r.cost {
+            break;
+        }
         prev = m;
         eta = r.eta;
     }
@@ -1229,7 +1266,7 @@ pub fn refine(
                 zeta: 0.0,
             })
     };
-    let uncertainty = uncertainty(&prob, &lay, &eta);
+    let uncertainty = uncertainty(&prob, &lay, &eta, &setup);
     let n = prob.n().max(1) as f64;
     Ok(RefineResult {
         poles,
@@ -1321,7 +1358,12 @@ fn physical(lay: &Layout, eta: &[f64], lin: &[f64]) -> Option<Vec<f64>> {
 
 /// Sandwich covariance with overlapping batch means (module documentation), mapped onto the
 /// physical parameters by the delta method.
-fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<Uncertainty> {
+fn uncertainty(
+    prob: &OutputErrorProblem,
+    lay: &Layout,
+    eta: &[f64],
+    setup: &RefineSetup<'_>,
+) -> Option<Uncertainty> {
     let n = prob.n();
     let mdim = lay.m();
     let mut base = Work::new(n);
@@ -1441,25 +1483,127 @@ fn uncertainty(prob: &OutputErrorProblem, lay: &Layout, eta: &[f64]) -> Option<U
         }
     }
     let cp = &g * cov * g.transpose();
+    // (J^T J)^-1 on the physical parameters: the curvature that the profile is compared with.
+    let bread_u = DMatrix::from_fn(np, np, |i, j| bread[(i, j)] * scale[i] * scale[j]);
+    let hinv = &g * bread_u * g.transpose();
     let mut names = vec!["p_hz", "wn_hz", "zeta", "dc"];
     names.extend(lay.extra_names());
-    let parameters = names
-        .into_iter()
-        .enumerate()
-        .map(|(i, name)| ParameterStd {
-            name,
-            value: p0[i],
-            std: if vanishing.iter().any(|&j| g[(i, j)] != 0.0) {
+    let linear: Vec<f64> = (0..names.len())
+        .map(|i| {
+            if vanishing.iter().any(|&j| g[(i, j)] != 0.0) {
                 f64::NAN
             } else {
                 cp[(i, i)].max(0.0).sqrt()
-            },
+            }
+        })
+        .collect();
+    // Profiles of the weakly determined poles (module documentation).
+    let weak: Vec<usize> = (0..3)
+        .filter(|&i| linear[i].is_finite() && linear[i] > PROFILE_RELATIVE * p0[i].abs())
+        .collect();
+    let profiled: Vec<f64> = weak
+        .par_iter()
+        .map(|&i| {
+            let level = 0.5 * cp[(i, i)] / hinv[(i, i)];
+            profile_std(prob, lay, eta, setup, base.cost, &p0, i, linear[i], level)
+        })
+        .collect();
+    let parameters = names
+        .into_iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let prof = weak
+                .iter()
+                .position(|&w| w == i)
+                .map_or(0.0, |k| profiled[k]);
+            ParameterStd {
+                name,
+                value: p0[i],
+                std: linear[i].max(prof),
+                linear_std: linear[i],
+            }
         })
         .collect();
     Some(Uncertainty {
         parameters,
         window_samples: window,
     })
+}
+
+/// Relative linearised standard deviation (0.5 %) above which the deviation of $p$, $\omega_n$
+/// or $\zeta$ is checked against the profile of the cost (module documentation; below it the
+/// pole is determined so well that a correction would change no decision).
+pub const PROFILE_RELATIVE: f64 = 0.005;
+
+/// Level of the profile interval: the likelihood-ratio interval of about 95 %, two standard
+/// deviations wide on either side.
+const PROFILE_LEVEL: f64 = 2.0;
+
+/// Profile evaluations per side at most.
+const PROFILE_STEPS: usize = 3;
+
+/// Standard deviation of physical pole `i` (0 = $p$, 1 = $\omega_n$, 2 = $\zeta$) from the
+/// profile of the cost (module documentation): with the pole held at $v_i \pm \delta$ and
+/// every other parameter re-fitted (bounded pole coordinates), the cost rise $\Delta C(\delta)$
+/// is compared with the rise $k^2 \Delta C_1$ that the linearised covariance puts at
+/// $k = 2$ standard deviations, $\Delta C_1 = \tfrac12 V_{ii} / (J^TJ)^{-1}_{ii}$; the
+/// deviation is the half-width, divided by $k$, where the profile reaches that level (secant
+/// steps from $\delta = k\sigma_{lin}$, at most [`PROFILE_STEPS`] per side, each at most 4×
+/// the previous). Returns the larger side's, or 0 when the profile cannot be evaluated.
+#[allow(clippy::too_many_arguments)]
+fn profile_std(
+    prob: &OutputErrorProblem,
+    lay: &Layout,
+    eta: &[f64],
+    setup: &RefineSetup<'_>,
+    cost0: f64,
+    phys: &[f64],
+    i: usize,
+    linear: f64,
+    level: f64,
+) -> f64 {
+    if !(level > 0.0 && level.is_finite() && cost0.is_finite()) {
+        return 0.0;
+    }
+    let boxed = Layout::new(lay.structure, true, setup.bounds, setup.extended);
+    let extra = eta[3..].to_vec();
+    let start: Vec<f64> = phys[..3].iter().copied().chain(extra).collect();
+    let target = PROFILE_LEVEL * PROFILE_LEVEL * level;
+    let side = |sign: f64| -> f64 {
+        let mut sigma = linear;
+        for _ in 0..PROFILE_STEPS {
+            let want = phys[i] + sign * PROFILE_LEVEL * sigma;
+            let v = want.clamp(boxed.lo[i], boxed.hi[i]);
+            let delta = (v - phys[i]).abs();
+            if delta <= 0.0 {
+                break;
+            }
+            let mut pinned = boxed.clone();
+            pinned.lo[i] = v;
+            pinned.hi[i] = v;
+            let mut e = start.clone();
+            e[i] = v;
+            let Some(run) = levenberg_marquardt(prob, &pinned, &e, setup.opts) else {
+                break;
+            };
+            let rise = run.cost - cost0;
+            // Where the profile reaches the target, by the secant through the optimum (a
+            // quadratic profile gives it in one step); at most 4x further out per step.
+            let factor = if rise > 0.0 {
+                (target / rise).sqrt().clamp(0.25, 4.0)
+            } else {
+                4.0
+            };
+            let next = (delta * factor / PROFILE_LEVEL).max(linear);
+            let done = (next / sigma - 1.0).abs() < 0.1 || v != want;
+            sigma = next;
+            if done {
+                break;
+            }
+        }
+        sigma
+    };
+    side(-1.0).max(side(1.0))
 }
 
 /// Bartlett window by Andrews' (1991) AR(1) plug-in rule,
@@ -1698,6 +1842,100 @@ mod tests {
             assert!(
                 reported > spread / 3.0 && reported < spread * 3.0,
                 "parameter {i}: reported {reported:e}, observed spread {spread:e}"
+            );
+        }
+    }
+
+    #[test]
+    fn weakly_determined_poles_are_covered_by_their_reported_deviations() {
+        // Truth: the model that generated the data (a slow real pole, 8.4 Hz, and a fast pair,
+        // 75 Hz, ζ = 0.9, with the numerator of the randomised suite's drive 56: the pair is
+        // weakly determined by 4 s of quick moves under a 2 µm disturbance), driven by
+        // positions alone, with a coloured disturbance added (first-order filtered white
+        // noise, correlated over about 20 ms). Over 24 noise seeds the true p, ωn and ζ must
+        // lie within three reported standard deviations of the estimate in at least 22 cases
+        // each (a calibrated Gaussian interval misses 0.3 %; 22 of 24 allows for the few
+        // seeds whose report is itself low). A complex pair, so that (p, ωn, ζ) name the same
+        // poles in truth and estimate (three real poles may be split either way).
+        use rand::{RngExt, SeedableRng};
+        let truth = ClosedLoopModel::from_poles(
+            &Poles::from_hz(8.4, 75.0, 0.9),
+            0.099,
+            337.7,
+            124837.0,
+            62.2,
+        );
+        let tp = truth.poles().unwrap();
+        // Short smooth moves (25-100 ms, 0.5-5 mm, either way) with pauses: they excite the
+        // pair as a scope recording of quick positioning moves would.
+        let n = 4000;
+        let mut p = vec![0.0; n];
+        let mut moves = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut t0, mut level) = (0.05, 0.0);
+        while t0 < 3.8 {
+            let dur: f64 = 0.025 + 0.075 * moves.random::<f64>();
+            let d: f64 = (0.5 + 4.5 * moves.random::<f64>())
+                * if moves.random::<bool>() { 1.0 } else { -1.0 };
+            for (k, v) in p.iter_mut().enumerate() {
+                let s = ((k as f64 * 1e-3 - t0) / dur).clamp(0.0, 1.0);
+                if k as f64 * 1e-3 >= t0 {
+                    *v = level + d * (3.0 * s * s - 2.0 * s * s * s);
+                }
+            }
+            level += d;
+            t0 += dur + 0.02 + 0.1 * moves.random::<f64>();
+        }
+        let m = DriveModel::from(truth);
+        let clean = m
+            .simulate_positions(&p, 1e-3, &SimOptions::default())
+            .unwrap();
+        let opts = IdentifyOptions::default();
+        let mut covered = [0usize; 3];
+        let mut errors: [Vec<f64>; 3] = Default::default();
+        let mut reported: [Vec<f64>; 3] = Default::default();
+        for seed in 0..24u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(100 + seed);
+            let mut e = 0.0;
+            let x: Vec<f64> = clean
+                .iter()
+                .map(|v| {
+                    let w: f64 = rng.random::<f64>() - 0.5;
+                    e = 0.95 * e + 0.002 * w;
+                    v + e
+                })
+                .collect();
+            let tr = Trace::new(1e-3, p.clone(), x).unwrap();
+            let regs = Regressors::build(&tr, &opts).unwrap();
+            let start =
+                Start::from_poles(&Poles::from_hz(0.8 * tp.p_hz(), 0.8 * tp.wn_hz(), tp.zeta));
+            let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Paper)).unwrap();
+            let u = r.uncertainty.expect("uncertainty");
+            let truth_v = [tp.p_hz(), tp.wn_hz(), tp.zeta];
+            for (i, name) in ["p_hz", "wn_hz", "zeta"].iter().enumerate() {
+                let q = u.get(name).unwrap();
+                assert!(q.std >= q.linear_std, "{q:?}");
+                let err = q.value - truth_v[i];
+                if err.abs() <= 3.0 * q.std {
+                    covered[i] += 1;
+                }
+                errors[i].push(err);
+                reported[i].push(q.std);
+            }
+        }
+        assert!(
+            covered.iter().all(|&c| c >= 22),
+            "covered {covered:?} of 24"
+        );
+        // Not merely wide: the median report of the weak ones (ωn about 5 %, ζ about 20 %
+        // here, both profiled) within a factor 3 of the RMS error about the truth.
+        for i in 1..3 {
+            let rms = (errors[i].iter().map(|e| e * e).sum::<f64>() / 24.0).sqrt();
+            let mut r = reported[i].clone();
+            r.sort_by(f64::total_cmp);
+            let median = r[12];
+            assert!(
+                median > rms / 3.0 && median < 3.0 * rms,
+                "parameter {i}: median report {median:e}, RMS error {rms:e}"
             );
         }
     }

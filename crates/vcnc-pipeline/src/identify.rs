@@ -390,7 +390,8 @@ pub struct AxisIdentifySummary {
     /// Every structure tried, with its estimation fit and the validation error that chose.
     pub structures: Vec<StructureSummary>,
     /// Standard deviations of the chosen model's parameters (p_hz, wn_hz, zeta, dc, then its
-    /// structure's own), from the refinement's Jacobian with the residual's autocorrelation.
+    /// structure's own), from the refinement's Jacobian with the residual's autocorrelation,
+    /// widened to the cost profile's for a weakly determined pole.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<Vec<ParameterSummary>>,
     /// Parameters of the chosen model that ended on a bound of their search region.
