@@ -317,7 +317,8 @@ impl Job for FrfJob<'_> {
                 e.motor_velocity(&st),
             );
             let z_before = e.state(&st);
-            let out = e.tick(&mut st, r, inject, &mut pr, &mut mr);
+            let noise = e.draw_noise(&mut pr, &mut mr);
+            let out = e.tick(&mut st, r, inject, &pr, &mr, noise);
             if i < first {
                 continue;
             }

@@ -380,14 +380,33 @@ impl Reader {
         quantise_to(x, self.q, self.inv_q)
     }
 
+    /// This reading's noise: $\sigma\,n$ with $n$ the stream's next normal number, or 0 (no
+    /// draw) without noise.
     #[inline(always)]
-    fn read(&mut self, x: f64) -> f64 {
-        let y = if self.std > 0.0 {
-            x + self.std * self.normals.sample()
+    pub(crate) fn noise(&mut self) -> f64 {
+        if self.std > 0.0 {
+            self.std * self.normals.sample()
         } else {
-            x
-        };
-        quantise_to(y, self.q, self.inv_q)
+            0.0
+        }
+    }
+
+    /// The noise of the next `out.len()` readings, drawn ahead in one tight loop (the stream
+    /// does not depend on the loop; drawing it apart keeps the servo tick lean).
+    fn fill_noise(&mut self, out: &mut [f64]) {
+        if self.std > 0.0 {
+            for v in out.iter_mut() {
+                *v = self.std * self.normals.sample();
+            }
+        } else {
+            out.fill(0.0);
+        }
+    }
+
+    /// The reading of position `x` with this reading's `noise` (from [`Reader::noise`]).
+    #[inline(always)]
+    fn read(&self, x: f64, noise: f64) -> f64 {
+        quantise_to(x + noise, self.q, self.inv_q)
     }
 }
 
@@ -733,16 +752,35 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         }
     }
 
+    /// The noise of this tick's position and motor-encoder readings (`tick`'s `noise`), drawn
+    /// from their streams in the order the ticks read them.
+    #[inline(always)]
+    pub(crate) fn draw_noise(
+        &self,
+        pos_reader: &mut Reader,
+        motor_reader: &mut Reader,
+    ) -> (f64, f64) {
+        let np = pos_reader.noise();
+        let nm = if self.second_encoder {
+            motor_reader.noise()
+        } else {
+            0.0
+        };
+        (np, nm)
+    }
+
     /// One servo tick with loop reference `r` (already shaped), extra command `inject` (V,
-    /// added after the limit: a torque excitation) and the readers.
+    /// added after the limit: a torque excitation), the readers and the noise of their readings
+    /// ([`Engine::draw_noise`]).
     #[inline(always)]
     pub(crate) fn tick(
         &self,
         st: &mut RState<N>,
         r: RefSample,
         inject: f64,
-        pos_reader: &mut Reader,
-        motor_reader: &mut Reader,
+        pos_reader: &Reader,
+        motor_reader: &Reader,
+        noise: (f64, f64),
     ) -> TickOut {
         // Everything that does not depend on this tick's readings first.
         let (d0, i0) = self.law.terms0(r, st.xr1, st.e1, st.xf1, st.xf2);
@@ -756,13 +794,13 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         } else {
             st.z[0]
         };
-        let reading = pos_reader.read(x_sensor);
+        let reading = pos_reader.read(x_sensor, noise.0);
         // u = ub + ga xa + gb xb with xa, xb the readings of this tick (0 when unused) and ub
-        // the rest: the plant folds ga, gb into its coefficients (see `plant_step`).
+        // the rest, known before them.
         let (xp, xv, ub, xa, xb) = if self.one_reading {
             (reading, reading, u_a, reading, 0.0)
         } else if self.second_encoder {
-            let xv = motor_reader.read(st.z[0]);
+            let xv = motor_reader.read(st.z[0], noise.1);
             if self.dead_time == 0 {
                 (reading, xv, u_a, reading, xv)
             } else {
@@ -773,15 +811,13 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             let xp = st.delay.push(reading);
             (xp, reading, u_a + self.gu_p * xp, 0.0, reading)
         };
-        // The part of u that this tick's readings make, computed once and fed to the plant.
-        let w = self.ga * xa + self.gb * xb;
-        let u = ub + w;
+        let u = ub + (self.ga * xa + self.gb * xb);
         let xf = af + self.vf_b * xv;
         let d_int = i0 + self.s_ip * xp + self.s_if * xf;
         let saturated = u.abs() > self.u_lim;
-        let (u, ub, w) = if !saturated {
+        let u = if !saturated {
             st.integ += d_int;
-            (u, ub, w)
+            u
         } else {
             // Conditional integration: hold the integrator if its increment pushes u further
             // into the limit.
@@ -792,19 +828,17 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             } else {
                 st.integ += d_int;
             }
-            let u = u.clamp(-self.u_lim, self.u_lim);
-            (u, u, 0.0)
+            u.clamp(-self.u_lim, self.u_lim)
         };
         st.e1 = r.xr - xp;
         st.xr1 = r.xr;
         st.xf2 = st.xf1;
         st.xf1 = xf;
         let u_in = u + inject;
-        let ub = ub + inject;
         if TM && !self.fric_motor {
-            self.plant_step::<2, 3>(st, ub, w);
+            self.plant_step::<2, 3>(st, u_in);
         } else {
-            self.plant_step::<0, 1>(st, ub, w);
+            self.plant_step::<0, 1>(st, u_in);
         }
         TickOut {
             u,
@@ -855,7 +889,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
     /// `IX`, `IV`: index of the friction body's position and velocity in $z$.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // small dense kernel on z, p and Γ: indices read best
-    fn plant_step<const IX: usize, const IV: usize>(&self, st: &mut RState<N>, ub: f64, w: f64) {
+    fn plant_step<const IX: usize, const IV: usize>(&self, st: &mut RState<N>, u: f64) {
         let (lin, o) = if self.half_backlash > 0.0 {
             let d = st.z[0] - st.z[2];
             if d >= self.half_backlash {
@@ -873,23 +907,27 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         // d = x_m - x_L (two-mass) or not at all (rigid): A (e_0 + e_L) = 0, so
         // Φ (e_0 + e_L) = e_0 + e_L exactly and Φ z = Φ_0 d + (e_0 + e_L) x_L + Σ_{j ≠ 0, L} Φ_j z_j.
         // Fewer products, and the large absolute position only passes through one addition.
+        // The small terms are summed as a balanced tree (independent partial sums), not one
+        // after the other: this is the loop-carried chain from z to the next z.
         let d = if TM { z[0] - z[Self::XL] } else { 0.0 };
         let mut p = [0.0; N];
         // The current loop's states do not depend on the mechanics: their rows skip them.
         for i in 0..N {
-            let mut acc = lin.g_u[i] * ub;
-            if self.half_backlash > 0.0 {
-                acc += lin.g_o[i] * o;
-            }
+            // -0.0 is the exact identity of addition: the unused slots fold away.
+            let mut t = [-0.0; 8];
             let mech_row = i < Self::ICUR;
             if TM && mech_row {
-                acc += lin.phi[i][0] * d;
+                t[0] = lin.phi[i][0] * d;
             }
             for j in 1..N {
                 if !(TM && j == Self::XL) && (mech_row || j >= Self::ICUR) {
-                    acc += lin.phi[i][j] * z[j];
+                    t[j] = lin.phi[i][j] * z[j];
                 }
             }
+            if self.half_backlash > 0.0 {
+                t[7] = lin.g_o[i] * o;
+            }
+            let mut acc = ((t[0] + t[1]) + (t[2] + t[3])) + ((t[4] + t[5]) + (t[6] + t[7]));
             if i == 0 || i == Self::XL {
                 acc += z[Self::XL];
             }
@@ -898,7 +936,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         match &self.fric {
             Fric::None => {
                 for i in 0..N {
-                    st.z[i] = p[i] + lin.g_u[i] * w;
+                    st.z[i] = p[i] + lin.g_u[i] * u;
                 }
             }
             Fric::SetValued(law) => {
@@ -910,18 +948,18 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 } else {
                     (law.level(0, v0.max(0.0)), -law.level(1, (-v0).max(0.0)))
                 };
-                let v_star = p[IV] + lin.g_u[IV] * w;
+                let v_star = p[IV] + lin.g_u[IV] * u;
                 if v_star <= lin.stick_lim[0] && v_star >= -lin.stick_lim[1] {
                     // Stuck at the end of the step (|v*| within g T_s): the friction is
                     // whatever stops the body, f = v*/g, so z = z* + Γ_f v*/g.
                     for i in 0..N {
-                        st.z[i] = (p[i] + lin.stick_k[i] * p[IV]) + lin.stick_gu[i] * w;
+                        st.z[i] = (p[i] + lin.stick_k[i] * p[IV]) + lin.stick_gu[i] * u;
                     }
                     st.z[IV] = 0.0;
                 } else {
                     let f = if v_star > 0.0 { f_pos } else { f_neg };
                     for i in 0..N {
-                        st.z[i] = (p[i] + lin.g_f[i] * f) + lin.g_u[i] * w;
+                        st.z[i] = (p[i] + lin.g_f[i] * f) + lin.g_u[i] * u;
                     }
                 }
             }
@@ -942,14 +980,14 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 let (f0, half_k) = (st.ms_force, 0.5 * st.ms_stiffness);
                 if half_k == 0.0 {
                     for i in 0..N {
-                        st.z[i] = (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * w;
+                        st.z[i] = (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * u;
                     }
                 } else {
                     let f_p = (1.0 + half_k * lin.g_f[IX]) * f0 + half_k * (p[IX] - x0);
                     let f_w = half_k * lin.g_u[IX];
                     for i in 0..N {
                         let c = lin.g_f[i];
-                        st.z[i] = (p[i] + c * f_p) + (lin.g_u[i] + c * f_w) * w;
+                        st.z[i] = (p[i] + c * f_p) + (lin.g_u[i] + c * f_w) * u;
                     }
                 }
                 // Slip levels: T(v) in the direction of motion, T_s against it (element i slips
@@ -1037,10 +1075,14 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         let inv_sub = 1.0 / n_sub as f64;
         let mut saturated_ticks = 0u64;
         let (pr, mr) = (&mut readers.0, &mut readers.1);
-        // The loop's reference for the ticks of one sample, shaped ahead of them (it does not
-        // depend on the loop); without shaping, the fine interpolation itself.
+        // The loop's reference for the ticks of one sample, made ahead of them (it does not
+        // depend on the loop): the fine interpolation, shaped if the drive shapes it.
         let shaped = shaping.is_some();
         let mut refs = vec![r0; n_sub];
+        // The readings' noise for the ticks of one sample, drawn ahead of them (the motor
+        // encoder's only where it is read, as `draw_noise`).
+        let mut noise_p = vec![0.0; n_sub];
+        let mut noise_m = vec![0.0; n_sub];
         for k in 0..n {
             let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
             let last = k + 1 == n;
@@ -1058,15 +1100,24 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 }
             };
             let ticks = if last { 1 } else { n_sub };
+            let refs = &mut refs[..ticks];
             if shaped {
-                for (j, r) in refs.iter_mut().enumerate().take(ticks) {
+                for (j, r) in refs.iter_mut().enumerate() {
                     *r = shaper.shape(fine(j));
                 }
+            } else {
+                for (j, r) in refs.iter_mut().enumerate() {
+                    *r = fine(j);
+                }
             }
-            let r_at = |j: usize| if shaped { refs[j] } else { fine(j) };
+            let (noise_p, noise_m) = (&mut noise_p[..ticks], &mut noise_m[..ticks]);
+            pr.fill_noise(noise_p);
+            if self.second_encoder {
+                mr.fill_noise(noise_m);
+            }
             let (xl, vl, xm) = (st.z[Self::XL], st.z[Self::VL], st.z[0]);
             let z_before = st.z;
-            let out = self.tick(&mut st, r_at(0), 0.0, pr, mr);
+            let out = self.tick(&mut st, refs[0], 0.0, pr, mr, (noise_p[0], noise_m[0]));
             saturated_ticks += out.saturated as u64;
             trace.position.push(out.xp);
             trace.true_position.push(xl);
@@ -1074,8 +1125,8 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             trace.control.push(out.u);
             trace.motor_position.push(xm);
             trace.motor_torque.push(self.torque(&z_before, out.u_in));
-            for j in 1..ticks {
-                let out = self.tick(&mut st, r_at(j), 0.0, pr, mr);
+            for ((r, np), nm) in refs.iter().zip(noise_p.iter()).zip(noise_m.iter()).skip(1) {
+                let out = self.tick(&mut st, *r, 0.0, pr, mr, (*np, *nm));
                 saturated_ticks += out.saturated as u64;
             }
         }
@@ -1113,13 +1164,13 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             vr: 0.0,
             ar: 0.0,
         };
-        let mut pr = Reader::new(0.0, 0.0, 0, 0);
-        let mut mr = Reader::new(0.0, 0.0, 0, 1);
+        let pr = Reader::new(0.0, 0.0, 0, 0);
+        let mr = Reader::new(0.0, 0.0, 0, 1);
         for col in 0..dim {
             let mut unit = vec![0.0; dim];
             unit[col] = 1.0;
             let mut st = self.unpack(&unit);
-            self.tick(&mut st, zero, 0.0, &mut pr, &mut mr);
+            self.tick(&mut st, zero, 0.0, &pr, &mr, (0.0, 0.0));
             for (row, x) in self.pack(&st).iter().enumerate() {
                 m[(row, col)] = *x;
             }
