@@ -527,6 +527,98 @@ impl Shaper {
         })
     }
 
+    /// The loop's references for consecutive ticks, in place: `buf` holds the nominal ones and
+    /// receives [`Shaper::shape`] of each, in order (the same arithmetic, one stage at a time
+    /// over the block).
+    #[allow(clippy::needless_range_loop)] // three channels side by side
+    pub(crate) fn shape_block(&mut self, buf: &mut [RefSample]) {
+        let n = self.delay.len();
+        if n > 1 {
+            let mut pos = self.delay_pos;
+            for r in buf.iter_mut() {
+                self.delay[pos] = *r;
+                pos += 1;
+                if pos == n {
+                    pos = 0;
+                }
+                *r = self.delay[pos];
+            }
+            self.delay_pos = pos;
+        }
+        match &mut self.filter {
+            ShapeFilter::None => {}
+            ShapeFilter::Lin { .. } => {
+                for r in buf.iter_mut() {
+                    *r = self.filter_lin(*r);
+                }
+            }
+            ShapeFilter::Avg {
+                ring,
+                pos,
+                sum,
+                inv_m,
+            } => {
+                let m1 = ring.len();
+                let (mut p, mut acc, inv_m) = (*pos, *sum, *inv_m);
+                for r in buf.iter_mut() {
+                    let u = [r.xr, r.vr, r.ar];
+                    let oldest = ring[p];
+                    for c in 0..3 {
+                        acc[c] += u[c] - oldest[c];
+                    }
+                    ring[p] = u;
+                    p += 1;
+                    if p == m1 {
+                        p = 0;
+                    }
+                    let oldest_in_window = ring[p];
+                    let mut y = [0.0; 3];
+                    for c in 0..3 {
+                        y[c] = (acc[c] - 0.5 * (u[c] + oldest_in_window[c])) * inv_m;
+                    }
+                    *r = RefSample {
+                        xr: y[0],
+                        vr: y[1],
+                        ar: y[2],
+                    };
+                }
+                *pos = p;
+                *sum = acc;
+            }
+        }
+    }
+
+    /// The second-order (or first-order) filter's step (`filter` must be `Lin`).
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // three channels side by side
+    fn filter_lin(&mut self, r: RefSample) -> RefSample {
+        let ShapeFilter::Lin {
+            phi,
+            g0,
+            g1,
+            s,
+            u_prev,
+        } = &mut self.filter
+        else {
+            return r;
+        };
+        let u = [r.xr, r.vr, r.ar];
+        let mut y = [0.0; 3];
+        for c in 0..3 {
+            let (s0, s1) = (s[c][0], s[c][1]);
+            let n0 = phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
+            let n1 = phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
+            s[c] = [n0, n1];
+            y[c] = n0;
+        }
+        *u_prev = u;
+        RefSample {
+            xr: y[0],
+            vr: y[1],
+            ar: y[2],
+        }
+    }
+
     /// The loop's reference for this tick, from the nominal one.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // three channels side by side
@@ -1101,14 +1193,11 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             };
             let ticks = if last { 1 } else { n_sub };
             let refs = &mut refs[..ticks];
+            for (j, r) in refs.iter_mut().enumerate() {
+                *r = fine(j);
+            }
             if shaped {
-                for (j, r) in refs.iter_mut().enumerate() {
-                    *r = shaper.shape(fine(j));
-                }
-            } else {
-                for (j, r) in refs.iter_mut().enumerate() {
-                    *r = fine(j);
-                }
+                shaper.shape_block(refs);
             }
             let (noise_p, noise_m) = (&mut noise_p[..ticks], &mut noise_m[..ticks]);
             pr.fill_noise(noise_p);
