@@ -453,9 +453,14 @@ impl DelayLine {
 
 /// Interpolation delay and nominal-position filter applied to position, velocity and
 /// acceleration alike (docs/machine-file.md#reference).
+///
+/// The delay and the moving average read past inputs at fixed lags, so both work on one linear
+/// buffer: the last `keep` nominal samples (the delay plus the window), oldest first, followed by
+/// the block being shaped; after a block the buffer drops the block's length from its front. A
+/// block of a sample's ticks costs one copy of the buffer, not a ring index per tick and value.
 pub(crate) struct Shaper {
-    delay: Vec<RefSample>,
-    delay_pos: usize,
+    ext: Vec<RefSample>,
+    keep: usize,
     filter: ShapeFilter,
 }
 
@@ -471,8 +476,7 @@ enum ShapeFilter {
     },
     /// Trapezoidal moving average over `m` ticks: running sum of the last m + 1 inputs.
     Avg {
-        ring: Vec<[f64; 3]>,
-        pos: usize,
+        m: usize,
         sum: [f64; 3],
         inv_m: f64,
     },
@@ -495,8 +499,7 @@ impl Shaper {
             Some(ShapingFilter::MovingAverage { window_s }) => {
                 let m = (window_s / h).round().max(1.0) as usize;
                 ShapeFilter::Avg {
-                    ring: vec![u0; m + 1],
-                    pos: 0,
+                    m,
                     sum: [
                         u0[0] * (m + 1) as f64,
                         u0[1] * (m + 1) as f64,
@@ -520,175 +523,102 @@ impl Shaper {
                 foh_filter(a, b, h, u0)?
             }
         };
+        let window = match filter {
+            ShapeFilter::Avg { m, .. } => m + 1,
+            _ => 0,
+        };
+        let keep = delay_ticks + window;
         Ok(Shaper {
-            delay: vec![r0; delay_ticks + 1],
-            delay_pos: 0,
+            ext: vec![r0; keep],
+            keep,
             filter,
         })
     }
 
+    /// The loop's reference for one tick, from the nominal one (a block of one tick).
+    #[cfg(test)]
+    pub(crate) fn shape(&mut self, r: RefSample) -> RefSample {
+        let mut one = [r];
+        self.shape_block(&mut one);
+        one[0]
+    }
+
     /// The loop's references for consecutive ticks, in place: `buf` holds the nominal ones and
-    /// receives [`Shaper::shape`] of each, in order (the same arithmetic, one stage at a time
-    /// over the block).
+    /// receives the shaped ones; the result does not depend on how the ticks are split into
+    /// blocks.
     #[allow(clippy::needless_range_loop)] // three channels side by side
     pub(crate) fn shape_block(&mut self, buf: &mut [RefSample]) {
-        let n = self.delay.len();
-        if n > 1 {
-            let mut pos = self.delay_pos;
-            for r in buf.iter_mut() {
-                self.delay[pos] = *r;
-                pos += 1;
-                if pos == n {
-                    pos = 0;
-                }
-                *r = self.delay[pos];
-            }
-            self.delay_pos = pos;
+        let b = buf.len();
+        if self.keep > 0 {
+            // ext = [u_{k0-keep} .. u_{k0-1}, u_{k0} .. u_{k0+b-1}].
+            self.ext.extend_from_slice(buf);
         }
         match &mut self.filter {
-            ShapeFilter::None => {}
-            ShapeFilter::Lin { .. } => {
-                for r in buf.iter_mut() {
-                    *r = self.filter_lin(*r);
-                }
-            }
-            ShapeFilter::Avg {
-                ring,
-                pos,
-                sum,
-                inv_m,
-            } => {
-                let m1 = ring.len();
-                let (mut p, mut acc, inv_m) = (*pos, *sum, *inv_m);
-                for r in buf.iter_mut() {
-                    let u = [r.xr, r.vr, r.ar];
-                    let oldest = ring[p];
-                    for c in 0..3 {
-                        acc[c] += u[c] - oldest[c];
-                    }
-                    ring[p] = u;
-                    p += 1;
-                    if p == m1 {
-                        p = 0;
-                    }
-                    let oldest_in_window = ring[p];
+            ShapeFilter::Avg { m, sum, inv_m } => {
+                // With the delay d = keep - m - 1, the averaged input of tick k is u_{k-d}, at
+                // index m + 1 + j for tick k0 + j; the input leaving the running sum,
+                // u_{k-d-m-1}, at index j; the window's oldest, u_{k-d-m}, at j + 1.
+                let (m, inv_m) = (*m, *inv_m);
+                let mut acc = *sum;
+                let ext = &self.ext;
+                let rows = buf
+                    .iter_mut()
+                    .zip(&ext[m + 1..m + 1 + b])
+                    .zip(ext[..b].iter().zip(&ext[1..b + 1]));
+                for ((out, new), (leaving, oldest)) in rows {
+                    let u = [new.xr, new.vr, new.ar];
+                    let l = [leaving.xr, leaving.vr, leaving.ar];
+                    let o = [oldest.xr, oldest.vr, oldest.ar];
                     let mut y = [0.0; 3];
                     for c in 0..3 {
-                        y[c] = (acc[c] - 0.5 * (u[c] + oldest_in_window[c])) * inv_m;
+                        acc[c] += u[c] - l[c];
+                        y[c] = (acc[c] - 0.5 * (u[c] + o[c])) * inv_m;
                     }
-                    *r = RefSample {
+                    *out = RefSample {
                         xr: y[0],
                         vr: y[1],
                         ar: y[2],
                     };
                 }
-                *pos = p;
                 *sum = acc;
             }
-        }
-    }
-
-    /// The second-order (or first-order) filter's step (`filter` must be `Lin`).
-    #[inline(always)]
-    #[allow(clippy::needless_range_loop)] // three channels side by side
-    fn filter_lin(&mut self, r: RefSample) -> RefSample {
-        let ShapeFilter::Lin {
-            phi,
-            g0,
-            g1,
-            s,
-            u_prev,
-        } = &mut self.filter
-        else {
-            return r;
-        };
-        let u = [r.xr, r.vr, r.ar];
-        let mut y = [0.0; 3];
-        for c in 0..3 {
-            let (s0, s1) = (s[c][0], s[c][1]);
-            let n0 = phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
-            let n1 = phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
-            s[c] = [n0, n1];
-            y[c] = n0;
-        }
-        *u_prev = u;
-        RefSample {
-            xr: y[0],
-            vr: y[1],
-            ar: y[2],
-        }
-    }
-
-    /// The loop's reference for this tick, from the nominal one.
-    #[inline(always)]
-    #[allow(clippy::needless_range_loop)] // three channels side by side
-    pub(crate) fn shape(&mut self, r: RefSample) -> RefSample {
-        let n = self.delay.len();
-        let r = if n > 1 {
-            self.delay[self.delay_pos] = r;
-            self.delay_pos += 1;
-            if self.delay_pos == n {
-                self.delay_pos = 0;
-            }
-            self.delay[self.delay_pos]
-        } else {
-            r
-        };
-        match &mut self.filter {
-            ShapeFilter::None => r,
-            ShapeFilter::Lin {
-                phi,
-                g0,
-                g1,
-                s,
-                u_prev,
-            } => {
-                let u = [r.xr, r.vr, r.ar];
-                let mut y = [0.0; 3];
-                for c in 0..3 {
-                    let (s0, s1) = (s[c][0], s[c][1]);
-                    let n0 = phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
-                    let n1 = phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
-                    s[c] = [n0, n1];
-                    y[c] = n0;
+            ShapeFilter::None | ShapeFilter::Lin { .. } => {
+                if self.keep > 0 {
+                    // The delayed input of tick k0 + j, u_{k0+j-keep}, is at index j.
+                    buf.copy_from_slice(&self.ext[..b]);
                 }
-                *u_prev = u;
-                RefSample {
-                    xr: y[0],
-                    vr: y[1],
-                    ar: y[2],
+                if let ShapeFilter::Lin {
+                    phi,
+                    g0,
+                    g1,
+                    s,
+                    u_prev,
+                } = &mut self.filter
+                {
+                    for r in buf.iter_mut() {
+                        let u = [r.xr, r.vr, r.ar];
+                        let mut y = [0.0; 3];
+                        for c in 0..3 {
+                            let (s0, s1) = (s[c][0], s[c][1]);
+                            let n0 =
+                                phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
+                            let n1 =
+                                phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
+                            s[c] = [n0, n1];
+                            y[c] = n0;
+                        }
+                        *u_prev = u;
+                        *r = RefSample {
+                            xr: y[0],
+                            vr: y[1],
+                            ar: y[2],
+                        };
+                    }
                 }
             }
-            ShapeFilter::Avg {
-                ring,
-                pos,
-                sum,
-                inv_m,
-            } => {
-                // The ring holds u_{k-m-1} .. u_{k-1}, the oldest at `pos`: replace it by u_k,
-                // so that it holds the window u_{k-m} .. u_k, whose oldest is then at `pos + 1`.
-                let u = [r.xr, r.vr, r.ar];
-                let oldest = ring[*pos];
-                let m1 = ring.len();
-                let mut y = [0.0; 3];
-                for c in 0..3 {
-                    sum[c] += u[c] - oldest[c];
-                }
-                ring[*pos] = u;
-                *pos += 1;
-                if *pos == m1 {
-                    *pos = 0;
-                }
-                let oldest_in_window = ring[*pos];
-                for c in 0..3 {
-                    y[c] = (sum[c] - 0.5 * (u[c] + oldest_in_window[c])) * *inv_m;
-                }
-                RefSample {
-                    xr: y[0],
-                    vr: y[1],
-                    ar: y[2],
-                }
-            }
+        }
+        if self.keep > 0 {
+            self.ext.drain(..b);
         }
     }
 }
