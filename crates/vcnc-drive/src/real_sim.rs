@@ -455,11 +455,13 @@ impl DelayLine {
 /// acceleration alike (docs/machine-file.md#reference).
 ///
 /// The delay and the moving average read past inputs at fixed lags, so both work on one linear
-/// buffer: the last `keep` nominal samples (the delay plus the window), oldest first, followed by
-/// the block being shaped; after a block the buffer drops the block's length from its front. A
-/// block of a sample's ticks costs one copy of the buffer, not a ring index per tick and value.
+/// buffer: from `start` on, the last `keep` nominal samples (the delay plus the window), oldest
+/// first, followed by the block being shaped; after a block, `start` moves on by the block's
+/// length, and the `keep` samples go back to the front when the buffer's end is reached (once
+/// per 16 blocks or more). No ring index per tick and value.
 pub(crate) struct Shaper {
     ext: Vec<RefSample>,
+    start: usize,
     keep: usize,
     filter: ShapeFilter,
 }
@@ -530,6 +532,7 @@ impl Shaper {
         let keep = delay_ticks + window;
         Ok(Shaper {
             ext: vec![r0; keep],
+            start: 0,
             keep,
             filter,
         })
@@ -548,11 +551,21 @@ impl Shaper {
     /// blocks.
     #[allow(clippy::needless_range_loop)] // three channels side by side
     pub(crate) fn shape_block(&mut self, buf: &mut [RefSample]) {
-        let b = buf.len();
-        if self.keep > 0 {
+        let (b, keep) = (buf.len(), self.keep);
+        if keep > 0 {
+            if self.start + keep + b > self.ext.len() {
+                self.ext.copy_within(self.start..self.start + keep, 0);
+                self.start = 0;
+                let len = keep + 16 * b;
+                if self.ext.len() < len {
+                    self.ext.resize(len, buf[0]);
+                }
+            }
             // ext = [u_{k0-keep} .. u_{k0-1}, u_{k0} .. u_{k0+b-1}].
-            self.ext.extend_from_slice(buf);
+            let s0 = self.start;
+            self.ext[s0 + keep..s0 + keep + b].copy_from_slice(buf);
         }
+        let ext = &self.ext[self.start..self.start + keep + b];
         match &mut self.filter {
             ShapeFilter::Avg { m, sum, inv_m } => {
                 // With the delay d = keep - m - 1, the averaged input of tick k is u_{k-d}, at
@@ -560,7 +573,6 @@ impl Shaper {
                 // u_{k-d-m-1}, at index j; the window's oldest, u_{k-d-m}, at j + 1.
                 let (m, inv_m) = (*m, *inv_m);
                 let mut acc = *sum;
-                let ext = &self.ext;
                 let rows = buf
                     .iter_mut()
                     .zip(&ext[m + 1..m + 1 + b])
@@ -583,9 +595,9 @@ impl Shaper {
                 *sum = acc;
             }
             ShapeFilter::None | ShapeFilter::Lin { .. } => {
-                if self.keep > 0 {
+                if keep > 0 {
                     // The delayed input of tick k0 + j, u_{k0+j-keep}, is at index j.
-                    buf.copy_from_slice(&self.ext[..b]);
+                    buf.copy_from_slice(&ext[..b]);
                 }
                 if let ShapeFilter::Lin {
                     phi,
@@ -617,8 +629,8 @@ impl Shaper {
                 }
             }
         }
-        if self.keep > 0 {
-            self.ext.drain(..b);
+        if keep > 0 {
+            self.start += b;
         }
     }
 }
