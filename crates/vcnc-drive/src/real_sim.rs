@@ -565,7 +565,11 @@ impl Shaper {
             let s0 = self.start;
             self.ext[s0 + keep..s0 + keep + b].copy_from_slice(buf);
         }
-        let ext = &self.ext[self.start..self.start + keep + b];
+        let ext: &[RefSample] = if keep > 0 {
+            &self.ext[self.start..self.start + keep + b]
+        } else {
+            &[]
+        };
         match &mut self.filter {
             ShapeFilter::Avg { m, sum, inv_m } => {
                 // With the delay d = keep - m - 1, the averaged input of tick k is u_{k-d}, at
