@@ -349,7 +349,18 @@ enum Fric {
         w: [f64; MAX_ELEMENTS],
         w_max: f64,
         w_min: f64,
+        /// Speed above which the Stribeck term is below the rounding, axis units/s: the level
+        /// is then the Coulomb level without evaluating the law (see `flat_speed`).
+        v_flat: f64,
     },
+}
+
+/// A speed above which [`FrictionLaw::level`] returns the Coulomb level through its
+/// $|v/v_s|^\delta > 40$ branch: $v_s\,40^{1/\delta}$ with a relative margin of $10^{-9}$ far
+/// above the rounding of the power, so that a speed beyond it takes that branch for certain (the
+/// same number as evaluating the law, with no division, power or exponential).
+fn flat_speed(law: &FrictionLaw) -> f64 {
+    law.stribeck_velocity * 40f64.powf(1.0 / law.exponent) * (1.0 + 1e-9)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1008,6 +1019,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 w: wk,
                 w_max,
                 w_min,
+                v_flat,
             } => {
                 let (n, w_max, w_min) = (*n, *w_max, *w_min);
                 let x0 = z[IX];
@@ -1031,10 +1043,17 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 // Slip levels: T(v) in the direction of motion, T_s against it (element i slips
                 // at ±level · w_i, w_i = 1/(N k_i)).
                 let v0 = z[IV];
+                let level = |dir: usize, speed: f64| {
+                    if speed > *v_flat {
+                        law.coulomb[dir]
+                    } else {
+                        law.level(dir, speed)
+                    }
+                };
                 let (hi, lo) = if v0 >= 0.0 {
-                    (law.level(0, v0), law.static_[1])
+                    (level(0, v0), law.static_[1])
                 } else {
-                    (law.static_[0], law.level(1, -v0))
+                    (law.static_[0], level(1, -v0))
                 };
                 let dx = st.z[IX] - x0;
                 // Fast path of steady sliding: every element slipping the same way stays so
@@ -1401,6 +1420,7 @@ fn engine<L: RLaw, const N: usize, const TM: bool>(
                     w,
                     w_max,
                     w_min,
+                    v_flat: flat_speed(&f),
                 }
             }
         },
