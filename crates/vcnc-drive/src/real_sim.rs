@@ -7,8 +7,9 @@
 //! # One servo tick (period $h$)
 //!
 //! 1. Reference: the fine-interpolated nominal sample (as in [`crate::sim`]) goes through the
-//!    interpolation delay (a ring of whole ticks) and the nominal-position filter (exact for a
-//!    reference that is linear between ticks, docs/machine-file.md#reference).
+//!    interpolation delay (whole ticks) and the nominal-position filter (exact for a reference
+//!    that is linear between ticks, docs/machine-file.md#reference), for all the ticks of a
+//!    sample ahead of them; so is the readings' noise.
 //! 2. Readings: the position sensor (load scale or motor encoder) is read with quantisation and
 //!    seeded noise, and the position loop takes the reading of $n$ ticks ago (dead time). The
 //!    velocity path reads the motor encoder (the same reading in a rigid or semi-closed drive),
