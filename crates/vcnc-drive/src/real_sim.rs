@@ -846,7 +846,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         };
         let reading = pos_reader.read(x_sensor, noise.0);
         // u = ub + ga xa + gb xb with xa, xb the readings of this tick (0 when unused) and ub
-        // the rest, known before them.
+        // the rest: the plant folds ga, gb into its coefficients (see `plant_step`).
         let (xp, xv, ub, xa, xb) = if self.one_reading {
             (reading, reading, u_a, reading, 0.0)
         } else if self.second_encoder {
@@ -861,13 +861,15 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             let xp = st.delay.push(reading);
             (xp, reading, u_a + self.gu_p * xp, 0.0, reading)
         };
-        let u = ub + (self.ga * xa + self.gb * xb);
+        // The part of u that this tick's readings make, computed once and fed to the plant.
+        let w = self.ga * xa + self.gb * xb;
+        let u = ub + w;
         let xf = af + self.vf_b * xv;
         let d_int = i0 + self.s_ip * xp + self.s_if * xf;
         let saturated = u.abs() > self.u_lim;
-        let u = if !saturated {
+        let (u, ub, w) = if !saturated {
             st.integ += d_int;
-            u
+            (u, ub, w)
         } else {
             // Conditional integration: hold the integrator if its increment pushes u further
             // into the limit.
@@ -878,17 +880,19 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             } else {
                 st.integ += d_int;
             }
-            u.clamp(-self.u_lim, self.u_lim)
+            let u = u.clamp(-self.u_lim, self.u_lim);
+            (u, u, 0.0)
         };
         st.e1 = r.xr - xp;
         st.xr1 = r.xr;
         st.xf2 = st.xf1;
         st.xf1 = xf;
         let u_in = u + inject;
+        let ub = ub + inject;
         if TM && !self.fric_motor {
-            self.plant_step::<2, 3>(st, u_in);
+            self.plant_step::<2, 3>(st, ub, w);
         } else {
-            self.plant_step::<0, 1>(st, u_in);
+            self.plant_step::<0, 1>(st, ub, w);
         }
         TickOut {
             u,
@@ -939,7 +943,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
     /// `IX`, `IV`: index of the friction body's position and velocity in $z$.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // small dense kernel on z, p and Γ: indices read best
-    fn plant_step<const IX: usize, const IV: usize>(&self, st: &mut RState<N>, u: f64) {
+    fn plant_step<const IX: usize, const IV: usize>(&self, st: &mut RState<N>, ub: f64, w: f64) {
         let (lin, o) = if self.half_backlash > 0.0 {
             let d = st.z[0] - st.z[2];
             if d >= self.half_backlash {
@@ -957,27 +961,23 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         // d = x_m - x_L (two-mass) or not at all (rigid): A (e_0 + e_L) = 0, so
         // Φ (e_0 + e_L) = e_0 + e_L exactly and Φ z = Φ_0 d + (e_0 + e_L) x_L + Σ_{j ≠ 0, L} Φ_j z_j.
         // Fewer products, and the large absolute position only passes through one addition.
-        // The small terms are summed as a balanced tree (independent partial sums), not one
-        // after the other: this is the loop-carried chain from z to the next z.
         let d = if TM { z[0] - z[Self::XL] } else { 0.0 };
         let mut p = [0.0; N];
         // The current loop's states do not depend on the mechanics: their rows skip them.
         for i in 0..N {
-            // -0.0 is the exact identity of addition: the unused slots fold away.
-            let mut t = [-0.0; 8];
+            let mut acc = lin.g_u[i] * ub;
+            if self.half_backlash > 0.0 {
+                acc += lin.g_o[i] * o;
+            }
             let mech_row = i < Self::ICUR;
             if TM && mech_row {
-                t[0] = lin.phi[i][0] * d;
+                acc += lin.phi[i][0] * d;
             }
             for j in 1..N {
                 if !(TM && j == Self::XL) && (mech_row || j >= Self::ICUR) {
-                    t[j] = lin.phi[i][j] * z[j];
+                    acc += lin.phi[i][j] * z[j];
                 }
             }
-            if self.half_backlash > 0.0 {
-                t[7] = lin.g_o[i] * o;
-            }
-            let mut acc = ((t[0] + t[1]) + (t[2] + t[3])) + ((t[4] + t[5]) + (t[6] + t[7]));
             if i == 0 || i == Self::XL {
                 acc += z[Self::XL];
             }
@@ -986,7 +986,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         match &self.fric {
             Fric::None => {
                 for i in 0..N {
-                    st.z[i] = p[i] + lin.g_u[i] * u;
+                    st.z[i] = p[i] + lin.g_u[i] * w;
                 }
             }
             Fric::SetValued(law) => {
@@ -998,18 +998,18 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 } else {
                     (law.level(0, v0.max(0.0)), -law.level(1, (-v0).max(0.0)))
                 };
-                let v_star = p[IV] + lin.g_u[IV] * u;
+                let v_star = p[IV] + lin.g_u[IV] * w;
                 if v_star <= lin.stick_lim[0] && v_star >= -lin.stick_lim[1] {
                     // Stuck at the end of the step (|v*| within g T_s): the friction is
                     // whatever stops the body, f = v*/g, so z = z* + Γ_f v*/g.
                     for i in 0..N {
-                        st.z[i] = (p[i] + lin.stick_k[i] * p[IV]) + lin.stick_gu[i] * u;
+                        st.z[i] = (p[i] + lin.stick_k[i] * p[IV]) + lin.stick_gu[i] * w;
                     }
                     st.z[IV] = 0.0;
                 } else {
                     let f = if v_star > 0.0 { f_pos } else { f_neg };
                     for i in 0..N {
-                        st.z[i] = (p[i] + lin.g_f[i] * f) + lin.g_u[i] * u;
+                        st.z[i] = (p[i] + lin.g_f[i] * f) + lin.g_u[i] * w;
                     }
                 }
             }
@@ -1031,14 +1031,14 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 let (f0, half_k) = (st.ms_force, 0.5 * st.ms_stiffness);
                 if half_k == 0.0 {
                     for i in 0..N {
-                        st.z[i] = (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * u;
+                        st.z[i] = (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * w;
                     }
                 } else {
                     let f_p = (1.0 + half_k * lin.g_f[IX]) * f0 + half_k * (p[IX] - x0);
                     let f_w = half_k * lin.g_u[IX];
                     for i in 0..N {
                         let c = lin.g_f[i];
-                        st.z[i] = (p[i] + c * f_p) + (lin.g_u[i] + c * f_w) * u;
+                        st.z[i] = (p[i] + c * f_p) + (lin.g_u[i] + c * f_w) * w;
                     }
                 }
                 // Slip levels: T(v) in the direction of motion, T_s against it (element i slips
