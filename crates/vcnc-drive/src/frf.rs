@@ -303,9 +303,19 @@ impl Job for FrfJob<'_> {
         let first = o.settle_periods * n_per;
         let (mut input, mut output) = (vec![0.0; n_per], vec![0.0; n_per]);
         let mut v_range = (f64::INFINITY, f64::NEG_INFINITY);
+        // The loop's references, shaped a block of ticks ahead (they do not depend on the loop).
+        const BLOCK: usize = 64;
+        let mut refs = [r0; BLOCK];
         for i in 0..total {
             let nom = nominal(i);
-            let r = shaper.shape(nom);
+            if i % BLOCK == 0 {
+                let block = &mut refs[..BLOCK.min(total - i)];
+                for (j, r) in block.iter_mut().enumerate() {
+                    *r = nominal(i + j);
+                }
+                shaper.shape_block(block);
+            }
+            let r = refs[i % BLOCK];
             let inject = if torque_kind {
                 plan.pos[i % n_per] / kakt
             } else {
@@ -317,7 +327,8 @@ impl Job for FrfJob<'_> {
                 e.motor_velocity(&st),
             );
             let z_before = e.state(&st);
-            let out = e.tick(&mut st, r, inject, &mut pr, &mut mr);
+            let noise = e.draw_noise(&mut pr, &mut mr);
+            let out = e.tick(&mut st, r, inject, &pr, &mr, noise);
             if i < first {
                 continue;
             }

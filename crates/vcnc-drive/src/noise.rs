@@ -14,7 +14,7 @@
 
 use std::sync::OnceLock;
 
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// $x_1 = r$, the start of the tail (256 layers).
@@ -88,13 +88,9 @@ impl Normals {
 
     #[inline(never)]
     fn refill(&mut self) {
-        let mut bytes = [0u8; BLOCK * 8];
-        self.rng.fill_bytes(&mut bytes);
-        for (w, b) in self.words.iter_mut().zip(bytes.chunks_exact(8)) {
-            let mut a = [0u8; 8];
-            a.copy_from_slice(b);
-            *w = u64::from_le_bytes(a);
-        }
+        // The generator's bytes straight into the words, read little-endian (rand's `Fill`):
+        // the same words as copying them out of a byte buffer.
+        self.rng.fill(&mut self.words[..]);
         self.next = 0;
     }
 

@@ -7,8 +7,9 @@
 //! # One servo tick (period $h$)
 //!
 //! 1. Reference: the fine-interpolated nominal sample (as in [`crate::sim`]) goes through the
-//!    interpolation delay (a ring of whole ticks) and the nominal-position filter (exact for a
-//!    reference that is linear between ticks, docs/machine-file.md#reference).
+//!    interpolation delay (whole ticks) and the nominal-position filter (exact for a reference
+//!    that is linear between ticks, docs/machine-file.md#reference), for all the ticks of a
+//!    sample ahead of them; so is the readings' noise.
 //! 2. Readings: the position sensor (load scale or motor encoder) is read with quantisation and
 //!    seeded noise, and the position loop takes the reading of $n$ ticks ago (dead time). The
 //!    velocity path reads the motor encoder (the same reading in a rigid or semi-closed drive),
@@ -349,7 +350,18 @@ enum Fric {
         w: [f64; MAX_ELEMENTS],
         w_max: f64,
         w_min: f64,
+        /// Speed above which the Stribeck term is below the rounding, axis units/s: the level
+        /// is then the Coulomb level without evaluating the law (see `flat_speed`).
+        v_flat: f64,
     },
+}
+
+/// A speed above which [`FrictionLaw::level`] returns the Coulomb level through its
+/// $|v/v_s|^\delta > 40$ branch: $v_s\,40^{1/\delta}$ with a relative margin of $10^{-9}$ far
+/// above the rounding of the power, so that a speed beyond it takes that branch for certain (the
+/// same number as evaluating the law, with no division, power or exponential).
+fn flat_speed(law: &FrictionLaw) -> f64 {
+    law.stribeck_velocity * 40f64.powf(1.0 / law.exponent) * (1.0 + 1e-9)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -380,14 +392,33 @@ impl Reader {
         quantise_to(x, self.q, self.inv_q)
     }
 
+    /// This reading's noise: $\sigma\,n$ with $n$ the stream's next normal number, or 0 (no
+    /// draw) without noise.
     #[inline(always)]
-    fn read(&mut self, x: f64) -> f64 {
-        let y = if self.std > 0.0 {
-            x + self.std * self.normals.sample()
+    pub(crate) fn noise(&mut self) -> f64 {
+        if self.std > 0.0 {
+            self.std * self.normals.sample()
         } else {
-            x
-        };
-        quantise_to(y, self.q, self.inv_q)
+            0.0
+        }
+    }
+
+    /// The noise of the next `out.len()` readings, drawn ahead in one tight loop (the stream
+    /// does not depend on the loop; drawing it apart keeps the servo tick lean).
+    fn fill_noise(&mut self, out: &mut [f64]) {
+        if self.std > 0.0 {
+            for v in out.iter_mut() {
+                *v = self.std * self.normals.sample();
+            }
+        } else {
+            out.fill(0.0);
+        }
+    }
+
+    /// The reading of position `x` with this reading's `noise` (from [`Reader::noise`]).
+    #[inline(always)]
+    fn read(&self, x: f64, noise: f64) -> f64 {
+        quantise_to(x + noise, self.q, self.inv_q)
     }
 }
 
@@ -434,9 +465,16 @@ impl DelayLine {
 
 /// Interpolation delay and nominal-position filter applied to position, velocity and
 /// acceleration alike (docs/machine-file.md#reference).
+///
+/// The delay and the moving average read past inputs at fixed lags, so both work on one linear
+/// buffer: from `start` on, the last `keep` nominal samples (the delay plus the window), oldest
+/// first, followed by the block being shaped; after a block, `start` moves on by the block's
+/// length, and the `keep` samples go back to the front when the buffer's end is reached (once
+/// per 16 blocks or more). No ring index per tick and value.
 pub(crate) struct Shaper {
-    delay: Vec<RefSample>,
-    delay_pos: usize,
+    ext: Vec<RefSample>,
+    start: usize,
+    keep: usize,
     filter: ShapeFilter,
 }
 
@@ -452,8 +490,7 @@ enum ShapeFilter {
     },
     /// Trapezoidal moving average over `m` ticks: running sum of the last m + 1 inputs.
     Avg {
-        ring: Vec<[f64; 3]>,
-        pos: usize,
+        m: usize,
         sum: [f64; 3],
         inv_m: f64,
     },
@@ -476,8 +513,7 @@ impl Shaper {
             Some(ShapingFilter::MovingAverage { window_s }) => {
                 let m = (window_s / h).round().max(1.0) as usize;
                 ShapeFilter::Avg {
-                    ring: vec![u0; m + 1],
-                    pos: 0,
+                    m,
                     sum: [
                         u0[0] * (m + 1) as f64,
                         u0[1] * (m + 1) as f64,
@@ -501,83 +537,116 @@ impl Shaper {
                 foh_filter(a, b, h, u0)?
             }
         };
+        let window = match filter {
+            ShapeFilter::Avg { m, .. } => m + 1,
+            _ => 0,
+        };
+        let keep = delay_ticks + window;
         Ok(Shaper {
-            delay: vec![r0; delay_ticks + 1],
-            delay_pos: 0,
+            ext: vec![r0; keep],
+            start: 0,
+            keep,
             filter,
         })
     }
 
-    /// The loop's reference for this tick, from the nominal one.
-    #[inline(always)]
-    #[allow(clippy::needless_range_loop)] // three channels side by side
+    /// The loop's reference for one tick, from the nominal one (a block of one tick).
+    #[cfg(test)]
     pub(crate) fn shape(&mut self, r: RefSample) -> RefSample {
-        let n = self.delay.len();
-        let r = if n > 1 {
-            self.delay[self.delay_pos] = r;
-            self.delay_pos += 1;
-            if self.delay_pos == n {
-                self.delay_pos = 0;
+        let mut one = [r];
+        self.shape_block(&mut one);
+        one[0]
+    }
+
+    /// The loop's references for consecutive ticks, in place: `buf` holds the nominal ones and
+    /// receives the shaped ones; the result does not depend on how the ticks are split into
+    /// blocks.
+    #[allow(clippy::needless_range_loop)] // three channels side by side
+    pub(crate) fn shape_block(&mut self, buf: &mut [RefSample]) {
+        let (b, keep) = (buf.len(), self.keep);
+        if keep > 0 {
+            if self.start + keep + b > self.ext.len() {
+                self.ext.copy_within(self.start..self.start + keep, 0);
+                self.start = 0;
+                let len = keep + 16 * b;
+                if self.ext.len() < len {
+                    self.ext.resize(len, buf[0]);
+                }
             }
-            self.delay[self.delay_pos]
+            // ext = [u_{k0-keep} .. u_{k0-1}, u_{k0} .. u_{k0+b-1}].
+            let s0 = self.start;
+            self.ext[s0 + keep..s0 + keep + b].copy_from_slice(buf);
+        }
+        let ext: &[RefSample] = if keep > 0 {
+            &self.ext[self.start..self.start + keep + b]
         } else {
-            r
+            &[]
         };
         match &mut self.filter {
-            ShapeFilter::None => r,
-            ShapeFilter::Lin {
-                phi,
-                g0,
-                g1,
-                s,
-                u_prev,
-            } => {
-                let u = [r.xr, r.vr, r.ar];
-                let mut y = [0.0; 3];
-                for c in 0..3 {
-                    let (s0, s1) = (s[c][0], s[c][1]);
-                    let n0 = phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
-                    let n1 = phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
-                    s[c] = [n0, n1];
-                    y[c] = n0;
+            ShapeFilter::Avg { m, sum, inv_m } => {
+                // With the delay d = keep - m - 1, the averaged input of tick k is u_{k-d}, at
+                // index m + 1 + j for tick k0 + j; the input leaving the running sum,
+                // u_{k-d-m-1}, at index j; the window's oldest, u_{k-d-m}, at j + 1.
+                let (m, inv_m) = (*m, *inv_m);
+                let mut acc = *sum;
+                let rows = buf
+                    .iter_mut()
+                    .zip(&ext[m + 1..m + 1 + b])
+                    .zip(ext[..b].iter().zip(&ext[1..b + 1]));
+                for ((out, new), (leaving, oldest)) in rows {
+                    let u = [new.xr, new.vr, new.ar];
+                    let l = [leaving.xr, leaving.vr, leaving.ar];
+                    let o = [oldest.xr, oldest.vr, oldest.ar];
+                    let mut y = [0.0; 3];
+                    for c in 0..3 {
+                        acc[c] += u[c] - l[c];
+                        y[c] = (acc[c] - 0.5 * (u[c] + o[c])) * inv_m;
+                    }
+                    *out = RefSample {
+                        xr: y[0],
+                        vr: y[1],
+                        ar: y[2],
+                    };
                 }
-                *u_prev = u;
-                RefSample {
-                    xr: y[0],
-                    vr: y[1],
-                    ar: y[2],
+                *sum = acc;
+            }
+            ShapeFilter::None | ShapeFilter::Lin { .. } => {
+                if keep > 0 {
+                    // The delayed input of tick k0 + j, u_{k0+j-keep}, is at index j.
+                    buf.copy_from_slice(&ext[..b]);
+                }
+                if let ShapeFilter::Lin {
+                    phi,
+                    g0,
+                    g1,
+                    s,
+                    u_prev,
+                } = &mut self.filter
+                {
+                    for r in buf.iter_mut() {
+                        let u = [r.xr, r.vr, r.ar];
+                        let mut y = [0.0; 3];
+                        for c in 0..3 {
+                            let (s0, s1) = (s[c][0], s[c][1]);
+                            let n0 =
+                                phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
+                            let n1 =
+                                phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
+                            s[c] = [n0, n1];
+                            y[c] = n0;
+                        }
+                        *u_prev = u;
+                        *r = RefSample {
+                            xr: y[0],
+                            vr: y[1],
+                            ar: y[2],
+                        };
+                    }
                 }
             }
-            ShapeFilter::Avg {
-                ring,
-                pos,
-                sum,
-                inv_m,
-            } => {
-                // The ring holds u_{k-m-1} .. u_{k-1}, the oldest at `pos`: replace it by u_k,
-                // so that it holds the window u_{k-m} .. u_k, whose oldest is then at `pos + 1`.
-                let u = [r.xr, r.vr, r.ar];
-                let oldest = ring[*pos];
-                let m1 = ring.len();
-                let mut y = [0.0; 3];
-                for c in 0..3 {
-                    sum[c] += u[c] - oldest[c];
-                }
-                ring[*pos] = u;
-                *pos += 1;
-                if *pos == m1 {
-                    *pos = 0;
-                }
-                let oldest_in_window = ring[*pos];
-                for c in 0..3 {
-                    y[c] = (sum[c] - 0.5 * (u[c] + oldest_in_window[c])) * *inv_m;
-                }
-                RefSample {
-                    xr: y[0],
-                    vr: y[1],
-                    ar: y[2],
-                }
-            }
+        }
+        if keep > 0 {
+            self.start += b;
         }
     }
 }
@@ -733,16 +802,35 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         }
     }
 
+    /// The noise of this tick's position and motor-encoder readings (`tick`'s `noise`), drawn
+    /// from their streams in the order the ticks read them.
+    #[inline(always)]
+    pub(crate) fn draw_noise(
+        &self,
+        pos_reader: &mut Reader,
+        motor_reader: &mut Reader,
+    ) -> (f64, f64) {
+        let np = pos_reader.noise();
+        let nm = if self.second_encoder {
+            motor_reader.noise()
+        } else {
+            0.0
+        };
+        (np, nm)
+    }
+
     /// One servo tick with loop reference `r` (already shaped), extra command `inject` (V,
-    /// added after the limit: a torque excitation) and the readers.
+    /// added after the limit: a torque excitation), the readers and the noise of their readings
+    /// ([`Engine::draw_noise`]).
     #[inline(always)]
     pub(crate) fn tick(
         &self,
         st: &mut RState<N>,
         r: RefSample,
         inject: f64,
-        pos_reader: &mut Reader,
-        motor_reader: &mut Reader,
+        pos_reader: &Reader,
+        motor_reader: &Reader,
+        noise: (f64, f64),
     ) -> TickOut {
         // Everything that does not depend on this tick's readings first.
         let (d0, i0) = self.law.terms0(r, st.xr1, st.e1, st.xf1, st.xf2);
@@ -756,13 +844,13 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         } else {
             st.z[0]
         };
-        let reading = pos_reader.read(x_sensor);
+        let reading = pos_reader.read(x_sensor, noise.0);
         // u = ub + ga xa + gb xb with xa, xb the readings of this tick (0 when unused) and ub
         // the rest: the plant folds ga, gb into its coefficients (see `plant_step`).
         let (xp, xv, ub, xa, xb) = if self.one_reading {
             (reading, reading, u_a, reading, 0.0)
         } else if self.second_encoder {
-            let xv = motor_reader.read(st.z[0]);
+            let xv = motor_reader.read(st.z[0], noise.1);
             if self.dead_time == 0 {
                 (reading, xv, u_a, reading, xv)
             } else {
@@ -932,6 +1020,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 w: wk,
                 w_max,
                 w_min,
+                v_flat,
             } => {
                 let (n, w_max, w_min) = (*n, *w_max, *w_min);
                 let x0 = z[IX];
@@ -955,10 +1044,17 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 // Slip levels: T(v) in the direction of motion, T_s against it (element i slips
                 // at ±level · w_i, w_i = 1/(N k_i)).
                 let v0 = z[IV];
+                let level = |dir: usize, speed: f64| {
+                    if speed > *v_flat {
+                        law.coulomb[dir]
+                    } else {
+                        law.level(dir, speed)
+                    }
+                };
                 let (hi, lo) = if v0 >= 0.0 {
-                    (law.level(0, v0), law.static_[1])
+                    (level(0, v0), law.static_[1])
                 } else {
-                    (law.static_[0], law.level(1, -v0))
+                    (law.static_[0], level(1, -v0))
                 };
                 let dx = st.z[IX] - x0;
                 // Fast path of steady sliding: every element slipping the same way stays so
@@ -1037,10 +1133,14 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         let inv_sub = 1.0 / n_sub as f64;
         let mut saturated_ticks = 0u64;
         let (pr, mr) = (&mut readers.0, &mut readers.1);
-        // The loop's reference for the ticks of one sample, shaped ahead of them (it does not
-        // depend on the loop); without shaping, the fine interpolation itself.
+        // The loop's reference for the ticks of one sample, made ahead of them (it does not
+        // depend on the loop): the fine interpolation, shaped if the drive shapes it.
         let shaped = shaping.is_some();
         let mut refs = vec![r0; n_sub];
+        // The readings' noise for the ticks of one sample, drawn ahead of them (the motor
+        // encoder's only where it is read, as `draw_noise`).
+        let mut noise_p = vec![0.0; n_sub];
+        let mut noise_m = vec![0.0; n_sub];
         for k in 0..n {
             let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
             let last = k + 1 == n;
@@ -1058,15 +1158,21 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
                 }
             };
             let ticks = if last { 1 } else { n_sub };
-            if shaped {
-                for (j, r) in refs.iter_mut().enumerate().take(ticks) {
-                    *r = shaper.shape(fine(j));
-                }
+            let refs = &mut refs[..ticks];
+            for (j, r) in refs.iter_mut().enumerate() {
+                *r = fine(j);
             }
-            let r_at = |j: usize| if shaped { refs[j] } else { fine(j) };
+            if shaped {
+                shaper.shape_block(refs);
+            }
+            let (noise_p, noise_m) = (&mut noise_p[..ticks], &mut noise_m[..ticks]);
+            pr.fill_noise(noise_p);
+            if self.second_encoder {
+                mr.fill_noise(noise_m);
+            }
             let (xl, vl, xm) = (st.z[Self::XL], st.z[Self::VL], st.z[0]);
             let z_before = st.z;
-            let out = self.tick(&mut st, r_at(0), 0.0, pr, mr);
+            let out = self.tick(&mut st, refs[0], 0.0, pr, mr, (noise_p[0], noise_m[0]));
             saturated_ticks += out.saturated as u64;
             trace.position.push(out.xp);
             trace.true_position.push(xl);
@@ -1074,8 +1180,8 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             trace.control.push(out.u);
             trace.motor_position.push(xm);
             trace.motor_torque.push(self.torque(&z_before, out.u_in));
-            for j in 1..ticks {
-                let out = self.tick(&mut st, r_at(j), 0.0, pr, mr);
+            for ((r, np), nm) in refs.iter().zip(noise_p.iter()).zip(noise_m.iter()).skip(1) {
+                let out = self.tick(&mut st, *r, 0.0, pr, mr, (*np, *nm));
                 saturated_ticks += out.saturated as u64;
             }
         }
@@ -1113,13 +1219,13 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             vr: 0.0,
             ar: 0.0,
         };
-        let mut pr = Reader::new(0.0, 0.0, 0, 0);
-        let mut mr = Reader::new(0.0, 0.0, 0, 1);
+        let pr = Reader::new(0.0, 0.0, 0, 0);
+        let mr = Reader::new(0.0, 0.0, 0, 1);
         for col in 0..dim {
             let mut unit = vec![0.0; dim];
             unit[col] = 1.0;
             let mut st = self.unpack(&unit);
-            self.tick(&mut st, zero, 0.0, &mut pr, &mut mr);
+            self.tick(&mut st, zero, 0.0, &pr, &mr, (0.0, 0.0));
             for (row, x) in self.pack(&st).iter().enumerate() {
                 m[(row, col)] = *x;
             }
@@ -1315,6 +1421,7 @@ fn engine<L: RLaw, const N: usize, const TM: bool>(
                     w,
                     w_max,
                     w_min,
+                    v_flat: flat_speed(&f),
                 }
             }
         },
