@@ -59,8 +59,6 @@ pub struct Run {
     pub ts: f64,
     /// Axis references in machine order (one per [`Machine::axes`]).
     pub axes: Vec<AxisSignals>,
-    /// Reference tool poses in the workpiece frame (mm), when the machine has kinematics.
-    pub poses: Option<Vec<Pose>>,
     /// Warnings for the user (G-code warnings, limit excursions of IK'd references).
     pub warnings: Vec<String>,
     /// Per sample: the source line of the block running (0 where none is, e.g. before the
@@ -116,6 +114,41 @@ impl Run {
     /// Duration of the program, s.
     pub fn duration_s(&self) -> f64 {
         self.loaded.trajectory.duration_s()
+    }
+
+    /// The axis reference positions per machine axis (mm, deg).
+    pub fn reference_positions(&self) -> Vec<&[f64]> {
+        self.axes.iter().map(|a| a.pos.as_slice()).collect()
+    }
+
+    /// Reference tool poses in the workpiece frame (mm, unit tool axis) of the samples `rows`,
+    /// by the closed-form forward kinematics of the axis references. A run keeps axis
+    /// references, not poses: they are computed where they are used, a chunk at a time on a
+    /// long run (docs/performance.md). Error: the machine has no kinematics.
+    pub fn reference_poses_at(
+        &self,
+        machine: &Machine,
+        rows: std::ops::Range<usize>,
+    ) -> Result<Vec<Pose>, Error> {
+        let kin = machine.require_kinematics()?;
+        let pos = self.reference_positions();
+        Ok(rows
+            .map(|k| kin.model.forward(&kin.axes.at(&pos, k)))
+            .collect())
+    }
+
+    /// [`Run::reference_poses_at`] of every sample.
+    pub fn reference_poses(&self, machine: &Machine) -> Result<Vec<Pose>, Error> {
+        self.reference_poses_at(machine, 0..self.len())
+    }
+
+    /// The reference tool path of the contour search, built from the poses computed one at a
+    /// time (never held whole).
+    pub fn reference_path(&self, machine: &Machine) -> Result<vcnc_contour::ContourPath, Error> {
+        let kin = machine.require_kinematics()?;
+        let pos = self.reference_positions();
+        let poses = (0..self.len()).map(|k| kin.model.forward(&kin.axes.at(&pos, k)));
+        Ok(vcnc_contour::ContourPath::from_poses(poses)?)
     }
 
     /// True when some samples are in tool-centre-point mode.
@@ -204,13 +237,6 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
             warnings.extend(limit_warnings(a, s, file));
         }
     }
-    let poses = match &machine.kinematics {
-        Some(_) => Some(forward_poses(
-            machine,
-            &axes.iter().map(|a| a.pos.as_slice()).collect::<Vec<_>>(),
-        )?),
-        None => None,
-    };
     let (lines, classes) = traj
         .sample_spans()
         .map(|i| {
@@ -223,7 +249,6 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         ts: traj.ts,
         loaded,
         axes,
-        poses,
         warnings,
         lines,
         classes,

@@ -190,16 +190,23 @@ pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
 
 /// Cumulative arc length of a polyline, mm (0 at the first point).
 pub fn arc_length_mm(points_mm: &[[f64; 3]]) -> Vec<f64> {
+    arc_length_mm_of(points_mm.iter().copied())
+}
+
+/// [`arc_length_mm`] of points given one at a time (a long path need not be held whole).
+pub fn arc_length_mm_of(points_mm: impl IntoIterator<Item = [f64; 3]>) -> Vec<f64> {
+    let points = points_mm.into_iter();
     let mut s = 0.0;
-    let mut out = Vec::with_capacity(points_mm.len());
-    for (i, p) in points_mm.iter().enumerate() {
-        if i > 0 {
-            let q = points_mm[i - 1];
+    let mut out = Vec::with_capacity(points.size_hint().0);
+    let mut prev: Option<[f64; 3]> = None;
+    for p in points {
+        if let Some(q) = prev {
             let d = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
             if d.is_finite() {
                 s += d;
             }
         }
+        prev = Some(p);
         out.push(s);
     }
     out
