@@ -18,7 +18,7 @@ use vcnc_pipeline::stats::scaled_diff;
 use vcnc_pipeline::sweep::SweepOutcome;
 use vcnc_pipeline::{AxisIdentification, AxisTracking, IdentificationSource, Prediction, Run};
 use vcnc_report::style::units;
-use vcnc_report::vtp::{PointScalars, VtpEncoding, VtpPath, write_vtp};
+use vcnc_report::vtp::{PointScalars, Vectors, VtpEncoding, VtpPath, write_vtp};
 use vcnc_report::{
     self as vr, Axis, AxisErrors, BodeCurve, BodeGroup, ColouredPath, Comparison, HeatMap, Mark,
     PathErrors, PathViewOptions, Quantity, Role, Series,
@@ -492,26 +492,15 @@ pub fn reference(report: &mut RunReport, run: &Run) -> Result<()> {
 /// Points as `[x, y, z]` per sample.
 type Points = Vec<[f64; 3]>;
 
-/// Tool tips (mm) and, when asked, tool axes of the path of `pos` (axis positions per machine
-/// axis), computed 65 536 samples at a time.
-fn tips_and_axes(
-    machine: &Machine,
-    pos: &[&[f64]],
-    n: usize,
-    with_axes: bool,
-) -> Result<(Points, Points)> {
-    let (mut tip, mut axis) = (Vec::with_capacity(n), Vec::new());
-    if with_axes {
-        axis.reserve_exact(n);
-    }
+/// Tool tips (mm) of the path of `pos` (axis positions per machine axis), computed 65 536
+/// samples at a time.
+fn tips(machine: &Machine, pos: &[&[f64]], n: usize) -> Result<Points> {
+    let mut tip = Vec::with_capacity(n);
     for start in (0..n).step_by(1 << 16) {
         let poses = poses_at(machine, pos, start..(start + (1 << 16)).min(n))?;
         tip.extend(poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]));
-        if with_axes {
-            axis.extend(poses.iter().map(|q| [q.o.x, q.o.y, q.o.z]));
-        }
     }
-    Ok((tip, axis))
+    Ok(tip)
 }
 
 /// `v` scaled by `k` in place (mm → µm, rad → mrad), taken out of its owner.
@@ -551,7 +540,7 @@ pub fn prediction(
     // a chunk at a time (a prediction keeps axis positions, not poses).
     let tip_t = scaled_in_place(&mut first.prediction.true_contour.tip_mm, 1e3);
     let or_t = scaled_in_place(&mut first.prediction.true_contour.orientation_rad, 1e3);
-    let (true_tip, _) = tips_and_axes(machine, &first.prediction.true_positions(), n, false)?;
+    let true_tip = tips(machine, &first.prediction.true_positions(), n)?;
     let (tip_m, or_m): (Vec<Vec<f64>>, Vec<Vec<f64>>) = models
         .iter_mut()
         .map(|m| {
@@ -642,11 +631,19 @@ pub fn prediction(
 
     {
         // The 3-D export: the true machine's path with its errors, the models' errors beside
-        // them. Written before the tracking figure (the file list keeps its order), so that
-        // its tool axes are gone before the tracking errors are computed.
-        let (_, tool_axis) =
-            tips_and_axes(machine, &models[0].prediction.true_positions(), n, true)?;
-        let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&run.lines));
+        // them. Written before the tracking figure (the file list keeps its order), which
+        // takes the axis positions' memory; the tool axes are computed per point as written.
+        let kin = machine.require_kinematics()?;
+        let true_pos = models[0].prediction.true_positions();
+        let tool_axis = |k: usize| {
+            let q = kin.model.forward(&kin.axes.at(&true_pos, k));
+            [q.o.x, q.o.y, q.o.z]
+        };
+        let axes = Vectors::Computed {
+            len: n,
+            at: &tool_axis,
+        };
+        let mut vtp = VtpPath::contour_with(&true_tip, &tip_t, &or_t, axes, Some(&run.lines));
         let tags: Vec<String> = models
             .iter()
             .map(|m| m.label.replace('\'', "").replace(' ', "_"))

@@ -79,4 +79,4 @@ pub use report::{
     FigureEntry, FileEntry, Input, MANIFEST_FILE, Manifest, REPORT_FILE, Table, build_report,
 };
 pub use style::{Quantity, Role};
-pub use vtp::{PointScalars, PointVectors, VtpEncoding, VtpPath, write_vtp};
+pub use vtp::{PointScalars, PointVectors, Vectors, VtpEncoding, VtpPath, write_vtp};

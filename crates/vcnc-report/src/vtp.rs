@@ -30,12 +30,68 @@ pub struct PointScalars<'a> {
 }
 
 /// A per-point vector array (3 components).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Clone)]
 pub struct PointVectors<'a> {
     /// Array name (`tool_axis`).
     pub name: String,
     /// One vector per path point.
-    pub values: &'a [[f64; 3]],
+    pub values: Vectors<'a>,
+}
+
+/// The vectors of a [`PointVectors`] array: given, or computed per point as they are
+/// written (a long path's tool axes, from its axis positions, need not be held).
+#[derive(Clone, Copy)]
+pub enum Vectors<'a> {
+    /// One vector per point.
+    Given(&'a [[f64; 3]]),
+    /// `len` vectors, vector `i` computed by `at(i)` (called more than once per point).
+    Computed {
+        /// Number of vectors.
+        len: usize,
+        /// Vector of point `i`.
+        at: &'a dyn Fn(usize) -> [f64; 3],
+    },
+}
+
+impl Vectors<'_> {
+    /// Number of vectors.
+    pub fn len(&self) -> usize {
+        match self {
+            Vectors::Given(v) => v.len(),
+            Vectors::Computed { len, .. } => *len,
+        }
+    }
+
+    /// No vectors.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Vector `i`.
+    pub fn at(&self, i: usize) -> [f64; 3] {
+        match self {
+            Vectors::Given(v) => v[i],
+            Vectors::Computed { at, .. } => at(i),
+        }
+    }
+}
+
+impl std::fmt::Debug for Vectors<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Vectors::Given(v) => f.debug_tuple("Given").field(&v.len()).finish(),
+            Vectors::Computed { len, .. } => f.debug_struct("Computed").field("len", len).finish(),
+        }
+    }
+}
+
+impl std::fmt::Debug for PointVectors<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PointVectors")
+            .field("name", &self.name)
+            .field("values", &self.values)
+            .finish()
+    }
 }
 
 /// How array values are stored.
@@ -49,7 +105,7 @@ pub enum VtpEncoding {
 }
 
 /// A tool-tip path with its per-point data.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct VtpPath<'a> {
     /// Tool-tip positions in the workpiece frame, mm. Points with a non-finite coordinate are
     /// left out and break the polyline.
@@ -70,6 +126,23 @@ impl<'a> VtpPath<'a> {
         contour_error_um: &'a [f64],
         orientation_error_mrad: &'a [f64],
         tool_axis: &'a [[f64; 3]],
+        block_line: Option<&'a [u32]>,
+    ) -> VtpPath<'a> {
+        Self::contour_with(
+            points_mm,
+            contour_error_um,
+            orientation_error_mrad,
+            Vectors::Given(tool_axis),
+            block_line,
+        )
+    }
+
+    /// [`VtpPath::contour`] with the tool axes given as [`Vectors`] (e.g. computed per point).
+    pub fn contour_with(
+        points_mm: &'a [[f64; 3]],
+        contour_error_um: &'a [f64],
+        orientation_error_mrad: &'a [f64],
+        tool_axis: Vectors<'a>,
         block_line: Option<&'a [u32]>,
     ) -> VtpPath<'a> {
         VtpPath {
@@ -135,7 +208,7 @@ impl<'a> VtpPath<'a> {
                 }
             }
             for v in &self.vectors {
-                if let Some(c) = v.values[i].iter().find(|c| !c.is_finite()) {
+                if let Some(c) = v.values.at(i).iter().find(|c| !c.is_finite()) {
                     return Err(Error::NonFinite {
                         what: format!("vtp array '{}'", v.name),
                         index: i,
@@ -342,7 +415,7 @@ fn vtp_pieces(path: &VtpPath, enc: VtpEncoding, emit: &mut dyn FnMut(&str)) -> R
         p.data_array(Some(&s.name), 1, m, values, enc);
     }
     for vec in &path.vectors {
-        let values = kept.iter().flat_map(|&i| vec.values[i]);
+        let values = kept.iter().flat_map(|&i| vec.values.at(i));
         p.data_array(Some(&vec.name), 3, 3 * m, values, enc);
     }
     if let Some(l) = path.block_line {
