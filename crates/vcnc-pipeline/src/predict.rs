@@ -354,90 +354,86 @@ pub fn predict_many(
     run: &Run,
     model_sets: &[&[DriveModel]],
 ) -> Result<Vec<Prediction>, Error> {
-    use rayon::prelude::*;
-    check_model_sets(run, model_sets)?;
-    let sims = machine
-        .axes
-        .par_iter()
-        .zip(run.axes.par_iter())
-        .enumerate()
-        .map(|(i, (axis, s))| simulate_axis(axis, s, run.ts, model_sets, i))
-        .collect::<Result<Vec<_>, Error>>()?;
+    let sims = simulate_all(machine, run, model_sets)?;
     contours(machine, run, sims, model_sets.len())
 }
 
-/// [`predict`] for a run that is not needed whole afterwards: each axis' reference velocity
-/// and acceleration are dropped as soon as that axis has been simulated (`run.axes[i].vel`
-/// and `.acc` are left empty; the positions stay), so that a long run never holds them next
-/// to the predicted positions and the contour search's path (docs/performance.md). The
-/// prediction is bit-identical to [`predict`]'s.
+/// [`predict`] for a run that is not needed whole afterwards: the reference velocities and
+/// accelerations are dropped once the drives and models have been simulated
+/// (`run.axes[i].vel` and `.acc` are left empty; the positions stay), so that a long run never
+/// holds them next to the contour search's path and the contour errors
+/// (docs/performance.md). The prediction is bit-identical to [`predict`]'s.
 pub fn predict_releasing_rates(
     machine: &Machine,
     run: &mut Run,
     models: &[DriveModel],
 ) -> Result<Prediction, Error> {
-    use rayon::prelude::*;
-    let model_sets = [models];
-    check_model_sets(run, &model_sets)?;
-    let ts = run.ts;
-    let sims = machine
-        .axes
-        .par_iter()
-        .zip(run.axes.par_iter_mut())
-        .enumerate()
-        .map(|(i, (axis, s))| {
-            let sim = simulate_axis(axis, s, ts, &model_sets, i);
-            s.vel = Vec::new();
-            s.acc = Vec::new();
-            sim
-        })
-        .collect::<Result<Vec<_>, Error>>()?;
+    let sims = simulate_all(machine, run, &[models])?;
+    for a in &mut run.axes {
+        a.vel = Vec::new();
+        a.acc = Vec::new();
+    }
     let mut all = contours(machine, run, sims, 1)?;
     Ok(all.remove(0))
 }
 
-/// One model per machine axis in every set.
-fn check_model_sets(run: &Run, model_sets: &[&[DriveModel]]) -> Result<(), Error> {
-    match model_sets.iter().find(|m| m.len() != run.axes.len()) {
-        Some(m) => Err(Error::Usage(format!(
+/// Every axis through its true drive and through each model set, one task each (the true
+/// drives, at the servo rate, are the costly ones), collected in axis order: per axis, the
+/// true drive's trace as a prediction keeps it (its true position alone: the encoder reading,
+/// velocity, control, motor position and torque are never logged; no output of a prediction
+/// needs them, and on a long run they would be most of its memory, docs/performance.md) and
+/// axis `i` of each model set's positions.
+fn simulate_all(
+    machine: &Machine,
+    run: &Run,
+    model_sets: &[&[DriveModel]],
+) -> Result<Vec<(DriveTrace, Vec<Vec<f64>>)>, Error> {
+    use rayon::prelude::*;
+    if let Some(m) = model_sets.iter().find(|m| m.len() != run.axes.len()) {
+        return Err(Error::Usage(format!(
             "{} models for {} axes",
             m.len(),
             run.axes.len()
-        ))),
-        None => Ok(()),
+        )));
     }
-}
-
-/// One axis simulated: the true drive's trace as a prediction keeps it (its true position
-/// alone: the encoder reading, velocity, control, motor position and torque are never logged;
-/// no output of a prediction needs them, and on a long run they would be most of its memory,
-/// docs/performance.md), and axis `i` of each model set's positions.
-fn simulate_axis(
-    axis: &vcnc_machine::Axis,
-    s: &crate::run::AxisSignals,
-    ts: f64,
-    model_sets: &[&[DriveModel]],
-    i: usize,
-) -> Result<(DriveTrace, Vec<Vec<f64>>), Error> {
-    let drive_error = |source| Error::Drive {
-        axis: axis.name,
-        source,
-    };
-    let (true_position, saturated_ticks) = axis
-        .drive
-        .simulate_true_position(s.reference(), ts)
-        .map_err(drive_error)?;
-    let trace = DriveTrace {
-        true_position,
-        saturated_ticks,
-        ts,
-        ..DriveTrace::default()
-    };
-    let models = model_sets
-        .iter()
-        .map(|m| simulate_model(&m[i], s, ts))
-        .collect::<Result<Vec<_>, Error>>()?;
-    Ok((trace, models))
+    let (axes, ts) = (run.axes.len().min(machine.axes.len()), run.ts);
+    // Task t: axis t % axes, the true drive (t < axes) or model set t / axes - 1.
+    let mut out = (0..axes * (1 + model_sets.len()))
+        .into_par_iter()
+        .map(|t| {
+            let (i, s) = (t % axes, &run.axes[t % axes]);
+            match (t / axes).checked_sub(1) {
+                None => {
+                    let axis = &machine.axes[i];
+                    let (true_position, saturated_ticks) = axis
+                        .drive
+                        .simulate_true_position(s.reference(), ts)
+                        .map_err(|source| Error::Drive {
+                            axis: axis.name,
+                            source,
+                        })?;
+                    Ok(DriveTrace {
+                        true_position,
+                        saturated_ticks,
+                        ts,
+                        ..DriveTrace::default()
+                    })
+                }
+                Some(set) => simulate_model(&model_sets[set][i], s, ts).map(|x| DriveTrace {
+                    true_position: x,
+                    ts,
+                    ..DriveTrace::default()
+                }),
+            }
+        })
+        .collect::<Result<Vec<DriveTrace>, Error>>()?
+        .into_iter();
+    let truth: Vec<DriveTrace> = out.by_ref().take(axes).collect();
+    let mut models: Vec<Vec<Vec<f64>>> = (0..axes).map(|_| Vec::new()).collect();
+    for (t, m) in out.enumerate() {
+        models[t % axes].push(m.true_position);
+    }
+    Ok(truth.into_iter().zip(models).collect())
 }
 
 /// The contour errors of the simulated axes (per axis: the true trace and each model set's
