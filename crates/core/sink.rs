@@ -115,9 +115,11 @@ impl TableWriter {
         Self::create_sized(dir, stem, header, opts, None)
     }
 
-    /// [`TableWriter::create`] for a table whose number of rows before decimation is known
-    /// (`rows`): `auto` decides the format at once instead of buffering the first
-    /// [`AUTO_CSV_ROWS`] rows (on a long run, 75 MB of a 47-column table). The file is the same.
+    /// A table `DIR/STEM.csv` or `DIR/STEM.parquet` with the columns `header` (of which the
+    /// options keep some; unknown `--columns` names are bad input naming the available ones).
+    /// When the number of rows before decimation is known (`rows`), `auto` decides the format
+    /// at once instead of buffering the first [`AUTO_CSV_ROWS`] rows (on a long run, 75 MB of
+    /// a 47-column table); the file is the same.
     pub fn create_sized(
         dir: &Path,
         stem: &str,

@@ -377,6 +377,10 @@ pub fn predict_releasing_rates(
     Ok(all.remove(0))
 }
 
+/// One axis simulated: the true drive's trace as a prediction keeps it, and the axis'
+/// positions with each model set.
+type AxisSims = (DriveTrace, Vec<Vec<f64>>);
+
 /// Every axis through its true drive and through each model set, one task each (the true
 /// drives, at the servo rate, are the costly ones), collected in axis order: per axis, the
 /// true drive's trace as a prediction keeps it (its true position alone: the encoder reading,
@@ -387,7 +391,7 @@ fn simulate_all(
     machine: &Machine,
     run: &Run,
     model_sets: &[&[DriveModel]],
-) -> Result<Vec<(DriveTrace, Vec<Vec<f64>>)>, Error> {
+) -> Result<Vec<AxisSims>, Error> {
     use rayon::prelude::*;
     if let Some(m) = model_sets.iter().find(|m| m.len() != run.axes.len()) {
         return Err(Error::Usage(format!(
@@ -442,7 +446,7 @@ fn simulate_all(
 fn contours(
     machine: &Machine,
     run: &Run,
-    sims: Vec<(DriveTrace, Vec<Vec<f64>>)>,
+    sims: Vec<AxisSims>,
     sets: usize,
 ) -> Result<Vec<Prediction>, Error> {
     use rayon::prelude::*;
