@@ -163,10 +163,10 @@ fn identified_nmv5000_poles_are_within_tolerance() {
 fn windowed_contour_error_equals_brute_force_on_every_spiral_sample() {
     // Truth: the O(N·M) brute-force foot-point search (issue 5).
     let f = fixture();
-    let reference = f.run.poses.as_ref().unwrap();
+    let reference = f.run.reference_poses(&f.machine).unwrap();
     let true_poses =
         predict::poses_at(&f.machine, &f.refined.true_positions(), 0..f.run.len()).unwrap();
-    let brute = vcnc_contour::contour_errors_brute_force(reference, &true_poses).unwrap();
+    let brute = vcnc_contour::contour_errors_brute_force(&reference, &true_poses).unwrap();
     assert_eq!(brute.tip_mm.len(), f.refined.true_contour.tip_mm.len());
     for (k, (a, b)) in brute
         .tip_mm
@@ -200,7 +200,7 @@ fn reference_poses_round_trip_the_programmed_tool_tip() {
     )
     .unwrap();
     let traj = &loaded.trajectory;
-    let poses = f.run.poses.as_ref().unwrap();
+    let poses = f.run.reference_poses(&f.machine).unwrap();
     let (x, y, z) = (
         traj.axis(AxisName::X).unwrap(),
         traj.axis(AxisName::Y).unwrap(),

@@ -100,7 +100,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         )?),
         None => None,
     };
-    write_tables(out, &original, &comp, &after, table)?;
+    write_tables(out, &machine, &original, &comp, &after, table)?;
     let mut report = RunReport::new(
         out,
         format!(
@@ -113,7 +113,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
     report.input("models", model_file.as_str());
     report.input("velocity headroom", headroom.to_string());
     if let (Some(b), Some(a)) = (&before.contour, &after.contour) {
-        write_figure(&mut report, &original, b, a)?;
+        write_figure(&mut report, &machine, &original, b, a)?;
     }
     report.file(
         "compensated.ngc",
@@ -208,6 +208,7 @@ fn summary(
 /// positions) and `contour` (the compensated program's contour errors on the true machine).
 fn write_tables(
     out: &Path,
+    machine: &Machine,
     original: &Run,
     comp: &Compensation,
     after: &Judged,
@@ -240,7 +241,7 @@ fn write_tables(
     };
     let tip: Vec<f64> = contour.tip_mm.iter().map(|e| e * 1e3).collect();
     let or: Vec<f64> = contour.orientation_rad.iter().map(|e| e * 1e3).collect();
-    let s = compensate::path_position_mm(original, contour);
+    let s = compensate::path_position_mm(machine, original, contour);
     write_table(
         out,
         "contour",
@@ -257,14 +258,15 @@ fn write_tables(
 /// compensated program on the true machine, along the original path (log scale).
 fn write_figure(
     report: &mut RunReport,
+    machine: &Machine,
     original: &Run,
     before: &vcnc_contour::ContourReport,
     after: &vcnc_contour::ContourReport,
 ) -> Result<()> {
     let floor = |v: &[f64], k: f64| -> Vec<f64> { v.iter().map(|e| (e * k).max(1e-4)).collect() };
     let (sb, sa) = (
-        compensate::path_position_mm(original, before),
-        compensate::path_position_mm(original, after),
+        compensate::path_position_mm(machine, original, before),
+        compensate::path_position_mm(machine, original, after),
     );
     let (tb, ta) = (floor(&before.tip_mm, 1e3), floor(&after.tip_mm, 1e3));
     let (ob, oa) = (

@@ -202,24 +202,21 @@ fn demo_report(
         &[(VCNC_MODEL, &p.figures(&mask)), (PAPER, &pp.figures(&mask))],
     );
     identification_report_table(&mut report, ids);
-    let (tp, tpp) = (p.tracking(machine, run), pp.tracking(machine, run));
     figures::prediction(
         &mut report,
         machine,
         run,
         &mask,
-        &[
+        vec![
             ModelErrors {
                 label: VCNC_MODEL,
                 role: Role::Model,
-                prediction: p,
-                tracking: &tp,
+                prediction: p.clone(),
             },
             ModelErrors {
                 label: PAPER,
                 role: Role::Paper,
-                prediction: pp,
-                tracking: &tpp,
+                prediction: pp.clone(),
             },
         ],
     )?;

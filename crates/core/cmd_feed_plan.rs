@@ -106,6 +106,7 @@ pub fn feed_plan(
     );
     write_figure(
         &mut report,
+        &machine,
         &plan,
         [
             original.contour(&machine)?,
@@ -179,8 +180,8 @@ fn write_blocks(out: &Path, plan: &FeedPlan) -> Result<()> {
 
 /// Tool-tip speed (mm/s) of a run's reference at each sample, and the arc length (mm) of its
 /// reference tip path there.
-fn speed_along(run: &Run) -> (Vec<f64>, Vec<f64>) {
-    let poses = run.poses.as_deref().unwrap_or(&[]);
+fn speed_along(machine: &Machine, run: &Run) -> (Vec<f64>, Vec<f64>) {
+    let poses = run.reference_poses(machine).unwrap_or_default();
     let mut s = Vec::with_capacity(poses.len());
     let mut v = Vec::with_capacity(poses.len());
     let mut acc = 0.0;
@@ -197,6 +198,7 @@ fn speed_along(run: &Run) -> (Vec<f64>, Vec<f64>) {
 /// original path, for the original, the per-line plan and the uniform scale.
 fn write_figure(
     report: &mut RunReport,
+    machine: &Machine,
     plan: &FeedPlan,
     judged: [&vcnc_contour::ContourReport; 3],
     tolerance_um: f64,
@@ -208,13 +210,14 @@ fn write_figure(
     ];
     let pos: Vec<Vec<f64>> = judged
         .iter()
-        .map(|j| compensate::path_position_mm(&plan.original, j))
+        .map(|j| compensate::path_position_mm(machine, &plan.original, j))
         .collect();
     let err: Vec<Vec<f64>> = judged
         .iter()
         .map(|j| j.tip_mm.iter().map(|e| (e * 1e3).max(1e-3)).collect())
         .collect();
-    let speeds: Vec<(Vec<f64>, Vec<f64>)> = runs.iter().map(|r| speed_along(r.2)).collect();
+    let speeds: Vec<(Vec<f64>, Vec<f64>)> =
+        runs.iter().map(|r| speed_along(machine, r.2)).collect();
     let tol = vec![tolerance_um; 2];
     let ends = [0.0, pos[0].last().copied().unwrap_or(1.0)];
     let mut e_series: Vec<Series> = runs

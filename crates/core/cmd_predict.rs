@@ -30,7 +30,7 @@ pub fn predict(
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
-    let run = run::prepare_file(&machine, program, ctx.lenient)?;
+    let mut run = run::prepare_file(&machine, program, ctx.lenient)?;
     let mask = run.measured(measured);
     print_warnings(&run.warnings);
     let (models, source): (Vec<DriveModel>, String) = match model {
@@ -47,8 +47,11 @@ pub fn predict(
             )
         }
     };
-    let p = predict::predict(&machine, &run, &models)?;
+    // The run's reference velocities and accelerations are not needed once simulated
+    // (docs/performance.md).
+    let p = predict::predict_releasing_rates(&machine, &mut run, &models)?;
     ensure_dir(out)?;
+    let figures_of = p.figures(&mask);
     let summary = PredictSummary {
         contour: ContourSummary::of(&p, &run, measured),
         machine: machine.name.clone(),
@@ -68,18 +71,16 @@ pub fn predict(
         table,
         ctx,
     );
-    contour_report_table(&mut report, &[(VCNC_MODEL, &p.figures(&mask))]);
-    let tracking = p.tracking(&machine, &run);
+    contour_report_table(&mut report, &[(VCNC_MODEL, &figures_of)]);
     figures::prediction(
         &mut report,
         &machine,
         &run,
         &mask,
-        &[ModelErrors {
+        vec![ModelErrors {
             label: VCNC_MODEL,
             role: Role::Model,
-            prediction: &p,
-            tracking: &tracking,
+            prediction: p,
         }],
     )?;
     report_table_file(
@@ -90,7 +91,7 @@ pub fn predict(
     );
     report.finish()?;
     if !ctx.quiet {
-        let rows: Vec<Vec<String>> = contour_rows(&p.figures(&mask))
+        let rows: Vec<Vec<String>> = contour_rows(&figures_of)
             .into_iter()
             .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
             .collect();

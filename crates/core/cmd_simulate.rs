@@ -37,14 +37,15 @@ pub fn interpolate(
         header.push(format!("{}_vel", a.name));
         header.push(format!("{}_acc", a.name));
     }
-    let poses = run.poses.as_deref().unwrap_or(&[]);
     // Computed a row group at a time (docs/performance.md).
     let table_path = write_table_rows(out, "reference", header, run.len(), table, |rows, cols| {
         let mut c = cols.iter_mut();
         let mut next = || c.next().expect("one buffer per header column");
         next().extend(rows.clone().map(|k| run.time(k)));
         if tcp {
-            let p = poses.get(rows.clone()).unwrap_or(&[]);
+            let p = run
+                .reference_poses_at(&machine, rows.clone())
+                .unwrap_or_default();
             for i in 0..3 {
                 next().extend(p.iter().map(|q| q.p[i]));
             }

@@ -11,7 +11,6 @@
 use anyhow::Result;
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::DriveModel;
-use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 use vcnc_pipeline::frf::{BodeData, standard_freqs};
 use vcnc_pipeline::predict::poses_at;
@@ -19,7 +18,7 @@ use vcnc_pipeline::stats::scaled_diff;
 use vcnc_pipeline::sweep::SweepOutcome;
 use vcnc_pipeline::{AxisIdentification, AxisTracking, IdentificationSource, Prediction, Run};
 use vcnc_report::style::units;
-use vcnc_report::vtp::{PointScalars, VtpEncoding, VtpPath, write_vtp};
+use vcnc_report::vtp::{PointScalars, Vectors, VtpEncoding, VtpPath, write_vtp};
 use vcnc_report::{
     self as vr, Axis, AxisErrors, BodeCurve, BodeGroup, ColouredPath, Comparison, HeatMap, Mark,
     PathErrors, PathViewOptions, Quantity, Role, Series,
@@ -384,10 +383,9 @@ pub struct ModelErrors<'a> {
     pub label: &'a str,
     /// Role.
     pub role: Role,
-    /// Its prediction (sharing the true drives of the first one).
-    pub prediction: &'a Prediction,
-    /// Its per-axis tracking (`Prediction::tracking`: the true drives' error and the model's).
-    pub tracking: &'a [AxisTracking],
+    /// Its prediction (sharing the true drives of the first one), consumed by the figures:
+    /// its errors are scaled and its positions turned into tracking errors in place.
+    pub prediction: Prediction,
 }
 
 /// Tracking errors x_r − x of the axes the program moves: the truth (`tracking[i].error`) and
@@ -491,28 +489,25 @@ pub fn reference(report: &mut RunReport, run: &Run) -> Result<()> {
     )
 }
 
-fn tips(poses: &[Pose]) -> Vec<[f64; 3]> {
-    poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]).collect()
-}
-
 /// Points as `[x, y, z]` per sample.
 type Points = Vec<[f64; 3]>;
 
-/// Tool tips (mm) and tool axes of the true machine's path, computed 65 536 samples at a time.
-fn true_tips_and_axes(machine: &Machine, run: &Run, p: &Prediction) -> Result<(Points, Points)> {
-    let n = run.len();
-    let pos = p.true_positions();
-    let (mut tip, mut axis) = (Vec::with_capacity(n), Vec::with_capacity(n));
+/// Tool tips (mm) of the path of `pos` (axis positions per machine axis), computed 65 536
+/// samples at a time.
+fn tips(machine: &Machine, pos: &[&[f64]], n: usize) -> Result<Points> {
+    let mut tip = Vec::with_capacity(n);
     for start in (0..n).step_by(1 << 16) {
-        let poses = poses_at(machine, &pos, start..(start + (1 << 16)).min(n))?;
+        let poses = poses_at(machine, pos, start..(start + (1 << 16)).min(n))?;
         tip.extend(poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]));
-        axis.extend(poses.iter().map(|q| [q.o.x, q.o.y, q.o.z]));
     }
-    Ok((tip, axis))
+    Ok(tip)
 }
 
-fn scaled(v: &[f64], k: f64) -> Vec<f64> {
-    v.iter().map(|x| x * k).collect()
+/// `v` scaled by `k` in place (mm → µm, rad → mrad), taken out of its owner.
+fn scaled_in_place(v: &mut Vec<f64>, k: f64) -> Vec<f64> {
+    let mut v = std::mem::take(v);
+    v.iter_mut().for_each(|x| *x *= k);
+    v
 }
 
 /// The figures and the 3-D export of a prediction, models first to last as given (the first
@@ -526,107 +521,157 @@ fn scaled(v: &[f64], k: f64) -> Vec<f64> {
 /// - `toolpath.vtp`: the path with both errors, the tool axis and the block lines (ParaView).
 ///
 /// `measured` selects the samples whose blocks may be marked as worst (feed moves unless
-/// `--include-rapids`).
+/// `--include-rapids`). The predictions are consumed: each series is computed in the memory
+/// of the one it comes from, and the poses a chunk at a time, so that a long run's figures
+/// cost little beyond its prediction (docs/performance.md).
 pub fn prediction(
     report: &mut RunReport,
     machine: &Machine,
     run: &Run,
     measured: &[bool],
-    models: &[ModelErrors],
+    mut models: Vec<ModelErrors>,
 ) -> Result<()> {
-    let Some(first) = models.first() else {
+    let Some(first) = models.first_mut() else {
         return Ok(());
     };
-    let p = first.prediction;
     let name = program_name(&run.file);
-    // The worst blocks are marked among the measured samples only (feed moves unless
-    // --include-rapids), as summary.json's worst_blocks; line 0 is left unmarked.
-    let lines: Vec<u32> = run
-        .lines
-        .iter()
-        .zip(measured)
-        .map(|(l, m)| if *m { *l } else { 0 })
-        .collect();
-    let lines = &lines;
-    // The true machine's tool tips and axes, by the forward kinematics a chunk at a time (a
-    // prediction keeps axis positions, not poses).
-    let (true_tip, tool_axis) = true_tips_and_axes(machine, run, p)?;
-    let ref_tip = run.poses.as_deref().map_or_else(|| true_tip.clone(), tips);
-    let s = vr::arc_length_mm(&ref_tip);
-    let tip_t = scaled(&p.true_contour.tip_mm, 1e3);
-    let or_t = scaled(&p.true_contour.orientation_rad, 1e3);
-    let tip_m: Vec<Vec<f64>> = models
-        .iter()
-        .map(|m| scaled(&m.prediction.predicted_contour.tip_mm, 1e3))
-        .collect();
-    let or_m: Vec<Vec<f64>> = models
-        .iter()
-        .map(|m| scaled(&m.prediction.predicted_contour.orientation_rad, 1e3))
-        .collect();
-
-    let opts = PathViewOptions {
-        worst_blocks: WORST_BLOCKS,
-        ..PathViewOptions::default()
-    };
-    report.figure(
-        "toolpath_contour.svg",
-        vr::contour_path_views(
-            &format!("{name}: tool-tip path coloured by the true machine's contour error"),
-            &ColouredPath {
-                points_mm: &true_tip,
-                values: &tip_t,
-                value: Quantity::new("contour error", units::UM),
-                block_line: Some(lines),
-            },
-            &opts,
-        ),
-        &format!(
-            "The true machine's tool-tip path in the workpiece frame (isometric view and the two \
-             projections that show it best), coloured by its contour error; the colour scale \
-             ends at the {}th percentile so that one spike does not darken the part (larger \
-             values take the top colour). The {} worst blocks are marked with their G-code \
-             line numbers.",
-            opts.clip_percentile, opts.worst_blocks
-        ),
-        section::CONTOUR,
-    )?;
-
-    fn series<'a>(models: &[ModelErrors], s: &'a [f64], v: &'a [Vec<f64>]) -> Vec<Series<'a>> {
-        models
+    let n = run.len();
+    // The true machine's errors in µm and mrad, and its tool tips by the forward kinematics
+    // a chunk at a time (a prediction keeps axis positions, not poses).
+    let tip_t = scaled_in_place(&mut first.prediction.true_contour.tip_mm, 1e3);
+    let or_t = scaled_in_place(&mut first.prediction.true_contour.orientation_rad, 1e3);
+    let true_tip = tips(machine, &first.prediction.true_positions(), n)?;
+    let (tip_m, or_m): (Vec<Vec<f64>>, Vec<Vec<f64>>) = models
+        .iter_mut()
+        .map(|m| {
+            let c = &mut m.prediction.predicted_contour;
+            (
+                scaled_in_place(&mut c.tip_mm, 1e3),
+                scaled_in_place(&mut c.orientation_rad, 1e3),
+            )
+        })
+        .unzip();
+    {
+        // The worst blocks are marked among the measured samples only (feed moves unless
+        // --include-rapids), as summary.json's worst_blocks; line 0 is left unmarked.
+        let lines: Vec<u32> = run
+            .lines
             .iter()
-            .zip(v)
-            .map(|(m, y)| Series::line(m.label, m.role, s, y))
-            .collect()
-    }
-    let labels: Vec<&str> = models.iter().map(|m| m.label).collect();
-    report.figure(
-        "contour_error.svg",
-        vr::error_along_path(
-            &format!("{name}: contour and orientation errors along the path"),
-            &PathErrors {
-                arc_length_mm: &s,
-                contour_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &tip_t),
-                contour_models: series(models, &s, &tip_m),
-                orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
-                orientation_models: series(models, &s, &or_m),
-                block_line: Some(lines),
-                worst_blocks: WORST_BLOCKS,
-                points_mm: Some(&true_tip),
-            },
-        ),
-        &format!(
-            "Tool-tip contour error (µm) and tool-orientation error (mrad) against the arc \
-             length of the reference tool-tip path, of the true machine and as predicted by the \
-             {}; under each, model − true machine. Dashed lines mark the {WORST_BLOCKS} worst \
-             blocks by their G-code line numbers.",
-            labels.join(" and the ")
-        ),
-        section::CONTOUR,
-    )?;
+            .zip(measured)
+            .map(|(l, m)| if *m { *l } else { 0 })
+            .collect();
+        let lines = &lines;
+        let opts = PathViewOptions {
+            worst_blocks: WORST_BLOCKS,
+            ..PathViewOptions::default()
+        };
+        report.figure(
+            "toolpath_contour.svg",
+            vr::contour_path_views(
+                &format!("{name}: tool-tip path coloured by the true machine's contour error"),
+                &ColouredPath {
+                    points_mm: &true_tip,
+                    values: &tip_t,
+                    value: Quantity::new("contour error", units::UM),
+                    block_line: Some(lines),
+                },
+                &opts,
+            ),
+            &format!(
+                "The true machine's tool-tip path in the workpiece frame (isometric view and the \
+                 two projections that show it best), coloured by its contour error; the colour \
+                 scale ends at the {}th percentile so that one spike does not darken the part \
+                 (larger values take the top colour). The {} worst blocks are marked with their \
+                 G-code line numbers.",
+                opts.clip_percentile, opts.worst_blocks
+            ),
+            section::CONTOUR,
+        )?;
 
-    let model_tracking: Vec<(&str, Role, &[AxisTracking])> = models
+        // The arc length of the reference tool-tip path, its poses computed one at a time.
+        let kin = machine.require_kinematics()?;
+        let ref_pos = run.reference_positions();
+        let s = vr::arc_length_mm_of((0..n).map(|k| {
+            let q = kin.model.forward(&kin.axes.at(&ref_pos, k));
+            [q.p.x, q.p.y, q.p.z]
+        }));
+        fn series<'a>(models: &[ModelErrors], s: &'a [f64], v: &'a [Vec<f64>]) -> Vec<Series<'a>> {
+            models
+                .iter()
+                .zip(v)
+                .map(|(m, y)| Series::line(m.label, m.role, s, y))
+                .collect()
+        }
+        let labels: Vec<&str> = models.iter().map(|m| m.label).collect();
+        report.figure(
+            "contour_error.svg",
+            vr::error_along_path(
+                &format!("{name}: contour and orientation errors along the path"),
+                &PathErrors {
+                    arc_length_mm: &s,
+                    contour_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &tip_t),
+                    contour_models: series(&models, &s, &tip_m),
+                    orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
+                    orientation_models: series(&models, &s, &or_m),
+                    block_line: Some(lines),
+                    worst_blocks: WORST_BLOCKS,
+                    points_mm: Some(&true_tip),
+                },
+            ),
+            &format!(
+                "Tool-tip contour error (µm) and tool-orientation error (mrad) against the arc \
+                 length of the reference tool-tip path, of the true machine and as predicted by \
+                 the {}; under each, model − true machine. Dashed lines mark the {WORST_BLOCKS} \
+                 worst blocks by their G-code line numbers.",
+                labels.join(" and the ")
+            ),
+            section::CONTOUR,
+        )?;
+    }
+
+    {
+        // The 3-D export: the true machine's path with its errors, the models' errors beside
+        // them. Written before the tracking figure (the file list keeps its order), which
+        // takes the axis positions' memory; the tool axes are computed per point as written.
+        let kin = machine.require_kinematics()?;
+        let true_pos = models[0].prediction.true_positions();
+        let tool_axis = |k: usize| {
+            let q = kin.model.forward(&kin.axes.at(&true_pos, k));
+            [q.o.x, q.o.y, q.o.z]
+        };
+        let axes = Vectors::Computed {
+            len: n,
+            at: &tool_axis,
+        };
+        let mut vtp = VtpPath::contour_with(&true_tip, &tip_t, &or_t, axes, Some(&run.lines));
+        let tags: Vec<String> = models
+            .iter()
+            .map(|m| m.label.replace('\'', "").replace(' ', "_"))
+            .collect();
+        for ((tag, tip), or) in tags.iter().zip(&tip_m).zip(&or_m) {
+            vtp.scalars.push(PointScalars {
+                name: format!("{tag}_contour_error_um"),
+                values: tip,
+            });
+            vtp.scalars.push(PointScalars {
+                name: format!("{tag}_orientation_error_mrad"),
+                values: or,
+            });
+        }
+        write_vtp(&report.dir().join(TOOLPATH_VTP), &vtp, VtpEncoding::Base64)?;
+    }
+    drop((true_tip, tip_t, or_t, tip_m, or_m));
+
+    // Tracking errors: each prediction's axis positions become its errors in place.
+    let labels: Vec<(&str, Role)> = models.iter().map(|m| (m.label, m.role)).collect();
+    let tracks: Vec<Vec<AxisTracking>> = models
+        .into_iter()
+        .map(|m| m.prediction.into_tracking(machine, run))
+        .collect();
+    let model_tracking: Vec<(&str, Role, &[AxisTracking])> = labels
         .iter()
-        .map(|m| (m.label, m.role, m.tracking))
+        .zip(&tracks)
+        .map(|((label, role), t)| (*label, *role, t.as_slice()))
         .collect();
     tracking(
         report,
@@ -637,24 +682,6 @@ pub fn prediction(
         "Tracking error x_r − x of each axis the program moves (axes it leaves still are left \
          out): the true drives and the models; below each, model − true machine.",
     )?;
-
-    // The 3-D export: the true machine's path with its errors, the models' errors beside them.
-    let mut vtp = VtpPath::contour(&true_tip, &tip_t, &or_t, &tool_axis, Some(&run.lines));
-    let tags: Vec<String> = models
-        .iter()
-        .map(|m| m.label.replace('\'', "").replace(' ', "_"))
-        .collect();
-    for ((tag, tip), or) in tags.iter().zip(&tip_m).zip(&or_m) {
-        vtp.scalars.push(PointScalars {
-            name: format!("{tag}_contour_error_um"),
-            values: tip,
-        });
-        vtp.scalars.push(PointScalars {
-            name: format!("{tag}_orientation_error_mrad"),
-            values: or,
-        });
-    }
-    write_vtp(&report.dir().join(TOOLPATH_VTP), &vtp, VtpEncoding::Base64)?;
     report.file(
         TOOLPATH_VTP,
         "VTK PolyData (ParaView): the true machine's tool-tip path (mm, workpiece frame) with \

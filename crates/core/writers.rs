@@ -279,7 +279,6 @@ pub fn write_contour_table(
     opts: &TableOptions,
 ) -> Result<PathBuf> {
     let n = run.len();
-    let reference = run.poses.as_deref().unwrap_or(&[]);
     let mut header = vec!["t".to_string(), "line".to_string()];
     for a in &run.axes {
         header.push(format!("{}_ref", a.name));
@@ -321,7 +320,11 @@ pub fn write_contour_table(
     ];
     // Computed a row group at a time: the poses' components and the errors in µm / mrad never
     // exist for the whole run at once.
-    let (true_pos, pred_pos) = (p.true_positions(), p.predicted_positions());
+    let (ref_pos, true_pos, pred_pos) = (
+        run.reference_positions(),
+        p.true_positions(),
+        p.predicted_positions(),
+    );
     let mut failed = None;
     let path = write_table_rows(out, "contour", header, n, opts, |rows, cols| {
         let mut c = cols.iter_mut();
@@ -336,15 +339,14 @@ pub fn write_contour_table(
                 next().extend_from_slice(&s[rows.clone()]);
             }
         }
-        // The actual poses, by the forward kinematics of this chunk's positions.
-        let [true_poses, pred_poses] = [&true_pos, &pred_pos].map(|x| {
+        // The reference and actual poses, by the forward kinematics of this chunk's positions.
+        let [ref_poses, true_poses, pred_poses] = [&ref_pos, &true_pos, &pred_pos].map(|x| {
             poses_at(machine, x, rows.clone()).unwrap_or_else(|e| {
                 failed.get_or_insert(e);
                 Vec::new()
             })
         });
-        let ref_poses = reference.get(rows.clone()).unwrap_or(&[]);
-        for poses in [ref_poses, &true_poses, &pred_poses] {
+        for poses in [&ref_poses, &true_poses, &pred_poses] {
             for i in 0..6 {
                 next().extend(
                     poses

@@ -176,6 +176,12 @@ pub struct ContourPath {
 impl ContourPath {
     /// The reference poses as a path (runs of identical poses merged into one knot).
     pub fn new(reference: &[Pose]) -> Result<Self> {
+        Self::from_poses(reference.iter().copied())
+    }
+
+    /// [`ContourPath::new`] of poses given one at a time (a long run need not hold them:
+    /// they can be computed as the path takes them).
+    pub fn from_poses(reference: impl IntoIterator<Item = Pose>) -> Result<Self> {
         Ok(Self {
             path: ReferencePath::new(reference)?,
         })

@@ -122,18 +122,17 @@ pub(crate) struct ReferencePath {
 }
 
 impl ReferencePath {
-    pub fn new(reference: &[Pose]) -> Result<Self> {
-        if reference.is_empty() {
-            return Err(Error::Empty(Sequence::Reference));
-        }
+    pub fn new(reference: impl IntoIterator<Item = Pose>) -> Result<Self> {
+        let reference = reference.into_iter();
+        let n = reference.size_hint().0;
         let mut path = ReferencePath {
-            p: Vec::with_capacity(reference.len()),
-            o: Vec::with_capacity(reference.len()),
-            first: Vec::with_capacity(reference.len()),
-            last: Vec::with_capacity(reference.len()),
+            p: Vec::with_capacity(n),
+            o: Vec::with_capacity(n),
+            first: Vec::with_capacity(n),
+            last: Vec::with_capacity(n),
         };
-        for (k, pose) in reference.iter().enumerate() {
-            let (p, o) = checked(pose, Sequence::Reference, k)?;
+        for (k, pose) in reference.enumerate() {
+            let (p, o) = checked(&pose, Sequence::Reference, k)?;
             match (path.p.last(), path.o.last(), path.last.last_mut()) {
                 (Some(lp), Some(lo), Some(last)) if *lp == p && *lo == o => *last = k,
                 _ => {
@@ -143,6 +142,9 @@ impl ReferencePath {
                     path.last.push(k);
                 }
             }
+        }
+        if path.p.is_empty() {
+            return Err(Error::Empty(Sequence::Reference));
         }
         Ok(path)
     }

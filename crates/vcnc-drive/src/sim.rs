@@ -382,6 +382,45 @@ impl EncoderReader {
     }
 }
 
+/// What the servo loop logs at each sample's first tick: every channel of a [`DriveTrace`],
+/// or the true position alone ([`Drive::simulate_true_position`]).
+trait SampleLog {
+    /// Encoder reading `xm`, true position `x` and velocity `v` (before the tick), control `u`
+    /// and torque computed at the tick.
+    fn log(&mut self, xm: f64, x: f64, v: f64, u: f64, torque: f64);
+    /// Servo ticks at which the control was saturated.
+    fn set_saturated_ticks(&mut self, n: u64);
+}
+
+impl SampleLog for DriveTrace {
+    fn log(&mut self, xm: f64, x: f64, v: f64, u: f64, torque: f64) {
+        self.position.push(xm);
+        self.true_position.push(x);
+        self.motor_position.push(x);
+        self.velocity.push(v);
+        self.control.push(u);
+        self.motor_torque.push(torque);
+    }
+    fn set_saturated_ticks(&mut self, n: u64) {
+        self.saturated_ticks = n;
+    }
+}
+
+/// The true position of each sample, and the saturated ticks.
+struct TruePositionLog {
+    x: Vec<f64>,
+    saturated_ticks: u64,
+}
+
+impl SampleLog for TruePositionLog {
+    fn log(&mut self, _xm: f64, x: f64, _v: f64, _u: f64, _torque: f64) {
+        self.x.push(x);
+    }
+    fn set_saturated_ticks(&mut self, n: u64) {
+        self.saturated_ticks = n;
+    }
+}
+
 /// The servo loop state: plant and controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct LoopState {
@@ -481,7 +520,7 @@ impl<L: Law> Servo<L> {
         reference: Reference<'_>,
         n_sub: usize,
         enc: &mut EncoderReader,
-        trace: &mut DriveTrace,
+        trace: &mut impl SampleLog,
     ) {
         let n = reference.pos.len();
         let (pos, vel, acc) = (reference.pos, reference.vel, reference.acc);
@@ -509,19 +548,15 @@ impl<L: Law> Servo<L> {
             };
             // Tick 0 of the sample: log it.
             let xm = enc.read(st.x);
-            trace.position.push(xm);
-            trace.true_position.push(st.x);
-            trace.motor_position.push(st.x);
-            trace.velocity.push(st.v);
             let r = RefSample {
                 xr: p0,
                 vr: v0,
                 ar: a0,
             };
+            let (x, v) = (st.x, st.v);
             let (u, sat) = self.tick(&mut st, xm, r);
             saturated_ticks += sat as u64;
-            trace.control.push(u);
-            trace.motor_torque.push(self.ka_kt * u);
+            trace.log(xm, x, v, u, self.ka_kt * u);
             if last {
                 break;
             }
@@ -537,7 +572,7 @@ impl<L: Law> Servo<L> {
                 saturated_ticks += sat as u64;
             }
         }
-        trace.saturated_ticks = saturated_ticks;
+        trace.set_saturated_ticks(saturated_ticks);
     }
 
     /// One tick of the linear loop (ideal encoder, zero reference): for building the sampled
@@ -671,6 +706,35 @@ impl Drive {
         let mut trace = DriveTrace::default();
         self.simulate_into(reference, ts, &mut trace)?;
         Ok(trace)
+    }
+
+    /// [`Drive::simulate`]'s true position alone, and its saturated servo ticks: the same
+    /// values bit for bit, without the other channels (a long run's prediction needs only
+    /// this, at 8 bytes a sample instead of 48; docs/performance.md). A drive with effects is
+    /// simulated in full and its true position kept.
+    pub fn simulate_true_position(
+        &self,
+        reference: Reference<'_>,
+        ts: f64,
+    ) -> Result<(Vec<f64>, u64), Error> {
+        if !self.effects().is_ideal() {
+            let t = self.simulate(reference, ts)?;
+            return Ok((t.true_position, t.saturated_ticks));
+        }
+        let n = reference.check()?;
+        let n_sub = self.ticks_per_sample(ts)?;
+        let h = ts / n_sub as f64;
+        let mut log = TruePositionLog {
+            x: Vec::with_capacity(n),
+            saturated_ticks: 0,
+        };
+        let mut enc = EncoderReader::new(self.encoder());
+        with_servo(self, h, None, |servo| match servo {
+            ServoRef::PPi(s) => s.run(reference, n_sub, &mut enc, &mut log),
+            ServoRef::Pid(s) => s.run(reference, n_sub, &mut enc, &mut log),
+            ServoRef::Smc(s) => s.run(reference, n_sub, &mut enc, &mut log),
+        })?;
+        Ok((log.x, log.saturated_ticks))
     }
 
     /// As [`Drive::simulate`], reusing `trace`'s buffers (cleared first).

@@ -796,3 +796,37 @@ fn absurdly_stiff_models_are_refused_instead_of_hanging() {
         })
     ));
 }
+
+#[test]
+fn true_position_alone_is_the_full_simulation_bit_for_bit() {
+    // Truth: the full simulation itself. The positions-only path runs the same servo loop and
+    // logs less; every controller kind, with quantisation, noise, saturation and (through the
+    // full path) the realistic effects.
+    let prog = common::identification_program(7, 6.0, TS, 0.0, 50.0, 250.0, 2500.0);
+    let mut saturating = table1_drive();
+    saturating.plant.u_max = Some(0.5);
+    for params in [
+        table1_drive(),
+        pid_drive(),
+        smc_mismatched_drive(),
+        saturating,
+        common::realistic_table1(),
+    ] {
+        let drive = params
+            .validate()
+            .unwrap()
+            .with_encoder(Encoder {
+                resolution: 1e-4,
+                noise_std: 2e-4,
+                seed: 9,
+            })
+            .unwrap();
+        let full = drive.simulate(prog.reference(), TS).unwrap();
+        let (x, sat) = drive.simulate_true_position(prog.reference(), TS).unwrap();
+        assert_eq!(sat, full.saturated_ticks);
+        assert_eq!(x.len(), full.true_position.len());
+        for (a, b) in x.iter().zip(&full.true_position) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+    }
+}

@@ -1,9 +1,10 @@
 //! Long programs (issue 15, docs/performance.md): a generated 5-axis tool-centre-point program
 //! of 1 000 000 samples at 1 ms (20 000 short segments, TCP on by `M428`, inverse-time feeds
 //! `G93`; [`programs::long_tcp_program`]) prepared (parse, interpret, interpolate, inverse
-//! kinematics, travel checks, reference poses) and predicted (true drives and models, forward
-//! kinematics, both contour errors); and the G-code parser alone on about 100 MB of the same
-//! kind of text.
+//! kinematics, travel checks) and predicted (true drives and models, forward kinematics, the
+//! reference path, both contour errors; `prepare_and_predict` as `vcnc predict` runs it, the
+//! reference rates dropped as each axis is simulated); and the G-code parser alone on about
+//! 100 MB of the same kind of text.
 //!
 //! `cargo bench -p vcnc-pipeline --bench scale`
 
@@ -42,7 +43,7 @@ fn long_program(c: &mut Criterion) {
     group.bench_function("prepare_and_predict", |b| {
         b.iter(|| {
             run::prepare(&machine, black_box(&src), "long.ngc", false)
-                .and_then(|r| predict::predict(&machine, &r, &models))
+                .and_then(|mut r| predict::predict_releasing_rates(&machine, &mut r, &models))
         })
     });
     group.finish();

@@ -1112,8 +1112,13 @@ pub fn on_true_machine(machine: &Machine, reference: &Run, run: &Run) -> Result<
 /// Where each sample of a contour report lies along the reference run's tool-tip path: the arc
 /// length of its foot point from the path's start, mm (for plotting runs of different
 /// durations over the same path).
-pub fn path_position_mm(reference: &Run, report: &vcnc_contour::ContourReport) -> Vec<f64> {
-    let poses = reference.poses.as_deref().unwrap_or(&[]);
+/// Empty on a machine without kinematics.
+pub fn path_position_mm(
+    machine: &Machine,
+    reference: &Run,
+    report: &vcnc_contour::ContourReport,
+) -> Vec<f64> {
+    let poses = reference.reference_poses(machine).unwrap_or_default();
     let mut s = Vec::with_capacity(poses.len());
     let mut acc = 0.0;
     for (i, p) in poses.iter().enumerate() {

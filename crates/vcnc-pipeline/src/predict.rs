@@ -11,8 +11,8 @@ use vcnc_machine::Machine;
 
 use crate::Error;
 use crate::run::{Measured, Run, forward_poses};
-use crate::simulate::simulate_models;
-use crate::stats::{max_abs, rms};
+use crate::simulate::{simulate_model, simulate_models};
+use crate::stats::{max_abs, rms, scaled_diff};
 
 /// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
 /// reference poses.
@@ -21,14 +21,9 @@ pub fn contour(
     run: &Run,
     actual: &[&[f64]],
 ) -> Result<(Vec<Pose>, ContourReport), Error> {
-    let reference = run
-        .poses
-        .as_ref()
-        .ok_or_else(|| vcnc_machine::Error::NoKinematics {
-            file: machine.source.clone(),
-        })?;
+    let reference = run.reference_poses(machine)?;
     let poses = forward_poses(machine, actual)?;
-    let report = contour_errors(reference, &poses)?;
+    let report = contour_errors(&reference, &poses)?;
     Ok((poses, report))
 }
 
@@ -89,6 +84,46 @@ impl Prediction {
             .map(|t| t.true_position.as_slice())
             .collect();
         crate::simulate::tracking_of(machine, run, &actual, Some(&self.predicted))
+    }
+
+    /// [`Prediction::tracking`] computed in place: each axis' true and predicted positions
+    /// become its tracking errors, so that a long run needs no memory for them beyond the
+    /// prediction's own (docs/performance.md). Bit-identical to [`Prediction::tracking`].
+    /// The contour reports are dropped.
+    pub fn into_tracking(self, machine: &Machine, run: &Run) -> Vec<crate::AxisTracking> {
+        machine
+            .axes
+            .iter()
+            .zip(&run.axes)
+            .zip(self.true_traces.into_iter().zip(self.predicted))
+            .map(|((axis, a), (t, model))| {
+                let k = a.unit.micro_factor();
+                let mut error = t.true_position;
+                let vs = scaled_diff(&model, &error, k);
+                let (vs_max, vs_rms) = (max_abs(&vs), rms(&vs));
+                drop(vs);
+                let to_error = |x: &mut Vec<f64>| {
+                    for (x, r) in x.iter_mut().zip(&a.pos) {
+                        *x = (r - *x) * k;
+                    }
+                };
+                to_error(&mut error);
+                let mut model_error = model;
+                to_error(&mut model_error);
+                crate::AxisTracking {
+                    axis: a.name,
+                    unit: a.unit,
+                    controller: axis.drive.controller().kind(),
+                    true_model: axis.true_model(),
+                    tracking_max: max_abs(&error),
+                    tracking_rms: rms(&error),
+                    model_error: Some(model_error),
+                    model_vs_true_max: Some(vs_max),
+                    model_vs_true_rms: Some(vs_rms),
+                    error,
+                }
+            })
+            .collect()
     }
 
     /// The six contour statistics over the samples `mask` selects (every sample when it is
@@ -280,45 +315,6 @@ pub fn predict(machine: &Machine, run: &Run, models: &[DriveModel]) -> Result<Pr
     Ok(all.remove(0))
 }
 
-/// The true drives' traces as a prediction keeps them: the true position alone (the encoder
-/// reading, velocity, control, motor position and torque are dropped as soon as each axis is
-/// simulated: no output of a prediction needs them, and on a long run they would be most of
-/// its memory; docs/performance.md).
-fn simulate_true_positions(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Error> {
-    use rayon::prelude::*;
-    machine
-        .axes
-        .par_iter()
-        .zip(run.axes.par_iter())
-        .map(|(axis, s)| {
-            let t = axis
-                .drive
-                .simulate(s.reference(), run.ts)
-                .map_err(|source| Error::Drive {
-                    axis: axis.name,
-                    source,
-                })?;
-            Ok(DriveTrace {
-                true_position: t.true_position,
-                saturated_ticks: t.saturated_ticks,
-                ts: t.ts,
-                ..DriveTrace::default()
-            })
-        })
-        .collect()
-}
-
-/// The run's reference tool path for the contour search.
-fn reference_path(machine: &Machine, run: &Run) -> Result<ContourPath, Error> {
-    let reference = run
-        .poses
-        .as_ref()
-        .ok_or_else(|| vcnc_machine::Error::NoKinematics {
-            file: machine.source.clone(),
-        })?;
-    Ok(ContourPath::new(reference)?)
-}
-
 /// [`contour`] as a prediction computes it: each actual pose is computed by the forward
 /// kinematics, searched for and dropped (a long run never holds them), and no foot points
 /// are kept (only the compensation, through [`contour`], needs them). Bit-identical to
@@ -358,39 +354,144 @@ pub fn predict_many(
     run: &Run,
     model_sets: &[&[DriveModel]],
 ) -> Result<Vec<Prediction>, Error> {
+    let sims = simulate_all(machine, run, model_sets)?;
+    contours(machine, run, sims, model_sets.len())
+}
+
+/// [`predict`] for a run that is not needed whole afterwards: the reference velocities and
+/// accelerations are dropped once the drives and models have been simulated
+/// (`run.axes[i].vel` and `.acc` are left empty; the positions stay), so that a long run never
+/// holds them next to the contour search's path and the contour errors
+/// (docs/performance.md). The prediction is bit-identical to [`predict`]'s.
+pub fn predict_releasing_rates(
+    machine: &Machine,
+    run: &mut Run,
+    models: &[DriveModel],
+) -> Result<Prediction, Error> {
+    let sims = simulate_all(machine, run, &[models])?;
+    for a in &mut run.axes {
+        a.vel = Vec::new();
+        a.acc = Vec::new();
+    }
+    let mut all = contours(machine, run, sims, 1)?;
+    Ok(all.remove(0))
+}
+
+/// One axis simulated: the true drive's trace as a prediction keeps it, and the axis'
+/// positions with each model set.
+type AxisSims = (DriveTrace, Vec<Vec<f64>>);
+
+/// Every axis through its true drive and through each model set, one task each (the true
+/// drives, at the servo rate, are the costly ones), collected in axis order: per axis, the
+/// true drive's trace as a prediction keeps it (its true position alone: the encoder reading,
+/// velocity, control, motor position and torque are never logged; no output of a prediction
+/// needs them, and on a long run they would be most of its memory, docs/performance.md) and
+/// axis `i` of each model set's positions.
+fn simulate_all(
+    machine: &Machine,
+    run: &Run,
+    model_sets: &[&[DriveModel]],
+) -> Result<Vec<AxisSims>, Error> {
     use rayon::prelude::*;
-    // One reference path, shared by the true machine's search and the models'.
-    let path = reference_path(machine, run)?;
-    let truth = || -> Result<_, Error> {
-        let traces = simulate_true_positions(machine, run)?;
-        let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
-        let report = prediction_contour(machine, &path, &pos)?;
-        Ok((traces, report))
-    };
-    let (truth, halves) = rayon::join(truth, || {
-        model_sets
-            .par_iter()
-            .map(|m| -> Result<_, Error> {
-                let positions = simulate_models(m, run)?;
-                let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
-                let contour = prediction_contour(machine, &path, &pos)?;
-                Ok((positions, contour))
-            })
-            .collect::<Vec<_>>()
-    });
-    let (true_traces, true_contour) = truth?;
-    let last = halves.len().saturating_sub(1);
-    let mut truth = Some((true_traces, true_contour));
-    halves
+    if let Some(m) = model_sets.iter().find(|m| m.len() != run.axes.len()) {
+        return Err(Error::Usage(format!(
+            "{} models for {} axes",
+            m.len(),
+            run.axes.len()
+        )));
+    }
+    let (axes, ts) = (run.axes.len().min(machine.axes.len()), run.ts);
+    // Task t: axis t % axes, the true drive (t < axes) or model set t / axes - 1.
+    let mut out = (0..axes * (1 + model_sets.len()))
+        .into_par_iter()
+        .map(|t| {
+            let (i, s) = (t % axes, &run.axes[t % axes]);
+            match (t / axes).checked_sub(1) {
+                None => {
+                    let axis = &machine.axes[i];
+                    let (true_position, saturated_ticks) = axis
+                        .drive
+                        .simulate_true_position(s.reference(), ts)
+                        .map_err(|source| Error::Drive {
+                            axis: axis.name,
+                            source,
+                        })?;
+                    Ok(DriveTrace {
+                        true_position,
+                        saturated_ticks,
+                        ts,
+                        ..DriveTrace::default()
+                    })
+                }
+                Some(set) => simulate_model(&model_sets[set][i], s, ts).map(|x| DriveTrace {
+                    true_position: x,
+                    ts,
+                    ..DriveTrace::default()
+                }),
+            }
+        })
+        .collect::<Result<Vec<DriveTrace>, Error>>()?
+        .into_iter();
+    let truth: Vec<DriveTrace> = out.by_ref().take(axes).collect();
+    let mut models: Vec<Vec<Vec<f64>>> = (0..axes).map(|_| Vec::new()).collect();
+    for (t, m) in out.enumerate() {
+        models[t % axes].push(m.true_position);
+    }
+    Ok(truth.into_iter().zip(models).collect())
+}
+
+/// The contour errors of the simulated axes (per axis: the true trace and each model set's
+/// positions): the true machine's search and each model set's, in parallel, along one
+/// reference path built once and shared.
+fn contours(
+    machine: &Machine,
+    run: &Run,
+    sims: Vec<AxisSims>,
+    sets: usize,
+) -> Result<Vec<Prediction>, Error> {
+    use rayon::prelude::*;
+    let mut true_traces = Vec::with_capacity(sims.len());
+    let mut predicted: Vec<Vec<Vec<f64>>> = (0..sets).map(|_| Vec::new()).collect();
+    for (t, models) in sims {
+        true_traces.push(t);
+        for (set, x) in predicted.iter_mut().zip(models) {
+            set.push(x);
+        }
+    }
+    let path = run.reference_path(machine)?;
+    let mut positions: Vec<Vec<&[f64]>> = vec![
+        true_traces
+            .iter()
+            .map(|t| t.true_position.as_slice())
+            .collect(),
+    ];
+    positions.extend(
+        predicted
+            .iter()
+            .map(|set| set.iter().map(Vec::as_slice).collect()),
+    );
+    let mut reports = positions
+        .par_iter()
+        .map(|pos| prediction_contour(machine, &path, pos))
+        .collect::<Result<Vec<_>, Error>>()?
+        .into_iter();
+    drop(positions);
+    drop(path);
+    let mut true_contour = reports.next().expect("the true machine's report");
+    let n = predicted.len();
+    predicted
         .into_iter()
+        .zip(reports)
         .enumerate()
-        .map(|(i, h)| {
-            let (predicted, predicted_contour) = h?;
+        .map(|(i, (predicted, predicted_contour))| {
             // The last prediction takes the truth, the others a copy: one model set, no copy.
-            let (true_traces, true_contour) = if i == last {
-                truth.take().expect("taken once, by the last")
+            let (true_traces, true_contour) = if i + 1 == n {
+                (
+                    std::mem::take(&mut true_traces),
+                    std::mem::take(&mut true_contour),
+                )
             } else {
-                truth.clone().expect("taken only by the last")
+                (true_traces.clone(), true_contour.clone())
             };
             Ok(Prediction {
                 true_traces,

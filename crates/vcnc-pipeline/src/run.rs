@@ -59,8 +59,6 @@ pub struct Run {
     pub ts: f64,
     /// Axis references in machine order (one per [`Machine::axes`]).
     pub axes: Vec<AxisSignals>,
-    /// Reference tool poses in the workpiece frame (mm), when the machine has kinematics.
-    pub poses: Option<Vec<Pose>>,
     /// Warnings for the user (G-code warnings, limit excursions of IK'd references).
     pub warnings: Vec<String>,
     /// Per sample: the source line of the block running (0 where none is, e.g. before the
@@ -118,36 +116,126 @@ impl Run {
         self.loaded.trajectory.duration_s()
     }
 
+    /// The axis reference positions per machine axis (mm, deg).
+    pub fn reference_positions(&self) -> Vec<&[f64]> {
+        self.axes.iter().map(|a| a.pos.as_slice()).collect()
+    }
+
+    /// Reference tool poses in the workpiece frame (mm, unit tool axis) of the samples `rows`,
+    /// by the closed-form forward kinematics of the axis references. A run keeps axis
+    /// references, not poses: they are computed where they are used, a chunk at a time on a
+    /// long run (docs/performance.md). Error: the machine has no kinematics.
+    pub fn reference_poses_at(
+        &self,
+        machine: &Machine,
+        rows: std::ops::Range<usize>,
+    ) -> Result<Vec<Pose>, Error> {
+        let kin = machine.require_kinematics()?;
+        let pos = self.reference_positions();
+        Ok(rows
+            .map(|k| kin.model.forward(&kin.axes.at(&pos, k)))
+            .collect())
+    }
+
+    /// [`Run::reference_poses_at`] of every sample.
+    pub fn reference_poses(&self, machine: &Machine) -> Result<Vec<Pose>, Error> {
+        self.reference_poses_at(machine, 0..self.len())
+    }
+
+    /// The reference tool path of the contour search, built from the poses computed one at a
+    /// time (never held whole).
+    pub fn reference_path(&self, machine: &Machine) -> Result<vcnc_contour::ContourPath, Error> {
+        let kin = machine.require_kinematics()?;
+        let pos = self.reference_positions();
+        let poses = (0..self.len()).map(|k| kin.model.forward(&kin.axes.at(&pos, k)));
+        Ok(vcnc_contour::ContourPath::from_poses(poses)?)
+    }
+
     /// True when some samples are in tool-centre-point mode.
     pub fn has_tcp(&self) -> bool {
         self.loaded.trajectory.tcp.iter().any(|t| *t)
     }
 }
 
-/// Largest program file accepted, bytes. The parser holds the whole program and its syntax
-/// tree (about 16 bytes of memory per byte of G-code: 64 MiB of text peak at about 1 GB), so
-/// a larger file is refused up front instead of costing seconds and gigabytes; a streaming
-/// parser would lift this (docs/performance.md). A toolpath this long also asks for about as
-/// many samples as the interpolator's cap.
-pub const MAX_PROGRAM_BYTES: u64 = 64 << 20;
+/// Memory a program needs to be prepared, bytes per byte of G-code: the text, its syntax tree,
+/// the interpreted moves and the samples together, measured on `vcnc gen long` programs of
+/// short five-axis segments (64 MB of G-code peak at 1.06 GB in `vcnc interpolate`,
+/// docs/performance.md). The parser and the interpreter hold the whole program: they do not
+/// stream yet.
+pub const PROGRAM_MEMORY_PER_BYTE: u64 = 17;
+
+/// Memory the system can still give this process, bytes (`MemAvailable` of `/proc/meminfo`),
+/// where the system says.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kb.checked_mul(1024)
+}
+
+/// Lines of the file at `path` with something other than white space on them (each is a block
+/// for the parser), counted a megabyte at a time.
+fn non_blank_lines(path: &Path) -> std::io::Result<usize> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path)?;
+    let mut buf = vec![0u8; 1 << 20];
+    let (mut lines, mut filled) = (0usize, false);
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        for &b in &buf[..n] {
+            if b == b'\n' {
+                lines += usize::from(filled);
+                filled = false;
+            } else if !b.is_ascii_whitespace() {
+                filled = true;
+            }
+        }
+    }
+    Ok(lines + usize::from(filled))
+}
 
 /// Reads a program file (lossy UTF-8: the parser reports the replacement characters).
+///
+/// A program of any size is read, unless preparing it would need more memory than the system
+/// has available ([`PROGRAM_MEMORY_PER_BYTE`] times its size against `MemAvailable`): then it
+/// is refused up front, with both figures, instead of failing gigabytes later.
 pub fn read_program(path: &Path) -> Result<String, Error> {
     let cannot = |e: std::io::Error| Error::Io {
         file: path.display().to_string(),
         message: e.to_string(),
     };
     let size = std::fs::metadata(path).map_err(cannot)?.len();
-    if size > MAX_PROGRAM_BYTES {
+    let need = size.saturating_mul(PROGRAM_MEMORY_PER_BYTE);
+    if let Some(available) = available_memory()
+        && need > available
+    {
         return Err(Error::Usage(format!(
-            "{}: the program is {size} bytes, more than the {} MiB vcnc accepts (the parser \
-             holds the whole program in memory, about 16 bytes per byte of G-code); split it",
+            "{}: the program is {size} bytes; preparing it needs about {:.1} GB of memory \
+             (about {PROGRAM_MEMORY_PER_BYTE} bytes per byte of G-code: the parser and the \
+             interpreter hold the whole program, then its samples) and {:.1} GB are available; \
+             split it",
             path.display(),
-            MAX_PROGRAM_BYTES >> 20
+            need as f64 / 1e9,
+            available as f64 / 1e9,
+        )));
+    }
+    // The parser stops at its block limit; a longer program is refused before it is read.
+    let max_blocks = vcnc_gcode::ParseOptions::default().max_blocks;
+    let lines = non_blank_lines(path).map_err(cannot)?;
+    if lines > max_blocks {
+        return Err(Error::Usage(format!(
+            "{}: the program has {lines} non-blank lines, more than the {max_blocks} blocks \
+             vcnc parses; split it",
+            path.display(),
         )));
     }
     let bytes = std::fs::read(path).map_err(cannot)?;
-    Ok(String::from_utf8_lossy(&bytes).into_owned())
+    // Valid UTF-8 is taken as it is (no copy); otherwise the lossy copy.
+    Ok(String::from_utf8(bytes)
+        .unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned()))
 }
 
 /// Reads the program at `path` and prepares it on `machine` ([`prepare`]).
@@ -204,13 +292,6 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
             warnings.extend(limit_warnings(a, s, file));
         }
     }
-    let poses = match &machine.kinematics {
-        Some(_) => Some(forward_poses(
-            machine,
-            &axes.iter().map(|a| a.pos.as_slice()).collect::<Vec<_>>(),
-        )?),
-        None => None,
-    };
     let (lines, classes) = traj
         .sample_spans()
         .map(|i| {
@@ -223,7 +304,6 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         ts: traj.ts,
         loaded,
         axes,
-        poses,
         warnings,
         lines,
         classes,
@@ -433,6 +513,30 @@ impl InterpolateSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Truth: the parser's block limit (`ParseOptions::max_blocks`). Blank lines are not
+    /// blocks; a program one block over the limit is refused before it is read, naming the
+    /// count; one at the limit is read.
+    #[test]
+    fn programs_over_the_block_limit_are_refused_up_front() {
+        let dir = std::env::temp_dir().join(format!("vcnc-run-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("p.ngc");
+        std::fs::write(&path, "G1 X1\n\n  \r\n; c\n(x)").unwrap();
+        assert_eq!(non_blank_lines(&path).unwrap(), 3);
+        let max = vcnc_gcode::ParseOptions::default().max_blocks;
+        let mut text = "G0\n\n".repeat(max);
+        std::fs::write(&path, &text).unwrap();
+        assert_eq!(read_program(&path).unwrap().len(), text.len());
+        text.push_str("M2");
+        std::fs::write(&path, &text).unwrap();
+        let e = read_program(&path).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("{} non-blank lines", max + 1)) && e.contains(&max.to_string()),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// The one-pass walk agrees with `Trajectory::block_at` at every sample a move covers (a
     /// dwell is a move of its own, on its `G4` line), and gives every sample a line.

@@ -42,19 +42,26 @@ pub fn simulate_models(models: &[DriveModel], run: &Run) -> Result<Vec<Vec<f64>>
     models
         .par_iter()
         .zip(run.axes.par_iter())
-        .map(|(m, s)| {
-            let opts = SimOptions::default();
-            if m.is_core_only() {
-                m.core.simulate(s.reference(), run.ts, &opts)
-            } else {
-                m.simulate(s.reference(), run.ts, &opts)
-            }
-            .map_err(|source| Error::Drive {
-                axis: s.name,
-                source,
-            })
-        })
+        .map(|(m, s)| simulate_model(m, s, run.ts))
         .collect()
+}
+
+/// One axis reference (period `ts`, s) through its model: the positions, axis units.
+pub fn simulate_model(
+    m: &DriveModel,
+    s: &crate::run::AxisSignals,
+    ts: f64,
+) -> Result<Vec<f64>, Error> {
+    let opts = SimOptions::default();
+    if m.is_core_only() {
+        m.core.simulate(s.reference(), ts, &opts)
+    } else {
+        m.simulate(s.reference(), ts, &opts)
+    }
+    .map_err(|source| Error::Drive {
+        axis: s.name,
+        source,
+    })
 }
 
 /// `vcnc simulate`: the true drives' traces and, optionally, the models' positions.

@@ -129,6 +129,50 @@ fn prediction_equals_the_full_trace_path_bit_for_bit() {
             chunked.extend(predict::poses_at(&machine, &pos, rows).expect("chunk"));
         }
         assert_eq!(poses, chunked, "{name}");
+        // The command's path: the reference rates dropped as each axis is simulated, the
+        // tracking errors computed in the predicted positions' memory.
+        let mut lean_run = run.clone();
+        let lean = predict::predict_releasing_rates(&machine, &mut lean_run, &models)
+            .expect("lean prediction");
+        assert_eq!(fingerprint(&lean), fingerprint(&p), "{name}");
+        assert!(
+            lean_run
+                .axes
+                .iter()
+                .all(|a| a.vel.is_empty() && a.acc.is_empty() && a.pos.len() == n),
+            "{name}: rates released, positions kept"
+        );
+        let tracking = p.tracking(&machine, &run);
+        let in_place = lean.into_tracking(&machine, &lean_run);
+        assert_eq!(tracking.len(), in_place.len(), "{name}");
+        for (a, b) in tracking.iter().zip(&in_place) {
+            assert_eq!(bits(&a.error), bits(&b.error), "{name}: axis {}", a.axis);
+            let m = |t: &vcnc_pipeline::AxisTracking| bits(t.model_error.as_deref().unwrap_or(&[]));
+            assert_eq!(m(a), m(b), "{name}: axis {}", a.axis);
+            assert_eq!(
+                bits(&[a.tracking_max, a.tracking_rms]),
+                bits(&[b.tracking_max, b.tracking_rms]),
+                "{name}: axis {}",
+                a.axis
+            );
+            assert_eq!(
+                a.model_vs_true_max.map(f64::to_bits),
+                b.model_vs_true_max.map(f64::to_bits)
+            );
+            assert_eq!(
+                a.model_vs_true_rms.map(f64::to_bits),
+                b.model_vs_true_rms.map(f64::to_bits)
+            );
+        }
+        // The reference poses computed a chunk at a time are the whole run's.
+        let whole = run.reference_poses(&machine).expect("reference poses");
+        assert_eq!(whole.len(), n, "{name}");
+        assert_eq!(
+            whole[n / 3..n / 2],
+            run.reference_poses_at(&machine, n / 3..n / 2)
+                .expect("chunk")[..],
+            "{name}"
+        );
         let m = predict::model_contour(&machine, &run, &models).expect("models");
         assert_eq!(m.positions, p.predicted, "{name}");
         assert_eq!(m.contour.foot.len(), n, "{name}");
@@ -153,5 +197,13 @@ fn prediction_is_bit_identical_on_one_and_two_threads() {
             predict::predict(&machine, &run, &models).expect("2 threads")
         });
         assert_eq!(fingerprint(&one), fingerprint(&two), "{name}");
+        let lean = |threads| {
+            in_pool(threads, || {
+                let mut run = run.clone();
+                predict::predict_releasing_rates(&machine, &mut run, &models).expect("lean")
+            })
+        };
+        assert_eq!(fingerprint(&lean(1)), fingerprint(&one), "{name}");
+        assert_eq!(fingerprint(&lean(2)), fingerprint(&one), "{name}");
     }
 }

@@ -72,11 +72,11 @@ pub use lines::{
 };
 pub use map::{HeatMap, SweepGrid, grid_from_rows, sweep_heatmap};
 pub use path::{
-    ColouredPath, PathErrors, PathViewOptions, WorstBlock, arc_length_mm, contour_path_views,
-    error_along_path, percentile, worst_blocks,
+    ColouredPath, PathErrors, PathViewOptions, WorstBlock, arc_length_mm, arc_length_mm_of,
+    contour_path_views, error_along_path, percentile, worst_blocks,
 };
 pub use report::{
     FigureEntry, FileEntry, Input, MANIFEST_FILE, Manifest, REPORT_FILE, Table, build_report,
 };
 pub use style::{Quantity, Role};
-pub use vtp::{PointScalars, PointVectors, VtpEncoding, VtpPath, write_vtp};
+pub use vtp::{PointScalars, PointVectors, Vectors, VtpEncoding, VtpPath, write_vtp};

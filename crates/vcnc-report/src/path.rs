@@ -190,16 +190,23 @@ pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
 
 /// Cumulative arc length of a polyline, mm (0 at the first point).
 pub fn arc_length_mm(points_mm: &[[f64; 3]]) -> Vec<f64> {
+    arc_length_mm_of(points_mm.iter().copied())
+}
+
+/// [`arc_length_mm`] of points given one at a time (a long path need not be held whole).
+pub fn arc_length_mm_of(points_mm: impl IntoIterator<Item = [f64; 3]>) -> Vec<f64> {
+    let points = points_mm.into_iter();
     let mut s = 0.0;
-    let mut out = Vec::with_capacity(points_mm.len());
-    for (i, p) in points_mm.iter().enumerate() {
-        if i > 0 {
-            let q = points_mm[i - 1];
+    let mut out = Vec::with_capacity(points.size_hint().0);
+    let mut prev: Option<[f64; 3]> = None;
+    for p in points {
+        if let Some(q) = prev {
             let d = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
             if d.is_finite() {
                 s += d;
             }
         }
+        prev = Some(p);
         out.push(s);
     }
     out
@@ -379,12 +386,13 @@ fn draw_coloured_path(
 }
 
 /// Bounds of finite 2-D points, padded 5 % (at least 1 mm).
-fn bounds(pts: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
+/// (Points given one at a time: a long path's projections are never held, only their pixels.)
+fn bounds(pts: impl IntoIterator<Item = (f64, f64)>) -> ((f64, f64), (f64, f64)) {
     let mut b = (
         (f64::INFINITY, f64::NEG_INFINITY),
         (f64::INFINITY, f64::NEG_INFINITY),
     );
-    for &(u, v) in pts {
+    for (u, v) in pts {
         if u.is_finite() && v.is_finite() {
             b.0 = (b.0.0.min(u), b.0.1.max(u));
             b.1 = (b.1.0.min(v), b.1.1.max(v));
@@ -412,8 +420,8 @@ fn draw_view(
     worst: &[HotSpot],
     min_h: f64,
 ) {
-    let pts: Vec<(f64, f64)> = path.points_mm.iter().map(|p| view.project(p)).collect();
-    let ((u0, u1), (v0, v1)) = bounds(&pts);
+    let pts = || path.points_mm.iter().map(|p| view.project(p));
+    let ((u0, u1), (v0, v1)) = bounds(pts());
     let framed = matches!(view, View::Plane(..));
     let (ml, mb, mt) = if framed {
         (70.0, 44.0, 22.0)
@@ -498,7 +506,7 @@ fn draw_view(
         0.0,
         "#000000",
     );
-    let px: Vec<(f64, f64)> = pts.iter().map(|&(u, v)| (xm.px(u), ym.px(v))).collect();
+    let px: Vec<(f64, f64)> = pts().map(|(u, v)| (xm.px(u), ym.px(v))).collect();
     draw_coloured_path(svg, &clip, &px, path.values, cs);
     // Worst blocks: a ring at the worst sample and the line number beside it.
     let ring = Stroke::solid("#000000", 1.4);
@@ -816,12 +824,7 @@ pub fn contour_path_views(
     let cell = (left_w / 2.0).floor();
     let planes = best_planes(path.points_mm);
     // Height of the second projection's cell from its aspect ratio.
-    let pts_b: Vec<(f64, f64)> = path
-        .points_mm
-        .iter()
-        .map(|p| planes[1].project(p))
-        .collect();
-    let ((bu0, bu1), (bv0, bv1)) = bounds(&pts_b);
+    let ((bu0, bu1), (bv0, bv1)) = bounds(path.points_mm.iter().map(|p| planes[1].project(p)));
     let inner_w = left_w - 80.0;
     let row2_h = ((bv1 - bv0) / (bu1 - bu0) * inner_w).clamp(90.0, cell - 66.0) + 66.0;
 

@@ -30,12 +30,68 @@ pub struct PointScalars<'a> {
 }
 
 /// A per-point vector array (3 components).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Clone)]
 pub struct PointVectors<'a> {
     /// Array name (`tool_axis`).
     pub name: String,
     /// One vector per path point.
-    pub values: &'a [[f64; 3]],
+    pub values: Vectors<'a>,
+}
+
+/// The vectors of a [`PointVectors`] array: given, or computed per point as they are
+/// written (a long path's tool axes, from its axis positions, need not be held).
+#[derive(Clone, Copy)]
+pub enum Vectors<'a> {
+    /// One vector per point.
+    Given(&'a [[f64; 3]]),
+    /// `len` vectors, vector `i` computed by `at(i)` (called more than once per point).
+    Computed {
+        /// Number of vectors.
+        len: usize,
+        /// Vector of point `i`.
+        at: &'a dyn Fn(usize) -> [f64; 3],
+    },
+}
+
+impl Vectors<'_> {
+    /// Number of vectors.
+    pub fn len(&self) -> usize {
+        match self {
+            Vectors::Given(v) => v.len(),
+            Vectors::Computed { len, .. } => *len,
+        }
+    }
+
+    /// No vectors.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Vector `i`.
+    pub fn at(&self, i: usize) -> [f64; 3] {
+        match self {
+            Vectors::Given(v) => v[i],
+            Vectors::Computed { at, .. } => at(i),
+        }
+    }
+}
+
+impl std::fmt::Debug for Vectors<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Vectors::Given(v) => f.debug_tuple("Given").field(&v.len()).finish(),
+            Vectors::Computed { len, .. } => f.debug_struct("Computed").field("len", len).finish(),
+        }
+    }
+}
+
+impl std::fmt::Debug for PointVectors<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PointVectors")
+            .field("name", &self.name)
+            .field("values", &self.values)
+            .finish()
+    }
 }
 
 /// How array values are stored.
@@ -49,7 +105,7 @@ pub enum VtpEncoding {
 }
 
 /// A tool-tip path with its per-point data.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct VtpPath<'a> {
     /// Tool-tip positions in the workpiece frame, mm. Points with a non-finite coordinate are
     /// left out and break the polyline.
@@ -70,6 +126,23 @@ impl<'a> VtpPath<'a> {
         contour_error_um: &'a [f64],
         orientation_error_mrad: &'a [f64],
         tool_axis: &'a [[f64; 3]],
+        block_line: Option<&'a [u32]>,
+    ) -> VtpPath<'a> {
+        Self::contour_with(
+            points_mm,
+            contour_error_um,
+            orientation_error_mrad,
+            Vectors::Given(tool_axis),
+            block_line,
+        )
+    }
+
+    /// [`VtpPath::contour`] with the tool axes given as [`Vectors`] (e.g. computed per point).
+    pub fn contour_with(
+        points_mm: &'a [[f64; 3]],
+        contour_error_um: &'a [f64],
+        orientation_error_mrad: &'a [f64],
+        tool_axis: Vectors<'a>,
         block_line: Option<&'a [u32]>,
     ) -> VtpPath<'a> {
         VtpPath {
@@ -135,7 +208,7 @@ impl<'a> VtpPath<'a> {
                 }
             }
             for v in &self.vectors {
-                if let Some(c) = v.values[i].iter().find(|c| !c.is_finite()) {
+                if let Some(c) = v.values.at(i).iter().find(|c| !c.is_finite()) {
                     return Err(Error::NonFinite {
                         what: format!("vtp array '{}'", v.name),
                         index: i,
@@ -175,79 +248,125 @@ fn base64(bytes: &[u8], out: &mut String) {
     }
 }
 
-/// Values of one data array, before encoding.
-enum Values {
-    F64(Vec<f64>),
-    I64(Vec<i64>),
-    U32(Vec<u32>),
+/// One value of a data array: its VTK type name, little-endian bytes and text form.
+trait Elem: Copy {
+    /// VTK type name (`Float64`, `Int64`, `UInt32`).
+    const TYPE: &'static str;
+    /// Size in bytes.
+    const SIZE: usize;
+    fn le_bytes(self, out: &mut Vec<u8>);
+    fn text(self, out: &mut String);
 }
 
-impl Values {
-    fn type_name(&self) -> &'static str {
-        match self {
-            Values::F64(_) => "Float64",
-            Values::I64(_) => "Int64",
-            Values::U32(_) => "UInt32",
+impl Elem for f64 {
+    const TYPE: &'static str = "Float64";
+    const SIZE: usize = 8;
+    fn le_bytes(self, out: &mut Vec<u8>) {
+        out.extend(self.to_le_bytes());
+    }
+    fn text(self, out: &mut String) {
+        let _ = write!(out, "{self:?}");
+    }
+}
+
+impl Elem for i64 {
+    const TYPE: &'static str = "Int64";
+    const SIZE: usize = 8;
+    fn le_bytes(self, out: &mut Vec<u8>) {
+        out.extend(self.to_le_bytes());
+    }
+    fn text(self, out: &mut String) {
+        let _ = write!(out, "{self}");
+    }
+}
+
+impl Elem for u32 {
+    const TYPE: &'static str = "UInt32";
+    const SIZE: usize = 4;
+    fn le_bytes(self, out: &mut Vec<u8>) {
+        out.extend(self.to_le_bytes());
+    }
+    fn text(self, out: &mut String) {
+        let _ = write!(out, "{self}");
+    }
+}
+
+/// The document being emitted: text is gathered in `out` and handed to `emit` whenever it
+/// passes [`Pieces::CHUNK`] bytes, so that no data array is ever whole in memory
+/// (docs/performance.md).
+struct Pieces<'e> {
+    out: String,
+    emit: &'e mut dyn FnMut(&str),
+}
+
+impl Pieces<'_> {
+    /// Bytes of text gathered before they are emitted.
+    const CHUNK: usize = 1 << 16;
+
+    fn flush(&mut self) {
+        if !self.out.is_empty() {
+            (self.emit)(&self.out);
+            self.out.clear();
         }
     }
 
-    fn write(&self, enc: VtpEncoding, out: &mut String) {
+    fn flush_if_full(&mut self) {
+        if self.out.len() >= Self::CHUNK {
+            self.flush();
+        }
+    }
+
+    /// One `<DataArray>` of `count` values given by `values` (`comps` components a tuple).
+    fn data_array<T: Elem>(
+        &mut self,
+        name: Option<&str>,
+        comps: usize,
+        count: usize,
+        values: impl Iterator<Item = T>,
+        enc: VtpEncoding,
+    ) {
+        let _ = write!(self.out, "<DataArray type=\"{}\"", T::TYPE);
+        if let Some(n) = name {
+            let _ = write!(self.out, " Name=\"{}\"", escape(n));
+        }
+        if comps > 1 {
+            let _ = write!(self.out, " NumberOfComponents=\"{comps}\"");
+        }
+        let format = match enc {
+            VtpEncoding::Ascii => "ascii",
+            VtpEncoding::Base64 => "binary",
+        };
+        let _ = write!(self.out, " format=\"{format}\">");
         match enc {
             VtpEncoding::Ascii => {
-                let mut first = true;
-                let mut sep = |out: &mut String| {
-                    if !first {
-                        out.push(' ');
+                for (j, x) in values.enumerate() {
+                    if j > 0 {
+                        self.out.push(' ');
                     }
-                    first = false;
-                };
-                match self {
-                    Values::F64(v) => v.iter().for_each(|x| {
-                        sep(out);
-                        let _ = write!(out, "{x:?}");
-                    }),
-                    Values::I64(v) => v.iter().for_each(|x| {
-                        sep(out);
-                        let _ = write!(out, "{x}");
-                    }),
-                    Values::U32(v) => v.iter().for_each(|x| {
-                        sep(out);
-                        let _ = write!(out, "{x}");
-                    }),
+                    x.text(&mut self.out);
+                    self.flush_if_full();
                 }
             }
             VtpEncoding::Base64 => {
-                let mut bytes = Vec::new();
-                match self {
-                    Values::F64(v) => v.iter().for_each(|x| bytes.extend(x.to_le_bytes())),
-                    Values::I64(v) => v.iter().for_each(|x| bytes.extend(x.to_le_bytes())),
-                    Values::U32(v) => v.iter().for_each(|x| bytes.extend(x.to_le_bytes())),
-                }
                 // The "binary" inline format: base64 of the byte count (header_type UInt64)
-                // followed by the data, encoded as one stream.
-                let mut all = (bytes.len() as u64).to_le_bytes().to_vec();
-                all.extend(bytes);
-                base64(&all, out);
+                // followed by the data, encoded as one stream. Bytes are encoded a multiple of
+                // three at a time, so the text is the same as one encoding of the whole.
+                let mut bytes = ((count * T::SIZE) as u64).to_le_bytes().to_vec();
+                for x in values {
+                    x.le_bytes(&mut bytes);
+                    if bytes.len() >= 3 * (Self::CHUNK / 4) {
+                        let whole = bytes.len() / 3 * 3;
+                        base64(&bytes[..whole], &mut self.out);
+                        bytes.drain(..whole);
+                        self.flush();
+                    }
+                }
+                base64(&bytes, &mut self.out);
             }
         }
+        self.out.push_str("</DataArray>\n");
+        self.flush_if_full();
     }
-}
-
-fn data_array(out: &mut String, name: Option<&str>, comps: usize, v: &Values, enc: VtpEncoding) {
-    let _ = write!(out, "<DataArray type=\"{}\"", v.type_name());
-    if let Some(n) = name {
-        let _ = write!(out, " Name=\"{}\"", escape(n));
-    }
-    if comps > 1 {
-        let _ = write!(out, " NumberOfComponents=\"{comps}\"");
-    }
-    let format = match enc {
-        VtpEncoding::Ascii => "ascii",
-        VtpEncoding::Base64 => "binary",
-    };
-    let _ = write!(out, " format=\"{format}\">");
-    v.write(enc, out);
-    out.push_str("</DataArray>\n");
 }
 
 /// The `.vtp` document of a path.
@@ -257,8 +376,8 @@ pub fn vtp_string(path: &VtpPath, enc: VtpEncoding) -> Result<String, Error> {
     Ok(doc)
 }
 
-/// The `.vtp` document of a path, handed to `emit` a piece at a time (the header, then one
-/// data array after another), so that a long path is never one string in memory
+/// The `.vtp` document of a path, handed to `emit` a piece at a time (at most about 64 KiB
+/// each), so that a long path is never one string in memory, nor any of its arrays
 /// (docs/performance.md).
 fn vtp_pieces(path: &VtpPath, enc: VtpEncoding, emit: &mut dyn FnMut(&str)) -> Result<(), Error> {
     let kept = path.check()?;
@@ -270,61 +389,50 @@ fn vtp_pieces(path: &VtpPath, enc: VtpEncoding, emit: &mut dyn FnMut(&str)) -> R
         }
     }
     offsets.push(kept.len() as i64);
-    let mut out = String::new();
-    let mut flush = |out: &mut String| {
-        emit(out);
-        out.clear();
-        out.shrink_to(1 << 16);
+    let mut p = Pieces {
+        out: String::with_capacity(2 * Pieces::CHUNK),
+        emit,
     };
-    out.push_str("<?xml version=\"1.0\"?>\n");
-    out.push_str("<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<PolyData>\n");
+    p.out.push_str("<?xml version=\"1.0\"?>\n");
+    p.out.push_str("<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<PolyData>\n");
     let _ = writeln!(
-        out,
+        p.out,
         "<Piece NumberOfPoints=\"{}\" NumberOfVerts=\"0\" NumberOfLines=\"{}\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">",
         kept.len(),
         offsets.len()
     );
-    out.push_str("<PointData");
+    p.out.push_str("<PointData");
     if let Some(s) = path.scalars.first() {
-        let _ = write!(out, " Scalars=\"{}\"", escape(&s.name));
+        let _ = write!(p.out, " Scalars=\"{}\"", escape(&s.name));
     }
     if let Some(v) = path.vectors.first() {
-        let _ = write!(out, " Vectors=\"{}\"", escape(&v.name));
+        let _ = write!(p.out, " Vectors=\"{}\"", escape(&v.name));
     }
-    out.push_str(">\n");
-    flush(&mut out);
+    p.out.push_str(">\n");
+    let m = kept.len();
     for s in &path.scalars {
-        let v = Values::F64(kept.iter().map(|&i| s.values[i]).collect());
-        data_array(&mut out, Some(&s.name), 1, &v, enc);
-        flush(&mut out);
+        let values = kept.iter().map(|&i| s.values[i]);
+        p.data_array(Some(&s.name), 1, m, values, enc);
     }
     for vec in &path.vectors {
-        let v = Values::F64(kept.iter().flat_map(|&i| vec.values[i]).collect());
-        data_array(&mut out, Some(&vec.name), 3, &v, enc);
-        flush(&mut out);
+        let values = kept.iter().flat_map(|&i| vec.values.at(i));
+        p.data_array(Some(&vec.name), 3, 3 * m, values, enc);
     }
     if let Some(l) = path.block_line {
-        let v = Values::U32(kept.iter().map(|&i| l[i]).collect());
-        data_array(&mut out, Some("block_line"), 1, &v, enc);
-        flush(&mut out);
+        p.data_array(Some("block_line"), 1, m, kept.iter().map(|&i| l[i]), enc);
     }
-    let idx = Values::I64(kept.iter().map(|&i| i as i64).collect());
-    data_array(&mut out, Some("sample_index"), 1, &idx, enc);
-    drop(idx);
-    out.push_str("</PointData>\n<Points>\n");
-    flush(&mut out);
-    let pts = Values::F64(kept.iter().flat_map(|&i| path.points_mm[i]).collect());
-    data_array(&mut out, Some("Points"), 3, &pts, enc);
-    drop(pts);
-    out.push_str("</Points>\n<Lines>\n");
-    flush(&mut out);
-    let connectivity = Values::I64((0..kept.len() as i64).collect());
-    data_array(&mut out, Some("connectivity"), 1, &connectivity, enc);
-    drop(connectivity);
-    flush(&mut out);
-    data_array(&mut out, Some("offsets"), 1, &Values::I64(offsets), enc);
-    out.push_str("</Lines>\n</Piece>\n</PolyData>\n</VTKFile>\n");
-    flush(&mut out);
+    let idx = kept.iter().map(|&i| i as i64);
+    p.data_array(Some("sample_index"), 1, m, idx, enc);
+    p.out.push_str("</PointData>\n<Points>\n");
+    let pts = kept.iter().flat_map(|&i| path.points_mm[i]);
+    p.data_array(Some("Points"), 3, 3 * m, pts, enc);
+    p.out.push_str("</Points>\n<Lines>\n");
+    p.data_array(Some("connectivity"), 1, m, 0..m as i64, enc);
+    let n_lines = offsets.len();
+    p.data_array(Some("offsets"), 1, n_lines, offsets.into_iter(), enc);
+    p.out
+        .push_str("</Lines>\n</Piece>\n</PolyData>\n</VTKFile>\n");
+    p.flush();
     Ok(())
 }
 
@@ -361,6 +469,38 @@ mod tests {
             let mut s = String::new();
             base64(i.as_bytes(), &mut s);
             assert_eq!(s, o);
+        }
+    }
+
+    /// An array many chunks long is encoded as one base64 stream: the same text as the whole
+    /// array's bytes (with the UInt64 byte count before them) encoded at once.
+    #[test]
+    fn long_arrays_stream_as_one_base64_text() {
+        let n = 100_003;
+        let p: Vec<[f64; 3]> = (0..n).map(|k| [k as f64, 0.5 * k as f64, 1.0]).collect();
+        let e: Vec<f64> = (0..n).map(|k| (k as f64).sin()).collect();
+        let a = vec![[0.0, 0.0, 1.0]; n];
+        let doc = vtp_string(&VtpPath::contour(&p, &e, &e, &a, None), VtpEncoding::Base64).unwrap();
+        for (name, bytes) in [
+            (
+                "contour_error_um",
+                e.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
+            ),
+            (
+                "Points",
+                p.iter().flatten().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
+        ] {
+            let mut all = (bytes.len() as u64).to_le_bytes().to_vec();
+            all.extend(bytes);
+            let mut want = String::new();
+            base64(&all, &mut want);
+            let tag = format!("Name=\"{name}\"");
+            let at = doc.find(&tag).unwrap();
+            let body = &doc[at..];
+            let start = body.find('>').unwrap() + 1;
+            let end = body.find("</DataArray>").unwrap();
+            assert_eq!(&body[start..end], want, "array {name}");
         }
     }
 
