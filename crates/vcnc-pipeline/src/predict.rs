@@ -12,7 +12,7 @@ use vcnc_machine::Machine;
 use crate::Error;
 use crate::run::{Measured, Run, forward_poses};
 use crate::simulate::{simulate_model, simulate_models};
-use crate::stats::{max_abs, rms, scaled_diff};
+use crate::stats::{max_abs, rms, scaled_diff_max_rms};
 
 /// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
 /// reference poses.
@@ -99,9 +99,7 @@ impl Prediction {
             .map(|((axis, a), (t, model))| {
                 let k = a.unit.micro_factor();
                 let mut error = t.true_position;
-                let vs = scaled_diff(&model, &error, k);
-                let (vs_max, vs_rms) = (max_abs(&vs), rms(&vs));
-                drop(vs);
+                let vs = scaled_diff_max_rms(&model, &error, k);
                 let to_error = |x: &mut Vec<f64>| {
                     for (x, r) in x.iter_mut().zip(&a.pos) {
                         *x = (r - *x) * k;
@@ -110,18 +108,7 @@ impl Prediction {
                 to_error(&mut error);
                 let mut model_error = model;
                 to_error(&mut model_error);
-                crate::AxisTracking {
-                    axis: a.name,
-                    unit: a.unit,
-                    controller: axis.drive.controller().kind(),
-                    true_model: axis.true_model(),
-                    tracking_max: max_abs(&error),
-                    tracking_rms: rms(&error),
-                    model_error: Some(model_error),
-                    model_vs_true_max: Some(vs_max),
-                    model_vs_true_rms: Some(vs_rms),
-                    error,
-                }
+                crate::AxisTracking::new(axis, a, error, Some((model_error, vs)))
             })
             .collect()
     }

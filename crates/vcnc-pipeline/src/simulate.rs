@@ -7,8 +7,9 @@ use vcnc_drive::{ClosedLoopModel, DriveModel, DriveTrace, SimOptions};
 use vcnc_machine::Machine;
 
 use crate::Error;
+use crate::run::AxisSignals;
 use crate::run::Run;
-use crate::stats::{max_abs, rms, scaled_diff};
+use crate::stats::{max_abs, rms, scaled_diff, scaled_diff_max_rms};
 use crate::summary::ModelSummary;
 
 /// Runs every axis reference through its true drive (axes in parallel, results in axis order).
@@ -109,6 +110,32 @@ pub struct AxisTracking {
     pub model_vs_true_rms: Option<f64>,
 }
 
+impl AxisTracking {
+    /// The figures of machine axis `axis` (run signals `a`) from its tracking error and, with
+    /// a model, the model's tracking error and (max, RMS) of the model's departure from the
+    /// true drive, all in µm or mdeg.
+    pub fn new(
+        axis: &vcnc_machine::Axis,
+        a: &AxisSignals,
+        error: Vec<f64>,
+        model: Option<(Vec<f64>, (f64, f64))>,
+    ) -> AxisTracking {
+        let (model_error, vs) = model.unzip();
+        AxisTracking {
+            axis: a.name,
+            unit: a.unit,
+            controller: axis.drive.controller().kind(),
+            true_model: axis.true_model(),
+            tracking_max: max_abs(&error),
+            tracking_rms: rms(&error),
+            model_error,
+            model_vs_true_max: vs.map(|v| v.0),
+            model_vs_true_rms: vs.map(|v| v.1),
+            error,
+        }
+    }
+}
+
 /// Per-axis tracking figures of a simulation (the encoder positions, as a control sees them).
 pub fn tracking(machine: &Machine, run: &Run, sim: &Simulation) -> Vec<AxisTracking> {
     let actual: Vec<&[f64]> = sim.traces.iter().map(|t| t.position.as_slice()).collect();
@@ -130,20 +157,17 @@ pub fn tracking_of(
         .enumerate()
         .map(|(i, (axis, (a, x)))| {
             let k = a.unit.micro_factor();
-            let error = scaled_diff(&a.pos, x, k);
-            let vs = models.map(|p| scaled_diff(&p[i], x, k));
-            AxisTracking {
-                axis: a.name,
-                unit: a.unit,
-                controller: axis.drive.controller().kind(),
-                true_model: axis.true_model(),
-                tracking_max: max_abs(&error),
-                tracking_rms: rms(&error),
-                model_error: models.map(|p| scaled_diff(&a.pos, &p[i], k)),
-                model_vs_true_max: vs.as_deref().map(max_abs),
-                model_vs_true_rms: vs.as_deref().map(rms),
-                error,
-            }
+            AxisTracking::new(
+                axis,
+                a,
+                scaled_diff(&a.pos, x, k),
+                models.map(|p| {
+                    (
+                        scaled_diff(&a.pos, &p[i], k),
+                        scaled_diff_max_rms(&p[i], x, k),
+                    )
+                }),
+            )
         })
         .collect()
 }

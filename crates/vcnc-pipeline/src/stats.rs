@@ -5,6 +5,22 @@ pub fn scaled_diff(a: &[f64], b: &[f64], k: f64) -> Vec<f64> {
     a.iter().zip(b).map(|(a, b)| (a - b) * k).collect()
 }
 
+/// `(max_abs, rms)` of [`scaled_diff`]`(a, b, k)` without building it (the same sums in the
+/// same order, so the same bits).
+pub fn scaled_diff_max_rms(a: &[f64], b: &[f64], k: f64) -> (f64, f64) {
+    let n = a.len().min(b.len());
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let (mut max, mut sq) = (0.0f64, 0.0f64);
+    for (a, b) in a.iter().zip(b) {
+        let d = (a - b) * k;
+        max = max.max(d.abs());
+        sq += d * d;
+    }
+    (max, (sq / n as f64).sqrt())
+}
+
 /// Root mean square of a slice (0 for an empty one).
 pub fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {
