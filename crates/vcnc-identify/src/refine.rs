@@ -1497,37 +1497,40 @@ fn uncertainty(
             }
         })
         .collect();
-    // Profiles of the weakly determined poles (module documentation).
-    let weak: Vec<usize> = (0..3)
-        .filter(|&i| linear[i].is_finite() && linear[i] > PROFILE_RELATIVE * p0[i].abs())
-        .collect();
-    let profiled: Vec<f64> = weak
-        .par_iter()
-        .map(|&i| {
-            let level = 0.5 * cp[(i, i)] / hinv[(i, i)];
-            profile_std(prob, lay, eta, setup, base.cost, &p0, i, linear[i], level)
+    // Profiles of the weakly determined poles p, ωn, ζ (module documentation); 0 for the
+    // others.
+    let profiled: Vec<f64> = (0..3usize)
+        .into_par_iter()
+        .map(|i| {
+            if linear[i].is_finite() && linear[i] > PROFILE_RELATIVE * p0[i].abs() {
+                let level = 0.5 * cp[(i, i)] / hinv[(i, i)];
+                profile_std(prob, lay, eta, setup, base.cost, &p0, i, linear[i], level)
+            } else {
+                0.0
+            }
         })
         .collect();
     let parameters = names
         .into_iter()
         .enumerate()
-        .map(|(i, name)| {
-            let prof = weak
-                .iter()
-                .position(|&w| w == i)
-                .map_or(0.0, |k| profiled[k]);
-            ParameterStd {
-                name,
-                value: p0[i],
-                std: linear[i].max(prof),
-                linear_std: linear[i],
-            }
+        .map(|(i, name)| ParameterStd {
+            name,
+            value: p0[i],
+            std: wider_std(linear[i], profiled.get(i).copied().unwrap_or(0.0)),
+            linear_std: linear[i],
         })
         .collect();
     Some(Uncertainty {
         parameters,
         window_samples: window,
     })
+}
+
+/// The reported deviation: the profile's when it is wider than the linearised one. An undefined
+/// linearised deviation (NaN: a parameter the data cannot determine) stays undefined rather
+/// than becoming the profile's 0 ("not profiled"), which would read as certainty.
+fn wider_std(linear: f64, profiled: f64) -> f64 {
+    if profiled > linear { profiled } else { linear }
 }
 
 /// Relative linearised standard deviation (0.5 %) above which the deviation of $p$, $\omega_n$
@@ -1844,6 +1847,14 @@ mod tests {
                 "parameter {i}: reported {reported:e}, observed spread {spread:e}"
             );
         }
+    }
+
+    #[test]
+    fn an_undetermined_parameter_keeps_an_undefined_deviation() {
+        // f64::max would turn NaN and an unprofiled 0 into a deviation of 0, i.e. certainty.
+        assert!(wider_std(f64::NAN, 0.0).is_nan());
+        assert_eq!(wider_std(1.0, 0.0), 1.0);
+        assert_eq!(wider_std(1.0, 3.0), 3.0);
     }
 
     #[test]
