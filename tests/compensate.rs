@@ -213,11 +213,11 @@ fn feed_planning_meets_10_um_on_the_true_machine_faster_than_a_uniform_feed() {
 fn on_the_realistic_machine_compensation_removes_most_of_the_error() {
     // The identified models cannot represent the realistic drives' compliance, Stribeck and
     // pre-sliding friction, backlash and position-loop dead time; what they predict of the
-    // uncompensated spiral is off by |predicted − true| (vcnc predict, measured 1.87 µm max).
+    // uncompensated spiral is off by |predicted − true| (vcnc predict, measured 1.86 µm max).
     // Compensation here falls short of that accuracy: its inverted
-    // set-points carry more high-frequency content (set-point accelerations of tens of m/s²)
+    // set-points carry more high-frequency content (set-point accelerations above 100 m/s²)
     // than the identification program, which excites exactly the dynamics the models lack
-    // (measured 450.6 -> 5.29 µm max, 202.4 -> 0.44 µm RMS, 3.89 -> 0.032 mrad). Asserted: the
+    // (measured 450.6 -> 5.34 µm max, 202.4 -> 0.45 µm RMS, 3.89 -> 0.032 mrad). Asserted: the
     // reductions at half their measured size, so a regression of the inverse shows.
     let out = tempdir();
     let s = compensate("machines/nmv5000-realistic.toml", out.path());
