@@ -258,38 +258,25 @@ trait Elem: Copy {
     fn text(self, out: &mut String);
 }
 
-impl Elem for f64 {
-    const TYPE: &'static str = "Float64";
-    const SIZE: usize = 8;
-    fn le_bytes(self, out: &mut Vec<u8>) {
-        out.extend(self.to_le_bytes());
-    }
-    fn text(self, out: &mut String) {
-        let _ = write!(out, "{self:?}");
-    }
+/// The [`Elem`] of a number type: its VTK name and the `write!` format of its text form.
+macro_rules! elem {
+    ($t:ty, $name:literal, $fmt:literal) => {
+        impl Elem for $t {
+            const TYPE: &'static str = $name;
+            const SIZE: usize = std::mem::size_of::<$t>();
+            fn le_bytes(self, out: &mut Vec<u8>) {
+                out.extend(self.to_le_bytes());
+            }
+            fn text(self, out: &mut String) {
+                let _ = write!(out, $fmt, self);
+            }
+        }
+    };
 }
 
-impl Elem for i64 {
-    const TYPE: &'static str = "Int64";
-    const SIZE: usize = 8;
-    fn le_bytes(self, out: &mut Vec<u8>) {
-        out.extend(self.to_le_bytes());
-    }
-    fn text(self, out: &mut String) {
-        let _ = write!(out, "{self}");
-    }
-}
-
-impl Elem for u32 {
-    const TYPE: &'static str = "UInt32";
-    const SIZE: usize = 4;
-    fn le_bytes(self, out: &mut Vec<u8>) {
-        out.extend(self.to_le_bytes());
-    }
-    fn text(self, out: &mut String) {
-        let _ = write!(out, "{self}");
-    }
-}
+elem!(f64, "Float64", "{:?}");
+elem!(i64, "Int64", "{}");
+elem!(u32, "UInt32", "{}");
 
 /// The document being emitted: text is gathered in `out` and handed to `emit` whenever it
 /// passes [`Pieces::CHUNK`] bytes, so that no data array is ever whole in memory
