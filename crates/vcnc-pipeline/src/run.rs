@@ -223,8 +223,16 @@ pub fn read_program(path: &Path) -> Result<String, Error> {
         )));
     }
     // The parser stops at its block limit; a longer program is refused before it is read.
+    // A non-blank line takes at least two bytes but the last, so only a file of more than
+    // 2 × max_blocks − 1 bytes can hold too many, and only such a file is counted (the count
+    // reads it once more).
     let max_blocks = vcnc_gcode::ParseOptions::default().max_blocks;
-    let lines = non_blank_lines(path).map_err(cannot)?;
+    let could_exceed = size.div_ceil(2) > max_blocks as u64;
+    let lines = if could_exceed {
+        non_blank_lines(path).map_err(cannot)?
+    } else {
+        0
+    };
     if lines > max_blocks {
         return Err(Error::Usage(format!(
             "{}: the program has {lines} non-blank lines, more than the {max_blocks} blocks \
