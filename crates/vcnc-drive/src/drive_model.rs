@@ -711,13 +711,8 @@ mod tests {
 
     fn table1() -> ClosedLoopModel {
         ClosedLoopModel {
-            a1: 238.4335,
-            a2: 48421.586,
-            a3: 2487140.3,
             b0: 0.3,
-            b1: 117.5424,
-            b2: 37258.98,
-            dc: 47.7,
+            ..crate::TABLE1_MODEL
         }
     }
 

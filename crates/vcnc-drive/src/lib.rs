@@ -67,7 +67,7 @@ pub use params::{
     Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,
     SmcGains,
 };
-pub use presets::{NMV5000_TABLE3, nmv5000_axis_design, table1_drive};
+pub use presets::{NMV5000_TABLE3, TABLE1_MODEL, nmv5000_axis_design, table1_drive};
 pub use sim::{DriveTrace, simulate_drive};
 pub use vcnc_axis::AxisName;
 

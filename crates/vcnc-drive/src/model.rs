@@ -663,13 +663,8 @@ mod tests {
     /// Table 1 drive, coefficients as docs/reference-numbers.md prints them.
     fn table1() -> ClosedLoopModel {
         ClosedLoopModel {
-            a1: 238.4335,
-            a2: 48421.586,
-            a3: 2487140.3,
-            b0: 0.0,
-            b1: 117.5424,
-            b2: 37258.98,
             dc: 0.0,
+            ..crate::TABLE1_MODEL
         }
     }
 

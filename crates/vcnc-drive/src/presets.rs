@@ -7,6 +7,20 @@ use crate::params::{
 };
 use crate::{AxisName, Error};
 
+/// The paper's Table 1 closed loop with the coefficients as the paper prints them
+/// (docs/reference-numbers.md, "Actual", rounded there to 4-7 digits) and $d_c = 47.7$ mm/s², the
+/// Coulomb level of [`table1_drive`]: the truth of the tests that need the Table 1 model itself
+/// rather than its drive (vary `b0`, `dc` with struct update syntax).
+pub const TABLE1_MODEL: crate::ClosedLoopModel = crate::ClosedLoopModel {
+    a1: 238.4335,
+    a2: 48421.586,
+    a3: 2487140.3,
+    b0: 0.0,
+    b1: 117.5424,
+    b2: 37258.98,
+    dc: 47.7,
+};
+
 /// The paper's Table 1 virtual P-PI ball-screw drive (docs/reference-numbers.md): $r_g = 1.5915$ mm/rad,
 /// $J = 0.01$ kg·m², $B = 0.0418572$ N·m·s/rad, $K_a = K_t = 1$, $K_v = 70$ (rad/s)/mm,
 /// $K_p = 2.342478$, $K_i = 223.252126$, $V_{ff} = 0.5$, $B_{ff} = 0.1$, $J_{ff} = 0$.

@@ -1672,13 +1672,9 @@ mod tests {
 
     fn table1(dc: f64) -> ClosedLoopModel {
         ClosedLoopModel {
-            a1: 238.4335,
-            a2: 48421.586,
-            a3: 2487140.3,
             b0: 0.2,
-            b1: 117.5424,
-            b2: 37258.98,
             dc,
+            ..vcnc_drive::TABLE1_MODEL
         }
     }
 

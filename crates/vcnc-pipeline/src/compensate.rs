@@ -1277,13 +1277,9 @@ mod tests {
     fn model(b0: f64, dc: f64) -> ClosedLoopModel {
         // The paper's Table 1 drive (docs/reference-numbers.md) with Vff = 0.5, Bff = 0.1.
         ClosedLoopModel {
-            a1: 238.4335,
-            a2: 48421.586,
-            a3: 2487140.3,
             b0,
-            b1: 117.5424,
-            b2: 37258.98,
             dc,
+            ..vcnc_drive::TABLE1_MODEL
         }
     }
 
