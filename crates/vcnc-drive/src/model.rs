@@ -336,6 +336,21 @@ impl ClosedLoopModel {
         (s, c1, c0)
     }
 
+    /// The model with characteristic polynomial $s^3 + a_1 s^2 + a_2 s + a_3$ and nothing else
+    /// (zero numerator and friction): the carrier of [`ClosedLoopModel::poles`] for a
+    /// denominator alone.
+    pub fn characteristic(a1: f64, a2: f64, a3: f64) -> ClosedLoopModel {
+        ClosedLoopModel {
+            a1,
+            a2,
+            a3,
+            b0: 0.0,
+            b1: 0.0,
+            b2: 0.0,
+            dc: 0.0,
+        }
+    }
+
     /// Pole locations $(p, \omega_n, \zeta)$ (paper eq. 11), or `None` when the roots cannot be
     /// written in that form (non-finite coefficients).
     pub fn poles(&self) -> Option<Poles> {

@@ -835,15 +835,7 @@ impl Drive {
         let a1 = -(s[0] + s[1] + s[2]).re;
         let a2 = (s[0] * s[1] + s[0] * s[2] + s[1] * s[2]).re;
         let a3 = -(s[0] * s[1] * s[2]).re;
-        let cubic = ClosedLoopModel {
-            a1,
-            a2,
-            a3,
-            b0: 0.0,
-            b1: 0.0,
-            b2: 0.0,
-            dc: 0.0,
-        };
+        let cubic = ClosedLoopModel::characteristic(a1, a2, a3);
         let poles = cubic.poles().ok_or(Error::NonFiniteModel)?;
         Ok((s, poles))
     }

@@ -365,16 +365,7 @@ impl Layout {
     fn eta_of(&self, core: (f64, f64, f64), extra: &[f64]) -> Option<Vec<f64>> {
         let (a1, a2, a3) = core;
         let mut v = if self.boxed_core {
-            let p = ClosedLoopModel {
-                a1,
-                a2,
-                a3,
-                b0: 0.0,
-                b1: 0.0,
-                b2: 0.0,
-                dc: 0.0,
-            }
-            .poles()?;
+            let p = ClosedLoopModel::characteristic(a1, a2, a3).poles()?;
             vec![p.p_hz(), p.wn_hz(), p.zeta]
         } else {
             // A start with its pole at the origin (a drive without integral action) starts

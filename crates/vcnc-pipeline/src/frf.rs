@@ -265,15 +265,7 @@ mod tests {
         let a1 = p + 2.0 * z * wn;
         let a2 = wn * wn + 2.0 * z * wn * p;
         let a3 = p * wn * wn;
-        let m = ClosedLoopModel {
-            a1,
-            a2,
-            a3,
-            b0: 0.0,
-            b1: 0.0,
-            b2: 0.0,
-            dc: 0.0,
-        };
+        let m = ClosedLoopModel::characteristic(a1, a2, a3);
         let bw = bandwidth_hz(&m).unwrap();
         let want = 10.0 * (10f64.powf(0.3) - 1.0).sqrt();
         assert!((bw - want).abs() < 1e-3, "{bw} vs {want}");
