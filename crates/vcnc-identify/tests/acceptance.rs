@@ -261,6 +261,18 @@ fn emps() -> Trace {
     Trace::from_columns(&t, &xr, &x).expect("valid trace")
 }
 
+/// The EMPS benchmark's physical model mapped onto the 7 parameters
+/// (docs/reference-numbers.md): a drive without integral action.
+const EMPS_PHYSICAL: ClosedLoopModel = ClosedLoopModel {
+    a1: 92.11,
+    a2: 14412.2,
+    a3: 0.0,
+    b0: 0.0,
+    b1: 0.0,
+    b2: 14412.2,
+    dc: 214.4,
+};
+
 #[test]
 fn emps_real_drive_free_run_within_3_um() {
     // Real ball-screw drive without integral action (a3 = 0), not starting at rest. Truth:
@@ -281,15 +293,7 @@ fn emps_real_drive_free_run_within_3_um() {
         },
         ..Default::default()
     };
-    let physical = ClosedLoopModel {
-        a1: 92.11,
-        a2: 14412.2,
-        a3: 0.0,
-        b0: 0.0,
-        b1: 0.0,
-        b2: 14412.2,
-        dc: 214.4,
-    };
+    let physical = EMPS_PHYSICAL;
     let fp = fit_metrics(&physical, &tr, &opts).expect("fit");
     assert!(
         (fp.freerun_rms - 4.0e-3).abs() < 0.1e-3,
@@ -454,15 +458,7 @@ fn emps_held_out_part_is_predicted_better_than_the_published_physical_model() {
         ..Default::default()
     };
     let id = identify(&head, &opts).expect("identifies");
-    let physical = vcnc_drive::DriveModel::from(ClosedLoopModel {
-        a1: 92.11,
-        a2: 14412.2,
-        a3: 0.0,
-        b0: 0.0,
-        b1: 0.0,
-        b2: 14412.2,
-        dc: 214.4,
-    });
+    let physical = vcnc_drive::DriveModel::from(EMPS_PHYSICAL);
     let held = score(&id.model, &tr, Some(split..n), &opts).expect("score");
     let held_phys = score(&physical, &tr, Some(split..n), &opts).expect("score");
     println!(
