@@ -23,20 +23,21 @@ pub fn interpolate(
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
+    if let Some(stream) = vcnc_pipeline::stream::plan_file(
+        &machine,
+        program,
+        ctx.lenient,
+        &vcnc_gcode::StreamOptions::default(),
+    )? {
+        return interpolate_streamed(machine_path, &machine, program, &stream, out, table, ctx);
+    }
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&run.warnings);
     ensure_dir(out)?;
     let tcp = run.has_tcp();
-    let mut header = vec!["t".to_string()];
-    if tcp {
-        // Tool tip in the workpiece frame (the reference poses), then every machine axis.
-        header.extend(["px", "py", "pz"].map(String::from));
-    }
-    for a in &run.axes {
-        header.push(a.name.to_string());
-        header.push(format!("{}_vel", a.name));
-        header.push(format!("{}_acc", a.name));
-    }
+    let names: Vec<vcnc_gcode::AxisName> = run.axes.iter().map(|a| a.name).collect();
+    // Tool tip in the workpiece frame (the reference poses), then every machine axis.
+    let header = reference_header(tcp, &names);
     // Computed a row group at a time (docs/performance.md).
     let table_path = write_table_rows(out, "reference", header, run.len(), table, |rows, cols| {
         let mut c = cols.iter_mut();
@@ -86,6 +87,129 @@ pub fn interpolate(
             run.duration_s(),
             run.ts,
             out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Columns of `reference.csv`: `t`, the tool tip for TCP programs, then per axis position,
+/// velocity and acceleration.
+fn reference_header(tcp: bool, axes: &[vcnc_gcode::AxisName]) -> Vec<String> {
+    let mut header = vec!["t".to_string()];
+    if tcp {
+        header.extend(["px", "py", "pz"].map(String::from));
+    }
+    for a in axes {
+        header.push(a.to_string());
+        header.push(format!("{a}_vel"));
+        header.push(format!("{a}_acc"));
+    }
+    header
+}
+
+/// `vcnc interpolate` streamed (docs/performance.md, "Streaming"): the program is read twice a
+/// piece at a time and every piece of samples is written and dropped; the outputs are those of
+/// the whole-program path.
+fn interpolate_streamed(
+    machine_path: &Path,
+    machine: &Machine,
+    program: &Path,
+    stream: &vcnc_pipeline::stream::ReferenceStream,
+    out: &Path,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> Result<()> {
+    use vcnc_pipeline::stream::Envelope;
+    print_warnings(&stream.warnings);
+    ensure_dir(out)?;
+    let tcp = stream.plan.any_tcp;
+    let names: Vec<vcnc_gcode::AxisName> = machine.axes.iter().map(|a| a.name).collect();
+    let header = reference_header(tcp, &names);
+    let n = stream.len();
+    let ts = stream.plan.ts;
+    let mut writer =
+        crate::sink::TableWriter::create_sized(out, "reference", header, table, Some(n))?;
+    // The figure from a min/max envelope per pixel column: a spike is never lost.
+    let mut env: Vec<Envelope> = names.iter().map(|_| Envelope::new(n, 2000)).collect();
+    let mut t = Vec::new();
+    let mut write_err: Option<anyhow::Error> = None;
+    let stats = stream.run(machine, program, &mut |c| {
+        t.clear();
+        t.extend((c.first..c.first + c.len()).map(|k| k as f64 * ts));
+        let mut cols: Vec<&[f64]> = vec![&t];
+        if let Some(tip) = &c.tip {
+            cols.extend(tip.iter().map(Vec::as_slice));
+        }
+        for (i, e) in env.iter_mut().enumerate() {
+            cols.push(&c.pos[i]);
+            cols.push(&c.vel[i]);
+            cols.push(&c.acc[i]);
+            e.add(c.first, &c.vel[i]);
+        }
+        if let Err(e) = writer.write(&cols) {
+            write_err = Some(e);
+            return Err(vcnc_pipeline::Error::Usage(
+                "the table could not be written".into(),
+            ));
+        }
+        Ok(())
+    });
+    if let Some(e) = write_err {
+        return Err(e);
+    }
+    let stats = stats?;
+    let table_path = writer.finish()?;
+    print_warnings(&stats.warnings);
+    let summary = stream.summary(machine, &stats);
+    write_json(&out.join("summary.json"), &summary)?;
+    let info = crate::writers::RunInfo {
+        file: &stream.file,
+        samples: n,
+        duration_s: stream.duration_s(),
+        ts,
+        warnings: &summary.warnings,
+    };
+    let mut report = crate::writers::run_report_info(
+        out,
+        "interpolate",
+        machine_path,
+        machine,
+        &info,
+        None,
+        table,
+        ctx,
+    );
+    let lines: Vec<(Vec<f64>, Vec<f64>)> = env.iter().map(|e| e.polyline(ts)).collect();
+    let axes: Vec<figures::ReferenceAxis<'_>> = machine
+        .axes
+        .iter()
+        .zip(&lines)
+        .zip(&stats.moved)
+        .map(|((a, (t, v)), moved)| figures::ReferenceAxis {
+            name: a.name,
+            unit: a.unit,
+            moved: *moved,
+            t,
+            vel: v,
+        })
+        .collect();
+    figures::reference_axes(&mut report, &stream.file, &axes)?;
+    report_table_file(
+        &mut report,
+        &table_path,
+        "per sample: t, the tool tip px py pz (TCP programs), and per axis position, velocity \
+         and acceleration (docs/cli.md)",
+    );
+    report.finish()?;
+    if !ctx.quiet {
+        println!(
+            "{}: {} samples, {:.3} s at Ts = {} s -> {} (streamed, look-ahead peak {} segments)",
+            program.display(),
+            n,
+            stream.duration_s(),
+            ts,
+            out.display(),
+            stream.plan.lookahead_peak
         );
     }
     Ok(())

@@ -454,10 +454,42 @@ pub fn simulation_tracking(report: &mut RunReport, run: &Run, tr: &[AxisTracking
 /// The reference of a program (`vcnc interpolate`): the velocity of each axis it moves.
 pub fn reference(report: &mut RunReport, run: &Run) -> Result<()> {
     let t = run.times();
-    let (moved, still): (Vec<_>, Vec<_>) = run
+    let axes: Vec<ReferenceAxis<'_>> = run
         .axes
         .iter()
-        .partition(|a| a.pos.iter().any(|p| *p != a.pos[0]));
+        .map(|a| ReferenceAxis {
+            name: a.name,
+            unit: a.unit,
+            moved: a.pos.iter().any(|p| *p != a.pos[0]),
+            t: &t,
+            vel: &a.vel,
+        })
+        .collect();
+    reference_axes(report, &run.file, &axes)
+}
+
+/// One axis of the reference figure: its velocity at the times `t` (every sample, or a
+/// streamed run's min/max envelope).
+pub struct ReferenceAxis<'a> {
+    /// The axis.
+    pub name: vcnc_gcode::AxisName,
+    /// mm or deg.
+    pub unit: vcnc_machine::Unit,
+    /// The program moves it (else it is listed, not drawn).
+    pub moved: bool,
+    /// Times, s.
+    pub t: &'a [f64],
+    /// Velocity, units/s.
+    pub vel: &'a [f64],
+}
+
+/// `reference.svg`: the velocity of each moved axis.
+pub fn reference_axes(
+    report: &mut RunReport,
+    file: &str,
+    axes: &[ReferenceAxis<'_>],
+) -> Result<()> {
+    let (moved, still): (Vec<_>, Vec<_>) = axes.iter().partition(|a| a.moved);
     let panels: Vec<vr::Panel> = moved
         .iter()
         .map(|a| {
@@ -466,12 +498,12 @@ pub fn reference(report: &mut RunReport, run: &Run) -> Result<()> {
                     format!("{} velocity", a.name),
                     format!("{}/s", a.unit.as_str()),
                 ),
-                vec![Series::line("reference", Role::Reference, &t, &a.vel)],
+                vec![Series::line("reference", Role::Reference, a.t, a.vel)],
             )
         })
         .collect();
     let mut fig = vr::LineFigure::new(
-        format!("{}: reference velocity per axis", program_name(&run.file)),
+        format!("{}: reference velocity per axis", program_name(file)),
         Axis::linear("time t", units::S),
         panels,
     );

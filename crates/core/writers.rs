@@ -434,11 +434,57 @@ pub fn run_report(
     table: &TableOptions,
     ctx: &Ctx,
 ) -> RunReport {
+    let info = RunInfo {
+        file: &run.file,
+        samples: run.len(),
+        duration_s: run.duration_s(),
+        ts: run.ts,
+        warnings: &run.warnings,
+    };
+    run_report_info(
+        out,
+        command,
+        machine_path,
+        machine,
+        &info,
+        models,
+        table,
+        ctx,
+    )
+}
+
+/// What a report says about a run: for runs that are streamed rather than held as a
+/// [`Run`].
+pub struct RunInfo<'a> {
+    /// The program's path.
+    pub file: &'a str,
+    /// Number of samples.
+    pub samples: usize,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Sample period, s.
+    pub ts: f64,
+    /// Warnings of the run.
+    pub warnings: &'a [String],
+}
+
+/// [`run_report`] from a [`RunInfo`].
+#[allow(clippy::too_many_arguments)]
+pub fn run_report_info(
+    out: &Path,
+    command: &str,
+    machine_path: &Path,
+    machine: &Machine,
+    run: &RunInfo<'_>,
+    models: Option<&str>,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> RunReport {
     let mut report = RunReport::new(
         out,
         format!(
             "vcnc {command}: {} on {}",
-            figures::program_name(&run.file),
+            figures::program_name(run.file),
             machine.name
         ),
     );
@@ -450,10 +496,7 @@ pub fn run_report(
         "program",
         format!(
             "{} ({} samples, {:.3} s at Ts = {} s)",
-            run.file,
-            run.len(),
-            run.duration_s(),
-            run.ts
+            run.file, run.samples, run.duration_s, run.ts
         ),
     );
     if let Some(m) = models {
@@ -463,6 +506,6 @@ pub fn run_report(
     if ctx.lenient {
         report.input("option", "--lenient");
     }
-    report.warnings(&run.warnings);
+    report.warnings(run.warnings);
     report
 }

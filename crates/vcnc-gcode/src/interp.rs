@@ -410,6 +410,165 @@ pub fn interpret(
     }
 }
 
+/// The interpreter's state between two pieces of a program ([`ChunkInterp`]).
+#[derive(Debug)]
+struct Carry {
+    sink: Sink,
+    st: State,
+    params: Params,
+    tools: ToolTable,
+    tp: Toolpath,
+    frames: Vec<Frame>,
+    loop_iterations: u64,
+}
+
+/// An interpreter fed a program a piece at a time: the pieces of a
+/// [`crate::syntax::ChunkParser`], in order. It hands back the moves made so far after each
+/// piece (keeping the last one, which a following `M0`/`M2` may still mark as a stop), so a
+/// program of any length is interpreted in memory bounded by its longest piece.
+///
+/// It runs programs without O-word statements: a subroutine call or a loop needs the blocks it
+/// jumps to, which a piece may not hold. [`ChunkInterp::run_chunk`] refuses a piece holding one
+/// ([`crate::Error::NotStreamable`]); such a program is interpreted whole ([`interpret`]).
+/// For any program it runs, the moves, the toolpath's start and axes and the diagnostics are
+/// those of [`interpret`] on the whole program (tested).
+#[derive(Debug)]
+pub struct ChunkInterp {
+    opts: InterpOptions,
+    carry: Option<Carry>,
+    /// A block has been seen (the first `%` opens the program, a later one ends it).
+    seen_block: bool,
+    /// Line of the program end (`M2`, `M30`, closing `%`), once reached.
+    ended_at: Option<u32>,
+    /// The warning about blocks after the end has been given.
+    warned_after_end: bool,
+    /// The last block seen.
+    last_span: Option<Span>,
+    /// Moves handed back so far.
+    moves_out: usize,
+}
+
+impl ChunkInterp {
+    /// An interpreter at the start of a program.
+    pub fn new(opts: &InterpOptions) -> Self {
+        let empty = Program::default();
+        let carry = Interp::new(&empty, opts).into_carry();
+        ChunkInterp {
+            opts: opts.clone(),
+            carry: Some(carry),
+            seen_block: false,
+            ended_at: None,
+            warned_after_end: false,
+            last_span: None,
+            moves_out: 0,
+        }
+    }
+
+    /// `true` once an error has been reported.
+    pub fn has_errors(&self) -> bool {
+        self.carry.as_ref().is_some_and(|c| c.sink.has_errors())
+    }
+
+    /// Run the next piece; returns the moves completed so far (in order, after those returned
+    /// before). A piece holding an O-word statement is refused with its line.
+    pub fn run_chunk(&mut self, prog: &Program) -> Result<Vec<Move>, crate::Error> {
+        if let Some(b) = prog.blocks.iter().find(|b| b.o_word.is_some()) {
+            return Err(crate::Error::NotStreamable {
+                line: b.line,
+                reason: "an O-word statement (subroutine, condition or loop) needs the whole \
+                         program"
+                    .into(),
+            });
+        }
+        let Some(carry) = self.carry.take() else {
+            return Ok(Vec::new());
+        };
+        let mut it = Interp::resume(prog, &self.opts, carry);
+        let delete = self.opts.block_delete;
+        for block in &prog.blocks {
+            self.last_span = Some(block.span);
+            if let Some(end_line) = self.ended_at {
+                if !self.warned_after_end
+                    && (!block.words.is_empty() || !block.assignments.is_empty())
+                {
+                    it.sink.push(Diagnostic::warning(
+                        block.span,
+                        format!("blocks after the program end on line {end_line} are not executed"),
+                    ));
+                    self.warned_after_end = true;
+                }
+                continue;
+            }
+            let first = !self.seen_block;
+            self.seen_block = true;
+            if block.percent {
+                if !first {
+                    self.ended_at = Some(block.line);
+                }
+                continue;
+            }
+            if block.block_delete && delete {
+                continue;
+            }
+            it.st.line = block.line;
+            if it.block(block) {
+                self.ended_at = Some(block.line);
+            }
+            if it.tp.moves.len() > self.opts.max_moves {
+                it.err(
+                    block.span,
+                    DiagnosticKind::Limit,
+                    format!(
+                        "the program makes more than {} moves (InterpOptions::max_moves)",
+                        self.opts.max_moves
+                    ),
+                );
+                // Nothing more runs: the program is refused.
+                self.ended_at = Some(block.line);
+                self.warned_after_end = true;
+            }
+        }
+        // Under StartPosition::FirstMove the first motion still rewrites the moves before it;
+        // the last move may still be marked as a stop by the next piece.
+        let out = if it.st.started && it.tp.moves.len() > 1 {
+            let keep = it.tp.moves.len() - 1;
+            it.tp.moves.drain(..keep).collect()
+        } else {
+            Vec::new()
+        };
+        self.moves_out += out.len();
+        self.carry = Some(it.into_carry());
+        Ok(out)
+    }
+
+    /// End of the program: the remaining moves (the last one marked as a stop), the toolpath's
+    /// start and used axes (in a [`Toolpath`] holding only the remaining moves), and every
+    /// diagnostic — or every diagnostic when one is an error.
+    pub fn finish(mut self) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
+        let Some(mut c) = self.carry.take() else {
+            return Err(Vec::new());
+        };
+        if self.ended_at.is_none()
+            && let Some(span) = self.last_span
+        {
+            c.sink.push(Diagnostic::warning(
+                span,
+                "the program ends without M2, M30 or a closing %: LinuxCNC refuses such a file (\"File ended with no percent sign or program end\")",
+            ));
+        }
+        if let Some(last) = c.tp.moves.last_mut() {
+            last.stop_after = true;
+        }
+        let has_errors = c.sink.has_errors();
+        let diags = c.sink.finish();
+        if has_errors {
+            Err(diags)
+        } else {
+            Ok((c.tp, diags))
+        }
+    }
+}
+
 struct Interp<'a> {
     opts: &'a InterpOptions,
     prog: &'a Program,
@@ -490,6 +649,34 @@ impl<'a> Interp<'a> {
         }
         it.load_start_offsets();
         it
+    }
+
+    /// The state to carry to the next piece of a program.
+    fn into_carry(self) -> Carry {
+        Carry {
+            sink: self.sink,
+            st: self.st,
+            params: self.params,
+            tools: self.tools,
+            tp: self.tp,
+            frames: self.frames,
+            loop_iterations: self.loop_iterations,
+        }
+    }
+
+    /// Go on with the next piece `prog` of a program from the carried state.
+    fn resume(prog: &'a Program, opts: &'a InterpOptions, c: Carry) -> Self {
+        Interp {
+            opts,
+            prog,
+            sink: c.sink,
+            st: c.st,
+            params: c.params,
+            tools: c.tools,
+            tp: c.tp,
+            frames: c.frames,
+            loop_iterations: c.loop_iterations,
+        }
     }
 
     fn frame(&self) -> &Frame {

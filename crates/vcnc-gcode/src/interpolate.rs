@@ -85,6 +85,8 @@ use crate::diag::{Diagnostic, Span};
 use crate::interp::{Feed, Move, MoveKind, Toolpath};
 use crate::{AxisName, Error};
 
+pub mod stream;
+
 /// Velocity and acceleration limit of one axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisLimits {
@@ -383,7 +385,7 @@ impl Trap {
 
 /// Curve of one move, $\mathbf{g}(s)$.
 #[derive(Debug, Clone, Copy)]
-enum Geom {
+pub(crate) enum Geom {
     Line {
         p0: [f64; 6],
         end: [f64; 6],
@@ -408,7 +410,7 @@ enum Geom {
 
 /// One move ready for profiling.
 #[derive(Debug, Clone, Copy)]
-struct Seg {
+pub(crate) struct Seg {
     geom: Geom,
     len: f64,
     /// Speed cap along s (feed and limits).
@@ -485,7 +487,7 @@ fn norm3(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
-fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result<(), Error> {
+pub(crate) fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result<(), Error> {
     for (i, l) in limits.axes.iter().enumerate() {
         for (name, value) in [("max_vel", l.max_vel), ("max_acc", l.max_acc)] {
             if !(value.is_finite() && value >= 0.0) {
@@ -536,7 +538,7 @@ fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result<(), Error>
 }
 
 /// Build the segment of a motion move; `None` for a zero-length move.
-fn segment(
+pub(crate) fn segment(
     mv: &Move,
     index: usize,
     limits: &Limits,
@@ -703,7 +705,7 @@ fn segment(
 
 /// A stretch of the timeline: a hold or a chain of segments with their profiles.
 #[derive(Debug, Clone)]
-struct Piece {
+pub(crate) struct Piece {
     /// Samples in the piece (its duration is `n · ts`).
     n: u64,
     /// Time scale λ ≥ 1 (t = λ τ).
@@ -722,13 +724,13 @@ struct Piece {
 /// The samples of a time-exact chain: `points[j]` is the position at the piece's sample `j`
 /// (`points[0]` the start, `points[n]` the end); `moves[j]` the move that ends on `points[j + 1]`.
 #[derive(Debug, Clone)]
-struct Exact {
+pub(crate) struct Exact {
     points: Vec<[f64; 6]>,
     moves: Vec<usize>,
 }
 
 /// Number of whole samples covering `t` seconds (tolerating round-off just above a multiple).
-fn samples_for(t: f64, ts: f64, max: usize) -> Result<u64, Error> {
+pub(crate) fn samples_for(t: f64, ts: f64, max: usize) -> Result<u64, Error> {
     let n = (t / ts - 1e-9).ceil().max(0.0);
     if !n.is_finite() || n > max as f64 {
         return Err(Error::TooManySamples {
@@ -741,7 +743,13 @@ fn samples_for(t: f64, ts: f64, max: usize) -> Result<u64, Error> {
 }
 
 /// Rest-to-rest piece for one segment lasting at least `t_min` rounded up (exact stop).
-fn single(seg: Seg, tcp: bool, t_req: Option<f64>, ts: f64, max: usize) -> Result<Piece, Error> {
+pub(crate) fn single(
+    seg: Seg,
+    tcp: bool,
+    t_req: Option<f64>,
+    ts: f64,
+    max: usize,
+) -> Result<Piece, Error> {
     let opt = Trap::new(seg.len, 0.0, 0.0, seg.vcap, seg.acap);
     let target = t_req.unwrap_or(opt.duration()).max(opt.duration());
     let n = samples_for(target, ts, max)?;
@@ -764,7 +772,7 @@ fn single(seg: Seg, tcp: bool, t_req: Option<f64>, ts: f64, max: usize) -> Resul
 }
 
 /// Junction speed cap between `a` (exit) and `b` (entry).
-fn junction(a: &Seg, b: &Seg, delta: f64, limits: &Limits, ts: f64) -> f64 {
+pub(crate) fn junction(a: &Seg, b: &Seg, delta: f64, limits: &Limits, ts: f64) -> f64 {
     let (_, ta, _) = a.geom.eval(a.len, a.len);
     let (_, tb, _) = b.geom.eval(0.0, b.len);
     let range = if a.xyz_basis { 0..3 } else { 3..6 };
@@ -844,7 +852,7 @@ fn chain(
 
 /// A fine block: `G1` under `G93` and `G64` whose $1/F$ is exactly one sample period (within
 /// $10^{-9}$ relative), the element of a time-exact chain (module doc).
-fn fine_block(mv: &Move, ts: f64) -> bool {
+pub(crate) fn fine_block(mv: &Move, ts: f64) -> bool {
     !mv.exact_stop
         && matches!(mv.kind, MoveKind::Linear)
         && matches!(mv.feed, Some(Feed::InverseTime(f)) if (60.0 / (f * ts) - 1.0).abs() <= 1e-9)
@@ -927,7 +935,7 @@ fn time_exact_chain(
     })
 }
 
-fn continuous(mv: &Move) -> bool {
+pub(crate) fn continuous(mv: &Move) -> bool {
     !mv.exact_stop
         && matches!(mv.feed, Some(Feed::UnitsPerMin(_)))
         && matches!(mv.kind, MoveKind::Linear | MoveKind::Arc(_))
@@ -935,7 +943,7 @@ fn continuous(mv: &Move) -> bool {
 
 /// Why a block was slowed (numbers only: the message is built once, for the worst block).
 #[derive(Clone, Copy)]
-enum Cause {
+pub(crate) enum Cause {
     /// `G94`: programmed speed and the cap, along s (mm/s or deg/s).
     Feed { v_feed: f64, v_lim: f64, deg: bool },
     /// `G93`: requested and shortest durations, s, and F (1/min).
@@ -944,14 +952,14 @@ enum Cause {
 
 /// Blocks slowed to the limits: the count and the worst (factor, line, column, cause).
 #[derive(Default)]
-struct Slowed {
+pub(crate) struct Slowed {
     count: usize,
     worst: Option<(f64, u32, u32, Cause)>,
 }
 
 impl Slowed {
     /// Note a `G94` segment whose feed is above its speed cap.
-    fn feed(&mut self, seg: &Seg, mv: &Move) {
+    pub(crate) fn feed(&mut self, seg: &Seg, mv: &Move) {
         if seg.vfeed.is_finite() && seg.vfeed > seg.vlim * (1.0 + 1e-9) {
             let cause = Cause::Feed {
                 v_feed: seg.vfeed,
@@ -962,14 +970,24 @@ impl Slowed {
         }
     }
 
-    fn note(&mut self, factor: f64, mv: &Move, cause: Cause) {
+    /// The notes of `later` (taken in order after these), as if noted here one by one.
+    pub(crate) fn merge(&mut self, later: Slowed) {
+        self.count += later.count;
+        if let Some(w) = later.worst
+            && self.worst.is_none_or(|s| w.0 > s.0)
+        {
+            self.worst = Some(w);
+        }
+    }
+
+    pub(crate) fn note(&mut self, factor: f64, mv: &Move, cause: Cause) {
         self.count += 1;
         if self.worst.is_none_or(|w| factor > w.0) {
             self.worst = Some((factor, mv.line, mv.col, cause));
         }
     }
 
-    fn finish(self, warnings: &mut Vec<Diagnostic>) -> Option<Slowdown> {
+    pub(crate) fn finish(self, warnings: &mut Vec<Diagnostic>) -> Option<Slowdown> {
         let (factor, line, col, cause) = self.worst?;
         let detail = match cause {
             Cause::Feed { v_feed, v_lim, deg } => {

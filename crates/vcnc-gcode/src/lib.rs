@@ -38,16 +38,18 @@ pub use generate::{
     spiral_points, tcp_program,
 };
 pub use interp::{
-    ArcMove, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath, interpret,
+    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath,
+    interpret,
 };
+pub use interpolate::stream::{ProgramSource, SampleChunk, StreamOptions, StreamPlan, plan};
 pub use interpolate::{
     AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,
     interpolate,
 };
 pub use syntax::{
-    Assignment, BinOp, Block, Comment, CommentKind, Expr, ExprId, ExprKind, Func, LineNumber,
-    NameId, OLabel, OStatement, OWord, ParamRef, ParseOptions, Program, Word, parse, parse_bytes,
-    parse_with,
+    Assignment, BinOp, Block, ChunkParser, Comment, CommentKind, Expr, ExprId, ExprKind, Func,
+    LineNumber, NameId, OLabel, OStatement, OWord, ParamRef, ParseOptions, Program, Word, parse,
+    parse_bytes, parse_with,
 };
 pub use tables::{
     LengthUnit, ParameterTable, Tool, ToolTable, parse_parameter_file, parse_tool_table,
@@ -140,6 +142,20 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// A program cannot be read a piece at a time (streamed); it is read whole instead.
+    #[error("line {line}: the program cannot be streamed: {reason}")]
+    NotStreamable {
+        /// Source line of the first block that needs the whole program.
+        line: u32,
+        /// Why.
+        reason: String,
+    },
+    /// The program file could not be read.
+    #[error("cannot read the program: {message}")]
+    Read {
+        /// The operating system's message.
+        message: String,
+    },
     /// A generator option is out of range.
     #[error("generator option {name} = {value:?} is invalid: expected {expected}")]
     InvalidGenerator {
@@ -166,6 +182,7 @@ impl Error {
             | Error::ParameterFile { .. }
             | Error::ToolTable { .. }
             | Error::InvalidGenerator { .. } => true,
+            Error::NotStreamable { .. } | Error::Read { .. } => false,
         }
     }
 }

@@ -281,66 +281,142 @@ impl Builder {
 
 /// Parse `src`, collecting every diagnostic (see the module doc for the limits).
 pub fn parse_with(src: &str, opts: &ParseOptions) -> (Program, Vec<Diagnostic>) {
-    let mut sink = Sink::new(opts.max_diagnostics);
-    let mut builder = Builder::default();
-    let mut blocks = Vec::new();
-    let mut base = 0usize;
-    let mut line_no: u32 = 0;
-    for raw in src.split('\n') {
-        line_no = line_no.saturating_add(1);
-        let start = base;
-        base += raw.len() + 1;
-        let text = raw.strip_suffix('\r').unwrap_or(raw);
-        if text.trim().is_empty() {
-            continue;
-        }
-        let line_span = Span {
-            line: line_no,
-            col: 1,
-            start,
-            end: start + text.len(),
-        };
-        if text.len() > opts.max_line_bytes {
-            sink.report(line_span, Severity::Error, DiagnosticKind::Limit, &|| {
-                format!(
-                    "line is {} bytes long, longer than the limit of {} bytes; it is skipped",
-                    text.len(),
-                    opts.max_line_bytes
-                )
-            });
-            continue;
-        }
-        if blocks.len() >= opts.max_blocks {
-            sink.push(Diagnostic::new(
-                line_span,
-                Severity::Error,
-                DiagnosticKind::Limit,
-                format!(
-                    "program has more than {} blocks; the rest of the program is not parsed",
-                    opts.max_blocks
-                ),
-            ));
-            break;
-        }
-        let block = LineParser::new(text, line_span, opts.lenient, &mut sink, &mut builder).run();
-        // A line of pure junk leaves only diagnostics: do not keep an empty block for it.
-        let empty = block.words.is_empty()
-            && block.comments.is_empty()
-            && block.assignments.is_empty()
-            && block.o_word.is_none()
-            && block.line_number.is_none()
-            && !block.percent
-            && !block.block_delete;
-        if !empty {
-            blocks.push(block);
+    let mut parser = ChunkParser::new(opts);
+    let program = parser.parse_chunk(src);
+    (program, parser.finish())
+}
+
+/// A parser fed a program a piece at a time, for programs too long to hold (`vcnc interpolate`
+/// streams them, docs/performance.md).
+///
+/// Each call to [`ChunkParser::parse_chunk`] takes the next whole lines of the program and
+/// returns their blocks as a [`Program`] of their own: line numbers and byte offsets continue
+/// from the previous piece, the name table ([`Program::names`]) is shared, so that a
+/// [`NameId`] means the same name in every piece, and each piece has its own expressions.
+/// Parsing a program in pieces gives the same blocks and diagnostics as parsing it whole,
+/// provided every piece ends with a line break (the last may not).
+/// [`ParseOptions::max_blocks`] counts the blocks of all pieces together.
+#[derive(Debug)]
+pub struct ChunkParser {
+    opts: ParseOptions,
+    sink: Sink,
+    names: Vec<String>,
+    index: HashMap<String, NameId>,
+    blocks_so_far: usize,
+    line_no: u32,
+    base: usize,
+    stopped: bool,
+}
+
+impl ChunkParser {
+    /// A parser at the start of a program.
+    pub fn new(opts: &ParseOptions) -> Self {
+        ChunkParser {
+            opts: opts.clone(),
+            sink: Sink::new(opts.max_diagnostics),
+            names: Vec::new(),
+            index: HashMap::new(),
+            blocks_so_far: 0,
+            line_no: 0,
+            base: 0,
+            stopped: false,
         }
     }
-    let program = Program {
-        blocks,
-        exprs: builder.exprs,
-        names: builder.names,
-    };
-    (program, sink.finish())
+
+    /// `true` once an error has been reported (in any piece so far).
+    pub fn has_errors(&self) -> bool {
+        self.sink.has_errors()
+    }
+
+    /// Parse the next piece: whole lines, the line break of its last line included (except at
+    /// the end of the program).
+    pub fn parse_chunk(&mut self, src: &str) -> Program {
+        let mut builder = Builder {
+            exprs: Vec::new(),
+            names: std::mem::take(&mut self.names),
+            index: std::mem::take(&mut self.index),
+        };
+        let opts = &self.opts;
+        let sink = &mut self.sink;
+        let mut blocks = Vec::new();
+        let mut base = self.base;
+        let mut line_no = self.line_no;
+        // A final piece without a trailing line break has one line more than its breaks.
+        let mut pieces = src.split('\n').peekable();
+        while let Some(raw) = pieces.next() {
+            if pieces.peek().is_none() && raw.is_empty() && !src.is_empty() {
+                // The empty remainder after the piece's last line break is not a line.
+                break;
+            }
+            line_no = line_no.saturating_add(1);
+            let start = base;
+            base += raw.len() + 1;
+            if self.stopped {
+                continue;
+            }
+            let text = raw.strip_suffix('\r').unwrap_or(raw);
+            if text.trim().is_empty() {
+                continue;
+            }
+            let line_span = Span {
+                line: line_no,
+                col: 1,
+                start,
+                end: start + text.len(),
+            };
+            if text.len() > opts.max_line_bytes {
+                sink.report(line_span, Severity::Error, DiagnosticKind::Limit, &|| {
+                    format!(
+                        "line is {} bytes long, longer than the limit of {} bytes; it is skipped",
+                        text.len(),
+                        opts.max_line_bytes
+                    )
+                });
+                continue;
+            }
+            if self.blocks_so_far + blocks.len() >= opts.max_blocks {
+                sink.push(Diagnostic::new(
+                    line_span,
+                    Severity::Error,
+                    DiagnosticKind::Limit,
+                    format!(
+                        "program has more than {} blocks; the rest of the program is not parsed",
+                        opts.max_blocks
+                    ),
+                ));
+                self.stopped = true;
+                continue;
+            }
+            let block = LineParser::new(text, line_span, opts.lenient, sink, &mut builder).run();
+            // A line of pure junk leaves only diagnostics: do not keep an empty block for it.
+            let empty = block.words.is_empty()
+                && block.comments.is_empty()
+                && block.assignments.is_empty()
+                && block.o_word.is_none()
+                && block.line_number.is_none()
+                && !block.percent
+                && !block.block_delete;
+            if !empty {
+                blocks.push(block);
+            }
+        }
+        self.base = base;
+        self.line_no = line_no;
+        self.blocks_so_far += blocks.len();
+        self.index = builder.index;
+        let program = Program {
+            blocks,
+            exprs: builder.exprs,
+            names: builder.names.clone(),
+        };
+        self.names = builder.names;
+        program
+    }
+
+    /// Every diagnostic of every piece, in order.
+    pub fn finish(self) -> Vec<Diagnostic> {
+        self.sink.finish()
+    }
 }
 
 /// Parser of one line.

@@ -49,6 +49,7 @@ pub mod realistic;
 pub mod run;
 pub mod simulate;
 pub mod stats;
+pub mod stream;
 pub mod summary;
 pub mod sweep;
 pub mod table;

@@ -207,3 +207,85 @@ fn prediction_is_bit_identical_on_one_and_two_threads() {
         assert_eq!(fingerprint(&lean(2)), fingerprint(&one), "{name}");
     }
 }
+
+/// The streamed reference (`stream::plan_file` + `ReferenceStream::run`, what `vcnc interpolate`
+/// writes) against the whole-program path (`run::prepare`): every machine axis' position,
+/// velocity and acceleration after the inverse kinematics, the tool tips, and the summary, bit
+/// for bit; with pieces of source and of samples that cut blocks and chains anywhere.
+#[test]
+fn the_streamed_reference_equals_the_whole_program_path_bit_for_bit() {
+    use vcnc_pipeline::run::InterpolateSummary;
+    use vcnc_pipeline::stream;
+    let machine = machine();
+    let dir = tempfile::tempdir().expect("temporary folder");
+    for (name, src) in programs() {
+        let path = dir.path().join(name);
+        std::fs::write(&path, &src).expect("program written");
+        let whole = run::prepare(&machine, &src, &path.display().to_string(), false)
+            .expect("prepared whole");
+        for so in [
+            vcnc_gcode::StreamOptions {
+                chunk_bytes: 500,
+                chunk_samples: 999,
+            },
+            vcnc_gcode::StreamOptions::default(),
+        ] {
+            let s = stream::plan_file(&machine, &path, false, &so)
+                .expect("planned")
+                .expect("streamable");
+            assert_eq!(s.len(), whole.len(), "{name}: samples");
+            let n_axes = machine.axes.len();
+            let mut got: Vec<[Vec<f64>; 3]> = vec![Default::default(); n_axes];
+            let mut tips: [Vec<f64>; 3] = Default::default();
+            let stats = s
+                .run(&machine, &path, &mut |c| {
+                    for (i, g) in got.iter_mut().enumerate() {
+                        g[0].extend_from_slice(&c.pos[i]);
+                        g[1].extend_from_slice(&c.vel[i]);
+                        g[2].extend_from_slice(&c.acc[i]);
+                    }
+                    if let Some(t) = &c.tip {
+                        for (tip, part) in tips.iter_mut().zip(t) {
+                            tip.extend_from_slice(part);
+                        }
+                    }
+                    Ok(())
+                })
+                .expect("streamed");
+            for (a, g) in whole.axes.iter().zip(&got) {
+                assert_eq!(bits(&g[0]), bits(&a.pos), "{name}: {} position", a.name);
+                assert_eq!(bits(&g[1]), bits(&a.vel), "{name}: {} velocity", a.name);
+                assert_eq!(bits(&g[2]), bits(&a.acc), "{name}: {} acceleration", a.name);
+            }
+            let poses = whole.reference_poses(&machine).expect("poses");
+            for (j, tip) in tips.iter().enumerate() {
+                let want: Vec<f64> = poses.iter().map(|q| q.p[j]).collect();
+                assert_eq!(bits(tip), bits(&want), "{name}: tip {j}");
+            }
+            assert_eq!(
+                s.summary(&machine, &stats),
+                InterpolateSummary::of(&machine, &whole),
+                "{name}: summary"
+            );
+        }
+    }
+}
+
+/// A program that leaves an axis' travel is refused while streaming, naming the line, as the
+/// whole-program path refuses it.
+#[test]
+fn a_streamed_program_beyond_travel_is_refused_with_its_line() {
+    use vcnc_pipeline::stream;
+    let machine = machine();
+    let dir = tempfile::tempdir().expect("temporary folder");
+    let path = dir.path().join("far.ngc");
+    let src = "G21 G90 G64\nG1 X10 F3000\nG1 X400\nG1 X0\nM2\n";
+    std::fs::write(&path, src).expect("program written");
+    let whole = run::prepare(&machine, src, &path.display().to_string(), false).unwrap_err();
+    let s = stream::plan_file(&machine, &path, false, &Default::default())
+        .expect("planned")
+        .expect("streamable");
+    let e = s.run(&machine, &path, &mut |_| Ok(())).unwrap_err();
+    assert_eq!(e.to_string(), whole.to_string());
+    assert!(e.to_string().contains(":3:"), "{e}");
+}
