@@ -46,6 +46,29 @@ fn long_program(c: &mut Criterion) {
                 .and_then(|mut r| predict::predict_releasing_rates(&machine, &mut r, &models))
         })
     });
+    // The streamed reference (`vcnc interpolate`): both passes over the file, every piece of
+    // samples through the inverse kinematics and the travel check, then dropped.
+    if let Ok(dir) = tempfile::tempdir() {
+        let path = dir.path().join("long.ngc");
+        if std::fs::write(&path, &src).is_ok() {
+            group.bench_function("interpolate_streamed", |b| {
+                b.iter(|| {
+                    let s = vcnc_pipeline::stream::plan_file(
+                        &machine,
+                        &path,
+                        false,
+                        &vcnc_gcode::StreamOptions::default(),
+                    );
+                    if let Ok(Some(s)) = s {
+                        let _ = s.run(&machine, &path, &mut |c| {
+                            black_box(c.len());
+                            Ok(())
+                        });
+                    }
+                })
+            });
+        }
+    }
     group.finish();
 }
 

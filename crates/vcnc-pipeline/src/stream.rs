@@ -98,6 +98,14 @@ pub fn plan_file(
     ) {
         Ok(p) => p,
         Err(vcnc_gcode::Error::NotStreamable { .. }) => return Ok(None),
+        // The machine lacks the axis (its limits are 0): said as the whole-program path says it.
+        Err(vcnc_gcode::Error::AxisCannotMove {
+            axis: Some(name),
+            line,
+            ..
+        }) if machine.axis(name).is_none() => {
+            return Err(missing_axis(machine, &file, name, line, 1));
+        }
         Err(vcnc_gcode::Error::Read { message }) => {
             return Err(Error::Io { file, message });
         }
@@ -188,24 +196,7 @@ impl ReferenceStream {
                 for (k, &p) in c.pos[j].iter().enumerate() {
                     let f = *foreign_first[j].get_or_insert(p);
                     if p != f {
-                        return Err(Error::Program {
-                            file: self.file.clone(),
-                            diagnostics: vec![vcnc_gcode::Diagnostic {
-                                line: c.line[k],
-                                col: 1,
-                                severity: vcnc_gcode::Severity::Error,
-                                kind: vcnc_gcode::DiagnosticKind::Motion,
-                                message: format!(
-                                    "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
-                                    machine.name,
-                                    machine
-                                        .axis_names()
-                                        .iter()
-                                        .map(|a| a.as_str())
-                                        .collect::<String>()
-                                ),
-                            }],
-                        });
+                        return Err(missing_axis(machine, &self.file, *name, c.line[k], 1));
                     }
                 }
             }
@@ -398,5 +389,33 @@ enum Failure {
 impl From<vcnc_gcode::Error> for Failure {
     fn from(e: vcnc_gcode::Error) -> Self {
         Failure::Gcode(e)
+    }
+}
+
+/// The error of a program moving an axis `machine` lacks, at `line`:`col` of `file`.
+fn missing_axis(
+    machine: &Machine,
+    file: &str,
+    name: vcnc_gcode::AxisName,
+    line: u32,
+    col: u32,
+) -> Error {
+    Error::Program {
+        file: file.to_string(),
+        diagnostics: vec![vcnc_gcode::Diagnostic {
+            line,
+            col,
+            severity: vcnc_gcode::Severity::Error,
+            kind: vcnc_gcode::DiagnosticKind::Motion,
+            message: format!(
+                "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
+                machine.name,
+                machine
+                    .axis_names()
+                    .iter()
+                    .map(|a| a.as_str())
+                    .collect::<String>()
+            ),
+        }],
     }
 }
