@@ -72,13 +72,7 @@ pub fn interpolate(
         ctx,
     );
     figures::reference(&mut report, &run)?;
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: t, the tool tip px py pz (TCP programs), and per axis position, velocity \
-         and acceleration (docs/cli.md)",
-    );
-    report.finish()?;
+    finish_reference_report(report, &table_path)?;
     if !ctx.quiet {
         println!(
             "{}: {} samples, {:.3} s at Ts = {} s -> {}",
@@ -89,6 +83,18 @@ pub fn interpolate(
             out.display()
         );
     }
+    Ok(())
+}
+
+/// The end of `interpolate`'s report: the reference table's entry, then the page.
+fn finish_reference_report(mut report: crate::report::RunReport, table_path: &Path) -> Result<()> {
+    report_table_file(
+        &mut report,
+        table_path,
+        "per sample: t, the tool tip px py pz (TCP programs), and per axis position, velocity \
+         and acceleration (docs/cli.md)",
+    );
+    report.finish()?;
     Ok(())
 }
 
@@ -194,13 +200,7 @@ fn interpolate_streamed(
         })
         .collect();
     figures::reference_axes(&mut report, &stream.file, &axes)?;
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: t, the tool tip px py pz (TCP programs), and per axis position, velocity \
-         and acceleration (docs/cli.md)",
-    );
-    report.finish()?;
+    finish_reference_report(report, &table_path)?;
     if !ctx.quiet {
         println!(
             "{}: {} samples, {:.3} s at Ts = {} s -> {} (streamed, look-ahead peak {} segments)",

@@ -398,16 +398,38 @@ pub fn interpret(
 ) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
     let mut it = Interp::new(program, opts);
     it.run();
-    if let Some(last) = it.tp.moves.last_mut() {
+    conclude(it.sink, it.tp)
+}
+
+/// The end of a run: the last move is a stop; the toolpath and the warnings, or every
+/// diagnostic when one is an error.
+fn conclude(sink: Sink, mut tp: Toolpath) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
+    if let Some(last) = tp.moves.last_mut() {
         last.stop_after = true;
     }
-    let has_errors = it.sink.has_errors();
-    let diags = it.sink.finish();
+    let has_errors = sink.has_errors();
+    let diags = sink.finish();
     if has_errors {
         Err(diags)
     } else {
-        Ok((it.tp, diags))
+        Ok((tp, diags))
     }
+}
+
+/// The warning for a program that never ends (`M2`, `M30`, closing `%`), at its last block.
+fn no_end_warning(span: Span) -> Diagnostic {
+    Diagnostic::warning(
+        span,
+        "the program ends without M2, M30 or a closing %: LinuxCNC refuses such a file (\"File ended with no percent sign or program end\")",
+    )
+}
+
+/// The warning for blocks after the program's end on `end_line`, at the first of them.
+fn after_end_warning(span: Span, end_line: u32) -> Diagnostic {
+    Diagnostic::warning(
+        span,
+        format!("blocks after the program end on line {end_line} are not executed"),
+    )
 }
 
 /// The interpreter's state between two pieces of a program ([`ChunkInterp`]).
@@ -491,10 +513,7 @@ impl ChunkInterp {
                 if !self.warned_after_end
                     && (!block.words.is_empty() || !block.assignments.is_empty())
                 {
-                    it.sink.push(Diagnostic::warning(
-                        block.span,
-                        format!("blocks after the program end on line {end_line} are not executed"),
-                    ));
+                    it.sink.push(after_end_warning(block.span, end_line));
                     self.warned_after_end = true;
                 }
                 continue;
@@ -551,21 +570,9 @@ impl ChunkInterp {
         if self.ended_at.is_none()
             && let Some(span) = self.last_span
         {
-            c.sink.push(Diagnostic::warning(
-                span,
-                "the program ends without M2, M30 or a closing %: LinuxCNC refuses such a file (\"File ended with no percent sign or program end\")",
-            ));
+            c.sink.push(no_end_warning(span));
         }
-        if let Some(last) = c.tp.moves.last_mut() {
-            last.stop_after = true;
-        }
-        let has_errors = c.sink.has_errors();
-        let diags = c.sink.finish();
-        if has_errors {
-            Err(diags)
-        } else {
-            Ok((c.tp, diags))
-        }
+        conclude(c.sink, c.tp)
     }
 }
 
@@ -764,10 +771,7 @@ impl<'a> Interp<'a> {
         }
         let Some(end_line) = ended_at else {
             if let Some(last) = blocks.last() {
-                self.sink.push(Diagnostic::warning(
-                    last.span,
-                    "the program ends without M2, M30 or a closing %: LinuxCNC refuses such a file (\"File ended with no percent sign or program end\")",
-                ));
+                self.sink.push(no_end_warning(last.span));
             }
             return;
         };
@@ -780,10 +784,7 @@ impl<'a> Interp<'a> {
             }
             let b = &blocks[i];
             if !b.words.is_empty() || !b.assignments.is_empty() {
-                self.sink.push(Diagnostic::warning(
-                    b.span,
-                    format!("blocks after the program end on line {end_line} are not executed"),
-                ));
+                self.sink.push(after_end_warning(b.span, end_line));
                 break;
             }
             i += 1;

@@ -771,6 +771,124 @@ pub(crate) fn single(
     })
 }
 
+/// The rest-to-rest piece of a block run on its own (exact stop, `G93`, rapid): a `G93` block
+/// lasts its $1/F$ (at least $T^*$, the feed cap not applying), any other block its rounded
+/// time-optimal duration; a block slowed to the limits is noted in `slowed`.
+pub(crate) fn exact_stop_piece(
+    seg: Seg,
+    mv: &Move,
+    slowed: &mut Slowed,
+    ts: f64,
+    max: usize,
+) -> Result<Piece, Error> {
+    match mv.feed {
+        Some(Feed::InverseTime(f)) => {
+            let want = 60.0 / f;
+            let t_min = Trap::new(seg.len, 0.0, 0.0, seg.vlim, seg.acap).duration();
+            if want < t_min * (1.0 - 1e-12) {
+                slowed.note(
+                    t_min / want,
+                    mv,
+                    Cause::InverseTime {
+                        want_s: want,
+                        min_s: t_min,
+                        f,
+                    },
+                );
+            }
+            // The feed cap does not apply: the duration does (at least T*).
+            let seg = Seg {
+                vcap: seg.vlim,
+                ..seg
+            };
+            single(seg, mv.tcp, Some(want), ts, max)
+        }
+        _ => {
+            slowed.feed(&seg, mv);
+            single(seg, mv.tcp, None, ts, max)
+        }
+    }
+}
+
+/// Position, velocity and acceleration at unscaled time `tau_rel` into a segment's profile, the
+/// chain's time scale applied ($\dot s / \lambda$, $\ddot s / \lambda^2$ with `inv` = 1/λ,
+/// `inv2` = 1/λ²; module doc).
+pub(crate) fn eval_scaled(
+    seg: &Seg,
+    trap: &Trap,
+    tau_rel: f64,
+    inv: f64,
+    inv2: f64,
+) -> ([f64; 6], [f64; 6], [f64; 6]) {
+    let (s, sd, sdd) = trap.eval(tau_rel);
+    let (sd, sdd) = (sd * inv, sdd * inv2);
+    let (p, g1, g2) = seg.geom.eval(s, seg.len);
+    let mut v = [0.0; 6];
+    let mut a = [0.0; 6];
+    for i in 0..6 {
+        v[i] = g1[i] * sd;
+        a[i] = g2[i] * sd * sd + g1[i] * sdd;
+    }
+    (p, v, a)
+}
+
+/// Velocity and acceleration at `b` of a time-exact chain from its neighbours `a` and `c`
+/// (central differences, [`time_exact_rates`]).
+pub(crate) fn central_rates(
+    a: &[f64; 6],
+    b: &[f64; 6],
+    c: &[f64; 6],
+    ts: f64,
+) -> ([f64; 6], [f64; 6]) {
+    let v = std::array::from_fn(|i| (c[i] - a[i]) / (2.0 * ts));
+    let acc = std::array::from_fn(|i| (c[i] - 2.0 * b[i] + a[i]) / (ts * ts));
+    (v, acc)
+}
+
+/// First and one-past-last sample (within a piece of `n` samples) of the span of a chain's
+/// segment starting at unscaled time `tau0` and lasting `dur`: samples $k$ with
+/// $t_\text{start} < t_k \le t_\text{end}$ ([`BlockSpan::first_sample`]); the first segment
+/// starts at 0, the last ends on the piece's last sample.
+pub(crate) fn chain_span(
+    tau0: f64,
+    dur: f64,
+    lam: f64,
+    n: usize,
+    ts: f64,
+    first: bool,
+    last: bool,
+) -> (usize, usize) {
+    let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
+    let k_end = if last { n } else { last_in(lam * (tau0 + dur)) };
+    let k_first = if first { 0 } else { last_in(lam * tau0) };
+    (k_first, k_end.max(k_first))
+}
+
+/// The output axes: those asked for (sorted, without repeats), else those the program uses
+/// (X Y Z when it uses none).
+pub(crate) fn output_axes(opts: &InterpolateOptions, used: [bool; 6]) -> Vec<AxisName> {
+    match &opts.axes {
+        Some(list) => {
+            let mut out = list.clone();
+            out.sort();
+            out.dedup();
+            out
+        }
+        None => {
+            let used: Vec<AxisName> = AxisName::ALL
+                .iter()
+                .zip(used)
+                .filter_map(|(&n, u)| u.then_some(n))
+                .collect();
+            if used.is_empty() {
+                vec![AxisName::X, AxisName::Y, AxisName::Z]
+            } else {
+                used
+            }
+        }
+    }
+}
+
 /// Junction speed cap between `a` (exit) and `b` (entry).
 pub(crate) fn junction(a: &Seg, b: &Seg, delta: f64, limits: &Limits, ts: f64) -> f64 {
     let (_, ta, _) = a.geom.eval(a.len, a.len);
@@ -1128,33 +1246,7 @@ pub fn interpolate(
             continue;
         }
         if let Some(seg) = segment(mv, i, limits, opts)? {
-            let piece = match mv.feed {
-                Some(Feed::InverseTime(f)) => {
-                    let want = 60.0 / f;
-                    let t_min = Trap::new(seg.len, 0.0, 0.0, seg.vlim, seg.acap).duration();
-                    if want < t_min * (1.0 - 1e-12) {
-                        slowed.note(
-                            t_min / want,
-                            mv,
-                            Cause::InverseTime {
-                                want_s: want,
-                                min_s: t_min,
-                                f,
-                            },
-                        );
-                    }
-                    // The feed cap does not apply: the duration does (at least T*).
-                    let seg = Seg {
-                        vcap: seg.vlim,
-                        ..seg
-                    };
-                    single(seg, mv.tcp, Some(want), ts, max)?
-                }
-                _ => {
-                    slowed.feed(&seg, mv);
-                    single(seg, mv.tcp, None, ts, max)?
-                }
-            };
+            let piece = exact_stop_piece(seg, mv, &mut slowed, ts, max)?;
             push(piece, &mut total, &mut pieces)?;
         }
         i += 1;
@@ -1175,22 +1267,7 @@ fn sample(
     warnings: Vec<Diagnostic>,
 ) -> Result<Trajectory, Error> {
     let ts = opts.ts;
-    let names: Vec<AxisName> = match &opts.axes {
-        Some(list) => {
-            let mut out = list.clone();
-            out.sort();
-            out.dedup();
-            out
-        }
-        None => {
-            let used = tp.axis_names();
-            if used.is_empty() {
-                vec![AxisName::X, AxisName::Y, AxisName::Z]
-            } else {
-                used
-            }
-        }
-    };
+    let names = output_axes(opts, tp.axes_used);
     let idx: Vec<usize> = names.iter().map(|a| a.index()).collect();
     let len = usize::try_from(total + 1).map_err(|_| Error::TooManySamples {
         samples: (total + 1) as f64,
@@ -1228,7 +1305,6 @@ fn sample(
         // Samples k with t_start < t_k ≤ t_end belong to a span (BlockSpan::first_sample).
         let base = k0 as usize;
         let n = piece.n as usize;
-        let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
         if let Some(ex) = &piece.exact {
             // Time-exact: the positions are the block end points; velocity and acceleration
             // are their central differences, at rest before and after (time_exact_rates).
@@ -1251,8 +1327,7 @@ fn sample(
                     &ex.points[j],
                     &ex.points[(j + 1).min(last)],
                 );
-                let v: [f64; 6] = std::array::from_fn(|i| (c[i] - a[i]) / (2.0 * ts));
-                let acc: [f64; 6] = std::array::from_fn(|i| (c[i] - 2.0 * b[i] + a[i]) / (ts * ts));
+                let (v, acc) = central_rates(a, b, c, ts);
                 emit(b, &v, &acc, &mut axes);
                 tcp.push(piece.tcp);
             }
@@ -1276,13 +1351,13 @@ fn sample(
         } else {
             let last = piece.segs.len() - 1;
             for (j, (seg, trap, tau0)) in piece.segs.iter().enumerate() {
-                let (t_end, k_end) = if j == last {
-                    (t0 + piece.n as f64 * ts, n)
+                let t_end = if j == last {
+                    t0 + piece.n as f64 * ts
                 } else {
-                    let rel = lam * (tau0 + trap.duration());
-                    (t0 + rel, last_in(rel))
+                    t0 + lam * (tau0 + trap.duration())
                 };
-                let k_first = if j == 0 { 0 } else { last_in(lam * tau0) };
+                let (k_first, k_end) =
+                    chain_span(*tau0, trap.duration(), lam, n, ts, j == 0, j == last);
                 blocks.push(BlockSpan {
                     move_index: seg.move_index,
                     line: tp.moves.get(seg.move_index).map_or(0, |m| m.line),
@@ -1290,7 +1365,7 @@ fn sample(
                     t_start_s: t0 + lam * tau0,
                     t_end_s: t_end,
                     first_sample: base + k_first + 1,
-                    end_sample: base + k_end.max(k_first) + 1,
+                    end_sample: base + k_end + 1,
                     tcp: piece.tcp,
                 });
             }
@@ -1302,15 +1377,7 @@ fn sample(
                     cur += 1;
                 }
                 let (seg, trap, tau0) = &piece.segs[cur];
-                let (s, sd, sdd) = trap.eval(tau - tau0);
-                let (sd, sdd) = (sd * inv, sdd * inv2);
-                let (p, g1, g2) = seg.geom.eval(s, seg.len);
-                let mut v = [0.0; 6];
-                let mut a = [0.0; 6];
-                for i in 0..6 {
-                    v[i] = g1[i] * sd;
-                    a[i] = g2[i] * sd * sd + g1[i] * sdd;
-                }
+                let (p, v, a) = eval_scaled(seg, trap, tau - tau0, inv, inv2);
                 emit(&p, &v, &a, &mut axes);
                 tcp.push(piece.tcp);
             }

@@ -231,6 +231,44 @@ fn a_long_tcp_program_streams_bit_for_bit_with_a_short_look_ahead() {
     assert!(p.lookahead_peak < 600, "look-ahead {}", p.lookahead_peak);
 }
 
+/// One `G64` chain of 20 000 segments, 0.01 to 2 mm long, turning by 0 to 170° at each
+/// junction (a seeded generator): sharp corners, whose slow junctions the look-ahead must see
+/// coming, fall anywhere relative to where the look-ahead is cut, so a junction made final too
+/// early shows as a different sample.
+#[test]
+fn a_long_chain_with_sharp_corners_anywhere_streams_bit_for_bit() {
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut uniform = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut src = String::from("G21 G90 G64 P0.05\nG0 X0 Y0 Z0\nG1 F6000\n");
+    let (mut x, mut y, mut heading) = (0.0f64, 0.0f64, 0.0f64);
+    for k in 0..20_000 {
+        // Mostly gentle turns, now and then a sharp one.
+        let turn = if uniform() < 0.05 {
+            (90.0 + 80.0 * uniform()).to_radians()
+        } else {
+            (10.0 * uniform()).to_radians()
+        };
+        heading += if uniform() < 0.5 { turn } else { -turn };
+        let len = 0.01 + 1.99 * uniform() * uniform();
+        x = (x + len * heading.cos()).clamp(-200.0, 200.0);
+        y = (y + len * heading.sin()).clamp(-200.0, 200.0);
+        let z = 2.0 * (k as f64 * 0.003).sin();
+        let _ = writeln!(src, "X{x:.4} Y{y:.4} Z{z:.4}");
+    }
+    src.push_str("M2\n");
+    same(
+        &src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
+        &InterpolateOptions::default(),
+    );
+}
+
 /// Fine blocks (G93 G64, 1/F = Ts): accepted as set-points, then a chain too fast for the limits
 /// (run as exact stops, with a warning), then ordinary blocks.
 #[test]
@@ -245,6 +283,24 @@ fn fine_block_chains_stream_bit_for_bit() {
         let _ = writeln!(src, "G1 X{:.3} F60000", 10.0 + 2.0 * k as f64);
     }
     src.push_str("G94 G1 X0 Y0 F3000\nG4 P0.05\nG0 Z5\nM2\n");
+    // Both kinds of chain are there: the first runs as set-points, the second is refused.
+    let whole = load(
+        &src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
+        &InterpolateOptions::default(),
+    )
+    .unwrap();
+    let refusals = whole
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("are not run as set-points"))
+        .count();
+    assert_eq!(refusals, 1, "{:?}", whole.warnings);
+    assert!(
+        whole.trajectory.len() > 399,
+        "the 399 set-points run one sample each"
+    );
     same(
         &src,
         &InterpOptions::default(),

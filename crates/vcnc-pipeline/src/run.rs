@@ -363,24 +363,7 @@ fn check_axes_exist(
         for name in AxisName::ALL {
             let i = name.index();
             if m.end[i] != m.start[i] && machine.axis(name).is_none() {
-                return Err(Error::Program {
-                    file: file.to_string(),
-                    diagnostics: vec![Diagnostic {
-                        line: m.line,
-                        col: m.col,
-                        severity: Severity::Error,
-                        kind: vcnc_gcode::DiagnosticKind::Motion,
-                        message: format!(
-                            "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
-                            machine.name,
-                            machine
-                                .axis_names()
-                                .iter()
-                                .map(|a| a.as_str())
-                                .collect::<String>()
-                        ),
-                    }],
-                });
+                return Err(missing_axis(machine, file, name, m.line, m.col));
             }
         }
     }
@@ -421,6 +404,17 @@ fn check_travel(
 fn limit_warnings(a: &vcnc_machine::Axis, s: &AxisSignals, file: &str) -> Vec<String> {
     let vmax = s.vel.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let amax = s.acc.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    peak_warnings(a, vmax, amax, file)
+}
+
+/// The warnings for an axis reference peaking at `vmax` and `amax` (units/s, units/s²) above
+/// the axis' limits.
+pub(crate) fn peak_warnings(
+    a: &vcnc_machine::Axis,
+    vmax: f64,
+    amax: f64,
+    file: &str,
+) -> Vec<String> {
     let u = a.unit;
     let mut w = Vec::new();
     if vmax > a.max_velocity * (1.0 + 1e-9) {
@@ -436,6 +430,34 @@ fn limit_warnings(a: &vcnc_machine::Axis, s: &AxisSignals, file: &str) -> Vec<St
         ));
     }
     w
+}
+
+/// The error of a program moving an axis `machine` lacks, at `line`:`col` of `file`.
+pub(crate) fn missing_axis(
+    machine: &Machine,
+    file: &str,
+    name: AxisName,
+    line: u32,
+    col: u32,
+) -> Error {
+    Error::Program {
+        file: file.to_string(),
+        diagnostics: vec![Diagnostic {
+            line,
+            col,
+            severity: Severity::Error,
+            kind: vcnc_gcode::DiagnosticKind::Motion,
+            message: format!(
+                "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
+                machine.name,
+                machine
+                    .axis_names()
+                    .iter()
+                    .map(|a| a.as_str())
+                    .collect::<String>()
+            ),
+        }],
+    }
 }
 
 /// Tool poses in the workpiece frame (mm, unit tool axis) of axis positions given per machine

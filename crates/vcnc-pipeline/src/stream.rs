@@ -12,7 +12,7 @@ use vcnc_gcode::{MoveClass, SampleChunk, StreamOptions, StreamPlan};
 use vcnc_machine::Machine;
 
 use crate::error::Error;
-use crate::run::{AxisRates, InterpolateSummary};
+use crate::run::{AxisRates, InterpolateSummary, missing_axis, peak_warnings};
 
 /// Most samples of a streamed reference: 2^40 (35 years at 1 ms).
 pub const STREAM_MAX_SAMPLES: usize = 1 << 40;
@@ -169,23 +169,31 @@ impl ReferenceStream {
         };
         let ts = self.plan.ts;
         let mut chunk = ReferenceChunk::default();
+        // Where each machine axis is among the streamed axes (`None`: the program never
+        // names it, so it rests at 0).
+        let source: Vec<Option<usize>> = machine
+            .axes
+            .iter()
+            .map(|a| self.plan.axes.iter().position(|x| *x == a.name))
+            .collect();
         let mut on_samples = |c: &SampleChunk| -> Result<(), Error> {
             let n = c.len();
             chunk.first = c.first;
-            chunk.pos.clear();
-            chunk.vel.clear();
-            chunk.acc.clear();
-            for a in &machine.axes {
-                match self.plan.axes.iter().position(|x| *x == a.name) {
-                    Some(j) => {
-                        chunk.pos.push(c.pos[j].clone());
-                        chunk.vel.push(c.vel[j].clone());
-                        chunk.acc.push(c.acc[j].clone());
-                    }
-                    None => {
-                        chunk.pos.push(vec![0.0; n]);
-                        chunk.vel.push(vec![0.0; n]);
-                        chunk.acc.push(vec![0.0; n]);
+            // The buffers are kept from piece to piece (the inverse kinematics replaces X Y Z
+            // with new ones).
+            chunk.pos.resize_with(n_axes, Vec::new);
+            chunk.vel.resize_with(n_axes, Vec::new);
+            chunk.acc.resize_with(n_axes, Vec::new);
+            for (i, j) in source.iter().enumerate() {
+                for (dst, src) in [
+                    (&mut chunk.pos[i], &c.pos),
+                    (&mut chunk.vel[i], &c.vel),
+                    (&mut chunk.acc[i], &c.acc),
+                ] {
+                    dst.clear();
+                    match j {
+                        Some(j) => dst.extend_from_slice(&src[*j]),
+                        None => dst.resize(n, 0.0),
                     }
                 }
             }
@@ -282,19 +290,12 @@ impl ReferenceStream {
         }
         if self.plan.any_tcp {
             for (i, a) in machine.axes.iter().enumerate() {
-                let u = a.unit;
-                if stats.max_vel[i] > a.max_velocity * (1.0 + 1e-9) {
-                    stats.warnings.push(format!(
-                        "{}: warning: axis {} reference reaches {:.1} {u}/s, above its velocity limit {} {u}/s",
-                        self.file, a.name, stats.max_vel[i], a.max_velocity,
-                    ));
-                }
-                if stats.max_acc[i] > a.max_acceleration * (1.0 + 1e-9) {
-                    stats.warnings.push(format!(
-                        "{}: warning: axis {} reference reaches {:.1} {u}/s², above its acceleration limit {} {u}/s²",
-                        self.file, a.name, stats.max_acc[i], a.max_acceleration,
-                    ));
-                }
+                stats.warnings.extend(peak_warnings(
+                    a,
+                    stats.max_vel[i],
+                    stats.max_acc[i],
+                    &self.file,
+                ));
             }
         }
         Ok(stats)
@@ -389,33 +390,5 @@ enum Failure {
 impl From<vcnc_gcode::Error> for Failure {
     fn from(e: vcnc_gcode::Error) -> Self {
         Failure::Gcode(e)
-    }
-}
-
-/// The error of a program moving an axis `machine` lacks, at `line`:`col` of `file`.
-fn missing_axis(
-    machine: &Machine,
-    file: &str,
-    name: vcnc_gcode::AxisName,
-    line: u32,
-    col: u32,
-) -> Error {
-    Error::Program {
-        file: file.to_string(),
-        diagnostics: vec![vcnc_gcode::Diagnostic {
-            line,
-            col,
-            severity: vcnc_gcode::Severity::Error,
-            kind: vcnc_gcode::DiagnosticKind::Motion,
-            message: format!(
-                "the program moves axis {name}, which machine \"{}\" does not have (axes: {})",
-                machine.name,
-                machine
-                    .axis_names()
-                    .iter()
-                    .map(|a| a.as_str())
-                    .collect::<String>()
-            ),
-        }],
     }
 }

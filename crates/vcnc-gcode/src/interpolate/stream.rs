@@ -30,8 +30,9 @@ use std::collections::VecDeque;
 use std::io::BufRead;
 
 use super::{
-    Cause, Feed, Limits, Move, MoveClass, MoveKind, Seg, Slowdown, Slowed, Trap, check_limits,
-    continuous, fine_block, junction, samples_for, segment, single,
+    Limits, Move, MoveClass, MoveKind, Piece, Seg, Slowdown, Slowed, Trap, central_rates,
+    chain_span, check_limits, continuous, eval_scaled, exact_stop_piece, fine_block, junction,
+    output_axes, samples_for, segment, single,
 };
 use crate::diag::{Diagnostic, Span};
 use crate::interp::ChunkInterp;
@@ -185,26 +186,7 @@ pub fn plan(
     let mut warnings = run.warnings;
     warnings.extend(planner.warnings_early.iter().cloned());
     let slowdown = std::mem::take(&mut planner.slowed).finish(&mut warnings);
-    let axes = match &opts.axes {
-        Some(list) => {
-            let mut out = list.clone();
-            out.sort();
-            out.dedup();
-            out
-        }
-        None => {
-            let used: Vec<AxisName> = AxisName::ALL
-                .iter()
-                .zip(run.axes_used)
-                .filter_map(|(&n, u)| u.then_some(n))
-                .collect();
-            if used.is_empty() {
-                vec![AxisName::X, AxisName::Y, AxisName::Z]
-            } else {
-                used
-            }
-        }
-    };
+    let axes = output_axes(opts, run.axes_used);
     let total = planner.total;
     let samples = usize::try_from(total + 1).map_err(|_| Error::TooManySamples {
         samples: (total + 1) as f64,
@@ -538,21 +520,12 @@ impl ChainSampler {
         let n = self.n as usize;
         let base = self.base as usize;
         let lam = self.lam;
-        let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
         while self.spans_done < self.win.len() && (self.spans_done + 1 < self.win.len() || ended) {
             let (_, trap, tau0, mv) = &self.win[self.spans_done];
-            let is_last = ended && self.spans_done + 1 == self.win.len();
-            let k_end = if is_last {
-                n
-            } else {
-                last_in(lam * (tau0 + trap.duration()))
-            };
-            let k_first = if self.offset + self.spans_done == 0 {
-                0
-            } else {
-                last_in(lam * tau0)
-            };
-            out.span(base + k_first + 1, base + k_end.max(k_first) + 1, mv);
+            let first = self.offset + self.spans_done == 0;
+            let last = ended && self.spans_done + 1 == self.win.len();
+            let (k_first, k_end) = chain_span(*tau0, trap.duration(), lam, n, ts, first, last);
+            out.span(base + k_first + 1, base + k_end + 1, mv);
             self.spans_done += 1;
         }
         let (inv, inv2) = (1.0 / lam, 1.0 / (lam * lam));
@@ -565,15 +538,7 @@ impl ChainSampler {
                 break;
             }
             let (seg, trap, tau0, _) = &self.win[self.cur];
-            let (s, sd, sdd) = trap.eval(tau - tau0);
-            let (sd, sdd) = (sd * inv, sdd * inv2);
-            let (p, g1, g2) = seg.geom.eval(s, seg.len);
-            let mut v = [0.0; 6];
-            let mut a = [0.0; 6];
-            for i in 0..6 {
-                v[i] = g1[i] * sd;
-                a[i] = g2[i] * sd * sd + g1[i] * sdd;
-            }
+            let (p, v, a) = eval_scaled(seg, trap, tau - tau0, inv, inv2);
             out.sample(&p, &v, &a, self.tcp);
             self.j += 1;
         }
@@ -801,67 +766,32 @@ impl<'d, 's, E> Planner<'d, 's, E> {
     }
 
     /// A block run on its own, rest to rest; `alt`: the first pass's alternative of a fine
-    /// chain (counted apart).
+    /// chain (counted apart, in the chain's state, until the chain's end decides).
     fn exact_stop(&mut self, i: usize, mv: &Move, alt: bool) -> Result<(), Error> {
         let (ts, max) = (self.opts.ts, self.opts.max_samples);
         let Some(seg) = segment(mv, i, self.limits, self.opts)? else {
             return Ok(());
         };
-        let mut slowed = if alt {
-            match &mut self.state {
-                State::Fine(f) => std::mem::take(&mut f.alt_slowed),
-                _ => Slowed::default(),
-            }
-        } else {
-            std::mem::take(&mut self.slowed)
-        };
-        let piece = match mv.feed {
-            Some(Feed::InverseTime(f)) => {
-                let want = 60.0 / f;
-                let t_min = Trap::new(seg.len, 0.0, 0.0, seg.vlim, seg.acap).duration();
-                if want < t_min * (1.0 - 1e-12) {
-                    slowed.note(
-                        t_min / want,
-                        mv,
-                        Cause::InverseTime {
-                            want_s: want,
-                            min_s: t_min,
-                            f,
-                        },
-                    );
-                }
-                let seg = Seg {
-                    vcap: seg.vlim,
-                    ..seg
-                };
-                single(seg, mv.tcp, Some(want), ts, max)
-            }
-            _ => {
-                slowed.feed(&seg, mv);
-                single(seg, mv.tcp, None, ts, max)
-            }
-        };
         if alt {
             if let State::Fine(f) = &mut self.state {
-                f.alt_slowed = slowed;
-            }
-        } else {
-            self.slowed = slowed;
-        }
-        let piece = piece?;
-        if alt {
-            if let State::Fine(f) = &mut self.state {
+                let piece = exact_stop_piece(seg, mv, &mut f.alt_slowed, ts, max)?;
                 f.alt_samples += piece.n;
             }
             return Ok(());
         }
+        let piece = exact_stop_piece(seg, mv, &mut self.slowed, ts, max)?;
+        self.sample_piece(piece, mv)
+    }
+
+    /// Count a whole piece of one block and, in the second pass, sample it.
+    fn sample_piece(&mut self, piece: Piece, mv: &Move) -> Result<(), Error> {
         let base = self.account(piece.n)?;
         if let Mode::Sample { out, .. } = &mut self.mode {
-            let mut s = ChainSampler::new(piece.n, piece.lambda, base, mv.tcp);
+            let mut s = ChainSampler::new(piece.n, piece.lambda, base, piece.tcp);
             for (seg, trap, tau0) in piece.segs {
                 s.win.push_back((seg, trap, tau0, mv.clone()));
             }
-            s.pump(true, out, ts);
+            s.pump(true, out, self.opts.ts);
         }
         Ok(())
     }
@@ -910,9 +840,7 @@ impl<'d, 's, E> Planner<'d, 's, E> {
                 let tcp = f.tcp;
                 if let Mode::Sample { out, .. } = &mut self.mode {
                     out.span(k + 1, k + 2, mv);
-                    let v: [f64; 6] = std::array::from_fn(|i| (c[i] - a[i]) / (2.0 * ts));
-                    let acc: [f64; 6] =
-                        std::array::from_fn(|i| (c[i] - 2.0 * b[i] + a[i]) / (ts * ts));
+                    let (v, acc) = central_rates(&a, &b, &c, ts);
                     out.sample(&b, &v, &acc, tcp);
                 }
             }
@@ -1052,20 +980,12 @@ impl<'d, 's, E> Planner<'d, 's, E> {
             State::Chain(mut c) => match c.count {
                 0 => Ok(()),
                 1 => {
-                    let (seg, _, mv) = c.pend.pop_front().ok_or(Error::NonFinite {
-                        line: 0,
-                        what: "chain",
-                    })?;
+                    // One segment: a block of its own, as the whole-program path runs it.
+                    let Some((seg, _, mv)) = c.pend.pop_front() else {
+                        return Ok(());
+                    };
                     let piece = single(seg, c.tcp, None, ts, max)?;
-                    let base = self.account(piece.n)?;
-                    if let Mode::Sample { out, .. } = &mut self.mode {
-                        let mut s = ChainSampler::new(piece.n, piece.lambda, base, c.tcp);
-                        for (seg, trap, tau0) in piece.segs {
-                            s.win.push_back((seg, trap, tau0, mv.clone()));
-                        }
-                        s.pump(true, out, ts);
-                    }
-                    Ok(())
+                    self.sample_piece(piece, &mv)
                 }
                 _ => {
                     let k = c.pend.len();
