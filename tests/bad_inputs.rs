@@ -569,7 +569,7 @@ fn cases() -> Vec<Case> {
                 "--out",
                 "out",
             ],
-            expect: &["model.toml:9:", "axes.X.actual_latency_s", "-0.0001"],
+            expect: &["model.toml:10:20:", "axes.X.actual_latency_s", "-0.0001"],
         },
         Case {
             name: "model file without the machine's axis",
@@ -590,6 +590,12 @@ fn cases() -> Vec<Case> {
                 "out",
             ],
             expect: &["model.toml", "no model for axis X"],
+        },
+        Case {
+            name: "actual-value latency in the wrong unit",
+            files: &[],
+            args: &["identify", NMV, "--actual-latency-s", "2", "--out", "out"],
+            expect: &["--actual-latency-s 2", "≤ 0.1 s"],
         },
         Case {
             name: "unknown axis for identify",
