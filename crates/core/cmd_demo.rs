@@ -424,13 +424,15 @@ fn demo_realistic(out: &Path, budget: bool, table: &TableOptions, ctx: &Ctx) -> 
             summary.target.paper_pso.orientation_max_mrad,
         );
         println!(
-            "With the actual-value latency stated ({} ms per axis X Y Z A C; {STATED_LATENCY_NOTE}):\n  \
-             vcnc {:.3} um / {:.4} mrad: {}",
-            e.actual_latency_s
+            "With the actual-value latency stated from the control's configuration \
+             (dead_time_cycles / servo_rate_hz, per axis {} ms; stated, not identified): vcnc \
+             {:.3} um / {:.4} mrad: {}",
+            e.ids
                 .iter()
-                .map(|t| format!("{}", t * 1e3))
+                .zip(&e.actual_latency_s)
+                .map(|(r, t)| format!("{} {}", r.axis, t * 1e3))
                 .collect::<Vec<_>>()
-                .join(" "),
+                .join(", "),
             stated.tip_max_um,
             stated.orientation_max_mrad,
             if summary.target.reached_with_stated_latency {

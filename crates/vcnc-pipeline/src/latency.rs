@@ -74,9 +74,10 @@ pub fn interpolation_error_bound(shift_s: f64, ts: f64, m4: f64) -> f64 {
     ((u + 1.0) * u * (u - 1.0) * (u - 2.0)).abs() / 24.0 * ts.powi(4) * m4
 }
 
-/// Largest actual-value latency accepted, s: far above any control's (a few servo cycles), small
-/// enough that a mistyped unit (ms for s) is refused.
-pub const MAX_LATENCY_S: f64 = 0.1;
+/// Largest actual-value latency accepted, s: the model file's
+/// ([`vcnc_machine::MAX_ACTUAL_LATENCY_S`]; far above any control's few servo cycles, small
+/// enough that a value in the wrong unit is refused).
+pub const MAX_LATENCY_S: f64 = vcnc_machine::MAX_ACTUAL_LATENCY_S;
 
 /// Checks a per-axis latency list against `axes` machine axes: empty (none), or one finite
 /// value in `0 ..= MAX_LATENCY_S` per axis.
