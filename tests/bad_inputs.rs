@@ -552,6 +552,26 @@ fn cases() -> Vec<Case> {
             expect: &["model.toml:1:", "axis X", "not stable"],
         },
         Case {
+            name: "negative actual-value latency in a model file",
+            files: &[
+                ("p.ngc", PROG),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\nactual_latency_s = -1e-4\n",
+                ),
+            ],
+            args: &[
+                "predict",
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml:10:20:", "axes.X.actual_latency_s", "-0.0001"],
+        },
+        Case {
             name: "model file without the machine's axis",
             files: &[
                 ("p.ngc", PROG),
@@ -570,6 +590,12 @@ fn cases() -> Vec<Case> {
                 "out",
             ],
             expect: &["model.toml", "no model for axis X"],
+        },
+        Case {
+            name: "actual-value latency in the wrong unit",
+            files: &[],
+            args: &["identify", NMV, "--actual-latency-s", "2", "--out", "out"],
+            expect: &["--actual-latency-s 2", "≤ 0.1 s"],
         },
         Case {
             name: "unknown axis for identify",

@@ -64,6 +64,27 @@ fn table1_drive_with_0_1um_encoder() {
 }
 
 #[test]
+fn the_actual_value_latency_is_stated_not_identified() {
+    // docs/drive-model.md#actual-value-latency: `--actual-latency-s` writes the stated value
+    // into model.toml; without it a machine's dead time (none on this drive) is written, i.e.
+    // no key; the identified parameters do not depend on it.
+    let dir = tempdir();
+    let (plain, stated) = (dir.path().join("plain"), dir.path().join("stated"));
+    let ppi = repo("machines/ballscrew-ppi.toml");
+    identify(&ppi, &plain, &[]);
+    identify(&ppi, &stated, &["--actual-latency-s", "0.00025"]);
+    let read = |d: &Path| std::fs::read_to_string(d.join("model.toml")).expect("model.toml");
+    let (a, b) = (read(&plain), read(&stated));
+    assert!(!a.contains("actual_latency_s"), "{a}");
+    assert!(b.contains("actual_latency_s = 0.00025"), "{b}");
+    let without: Vec<&str> = b
+        .lines()
+        .filter(|l| !l.starts_with("actual_latency_s"))
+        .collect();
+    assert_eq!(without, a.lines().collect::<Vec<_>>());
+}
+
+#[test]
 fn table1_drive_with_1um_encoder() {
     // Issue 4: with a 1 µm encoder: ωn and p within 2 %, ζ within 5 %, dc within 10 %.
     let dir = tempdir();

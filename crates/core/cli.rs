@@ -260,6 +260,13 @@ pub struct IdentifyArgs {
     /// `[identification.options]` table (deadband, bounds, prefilter, pso, refine, seed, ...).
     #[arg(long, value_name = "OPTIONS.toml", requires = "trace")]
     pub options: Option<PathBuf>,
+    /// The control's actual-value latency, s: the time by which the logged actual position
+    /// trails the physical axis (fieldbus and encoder-interface delays; stated from the
+    /// control's configuration, not identifiable). Written to model.toml as `actual_latency_s`
+    /// of every axis identified. Default: a machine file's position-loop dead time
+    /// (`dead_time_cycles` / `servo_rate_hz`); 0 for a trace.
+    #[arg(long, value_name = "S")]
+    pub actual_latency_s: Option<f64>,
     /// Output folder (summary.json, model.toml, plots).
     #[arg(long, default_value = "vcnc-identify")]
     pub out: PathBuf,

@@ -37,7 +37,9 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
     let original = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&original.warnings);
     let model_file = model.display().to_string();
-    let models = ModelSet::load(model)?.for_machine(&machine, &model_file)?;
+    let set = ModelSet::load(model)?;
+    let models = set.for_machine(&machine, &model_file)?;
+    let latency = set.actual_latency_for_machine(&machine);
     let opts = CompensateOptions {
         max_iterations: iterations,
         ..CompensateOptions::default()
@@ -51,6 +53,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         program,
         &original,
         &models,
+        &latency,
         &opts,
         headroom,
         ctx.lenient,
@@ -96,7 +99,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
     let after = compensate::on_true_machine(&machine, &original, &rerun)?;
     let after_models = match machine.kinematics {
         Some(_) => Some(compensate::with_models(
-            &machine, &original, &rerun, &models,
+            &machine, &original, &rerun, &models, &latency,
         )?),
         None => None,
     };

@@ -74,12 +74,14 @@ pub fn feed_plan(
     let src = run::read_program(program)?;
     let file = program.display().to_string();
     let model_file = model.display().to_string();
-    let models = ModelSet::load(model)?.for_machine(&machine, &model_file)?;
+    let set = ModelSet::load(model)?;
+    let models = set.for_machine(&machine, &model_file)?;
+    let latency = set.actual_latency_for_machine(&machine);
     let opts = FeedPlanOptions {
         orientation_tolerance_rad,
         ..FeedPlanOptions::new(tolerance_mm)
     };
-    let plan = feed_plan::plan_feeds(&machine, &src, &file, &models, &opts, ctx.lenient)?;
+    let plan = feed_plan::plan_feeds(&machine, &src, &file, &models, &latency, &opts, ctx.lenient)?;
     print_warnings(&plan.original.warnings);
     ensure_dir(out)?;
     let planned_path = out.join("planned.ngc");

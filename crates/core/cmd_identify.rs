@@ -35,16 +35,36 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                  [identification.options]",
             ))
         }
+        _ if args
+            .actual_latency_s
+            .is_some_and(|t| vcnc_pipeline::latency::check(&[t], 1).is_err()) =>
+        {
+            Err(bad_input(format!(
+                "--actual-latency-s {}: must be finite, ≥ 0 and ≤ {} s",
+                args.actual_latency_s.unwrap_or_default(),
+                vcnc_pipeline::latency::MAX_LATENCY_S
+            )))
+        }
         (Some(m), None) => identify_machine(m, args, ctx),
         (None, Some(t)) => identify_trace(t, args, ctx),
         _ => Err(bad_input("give either MACHINE.toml or --trace TRACE.csv")),
     }
 }
 
+/// The actual-value latency given with `--actual-latency-s`, stated for every axis identified.
+fn state_latency(ids: &mut [identify::AxisIdentification], args: &IdentifyArgs) {
+    if let Some(t) = args.actual_latency_s {
+        for r in ids {
+            r.actual_latency_s = t;
+        }
+    }
+}
+
 fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     let machine = Machine::load(path)?;
     let axes = identify::select_axes(&machine, &args.axes)?;
-    let results = identify::identify_axes(&machine, &axes, args.seed)?;
+    let mut results = identify::identify_axes(&machine, &axes, args.seed)?;
+    state_latency(&mut results, args);
     for r in &results {
         print_warnings(&identify::axis_warnings(r));
     }
@@ -80,7 +100,8 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
             s.axis, s.reason
         );
     }
-    let ids = traces::identify_measured(&measured, &options, args.seed)?;
+    let mut ids = traces::identify_measured(&measured, &options, args.seed)?;
+    state_latency(&mut ids, args);
     for r in &ids {
         print_warnings(&identify::axis_warnings(r));
     }

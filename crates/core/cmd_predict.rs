@@ -33,23 +33,30 @@ pub fn predict(
     let mut run = run::prepare_file(&machine, program, ctx.lenient)?;
     let mask = run.measured(measured);
     print_warnings(&run.warnings);
-    let (models, source): (Vec<DriveModel>, String) = match model {
-        Some(p) => (
-            ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?,
-            p.display().to_string(),
-        ),
+    // The models, and the actual-value latency stated for each axis (the model file's, or the
+    // machine's configuration for models identified on the fly; docs/drive-model.md).
+    let (models, latency, source): (Vec<DriveModel>, Vec<f64>, String) = match model {
+        Some(p) => {
+            let set = ModelSet::load(p)?;
+            (
+                set.for_machine(&machine, &p.display().to_string())?,
+                set.actual_latency_for_machine(&machine),
+                p.display().to_string(),
+            )
+        }
         None => {
             let axes = identify::select_axes(&machine, &[])?;
             let ids = identify::identify_axes(&machine, &axes, None)?;
             (
                 ids.iter().map(|r| r.result.model).collect(),
+                ids.iter().map(|r| r.actual_latency_s).collect(),
                 "identified on the fly".to_string(),
             )
         }
     };
     // The run's reference velocities and accelerations are not needed once simulated
     // (docs/performance.md).
-    let p = predict::predict_releasing_rates(&machine, &mut run, &models)?;
+    let p = predict::predict_releasing_rates(&machine, &mut run, &models, &latency)?;
     ensure_dir(out)?;
     let figures_of = p.figures(&mask);
     let summary = PredictSummary {

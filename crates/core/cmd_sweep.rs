@@ -26,7 +26,9 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let models = match &args.model {
         Some(p) => {
             let base = doc.check()?;
-            Some(ModelSet::load(p)?.for_machine(&base, &p.display().to_string())?)
+            let set = ModelSet::load(p)?;
+            let models = set.for_machine(&base, &p.display().to_string())?;
+            Some((models, set.actual_latency_for_machine(&base)))
         }
         None => None,
     };

@@ -25,7 +25,7 @@ pub use file::{
 };
 pub use locate::{LineCol, line_col, locate_key};
 pub use machine::{AcAxes, Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};
-pub use models::{AxisModel, ModelSet};
+pub use models::{AxisModel, MAX_ACTUAL_LATENCY_S, ModelSet};
 pub use options_file::OptionsFile;
 
 /// The embedded default machine (NMV5000, the paper's Table 3 drives) and its URDF, so that

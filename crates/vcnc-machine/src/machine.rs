@@ -50,6 +50,25 @@ impl Axis {
     pub fn true_model(&self) -> ClosedLoopModel {
         self.drive.closed_loop_model()
     }
+
+    /// The actual-value latency of this axis' control as its configuration states it, s: the
+    /// position loop's dead time, `feedback.dead_time_cycles` servo cycles of
+    /// $1/f_\text{servo}$ — the logged actual position is the reading the loop used, that many
+    /// cycles old (docs/machine-file.md#feedback). 0 without a dead time. What a model file's
+    /// `actual_latency_s` states for models identified on this machine
+    /// (docs/drive-model.md#actual-value-latency).
+    pub fn actual_latency_s(&self) -> f64 {
+        let cycles = self
+            .drive
+            .params()
+            .feedback
+            .map_or(0, |f| f.dead_time_cycles);
+        if cycles == 0 {
+            0.0
+        } else {
+            f64::from(cycles) / self.drive.servo_rate_hz()
+        }
+    }
 }
 
 /// Which of a machine's axes (indices into [`Machine::axes`]) play the five roles of the

@@ -55,7 +55,17 @@ pub struct AxisModel {
     /// An extra real pole of the loop, Hz, if the model has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub extra_pole_hz: Option<f64>,
+    /// The control's actual-value latency, s (0 or absent: none): the time by which the logged
+    /// actual position — what the model predicts — trails the physical axis. Stated from the
+    /// control's configuration, never identified (docs/drive-model.md#actual-value-latency);
+    /// predictions of the physical axis advance the model's positions by it.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub actual_latency_s: f64,
 }
+
+/// Largest actual-value latency a model file accepts, s: far above any control's (a few servo
+/// cycles), small enough that a value in the wrong unit (ms written as s) is refused.
+pub const MAX_ACTUAL_LATENCY_S: f64 = 0.1;
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
@@ -100,6 +110,7 @@ impl AxisModel {
             delay_s: m.delay_s,
             reference_filter: m.reference_filter,
             extra_pole_hz: m.extra_pole_hz,
+            actual_latency_s: 0.0,
         }
     }
 }
@@ -134,6 +145,17 @@ impl ModelSet {
             message: e.message().trim().to_string(),
         })?;
         for (name, m) in &set.axes {
+            if !(0.0..=MAX_ACTUAL_LATENCY_S).contains(&m.actual_latency_s) {
+                return Err(Error::Invalid {
+                    file: file.to_string(),
+                    at: locate_key(src, &["axes", name, "actual_latency_s"]),
+                    key: format!("axes.{name}.actual_latency_s"),
+                    message: format!(
+                        "actual-value latency {} s: must be finite, ≥ 0 and ≤ {MAX_ACTUAL_LATENCY_S} s",
+                        m.actual_latency_s
+                    ),
+                });
+            }
             if let Err(e) = m.model().validate() {
                 return Err(Error::Invalid {
                     file: file.to_string(),
@@ -188,6 +210,21 @@ impl ModelSet {
                     });
                 }
                 Ok(m.model())
+            })
+            .collect()
+    }
+
+    /// The stated actual-value latency of each machine axis, s, in the machine's order
+    /// (`actual_latency_s`; 0 for an axis the file has no model of, which
+    /// [`ModelSet::for_machine`] refuses).
+    pub fn actual_latency_for_machine(&self, machine: &Machine) -> Vec<f64> {
+        machine
+            .axes
+            .iter()
+            .map(|a| {
+                self.axes
+                    .get(a.name.as_str())
+                    .map_or(0.0, |m| m.actual_latency_s)
             })
             .collect()
     }

@@ -33,9 +33,9 @@ fn compensate(c: &mut Criterion) {
         })
     });
     group.bench_function("compensate_run", |b| {
-        b.iter(|| compensate_run(&machine, black_box(&spiral), &drive_models, &opts))
+        b.iter(|| compensate_run(&machine, black_box(&spiral), &drive_models, &[], &opts))
     });
-    if let Ok(comp) = compensate_run(&machine, &spiral, &drive_models, &opts) {
+    if let Ok(comp) = compensate_run(&machine, &spiral, &drive_models, &[], &opts) {
         group.bench_function("program_text", |b| b.iter(|| comp.program(&[])));
     }
     group.finish();

@@ -43,7 +43,7 @@ fn long_program(c: &mut Criterion) {
     group.bench_function("prepare_and_predict", |b| {
         b.iter(|| {
             run::prepare(&machine, black_box(&src), "long.ngc", false)
-                .and_then(|mut r| predict::predict_releasing_rates(&machine, &mut r, &models))
+                .and_then(|mut r| predict::predict_releasing_rates(&machine, &mut r, &models, &[]))
         })
     });
     // The streamed reference (`vcnc interpolate`): both passes over the file, every piece of

@@ -591,7 +591,8 @@ pub struct AxisCompensation {
     /// Compensated set-point: positions, and velocity and acceleration by [`time_exact_rates`]
     /// (axis units, /s, /s²), lead and tail included.
     pub reference: AxisSignals,
-    /// The model's positions on the set-point, axis units.
+    /// The model's positions on the set-point, axis units: the physical axis', advanced by the
+    /// stated actual-value latency when one was given ([`compensate_run`]).
     pub model: Vec<f64>,
     /// The desired positions (the run's, with the lead and tail at rest), axis units.
     pub desired: Vec<f64>,
@@ -814,12 +815,15 @@ pub struct Planned {
 /// refuses ([`Error::Limit`]) a set-point beyond an axis limit. With `headroom` the program is
 /// planned with it; without, it is planned as it is, and a set-point that must lead a move at a
 /// velocity limit (a rapid, usually) makes the headroom just small enough, up to
-/// [`MAX_REPLANS`] times. The path followed is the original's either way.
+/// [`MAX_REPLANS`] times. The path followed is the original's either way. `actual_latency_s`
+/// as [`compensate_run`] takes it.
+#[allow(clippy::too_many_arguments)]
 pub fn compensate_within_limits(
     machine: &Machine,
     program: &std::path::Path,
     original: &Run,
     models: &[DriveModel],
+    actual_latency_s: &[f64],
     opts: &CompensateOptions,
     headroom: Option<f64>,
     lenient: bool,
@@ -835,7 +839,7 @@ pub fn compensate_within_limits(
         } else {
             original
         };
-        let compensation = compensate_run(machine, planned, models, opts)?;
+        let compensation = compensate_run(machine, planned, models, actual_latency_s, opts)?;
         let Err(e) = compensation.check_limits(planned, h) else {
             return Ok(Planned {
                 compensation,
@@ -871,10 +875,18 @@ fn padded(v: &[f64], lead: usize, tail: usize) -> Vec<f64> {
 /// lead and tail at rest, exact inverse, learning loop, limit margins. Axes run in parallel;
 /// results come in machine order. The limits are not enforced here
 /// ([`Compensation::check_limits`]).
+///
+/// **Actual-value latency.** A model predicts the logged actual position, which trails the
+/// physical axis by the axis' stated latency $\tau$ (`actual_latency_s`, s, per machine axis;
+/// empty: none; [`crate::latency`]). For the physical axis to follow the desired positions
+/// $y_d(t)$ the model must follow $y_d(t - \tau)$: that is what is inverted, and the tail is
+/// longer by $\lceil\tau/T_s\rceil$ samples so that it still ends at rest. The axes' `model`
+/// positions are then the physical ones (the model's advanced by $\tau$).
 pub fn compensate_run(
     machine: &Machine,
     run: &Run,
     models: &[DriveModel],
+    actual_latency_s: &[f64],
     opts: &CompensateOptions,
 ) -> Result<Compensation, Error> {
     if models.len() != run.axes.len() || run.axes.len() != machine.axes.len() {
@@ -884,6 +896,8 @@ pub fn compensate_run(
             run.axes.len()
         )));
     }
+    crate::latency::check(actual_latency_s, run.axes.len())?;
+    let latency = |i: usize| actual_latency_s.get(i).copied().unwrap_or(0.0);
     if run.is_empty() {
         return Err(Error::Usage(format!(
             "{}: the program has no samples",
@@ -916,14 +930,26 @@ pub fn compensate_run(
         lead = lead.max(l);
         tail = tail.max(t);
     }
+    let max_latency = (0..run.axes.len()).map(latency).fold(0.0f64, f64::max);
+    tail += (max_latency / ts).ceil() as usize;
     let axes = inverses
         .par_iter()
         .zip(models.par_iter())
         .zip(run.axes.par_iter().zip(machine.axes.par_iter()))
-        .map(|(((h, inv), m), (s, axis))| {
+        .enumerate()
+        .map(|(i, (((h, inv), m), (s, axis)))| {
             let desired = padded(&s.pos, lead, tail);
-            let c = compensate_positions(m, inv, &desired, ts, opts)
-                .map_err(|e| axis_error(s.name, e))?;
+            let tau = latency(i);
+            let c = if tau == 0.0 {
+                compensate_positions(m, inv, &desired, ts, opts)
+            } else {
+                let target = crate::latency::shifted(&desired, -tau, ts);
+                compensate_positions(m, inv, &target, ts, opts).map(|c| CompensatedPositions {
+                    model: crate::latency::shifted(&c.model, tau, ts),
+                    ..c
+                })
+            }
+            .map_err(|e| axis_error(s.name, e))?;
             let (vel, acc) = time_exact_rates(&c.reference, ts);
             Ok(AxisCompensation {
                 margin: LimitMargin::of(axis, &c.reference, &c.model, &desired, ts),
@@ -1143,14 +1169,21 @@ pub fn path_position_mm(
 }
 
 /// The models' contour errors on `run` against the tool path of `reference` (the prediction a
-/// plan is made with).
+/// plan is made with): the physical axes, each model's positions advanced by its axis' stated
+/// actual-value latency (`actual_latency_s`, s, per machine axis; empty: none;
+/// [`crate::latency`]).
 pub fn with_models(
     machine: &Machine,
     reference: &Run,
     run: &Run,
     models: &[DriveModel],
+    actual_latency_s: &[f64],
 ) -> Result<vcnc_contour::ContourReport, Error> {
-    let positions = crate::simulate::simulate_models(models, run)?;
+    let positions = crate::latency::physical_positions(
+        crate::simulate::simulate_models(models, run)?,
+        actual_latency_s,
+        run.ts,
+    )?;
     let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
     Ok(crate::predict::contour(machine, reference, &pos)?.1)
 }

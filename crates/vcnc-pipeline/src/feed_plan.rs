@@ -347,6 +347,7 @@ fn programmed_value(
 struct Planner<'a> {
     machine: &'a Machine,
     models: &'a [DriveModel],
+    actual_latency_s: &'a [f64],
     src: &'a str,
     file: &'a str,
     lenient: bool,
@@ -364,7 +365,13 @@ impl Planner<'_> {
             factors,
         );
         let run = prepare(self.machine, &text, self.file, self.lenient)?;
-        let predicted = with_models(self.machine, self.original, &run, self.models)?;
+        let predicted = with_models(
+            self.machine,
+            self.original,
+            &run,
+            self.models,
+            self.actual_latency_s,
+        )?;
         let feed = feed_samples(self.original, &predicted);
         Ok(PlannedProgram {
             text,
@@ -408,12 +415,15 @@ fn charged(p: &PlannedProgram, lag: usize, opts: &FeedPlanOptions) -> BTreeMap<u
 }
 
 /// Plans per-line feeds for `src` (the program at `file`) on `machine` with `models` (one per
-/// machine axis), and the uniform baseline (module documentation).
+/// machine axis), and the uniform baseline (module documentation). The contour errors are the
+/// physical axes': each model's positions advanced by its axis' stated actual-value latency
+/// (`actual_latency_s`, s, per machine axis; empty: none; [`crate::latency`]).
 pub fn plan_feeds(
     machine: &Machine,
     src: &str,
     file: &str,
     models: &[DriveModel],
+    actual_latency_s: &[f64],
     opts: &FeedPlanOptions,
     lenient: bool,
 ) -> Result<FeedPlan, Error> {
@@ -432,12 +442,13 @@ pub fn plan_feeds(
             "{file}: the program has no G94 feed moves whose feed could be planned"
         )));
     }
-    let original_predicted = with_models(machine, &original, &original, models)?;
+    let original_predicted = with_models(machine, &original, &original, models, actual_latency_s)?;
     let lag_s = opts.lag_s.unwrap_or_else(|| lag_window(models));
     let lag = (lag_s / original.ts).round() as usize;
     let planner = Planner {
         machine,
         models,
+        actual_latency_s,
         src,
         file,
         lenient,

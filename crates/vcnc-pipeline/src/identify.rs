@@ -200,6 +200,13 @@ pub struct AxisIdentification {
     pub validation: FitMetrics,
     /// Free-run fit of the paper-method (PSO) model on `validation_trace`.
     pub validation_paper: FitMetrics,
+    /// The stated actual-value latency of the axis' control, s: the time by which the logged
+    /// actual position (what the models predict) trails the physical axis. Not identified —
+    /// no record of nominal and logged positions shows it — but stated: on a simulated machine
+    /// by its configuration ([`Axis::actual_latency_s`]), for a trace by the caller (0 until
+    /// then; `vcnc identify --actual-latency-s`). `model.toml` writes it
+    /// (docs/drive-model.md#actual-value-latency).
+    pub actual_latency_s: f64,
 }
 
 impl AxisIdentification {
@@ -261,6 +268,7 @@ pub fn identify_axis(
         validation_trace: vtrace,
         validation,
         validation_paper,
+        actual_latency_s: a.actual_latency_s(),
     })
 }
 
@@ -308,17 +316,25 @@ pub fn identify_trace(
         validation_paper: result.fit_estimation_paper.clone(),
         result,
         validation_trace: trace,
+        actual_latency_s: 0.0,
     })
 }
 
-/// The model file of identifications (`model.toml`).
+/// The model file of identifications (`model.toml`): each axis' chosen model and its stated
+/// actual-value latency.
 pub fn model_set(machine: &str, description: &str, ids: &[AxisIdentification]) -> ModelSet {
     ModelSet {
         machine: machine.to_string(),
         description: Some(description.to_string()),
         axes: ids
             .iter()
-            .map(|r| (r.axis.to_string(), AxisModel::new(r.unit, &r.result.model)))
+            .map(|r| {
+                let m = AxisModel {
+                    actual_latency_s: r.actual_latency_s,
+                    ..AxisModel::new(r.unit, &r.result.model)
+                };
+                (r.axis.to_string(), m)
+            })
             .collect(),
     }
 }

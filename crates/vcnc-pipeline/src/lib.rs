@@ -27,6 +27,7 @@
 //! | [`traces`] | scope files of every format → paired axes → identification | [`traces::MeasuredTrace`] |
 //! | [`frf`] | Bode data and bandwidth of models | [`BodeData`] |
 //! | [`kinematics`] | forward/inverse kinematics of tables | — |
+//! | [`latency`] | the stated actual-value latency: a model's logged position → the physical axis | — |
 //! | [`sweep`] | configuration sweeps, shards, merge | [`Sweep`], [`SweepRow`] |
 //! | [`compensate`] | compensated set-points from identified models, the fine-block program, judging on the true machine | [`compensate::Compensation`] |
 //! | [`feed_plan`] | per-block feeds within a contour tolerance, the uniform baseline | [`feed_plan::FeedPlan`] |
@@ -43,6 +44,7 @@ pub mod feed_plan;
 pub mod frf;
 pub mod identify;
 pub mod kinematics;
+pub mod latency;
 pub mod predict;
 pub mod programs;
 pub mod realistic;

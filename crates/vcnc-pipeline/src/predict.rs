@@ -9,10 +9,10 @@ use vcnc_drive::{DriveModel, DriveTrace};
 use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 
-use crate::Error;
 use crate::run::{Measured, Run, forward_poses};
 use crate::simulate::{simulate_model, simulate_models};
 use crate::stats::{max_abs, rms, scaled_diff_max_rms};
+use crate::{Error, latency};
 
 /// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
 /// reference poses.
@@ -336,26 +336,73 @@ pub fn poses_at(
 
 /// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
 /// one run: the true drives, the costly half, are simulated and evaluated once and shared.
+/// The models' positions are taken as the physical axes' (no actual-value latency:
+/// [`predict_many_with_latency`]).
 pub fn predict_many(
     machine: &Machine,
     run: &Run,
     model_sets: &[&[DriveModel]],
 ) -> Result<Vec<Prediction>, Error> {
-    let sims = simulate_all(machine, run, model_sets)?;
+    let sets: Vec<(&[DriveModel], &[f64])> = model_sets.iter().map(|m| (*m, &[][..])).collect();
+    predict_many_with_latency(machine, run, &sets)
+}
+
+/// [`predict_many`] with each model set's stated actual-value latency (s, per machine axis;
+/// empty: none): a model predicts the logged actual position, and the physical axis is that
+/// prediction advanced by its latency ([`crate::latency`], docs/drive-model.md#actual-value-latency).
+/// A set may appear twice with different latencies (with and without it stated).
+pub fn predict_many_with_latency(
+    machine: &Machine,
+    run: &Run,
+    model_sets: &[(&[DriveModel], &[f64])],
+) -> Result<Vec<Prediction>, Error> {
+    for (_, l) in model_sets {
+        latency::check(l, run.axes.len())?;
+    }
+    let models: Vec<&[DriveModel]> = model_sets.iter().map(|(m, _)| *m).collect();
+    let mut sims = simulate_all(machine, run, &models)?;
+    advance_by_latency(&mut sims, model_sets, run.ts)?;
     contours(machine, run, sims, model_sets.len())
+}
+
+/// Each model set's positions (per axis, in `sims`) advanced by its stated latency.
+fn advance_by_latency(
+    sims: &mut [AxisSims],
+    model_sets: &[(&[DriveModel], &[f64])],
+    ts: f64,
+) -> Result<(), Error> {
+    for (set, (_, l)) in model_sets.iter().enumerate() {
+        if l.iter().all(|t| *t == 0.0) {
+            continue;
+        }
+        let logged: Vec<Vec<f64>> = sims
+            .iter_mut()
+            .map(|(_, m)| std::mem::take(&mut m[set]))
+            .collect();
+        let physical = latency::physical_positions(logged, l, ts)?;
+        for ((_, m), x) in sims.iter_mut().zip(physical) {
+            m[set] = x;
+        }
+    }
+    Ok(())
 }
 
 /// [`predict`] for a run that is not needed whole afterwards: the reference velocities and
 /// accelerations are dropped once the drives and models have been simulated
 /// (`run.axes[i].vel` and `.acc` are left empty; the positions stay), so that a long run never
 /// holds them next to the contour search's path and the contour errors
-/// (docs/performance.md). The prediction is bit-identical to [`predict`]'s.
+/// (docs/performance.md). With `actual_latency_s` (s, per machine axis; empty: none) the
+/// models' positions are advanced by it, as [`predict_many_with_latency`] does; without, the
+/// prediction is bit-identical to [`predict`]'s.
 pub fn predict_releasing_rates(
     machine: &Machine,
     run: &mut Run,
     models: &[DriveModel],
+    actual_latency_s: &[f64],
 ) -> Result<Prediction, Error> {
-    let sims = simulate_all(machine, run, &[models])?;
+    latency::check(actual_latency_s, run.axes.len())?;
+    let mut sims = simulate_all(machine, run, &[models])?;
+    advance_by_latency(&mut sims, &[(models, actual_latency_s)], run.ts)?;
     for a in &mut run.axes {
         a.vel = Vec::new();
         a.acc = Vec::new();
@@ -501,13 +548,17 @@ pub struct ModelRun {
     pub contour: ContourReport,
 }
 
-/// The models' axis positions, poses and contour errors on `run`.
+/// The models' axis positions, poses and contour errors on `run`: the physical axes, each
+/// model's positions advanced by its axis' stated actual-value latency (`actual_latency_s`, s,
+/// per machine axis; empty: none; [`crate::latency`]).
 pub fn model_contour(
     machine: &Machine,
     run: &Run,
     models: &[DriveModel],
+    actual_latency_s: &[f64],
 ) -> Result<ModelRun, Error> {
-    let positions = simulate_models(models, run)?;
+    let positions =
+        latency::physical_positions(simulate_models(models, run)?, actual_latency_s, run.ts)?;
     let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
     let (poses, contour) = contour(machine, run, &pos)?;
     Ok(ModelRun {

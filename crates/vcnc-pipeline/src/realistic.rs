@@ -11,6 +11,13 @@
 //! 2. The program runs through the true drives, through vcnc's chosen models
 //!    (`result.model`) and through the paper's method (`result.paper_pso`: equation-error PSO,
 //!    the paper's 7-parameter structure); [`ContourFigures`] compare the contour errors.
+//! 3. vcnc's chosen models once more, each axis' positions advanced by the actual-value latency
+//!    its control's configuration states (`feedback.dead_time_cycles` / `servo_rate_hz`,
+//!    [`vcnc_machine::Axis::actual_latency_s`]; [`crate::latency`]). The models predict the
+//!    logged actual position, which trails the physical axis by that latency; no
+//!    identification can see it (a delay in the measurement and in the actuation give the same
+//!    record), so this figure uses a number the user states, not one identified. The paper's
+//!    method is evaluated as the paper does, without it.
 //!
 //! # The effect budget
 //!
@@ -152,22 +159,42 @@ pub fn machine_with(
 pub struct Evaluation {
     /// Per axis, in machine order.
     pub ids: Vec<AxisIdentification>,
-    /// vcnc's chosen models (`result.model`) on the program.
+    /// vcnc's chosen models (`result.model`) on the program, their positions taken as the
+    /// physical axes' (no actual-value latency).
     pub model: Prediction,
+    /// vcnc's chosen models with each axis' stated actual-value latency
+    /// ([`Evaluation::actual_latency_s`]): the physical axes, the models' positions advanced
+    /// by it.
+    pub model_stated: Prediction,
     /// The paper's method (`result.paper_pso`) on the program.
     pub paper: Prediction,
+    /// The actual-value latency stated per axis (machine order), s: the machine's control
+    /// configuration ([`vcnc_machine::Axis::actual_latency_s`]), not identified.
+    pub actual_latency_s: Vec<f64>,
 }
 
-/// Identifies every axis of `machine` and predicts `run` with both model sets.
+/// Identifies every axis of `machine` and predicts `run` with vcnc's models (without and with
+/// the stated actual-value latency) and the paper's method.
 pub fn evaluate(machine: &Machine, run: &Run) -> Result<Evaluation, Error> {
     let axes = identify::select_axes(machine, &[])?;
     let ids = identify::identify_axes(machine, &axes, None)?;
     let best: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
     let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
-    let [model, paper]: [Prediction; 2] = predict::predict_many(machine, run, &[&best, &paper])?
-        .try_into()
-        .map_err(|_| Error::Internal("predict_many returns one prediction per model set".into()))?;
-    Ok(Evaluation { ids, model, paper })
+    let latency: Vec<f64> = ids.iter().map(|r| r.actual_latency_s).collect();
+    let sets: [(&[DriveModel], &[f64]); 3] = [(&best, &[]), (&best, &latency), (&paper, &[])];
+    let [model, model_stated, paper]: [Prediction; 3] =
+        predict::predict_many_with_latency(machine, run, &sets)?
+            .try_into()
+            .map_err(|_| {
+                Error::Internal("predict_many returns one prediction per model set".into())
+            })?;
+    Ok(Evaluation {
+        ids,
+        model,
+        model_stated,
+        paper,
+        actual_latency_s: latency,
+    })
 }
 
 /// The contour statistics of a model set on a run (feed moves), in a summary's units.
@@ -277,6 +304,9 @@ pub struct BudgetRow {
     pub true_max_um: f64,
     /// vcnc's chosen models.
     pub model: Discrepancy,
+    /// vcnc's chosen models with the stated actual-value latency
+    /// ([`Evaluation::model_stated`]).
+    pub model_stated_latency: Discrepancy,
     /// The paper's method.
     pub paper_pso: Discrepancy,
     /// The structure chosen per axis.
@@ -290,6 +320,7 @@ impl BudgetRow {
             effect,
             true_max_um: f.true_max.tip_um,
             model: Discrepancy::of(&f),
+            model_stated_latency: Discrepancy::of(&e.model_stated.figures(mask)),
             paper_pso: Discrepancy::of(&e.paper.figures(mask)),
             structures: e.ids.iter().map(|r| (r.axis, r.result.structure)).collect(),
         }

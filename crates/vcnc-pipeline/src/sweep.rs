@@ -205,7 +205,9 @@ pub struct Sweep<'a> {
     indices: Vec<usize>,
     base_run: Run,
     reuse: bool,
-    models: Option<Vec<DriveModel>>,
+    /// The identified models (one per machine axis) and each axis' stated actual-value
+    /// latency, s (empty: none).
+    models: Option<(Vec<DriveModel>, Vec<f64>)>,
     base_predicted: Option<ContourReport>,
     lenient: bool,
 }
@@ -213,7 +215,8 @@ pub struct Sweep<'a> {
 impl<'a> Sweep<'a> {
     /// Plans a sweep of `program` (its text and name) on the machine `doc` over `keys`
     /// (`--set` arguments), restricted to `shard` (`i/n`), with optional identified `models`
-    /// (one per machine axis). The base machine and run must be valid.
+    /// (one per machine axis) and their axes' stated actual-value latency (s, per machine axis;
+    /// empty: none; [`crate::latency`]). The base machine and run must be valid.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         doc: &'a MachineDocument,
@@ -221,7 +224,7 @@ impl<'a> Sweep<'a> {
         program_name: &'a str,
         sets: &[String],
         shard: Option<&str>,
-        models: Option<Vec<DriveModel>>,
+        models: Option<(Vec<DriveModel>, Vec<f64>)>,
         lenient: bool,
     ) -> Result<Sweep<'a>, Error> {
         let base = doc.check()?;
@@ -239,7 +242,7 @@ impl<'a> Sweep<'a> {
         let base_run = prepare(&base, program, program_name, lenient)?;
         let reuse = !keys.iter().any(|k| changes_reference(&k.key));
         let base_predicted = match (&models, reuse) {
-            (Some(m), true) => Some(model_contour(&base, &base_run, m)?.contour),
+            (Some((m, l)), true) => Some(model_contour(&base, &base_run, m, l)?.contour),
             _ => None,
         };
         Ok(Sweep {
@@ -393,12 +396,12 @@ impl<'a> Sweep<'a> {
         };
         let predicted = match &self.models {
             None => None,
-            Some(models) => {
+            Some((models, latency)) => {
                 let owned_pc;
                 let pc = match &self.base_predicted {
                     Some(pc) => pc,
                     None => {
-                        owned_pc = model_contour(&machine, run, models)?.contour;
+                        owned_pc = model_contour(&machine, run, models, latency)?.contour;
                         &owned_pc
                     }
                 };

@@ -132,7 +132,7 @@ fn prediction_equals_the_full_trace_path_bit_for_bit() {
         // The command's path: the reference rates dropped as each axis is simulated, the
         // tracking errors computed in the predicted positions' memory.
         let mut lean_run = run.clone();
-        let lean = predict::predict_releasing_rates(&machine, &mut lean_run, &models)
+        let lean = predict::predict_releasing_rates(&machine, &mut lean_run, &models, &[])
             .expect("lean prediction");
         assert_eq!(fingerprint(&lean), fingerprint(&p), "{name}");
         assert!(
@@ -173,7 +173,7 @@ fn prediction_equals_the_full_trace_path_bit_for_bit() {
                 .expect("chunk")[..],
             "{name}"
         );
-        let m = predict::model_contour(&machine, &run, &models).expect("models");
+        let m = predict::model_contour(&machine, &run, &models, &[]).expect("models");
         assert_eq!(m.positions, p.predicted, "{name}");
         assert_eq!(m.contour.foot.len(), n, "{name}");
         assert_eq!(
@@ -200,7 +200,7 @@ fn prediction_is_bit_identical_on_one_and_two_threads() {
         let lean = |threads| {
             in_pool(threads, || {
                 let mut run = run.clone();
-                predict::predict_releasing_rates(&machine, &mut run, &models).expect("lean")
+                predict::predict_releasing_rates(&machine, &mut run, &models, &[]).expect("lean")
             })
         };
         assert_eq!(fingerprint(&lean(1)), fingerprint(&one), "{name}");
