@@ -37,8 +37,10 @@ use crate::noise::Normals;
 use crate::params::{Controller, Drive, PPiGains, PidGains, Plant, SmcGains};
 use crate::sim::{DriveTrace, RefSample, quantise_to};
 
+#[cfg(target_arch = "x86_64")]
 mod lanes;
-pub(crate) use lanes::LANES;
+/// Drives per batch ([`lanes`]): four `f64` fill a 256-bit AVX register.
+pub(crate) const LANES: usize = 4;
 
 // ---------------------------------------------------------------------------------------------
 // Control laws with separate position and velocity readings.
@@ -63,9 +65,11 @@ pub(crate) trait RLaw: Copy {
     /// The law of `drive` at servo period `h`, if its controller is of this kind.
     fn of(drive: &Drive, h: f64) -> Option<Self>;
     /// The law on lanes ([`lanes`]).
+    #[cfg(target_arch = "x86_64")]
     type Lanes: lanes::LaneLaw;
     /// One law per lane.
-    fn lanes(laws: &[Self; lanes::LANES]) -> Self::Lanes;
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes;
 }
 
 /// P-PI: direct $= K_p(K_v e + V_{ff}v_r/r_g - \hat v/r_g) + $ feed-forward,
@@ -84,8 +88,10 @@ pub(crate) struct PPiR {
 }
 
 impl RLaw for PPiR {
+    #[cfg(target_arch = "x86_64")]
     type Lanes = lanes::PPiL;
-    fn lanes(laws: &[Self; lanes::LANES]) -> Self::Lanes {
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes {
         lanes::PPiL::of(laws)
     }
     #[inline(always)]
@@ -129,8 +135,10 @@ pub(crate) struct PidR {
 }
 
 impl RLaw for PidR {
+    #[cfg(target_arch = "x86_64")]
     type Lanes = lanes::PidL;
-    fn lanes(laws: &[Self; lanes::LANES]) -> Self::Lanes {
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes {
         lanes::PidL::of(laws)
     }
     #[inline(always)]
@@ -167,8 +175,10 @@ pub(crate) struct SmcR {
 }
 
 impl RLaw for SmcR {
+    #[cfg(target_arch = "x86_64")]
     type Lanes = lanes::SmcL;
-    fn lanes(laws: &[Self; lanes::LANES]) -> Self::Lanes {
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes {
         lanes::SmcL::of(laws)
     }
     #[inline(always)]
@@ -1656,10 +1666,24 @@ pub(crate) fn structure(drive: &Drive, h: f64) -> Result<Structure, Error> {
     with_engine(drive, h, Build::Full, S)
 }
 
-/// Simulates drives with effects (at most [`lanes::LANES`], references of the same length,
+/// Simulates drives with effects (at most [`LANES`], references of the same length,
 /// `n_sub` ticks of `h` per sample) in one loop, one drive per lane, into `traces` (one per
 /// drive, prepared as [`Drive::simulate_into`] prepares it). `Ok(false)`, with nothing
-/// simulated, when the drives do not share a [`Structure`].
+/// simulated, when the drives do not share a [`Structure`] or the processor has no lanes
+/// (not x86-64 with AVX2).
+#[cfg(not(target_arch = "x86_64"))]
+pub(crate) fn simulate_lanes(
+    _drives: &[&Drive],
+    _references: &[Reference<'_>],
+    _n_sub: usize,
+    _h: f64,
+    _traces: &mut [DriveTrace],
+) -> Result<bool, Error> {
+    Ok(false)
+}
+
+/// See the other target's `simulate_lanes`: drives with effects in one loop.
+#[cfg(target_arch = "x86_64")]
 pub(crate) fn simulate_lanes(
     drives: &[&Drive],
     references: &[Reference<'_>],
@@ -1699,7 +1723,7 @@ pub(crate) fn simulate_lanes(
             }
             let engines: Vec<&Engine<L, N, TM>> = std::iter::once(e0).chain(&others).collect();
             let pick = |l: usize| l.min(drives.len() - 1);
-            let mut inputs: [lanes::LaneInput<'_>; lanes::LANES] = std::array::from_fn(|l| {
+            let mut inputs: [lanes::LaneInput<'_>; LANES] = std::array::from_fn(|l| {
                 let d = drives[pick(l)];
                 lanes::LaneInput {
                     reference: self.references[pick(l)],
@@ -1711,7 +1735,7 @@ pub(crate) fn simulate_lanes(
             let laws = std::array::from_fn(|l| engines[pick(l)].law);
             let lane_readers = std::array::from_fn(|l| &inputs[l].readers);
             let ef = lanes::EngineF::of(lane_engines, L::lanes(&laws), lane_readers);
-            let mut traces: [DriveTrace; lanes::LANES] = std::array::from_fn(|l| {
+            let mut traces: [DriveTrace; LANES] = std::array::from_fn(|l| {
                 let t = &self.traces[pick(l)];
                 let n = t.position.capacity();
                 DriveTrace {
@@ -1732,7 +1756,11 @@ pub(crate) fn simulate_lanes(
             Ok(true)
         }
     }
-    if drives.is_empty() || drives.len() > lanes::LANES || references.len() != drives.len() {
+    if drives.is_empty()
+        || drives.len() > LANES
+        || references.len() != drives.len()
+        || !lanes::available()
+    {
         return Ok(false);
     }
     with_engine(

@@ -68,7 +68,37 @@ fn check_batch(jobs: &[(&Drive, Reference<'_>)], ts: f64, what: &str) -> Vec<Vec
 }
 
 #[test]
-fn realistic_drives_in_lanes_are_bit_identical_to_each_alone() {
+fn every_realistic_nmv5000_axis_in_lanes_is_bit_identical_to_it_alone() {
+    // Truth: `Drive::simulate` of each axis alone. The five drives of
+    // machines/nmv5000-realistic.toml (two-mass, Maxwell-slip, current loop, two encoders, dead
+    // time, velocity filter, reference filter and delay; A and C with backlash, so lanes in the
+    // backlash gap beside lanes without), each on its own program.
+    let axes = common::machine_drives("nmv5000-realistic.toml");
+    let drives: Vec<Drive> = axes
+        .iter()
+        .map(|(a, p)| p.validate().unwrap_or_else(|e| panic!("axis {a}: {e}")))
+        .collect();
+    let progs: Vec<common::Program> = (0..drives.len() as u64)
+        .map(|i| common::identification_program(10 + i, 4.0, 1e-3, 0.0, 20.0, 250.0, 2500.0))
+        .collect();
+    let jobs: Vec<(&Drive, Reference<'_>)> = drives
+        .iter()
+        .zip(&progs)
+        .map(|(d, p)| (d, p.reference()))
+        .collect();
+    let groups = check_batch(&jobs, 1e-3, "nmv5000-realistic");
+    // All five share the structure: four lanes, and the fifth alone.
+    assert_eq!(groups, vec![vec![0, 1, 2, 3], vec![4]]);
+    // In the other order the backlash axes A and C share the batch with X and Y.
+    let rev: Vec<(&Drive, Reference<'_>)> = jobs.iter().rev().copied().collect();
+    assert_eq!(
+        check_batch(&rev, 1e-3, "nmv5000-realistic, C to X"),
+        vec![vec![0, 1, 2, 3], vec![4]]
+    );
+}
+
+#[test]
+fn realistic_variants_in_lanes_are_bit_identical_to_each_alone() {
     // Truth: `Drive::simulate` of each drive alone. The realistic NMV5000 X drive and the
     // realistic Table 1 drive (every effect), with their variants: backlash (a lane in the gap
     // while the others are in contact), a different seed and noise, a different dead time and

@@ -15,13 +15,15 @@
 //! needs the exponential (libm's, the scalar loop's own function), and the rare rounding of a
 //! reading beyond $2^{51}$ quanta.
 //!
-//! Lane arrays are plain `[f64; 4]` written element by element: LLVM turns them into 256-bit
-//! vector instructions in [`run_batch`]'s AVX2 variant (chosen at run time; the portable variant
-//! computes the same numbers with 128-bit or scalar instructions). No SIMD crate: the portable
-//! `std::simd` is nightly-only, and what is needed here (add, multiply, compare, select) is
-//! what LLVM vectorises from plain arrays.
+//! Lanes are four `f64` in a 256-bit AVX register, operated on with `std::arch` intrinsics
+//! (add, subtract, multiply, divide, compare, blend, sign-bit masks: each the IEEE operation of
+//! the scalar code, lane by lane). x86-64 with AVX2 only, checked at run time; elsewhere the
+//! drives run one at a time ([`crate::batch`] falls back), with the same results. No SIMD
+//! crate: the portable `std::simd` is nightly-only, and the few operations needed are single
+//! intrinsics.
 
-use std::ops::{Add, BitAnd, BitOr, Mul, Neg, Not, Sub};
+use std::arch::x86_64::*;
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
 use super::{Engine, Fric, Lin, RLaw, Reader, Shaper};
 use crate::Error;
@@ -29,20 +31,54 @@ use crate::effects::{FrictionLaw, MAX_ELEMENTS, Shaping};
 use crate::model::Reference;
 use crate::sim::{DriveTrace, RefSample, quantise_to};
 
-/// Drives per batch: four `f64` fill a 256-bit AVX2 register.
-pub(crate) const LANES: usize = 4;
+use super::LANES;
 
 // ---------------------------------------------------------------------------------------------
 // Lane arrays.
+//
+// Stored as plain arrays; every operation on whole lanes is one AVX instruction (std::arch),
+// inlined into [`run_avx2`], the only place they run (after the processor's AVX2 was checked).
+// Left to LLVM's SLP vectoriser, the same operations on arrays came out with their conditions
+// packed, shuffled and partly scalar: a third of the loop's time.
 
 /// One `f64` per lane.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(32))]
 pub(crate) struct F(pub(crate) [f64; LANES]);
 
-/// One condition per lane.
+/// One condition per lane: all bits set (true) or none (false), the form of a vector
+/// comparison's result.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct M(pub(crate) [bool; LANES]);
+#[repr(C, align(32))]
+pub(crate) struct M(pub(crate) [i64; LANES]);
+
+#[inline(always)]
+fn ld(a: F) -> __m256d {
+    // SAFETY: `F` is 32-byte aligned; AVX is present wherever lanes run (`run_batch`).
+    unsafe { _mm256_load_pd(a.0.as_ptr()) }
+}
+
+#[inline(always)]
+fn st(v: __m256d) -> F {
+    let mut f = F([0.0; LANES]);
+    // SAFETY: as `ld`.
+    unsafe { _mm256_store_pd(f.0.as_mut_ptr(), v) };
+    f
+}
+
+#[inline(always)]
+fn ldm(m: M) -> __m256d {
+    // SAFETY: as `ld` (`M` is 32-byte aligned, its bits read as doubles).
+    unsafe { _mm256_load_pd(m.0.as_ptr().cast()) }
+}
+
+#[inline(always)]
+fn stm(v: __m256d) -> M {
+    let mut m = M([0; LANES]);
+    // SAFETY: as `ld`.
+    unsafe { _mm256_store_pd(m.0.as_mut_ptr().cast(), v) };
+    m
+}
 
 impl F {
     #[inline(always)]
@@ -53,33 +89,37 @@ impl F {
     fn map(f: impl Fn(usize) -> f64) -> F {
         F(std::array::from_fn(f))
     }
-    #[inline(always)]
-    fn cmp(self, o: F, f: impl Fn(f64, f64) -> bool) -> M {
-        M(std::array::from_fn(|l| f(self.0[l], o.0[l])))
-    }
+    /// `self < o` (ordered: false with a NaN, as Rust's `<`), and so on.
     #[inline(always)]
     fn lt(self, o: F) -> M {
-        self.cmp(o, |a, b| a < b)
+        // SAFETY: as `ld`.
+        stm(unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(ld(self), ld(o)) })
     }
     #[inline(always)]
     fn le(self, o: F) -> M {
-        self.cmp(o, |a, b| a <= b)
+        // SAFETY: as `ld`.
+        stm(unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(ld(self), ld(o)) })
     }
     #[inline(always)]
     fn gt(self, o: F) -> M {
-        self.cmp(o, |a, b| a > b)
+        // SAFETY: as `ld`.
+        stm(unsafe { _mm256_cmp_pd::<_CMP_GT_OQ>(ld(self), ld(o)) })
     }
     #[inline(always)]
     fn ge(self, o: F) -> M {
-        self.cmp(o, |a, b| a >= b)
+        // SAFETY: as `ld`.
+        stm(unsafe { _mm256_cmp_pd::<_CMP_GE_OQ>(ld(self), ld(o)) })
     }
     #[inline(always)]
     fn eq(self, o: F) -> M {
-        self.cmp(o, |a, b| a == b)
+        // SAFETY: as `ld`.
+        stm(unsafe { _mm256_cmp_pd::<_CMP_EQ_OQ>(ld(self), ld(o)) })
     }
+    /// `f64::abs`: the sign bit cleared.
     #[inline(always)]
     fn abs(self) -> F {
-        F::map(|l| self.0[l].abs())
+        // SAFETY: as `ld`.
+        st(unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), ld(self)) })
     }
     /// `f64::clamp` per lane (the bounds ordered, as the scalar loop asserts).
     #[inline(always)]
@@ -92,64 +132,83 @@ impl F {
 /// `if m { a } else { b }` per lane.
 #[inline(always)]
 fn sel(m: M, a: F, b: F) -> F {
-    F::map(|l| if m.0[l] { a.0[l] } else { b.0[l] })
+    // SAFETY: as `ld`.
+    st(unsafe { _mm256_blendv_pd(ld(b), ld(a), ldm(m)) })
 }
 
 impl M {
     #[inline(always)]
+    fn bits(self) -> i32 {
+        // SAFETY: as `ld`.
+        unsafe { _mm256_movemask_pd(ldm(self)) }
+    }
+    #[inline(always)]
     fn any(self) -> bool {
-        self.0.iter().any(|m| *m)
+        self.bits() != 0
     }
     #[inline(always)]
     fn all(self) -> bool {
-        self.0.iter().all(|m| *m)
+        self.bits() == (1 << LANES) - 1
+    }
+    /// Lane `l`'s condition.
+    #[inline(always)]
+    fn at(self, l: usize) -> bool {
+        self.0[l] != 0
+    }
+    /// A condition per lane.
+    fn of(f: impl Fn(usize) -> bool) -> M {
+        M(std::array::from_fn(|l| -(f(l) as i64)))
     }
 }
 
 macro_rules! lane_op {
-    ($tr:ident, $f:ident, $op:tt) => {
+    ($tr:ident, $f:ident, $intr:ident) => {
         impl $tr for F {
             type Output = F;
             #[inline(always)]
             fn $f(self, o: F) -> F {
-                F::map(|l| self.0[l] $op o.0[l])
+                // SAFETY: as `ld`.
+                st(unsafe { $intr(ld(self), ld(o)) })
             }
         }
     };
 }
-lane_op!(Add, add, +);
-lane_op!(Sub, sub, -);
-lane_op!(Mul, mul, *);
+lane_op!(Add, add, _mm256_add_pd);
+lane_op!(Sub, sub, _mm256_sub_pd);
+lane_op!(Mul, mul, _mm256_mul_pd);
+lane_op!(Div, div, _mm256_div_pd);
 
 impl Neg for F {
     type Output = F;
+    /// The sign bit flipped, as Rust's `-x`.
     #[inline(always)]
     fn neg(self) -> F {
-        F::map(|l| -self.0[l])
+        // SAFETY: as `ld`.
+        st(unsafe { _mm256_xor_pd(_mm256_set1_pd(-0.0), ld(self)) })
     }
 }
 
-impl BitAnd for M {
-    type Output = M;
-    #[inline(always)]
-    fn bitand(self, o: M) -> M {
-        M(std::array::from_fn(|l| self.0[l] & o.0[l]))
-    }
+macro_rules! mask_op {
+    ($tr:ident, $f:ident, $intr:ident) => {
+        impl $tr for M {
+            type Output = M;
+            #[inline(always)]
+            fn $f(self, o: M) -> M {
+                // SAFETY: as `ld`.
+                stm(unsafe { $intr(ldm(self), ldm(o)) })
+            }
+        }
+    };
 }
-
-impl BitOr for M {
-    type Output = M;
-    #[inline(always)]
-    fn bitor(self, o: M) -> M {
-        M(std::array::from_fn(|l| self.0[l] | o.0[l]))
-    }
-}
+mask_op!(BitAnd, bitand, _mm256_and_pd);
+mask_op!(BitOr, bitor, _mm256_or_pd);
 
 impl Not for M {
     type Output = M;
     #[inline(always)]
     fn not(self) -> M {
-        M(std::array::from_fn(|l| !self.0[l]))
+        // SAFETY: as `ld`.
+        stm(unsafe { _mm256_xor_pd(ldm(self), _mm256_castsi256_pd(_mm256_set1_epi64x(-1))) })
     }
 }
 
@@ -256,19 +315,21 @@ impl<const N: usize> LinF<N> {
     /// `b`'s coefficients in the lanes of `m`, else `a`'s.
     #[inline(always)]
     fn select(m: M, b: &LinF<N>, a: &LinF<N>) -> LinF<N> {
-        let s = |x: &[F; N], y: &[F; N]| -> [F; N] { std::array::from_fn(|i| sel(m, x[i], y[i])) };
-        LinF {
-            phi: std::array::from_fn(|i| s(&b.phi[i], &a.phi[i])),
-            g_u: s(&b.g_u, &a.g_u),
-            g_f: s(&b.g_f, &a.g_f),
-            g_o: s(&b.g_o, &a.g_o),
-            stick_k: s(&b.stick_k, &a.stick_k),
-            stick_gu: s(&b.stick_gu, &a.stick_gu),
-            stick_lim: [
-                sel(m, b.stick_lim[0], a.stick_lim[0]),
-                sel(m, b.stick_lim[1], a.stick_lim[1]),
-            ],
+        let mut out = *a;
+        for i in 0..N {
+            for j in 0..N {
+                out.phi[i][j] = sel(m, b.phi[i][j], a.phi[i][j]);
+            }
+            out.g_u[i] = sel(m, b.g_u[i], a.g_u[i]);
+            out.g_f[i] = sel(m, b.g_f[i], a.g_f[i]);
+            out.g_o[i] = sel(m, b.g_o[i], a.g_o[i]);
+            out.stick_k[i] = sel(m, b.stick_k[i], a.stick_k[i]);
+            out.stick_gu[i] = sel(m, b.stick_gu[i], a.stick_gu[i]);
         }
+        for i in 0..2 {
+            out.stick_lim[i] = sel(m, b.stick_lim[i], a.stick_lim[i]);
+        }
+        out
     }
 }
 
@@ -293,6 +354,10 @@ enum FricF {
         v_flat: F,
         coulomb: [F; 2],
         static_: [F; 2],
+        /// Stribeck velocity; exponent 2, exponent neither 1 nor 2.
+        vs: F,
+        exp2: M,
+        exp_other: M,
     },
 }
 
@@ -448,7 +513,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 FricF::Maxwell {
                     laws,
                     n_max,
-                    exists: std::array::from_fn(|i| M(std::array::from_fn(|l| i < each[l].1))),
+                    exists: std::array::from_fn(|i| M::of(|l| i < each[l].1)),
                     n: F::map(|l| each[l].1 as f64),
                     k: std::array::from_fn(|i| F::map(|l| each[l].2[i])),
                     w: std::array::from_fn(|i| F::map(|l| each[l].3[i])),
@@ -463,6 +528,9 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                         F::map(|l| each[l].0.static_[0]),
                         F::map(|l| each[l].0.static_[1]),
                     ],
+                    vs: F::map(|l| each[l].0.stribeck_velocity),
+                    exp2: M::of(|l| each[l].0.exponent == 2.0),
+                    exp_other: M::of(|l| each[l].0.exponent != 2.0 && each[l].0.exponent != 1.0),
                 }
             }
         };
@@ -692,14 +760,18 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 v_flat,
                 coulomb,
                 static_,
+                vs,
+                exp2,
+                exp_other,
             } => {
                 let x0 = z[IX];
                 let (f0, half_k) = (st.ms_force, F::splat(0.5) * st.ms_stiffness);
                 let rigid = half_k.eq(zero);
-                let stuck_z = |i: usize| (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * w;
+                // No closures here: a closure is a function of its own, without AVX, that
+                // would call the intrinsics instead of inlining them.
                 if rigid.all() {
                     for i in 0..N {
-                        st.z[i] = stuck_z(i);
+                        st.z[i] = (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * w;
                     }
                 } else {
                     let f_p = (F::splat(1.0) + half_k * lin.g_f[IX]) * f0 + half_k * (p[IX] - x0);
@@ -708,7 +780,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                         let c = lin.g_f[i];
                         let zi = (p[i] + c * f_p) + (lin.g_u[i] + c * f_w) * w;
                         st.z[i] = if rigid.any() {
-                            sel(rigid, stuck_z(i), zi)
+                            sel(rigid, (p[i] + lin.g_f[i] * f0) + lin.g_u[i] * w, zi)
                         } else {
                             zi
                         };
@@ -719,27 +791,47 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 let pos = v0.ge(zero);
                 let speed = sel(pos, v0, -v0);
                 let flat = speed.gt(*v_flat);
+                // The law's own branches (FrictionLaw::level) as selects: the Coulomb level
+                // beyond v_flat, at rest the static level, T_c beyond p = 40, the short series
+                // below p = 1e-4; in between, the exponential (and a general exponent's power)
+                // per lane, libm's as in the scalar loop.
+                let (tc, ts) = (sel(pos, coulomb[0], coulomb[1]), sel(pos, static_[0], static_[1]));
                 let lev = if flat.all() {
-                    sel(pos, coulomb[0], coulomb[1])
+                    tc
                 } else {
-                    F::map(|l| {
-                        let dir = if pos.0[l] { 0 } else { 1 };
-                        if flat.0[l] {
-                            laws[l].coulomb[dir]
-                        } else {
-                            laws[l].level(dir, speed.0[l])
+                    let one = F::splat(1.0);
+                    let at_rest = speed.eq(zero);
+                    let trivial = ts.eq(tc) | at_rest;
+                    let r = speed / *vs;
+                    let p = sel(*exp2, r * r, r);
+                    let series = tc
+                        + (ts - tc)
+                            * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
+                    let (big, small) = (p.gt(F::splat(40.0)), p.lt(F::splat(1e-4)));
+                    let mut lev = sel(
+                        flat,
+                        tc,
+                        sel(trivial, sel(at_rest, ts, tc), sel(big, tc, series)),
+                    );
+                    let libm = !flat & !trivial & (*exp_other | !(big | small));
+                    if libm.any() {
+                        for l in 0..LANES {
+                            if libm.at(l) {
+                                let dir = if pos.at(l) { 0 } else { 1 };
+                                lev.0[l] = laws[l].level(dir, speed.0[l]);
+                            }
                         }
-                    })
+                    }
+                    lev
                 };
                 let hi = sel(pos, lev, static_[0]);
                 let lo = sel(pos, static_[1], lev);
                 let dx = st.z[IX] - x0;
-                let stays = |new: F, dx: F| {
-                    let dl = new - st.ms_level;
-                    dx.ge(dl * sel(dl.ge(zero), *w_max, *w_min))
-                };
-                let take_hi = st.ms_sat.gt(zero) & stays(hi, dx);
-                let take_lo = !take_hi & st.ms_sat.lt(zero) & stays(lo, -dx);
+                let (dl_hi, dl_lo) = (hi - st.ms_level, lo - st.ms_level);
+                let stays_hi = dx.ge(dl_hi * sel(dl_hi.ge(zero), *w_max, *w_min));
+                let stays_lo = (-dx).ge(dl_lo * sel(dl_lo.ge(zero), *w_max, *w_min));
+                let take_hi = st.ms_sat.gt(zero) & stays_hi;
+                let take_lo = !take_hi & st.ms_sat.lt(zero) & stays_lo;
                 let slide = take_hi | take_lo;
                 let general = !slide;
                 let (mut sat, mut level, mut force, mut stiffness) =
@@ -798,16 +890,16 @@ pub(crate) fn run_batch<B: LaneLaw, const N: usize, const TM: bool>(
     h: f64,
     traces: &mut [DriveTrace; LANES],
 ) -> Result<(), Error> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor has AVX2 (checked just above).
-        return unsafe { run_avx2(e, inputs, n_sub, h, traces) };
-    }
-    run_body(e, inputs, n_sub, h, traces)
+    // SAFETY: the lanes run only on a processor with AVX2 (`available`, checked by the caller).
+    unsafe { run_avx2(e, inputs, n_sub, h, traces) }
 }
 
-/// [`run_body`] compiled for AVX2 (the same operations, in 256-bit registers).
-#[cfg(target_arch = "x86_64")]
+/// Whether this processor runs lanes (AVX2).
+pub(crate) fn available() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
+/// [`run_body`] compiled for AVX2.
 #[target_feature(enable = "avx2")]
 fn run_avx2<B: LaneLaw, const N: usize, const TM: bool>(
     e: &EngineF<B, N, TM>,
@@ -911,7 +1003,7 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         let out = e.tick(&mut st, &refs_f[0], zero, noise_f[0]);
         let torque = e.torque(&z_before, out.u_in);
         for (l, trace) in traces.iter_mut().enumerate() {
-            saturated_ticks[l] += out.saturated.0[l] as u64;
+            saturated_ticks[l] += out.saturated.at(l) as u64;
             trace.position.push(out.xp.0[l]);
             trace.true_position.push(xl.0[l]);
             trace.velocity.push(vl.0[l]);
@@ -922,7 +1014,7 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         for (r, nf) in refs_f[1..ticks].iter().zip(&noise_f[1..ticks]) {
             let out = e.tick(&mut st, r, zero, *nf);
             for (s, m) in saturated_ticks.iter_mut().zip(out.saturated.0) {
-                *s += m as u64;
+                *s += (m != 0) as u64;
             }
         }
     }
