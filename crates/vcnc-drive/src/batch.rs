@@ -74,10 +74,7 @@ pub fn batch_groups(jobs: &[(&Drive, Reference<'_>)], ts: f64) -> Vec<Vec<usize>
 /// Simulates each drive on its reference (period `ts`, s), as [`Drive::simulate`] does, the
 /// drives of a group of [`batch_groups`] in one loop (SIMD lanes). Results in the order of
 /// `jobs`; each is bit for bit [`Drive::simulate`]'s, error included.
-pub fn simulate_batch(
-    jobs: &[(&Drive, Reference<'_>)],
-    ts: f64,
-) -> Vec<Result<DriveTrace, Error>> {
+pub fn simulate_batch(jobs: &[(&Drive, Reference<'_>)], ts: f64) -> Vec<Result<DriveTrace, Error>> {
     let mut out: Vec<Option<Result<DriveTrace, Error>>> = jobs.iter().map(|_| None).collect();
     for group in batch_groups(jobs, ts) {
         if group.len() > 1
@@ -100,7 +97,11 @@ pub fn simulate_batch(
 
 /// One group in one loop; `None` if it cannot run so (then each drive runs alone and reports
 /// its own result).
-fn run_group(jobs: &[(&Drive, Reference<'_>)], group: &[usize], ts: f64) -> Option<Vec<DriveTrace>> {
+fn run_group(
+    jobs: &[(&Drive, Reference<'_>)],
+    group: &[usize],
+    ts: f64,
+) -> Option<Vec<DriveTrace>> {
     let drives: Vec<&Drive> = group.iter().map(|i| jobs[*i].0).collect();
     let references: Vec<Reference<'_>> = group.iter().map(|i| jobs[*i].1).collect();
     let n = references[0].check().ok()?;

@@ -1700,10 +1700,7 @@ pub(crate) fn simulate_lanes(
     }
     impl Job for J<'_, '_> {
         type Out = Result<bool, Error>;
-        fn run<L: RLaw, const N: usize, const TM: bool>(
-            self,
-            e0: &Engine<L, N, TM>,
-        ) -> Self::Out {
+        fn run<L: RLaw, const N: usize, const TM: bool>(self, e0: &Engine<L, N, TM>) -> Self::Out {
             let (drives, h) = (self.drives, self.h);
             let lay0 = layout(drives[0].effects());
             let mut others = Vec::with_capacity(drives.len() - 1);

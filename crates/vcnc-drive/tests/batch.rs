@@ -48,7 +48,10 @@ fn assert_bit_identical(a: &DriveTrace, b: &DriveTrace, what: &str) {
             );
         }
     }
-    assert_eq!(a.saturated_ticks, b.saturated_ticks, "{what}: saturated ticks");
+    assert_eq!(
+        a.saturated_ticks, b.saturated_ticks,
+        "{what}: saturated ticks"
+    );
     assert_eq!(a.ts.to_bits(), b.ts.to_bits(), "{what}: ts");
 }
 
@@ -273,8 +276,7 @@ fn random_drive(structure: &mut ChaCha8Rng, numbers: &mut ChaCha8Rng) -> DrivePa
             velocity_filter_hz: n.random_bool(0.7).then(|| scale(n, 1500.0)),
             motor_resolution: (two_mass && source == FeedbackSource::Load)
                 .then(|| if n.random_bool(0.7) { 1e-5 } else { 0.0 }),
-            motor_noise_std: if two_mass && source == FeedbackSource::Load && n.random_bool(0.5)
-            {
+            motor_noise_std: if two_mass && source == FeedbackSource::Load && n.random_bool(0.5) {
                 scale(n, 2e-5)
             } else {
                 0.0

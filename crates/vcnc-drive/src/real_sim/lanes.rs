@@ -246,9 +246,17 @@ macro_rules! lane_law {
         }
     };
 }
-lane_law!(PPiL, PPiR, [kv, kp, vff_over_rg, inv_rg, half_h_kv, inv_2h, ff_a, ff_v]);
+lane_law!(
+    PPiL,
+    PPiR,
+    [kv, kp, vff_over_rg, inv_rg, half_h_kv, inv_2h, ff_a, ff_v]
+);
 lane_law!(PidL, PidR, [kp, kd, half_h, inv_2h, ff_a, ff_v]);
-lane_law!(SmcL, SmcR, [lambda, ks, je_hat, be_hat, half_h_lambda, inv_2h]);
+lane_law!(
+    SmcL,
+    SmcR,
+    [lambda, ks, je_hat, be_hat, half_h_lambda, inv_2h]
+);
 
 impl LaneLaw for PPiL {
     #[inline(always)]
@@ -333,7 +341,9 @@ impl<const N: usize> LinF<N> {
     }
 }
 
-/// Friction on lanes: every lane has the same kind.
+/// Friction on lanes: every lane has the same kind. One per engine, never in a collection: the
+/// Maxwell-slip variant's arrays stay inline.
+#[allow(clippy::large_enum_variant)]
 enum FricF {
     None,
     SetValued {
@@ -795,7 +805,10 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 // beyond v_flat, at rest the static level, T_c beyond p = 40, the short series
                 // below p = 1e-4; in between, the exponential (and a general exponent's power)
                 // per lane, libm's as in the scalar loop.
-                let (tc, ts) = (sel(pos, coulomb[0], coulomb[1]), sel(pos, static_[0], static_[1]));
+                let (tc, ts) = (
+                    sel(pos, coulomb[0], coulomb[1]),
+                    sel(pos, static_[0], static_[1]),
+                );
                 let lev = if flat.all() {
                     tc
                 } else {
@@ -805,8 +818,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                     let r = speed / *vs;
                     let p = sel(*exp2, r * r, r);
                     let series = tc
-                        + (ts - tc)
-                            * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
+                        + (ts - tc) * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
                     let (big, small) = (p.gt(F::splat(40.0)), p.lt(F::splat(1e-4)));
                     let mut lev = sel(
                         flat,
@@ -834,8 +846,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 let take_lo = !take_hi & st.ms_sat.lt(zero) & stays_lo;
                 let slide = take_hi | take_lo;
                 let general = !slide;
-                let (mut sat, mut level, mut force, mut stiffness) =
-                    (st.ms_sat, zero, zero, zero);
+                let (mut sat, mut level, mut force, mut stiffness) = (st.ms_sat, zero, zero, zero);
                 if general.any() {
                     let refresh = general & !st.ms_sat.eq(zero);
                     if refresh.any() {
@@ -998,7 +1009,11 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
                 nf.1.0[l] = *m;
             }
         }
-        let (xl, vl, xm) = (st.z[EngineF::<B, N, TM>::XL], st.z[EngineF::<B, N, TM>::VL], st.z[0]);
+        let (xl, vl, xm) = (
+            st.z[EngineF::<B, N, TM>::XL],
+            st.z[EngineF::<B, N, TM>::VL],
+            st.z[0],
+        );
         let z_before = st.z;
         let out = e.tick(&mut st, &refs_f[0], zero, noise_f[0]);
         let torque = e.torque(&z_before, out.u_in);

@@ -263,7 +263,7 @@ pub fn machine_drives(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
         .iter()
         .map(|a| {
             let mut t = axes[*a].as_table().expect("axis table").clone();
-            t.retain(|k, _| DRIVE_KEYS.contains(&&k[..]));
+            t.retain(|k, _| DRIVE_KEYS.contains(&k));
             let p: vcnc_drive::DriveParams = t.try_into().expect("drive keys parse");
             (a.to_string(), p)
         })
