@@ -5,7 +5,10 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use vcnc_drive::{AxisName, DriveTrace, SimOptions, nmv5000_axis_design, table1_drive};
+use vcnc_drive::{
+    AxisName, Drive, DriveTrace, Reference, SimOptions, nmv5000_axis_design, simulate_batch,
+    table1_drive,
+};
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -47,6 +50,54 @@ fn drive(c: &mut Criterion) {
     case(
         "NMV5000 X realistic (machines/nmv5000-realistic.toml: every effect), 30 s at 20 kHz",
         &realistic_x,
+    );
+    // A machine's five true drives: machines/nmv5000.toml (ideal) one after the other, as the
+    // pipeline runs them, and machines/nmv5000-realistic.toml in lanes (four in one loop, the
+    // fifth alone) and one after the other.
+    let machine = |name: &str| -> Vec<Drive> {
+        common::machine_drives(name)
+            .into_iter()
+            .map(|(a, p)| p.validate().unwrap_or_else(|e| panic!("{name} {a}: {e}")))
+            .collect()
+    };
+    let ideal5 = machine("nmv5000.toml");
+    let realistic5 = machine("nmv5000-realistic.toml");
+    let five = |drives: &[Drive], trace: &mut DriveTrace| {
+        for d in drives {
+            d.simulate_into(black_box(prog.reference()), 1e-3, trace)
+                .expect("simulates");
+            black_box(&*trace);
+        }
+    };
+    group.bench_function(
+        "NMV5000 5 axes ideal (machines/nmv5000.toml), one after the other, 30 s at 20 kHz",
+        |b| b.iter(|| five(&ideal5, &mut trace)),
+    );
+    group.bench_function(
+        "NMV5000 5 axes realistic (machines/nmv5000-realistic.toml), one after the other, 30 s at 20 kHz",
+        |b| b.iter(|| five(&realistic5, &mut trace)),
+    );
+    let jobs: Vec<(&Drive, Reference<'_>)> =
+        realistic5.iter().map(|d| (d, prog.reference())).collect();
+    group.bench_function(
+        "NMV5000 5 axes realistic, simulate_batch (4 in SIMD lanes + 1 alone), 30 s at 20 kHz",
+        |b| {
+            b.iter(|| {
+                for t in simulate_batch(black_box(&jobs), 1e-3) {
+                    black_box(t.expect("simulates"));
+                }
+            })
+        },
+    );
+    group.bench_function(
+        "NMV5000 4 axes realistic (X, Y, Z, A), simulate_batch (one loop of 4 lanes), 30 s at 20 kHz",
+        |b| {
+            b.iter(|| {
+                for t in simulate_batch(black_box(&jobs[..4]), 1e-3) {
+                    black_box(t.expect("simulates"));
+                }
+            })
+        },
     );
     let model = table1.closed_loop_model();
     group.bench_function(

@@ -42,6 +42,7 @@
 //! # Ok::<(), vcnc_drive::Error>(())
 //! ```
 
+pub mod batch;
 pub mod design;
 pub mod drive_model;
 pub mod effects;
@@ -53,6 +54,7 @@ pub mod presets;
 mod real_sim;
 pub mod sim;
 
+pub use batch::{BATCH_LANES, batch_groups, simulate_batch};
 pub use design::{design_pid, design_ppi, design_smc};
 pub use drive_model::{
     DriveModel, MAX_DELAY_S, ModelInput, ModelRun, Realisation, ReferenceFilter,

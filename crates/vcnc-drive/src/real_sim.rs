@@ -37,6 +37,11 @@ use crate::noise::Normals;
 use crate::params::{Controller, Drive, PPiGains, PidGains, Plant, SmcGains};
 use crate::sim::{DriveTrace, RefSample, quantise_to};
 
+#[cfg(target_arch = "x86_64")]
+mod lanes;
+/// Drives per batch ([`lanes`]): four `f64` fill a 256-bit AVX register.
+pub(crate) const LANES: usize = 4;
+
 // ---------------------------------------------------------------------------------------------
 // Control laws with separate position and velocity readings.
 
@@ -57,6 +62,14 @@ pub(crate) trait RLaw: Copy {
     fn slopes(&self) -> [f64; 4];
     /// $K_I$.
     fn k_int(&self) -> f64;
+    /// The law of `drive` at servo period `h`, if its controller is of this kind.
+    fn of(drive: &Drive, h: f64) -> Option<Self>;
+    /// The law on lanes ([`lanes`]).
+    #[cfg(target_arch = "x86_64")]
+    type Lanes: lanes::LaneLaw;
+    /// One law per lane.
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes;
 }
 
 /// P-PI: direct $= K_p(K_v e + V_{ff}v_r/r_g - \hat v/r_g) + $ feed-forward,
@@ -75,6 +88,12 @@ pub(crate) struct PPiR {
 }
 
 impl RLaw for PPiR {
+    #[cfg(target_arch = "x86_64")]
+    type Lanes = lanes::PPiL;
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes {
+        lanes::PPiL::of(laws)
+    }
     #[inline(always)]
     fn terms0(&self, r: RefSample, xr1: f64, e1: f64, xf1: f64, xf2: f64) -> (f64, f64) {
         let v0 = (xf2 - 4.0 * xf1) * self.inv_2h;
@@ -95,6 +114,12 @@ impl RLaw for PPiR {
     fn k_int(&self) -> f64 {
         self.ki
     }
+    fn of(drive: &Drive, h: f64) -> Option<Self> {
+        match *drive.controller() {
+            Controller::PPi(g) => Some(PPiR::new(drive, g, h)),
+            _ => None,
+        }
+    }
 }
 
 /// PID: direct $= K_p e + K_d(v_r - \hat v) + $ feed-forward, $\Delta I = h(e + e_1)/2$.
@@ -110,6 +135,12 @@ pub(crate) struct PidR {
 }
 
 impl RLaw for PidR {
+    #[cfg(target_arch = "x86_64")]
+    type Lanes = lanes::PidL;
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes {
+        lanes::PidL::of(laws)
+    }
     #[inline(always)]
     fn terms0(&self, r: RefSample, _xr1: f64, e1: f64, xf1: f64, xf2: f64) -> (f64, f64) {
         let v0 = (xf2 - 4.0 * xf1) * self.inv_2h;
@@ -121,6 +152,12 @@ impl RLaw for PidR {
     }
     fn k_int(&self) -> f64 {
         self.ki
+    }
+    fn of(drive: &Drive, h: f64) -> Option<Self> {
+        match *drive.controller() {
+            Controller::Pid(g) => Some(PidR::new(drive, g, h)),
+            _ => None,
+        }
     }
 }
 
@@ -138,6 +175,12 @@ pub(crate) struct SmcR {
 }
 
 impl RLaw for SmcR {
+    #[cfg(target_arch = "x86_64")]
+    type Lanes = lanes::SmcL;
+    #[cfg(target_arch = "x86_64")]
+    fn lanes(laws: &[Self; LANES]) -> Self::Lanes {
+        lanes::SmcL::of(laws)
+    }
     #[inline(always)]
     fn terms0(&self, r: RefSample, _xr1: f64, e1: f64, xf1: f64, xf2: f64) -> (f64, f64) {
         let v0 = (xf2 - 4.0 * xf1) * self.inv_2h;
@@ -158,6 +201,12 @@ impl RLaw for SmcR {
     }
     fn k_int(&self) -> f64 {
         self.rho
+    }
+    fn of(drive: &Drive, h: f64) -> Option<Self> {
+        match *drive.controller() {
+            Controller::Smc(g) => Some(SmcR::new(g, h)),
+            _ => None,
+        }
     }
 }
 
@@ -1256,82 +1305,89 @@ pub(crate) fn with_engine<J: Job>(
     build: Build,
     job: J,
 ) -> Result<J::Out, Error> {
+    match *drive.controller() {
+        Controller::PPi(g) => dispatch_n(drive, h, build, PPiR::new(drive, g, h), job),
+        Controller::Pid(g) => dispatch_n(drive, h, build, PidR::new(drive, g, h), job),
+        Controller::Smc(g) => dispatch_n(drive, h, build, SmcR::new(g, h), job),
+    }
+}
+
+/// Acceleration and velocity feed-forward gains $(J_{ff}J/(r_gK_aK_t), B_{ff}B/(r_gK_aK_t))$.
+fn feed_forward(drive: &Drive, jff: f64, bff: f64) -> (f64, f64) {
     let plant = drive.plant();
     let (j, b, rg, k) = (plant.j, plant.b, plant.rg, plant.ka_kt());
-    let ff = |jff: f64, bff: f64| (jff * j / (rg * k), bff * b / (rg * k));
-    match *drive.controller() {
-        Controller::PPi(PPiGains {
+    (jff * j / (rg * k), bff * b / (rg * k))
+}
+
+impl PPiR {
+    /// The law with gains `g` at servo period `h`.
+    fn new(drive: &Drive, g: PPiGains, h: f64) -> PPiR {
+        let PPiGains {
             kv,
             kp,
             ki,
             vff,
             bff,
             jff,
-        }) => {
-            let (ff_a, ff_v) = ff(jff, bff);
-            dispatch_n(
-                drive,
-                h,
-                build,
-                PPiR {
-                    kp,
-                    ki,
-                    kv,
-                    vff_over_rg: vff / rg,
-                    inv_rg: 1.0 / rg,
-                    half_h_kv: 0.5 * h * kv,
-                    inv_2h: 0.5 / h,
-                    ff_a,
-                    ff_v,
-                },
-                job,
-            )
+        } = g;
+        let rg = drive.plant().rg;
+        let (ff_a, ff_v) = feed_forward(drive, jff, bff);
+        PPiR {
+            kp,
+            ki,
+            kv,
+            vff_over_rg: vff / rg,
+            inv_rg: 1.0 / rg,
+            half_h_kv: 0.5 * h * kv,
+            inv_2h: 0.5 / h,
+            ff_a,
+            ff_v,
         }
-        Controller::Pid(PidGains {
+    }
+}
+
+impl PidR {
+    /// The law with gains `g` at servo period `h`.
+    fn new(drive: &Drive, g: PidGains, h: f64) -> PidR {
+        let PidGains {
             kp,
             ki,
             kd,
             jff,
             bff,
-        }) => {
-            let (ff_a, ff_v) = ff(jff, bff);
-            dispatch_n(
-                drive,
-                h,
-                build,
-                PidR {
-                    kp,
-                    ki,
-                    kd,
-                    half_h: 0.5 * h,
-                    inv_2h: 0.5 / h,
-                    ff_a,
-                    ff_v,
-                },
-                job,
-            )
+        } = g;
+        let (ff_a, ff_v) = feed_forward(drive, jff, bff);
+        PidR {
+            kp,
+            ki,
+            kd,
+            half_h: 0.5 * h,
+            inv_2h: 0.5 / h,
+            ff_a,
+            ff_v,
         }
-        Controller::Smc(SmcGains {
+    }
+}
+
+impl SmcR {
+    /// The law with gains `g` at servo period `h`.
+    fn new(g: SmcGains, h: f64) -> SmcR {
+        let SmcGains {
             lambda,
             ks,
             rho,
             je_hat,
             be_hat,
-        }) => dispatch_n(
-            drive,
-            h,
-            build,
-            SmcR {
-                lambda,
-                ks,
-                rho,
-                je_hat,
-                be_hat,
-                half_h_lambda: 0.5 * h * lambda,
-                inv_2h: 0.5 / h,
-            },
-            job,
-        ),
+        } = g;
+        SmcR {
+            lambda,
+            ks,
+            rho,
+            je_hat,
+            be_hat,
+            half_h_lambda: 0.5 * h * lambda,
+            inv_2h: 0.5 / h,
+        }
     }
 }
 
@@ -1556,6 +1612,164 @@ pub(crate) fn simulate_effects(
             shaping: drive.effects().shaping,
             readers: readers(drive, false),
             trace,
+        },
+    )?
+}
+
+/// What the drives of one batch ([`lanes`]) must share: the loop's structure. The numbers
+/// (gains, masses, levels, limits, delays, noise) may differ.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Structure {
+    law: &'static str,
+    n: usize,
+    two_mass: bool,
+    n_cur: usize,
+    /// 0 none, 1 set-valued, 2 Maxwell-slip.
+    fric: u8,
+    fric_motor: bool,
+    one_reading: bool,
+    load_source: bool,
+    second_encoder: bool,
+    delayed: bool,
+}
+
+impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
+    fn structure(&self) -> Structure {
+        Structure {
+            law: std::any::type_name::<L>(),
+            n: N,
+            two_mass: TM,
+            n_cur: self.n_cur,
+            fric: match self.fric {
+                Fric::None => 0,
+                Fric::SetValued(_) => 1,
+                Fric::Maxwell { .. } => 2,
+            },
+            fric_motor: self.fric_motor,
+            one_reading: self.one_reading,
+            load_source: self.load_source,
+            second_encoder: self.second_encoder,
+            delayed: self.dead_time > 0,
+        }
+    }
+}
+
+/// The loop structure of a drive with effects at servo period `h`.
+pub(crate) fn structure(drive: &Drive, h: f64) -> Result<Structure, Error> {
+    struct S;
+    impl Job for S {
+        type Out = Structure;
+        fn run<L: RLaw, const N: usize, const TM: bool>(self, e: &Engine<L, N, TM>) -> Structure {
+            e.structure()
+        }
+    }
+    with_engine(drive, h, Build::Full, S)
+}
+
+/// Simulates drives with effects (at most [`LANES`], references of the same length,
+/// `n_sub` ticks of `h` per sample) in one loop, one drive per lane, into `traces` (one per
+/// drive, prepared as [`Drive::simulate_into`] prepares it). `Ok(false)`, with nothing
+/// simulated, when the drives do not share a [`Structure`] or the processor has no lanes
+/// (not x86-64 with AVX2).
+#[cfg(not(target_arch = "x86_64"))]
+pub(crate) fn simulate_lanes(
+    _drives: &[&Drive],
+    _references: &[Reference<'_>],
+    _n_sub: usize,
+    _h: f64,
+    _traces: &mut [DriveTrace],
+) -> Result<bool, Error> {
+    Ok(false)
+}
+
+/// See the other target's `simulate_lanes`: drives with effects in one loop.
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn simulate_lanes(
+    drives: &[&Drive],
+    references: &[Reference<'_>],
+    n_sub: usize,
+    h: f64,
+    traces: &mut [DriveTrace],
+) -> Result<bool, Error> {
+    struct J<'a, 'r> {
+        drives: &'a [&'a Drive],
+        references: &'a [Reference<'r>],
+        n_sub: usize,
+        h: f64,
+        traces: &'a mut [DriveTrace],
+    }
+    impl Job for J<'_, '_> {
+        type Out = Result<bool, Error>;
+        fn run<L: RLaw, const N: usize, const TM: bool>(self, e0: &Engine<L, N, TM>) -> Self::Out {
+            let (drives, h) = (self.drives, self.h);
+            let lay0 = layout(drives[0].effects());
+            let mut others = Vec::with_capacity(drives.len() - 1);
+            for d in &drives[1..] {
+                let lay = layout(d.effects());
+                let Some(law) = L::of(d, h) else {
+                    return Ok(false);
+                };
+                if (lay.two_mass, lay.n_cur) != (lay0.two_mass, lay0.n_cur) {
+                    return Ok(false);
+                }
+                let e = engine::<L, N, TM>(d, h, Build::Full, law, lay)?;
+                if e.structure() != e0.structure() {
+                    return Ok(false);
+                }
+                others.push(e);
+            }
+            let engines: Vec<&Engine<L, N, TM>> = std::iter::once(e0).chain(&others).collect();
+            let pick = |l: usize| l.min(drives.len() - 1);
+            let mut inputs: [lanes::LaneInput<'_>; LANES] = std::array::from_fn(|l| {
+                let d = drives[pick(l)];
+                lanes::LaneInput {
+                    reference: self.references[pick(l)],
+                    shaping: d.effects().shaping,
+                    readers: readers(d, false),
+                }
+            });
+            let lane_engines = std::array::from_fn(|l| engines[pick(l)]);
+            let laws = std::array::from_fn(|l| engines[pick(l)].law);
+            let lane_readers = std::array::from_fn(|l| &inputs[l].readers);
+            let ef = lanes::EngineF::of(lane_engines, L::lanes(&laws), lane_readers);
+            let mut traces: [DriveTrace; LANES] = std::array::from_fn(|l| {
+                let t = &self.traces[pick(l)];
+                let n = t.position.capacity();
+                DriveTrace {
+                    ts: t.ts,
+                    position: Vec::with_capacity(n),
+                    true_position: Vec::with_capacity(n),
+                    velocity: Vec::with_capacity(n),
+                    control: Vec::with_capacity(n),
+                    saturated_ticks: 0,
+                    motor_position: Vec::with_capacity(n),
+                    motor_torque: Vec::with_capacity(n),
+                }
+            });
+            lanes::run_batch(&ef, &mut inputs, self.n_sub, h, &mut traces)?;
+            for (out, t) in self.traces.iter_mut().zip(traces) {
+                *out = t;
+            }
+            Ok(true)
+        }
+    }
+    if drives.is_empty()
+        || drives.len() > LANES
+        || references.len() != drives.len()
+        || !lanes::available()
+    {
+        return Ok(false);
+    }
+    with_engine(
+        drives[0],
+        h,
+        Build::Full,
+        J {
+            drives,
+            references,
+            n_sub,
+            h,
+            traces,
         },
     )?
 }

@@ -435,38 +435,67 @@ fn simulate_all(
         )));
     }
     let (axes, ts) = (run.axes.len().min(machine.axes.len()), run.ts);
-    // Task t: axis t % axes, the true drive (t < axes) or model set t / axes - 1.
-    let mut out = (0..axes * (1 + model_sets.len()))
+    // The true drives that share a loop structure run several at a time in SIMD lanes
+    // (vcnc_drive::batch: each trace bit for bit the drive's alone); a drive in no batch runs
+    // alone, keeping its true position only.
+    let jobs = crate::simulate::true_drive_jobs(machine, run);
+    let groups = vcnc_drive::batch_groups(&jobs, ts);
+    let truth_of = |t: (Vec<f64>, u64)| DriveTrace {
+        true_position: t.0,
+        saturated_ticks: t.1,
+        ts,
+        ..DriveTrace::default()
+    };
+    // Task t: true-drive group t (t < g), else axis u % axes of model set u / axes (u = t - g).
+    let g = groups.len();
+    let mut out = (0..g + axes * model_sets.len())
         .into_par_iter()
-        .map(|t| {
-            let (i, s) = (t % axes, &run.axes[t % axes]);
-            match (t / axes).checked_sub(1) {
-                None => {
-                    let axis = &machine.axes[i];
-                    let (true_position, saturated_ticks) = axis
-                        .drive
-                        .simulate_true_position(s.reference(), ts)
-                        .map_err(|source| Error::Drive {
-                            axis: axis.name,
+        .map(|t| match t.checked_sub(g) {
+            None => {
+                let group = &groups[t];
+                let results = if let [i] = group[..] {
+                    let (drive, r) = jobs[i];
+                    vec![drive.simulate_true_position(r, ts).map(truth_of)]
+                } else {
+                    let sub: Vec<_> = group.iter().map(|i| jobs[*i]).collect();
+                    vcnc_drive::simulate_batch(&sub, ts)
+                        .into_iter()
+                        .map(|r| r.map(|t| truth_of((t.true_position, t.saturated_ticks))))
+                        .collect()
+                };
+                group
+                    .iter()
+                    .zip(results)
+                    .map(|(i, r)| {
+                        r.map(|trace| (*i, trace)).map_err(|source| Error::Drive {
+                            axis: machine.axes[*i].name,
                             source,
-                        })?;
-                    Ok(DriveTrace {
-                        true_position,
-                        saturated_ticks,
-                        ts,
-                        ..DriveTrace::default()
+                        })
                     })
-                }
-                Some(set) => simulate_model(&model_sets[set][i], s, ts).map(|x| DriveTrace {
-                    true_position: x,
-                    ts,
-                    ..DriveTrace::default()
-                }),
+                    .collect::<Result<Vec<(usize, DriveTrace)>, Error>>()
+            }
+            Some(u) => {
+                let (i, set) = (u % axes, u / axes);
+                simulate_model(&model_sets[set][i], &run.axes[i], ts).map(|x| {
+                    vec![(
+                        i,
+                        DriveTrace {
+                            true_position: x,
+                            ts,
+                            ..DriveTrace::default()
+                        },
+                    )]
+                })
             }
         })
-        .collect::<Result<Vec<DriveTrace>, Error>>()?
+        .collect::<Result<Vec<Vec<(usize, DriveTrace)>>, Error>>()?
         .into_iter();
-    let truth: Vec<DriveTrace> = out.by_ref().take(axes).collect();
+    let mut truth: Vec<Option<DriveTrace>> = (0..axes).map(|_| None).collect();
+    for (i, trace) in out.by_ref().take(g).flatten() {
+        truth[i] = Some(trace);
+    }
+    let truth: Vec<DriveTrace> = truth.into_iter().map(Option::unwrap_or_default).collect();
+    let out = out.flatten().map(|(_, trace)| trace);
     let mut models: Vec<Vec<Vec<f64>>> = (0..axes).map(|_| Vec::new()).collect();
     for (t, m) in out.enumerate() {
         models[t % axes].push(m.true_position);

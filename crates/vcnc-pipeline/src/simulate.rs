@@ -12,20 +12,48 @@ use crate::run::Run;
 use crate::stats::{max_abs, rms, scaled_diff, scaled_diff_max_rms};
 use crate::summary::ModelSummary;
 
-/// Runs every axis reference through its true drive (axes in parallel, results in axis order).
+/// Runs every axis reference through its true drive (results in axis order): the drives that
+/// share a loop structure several at a time in SIMD lanes ([`vcnc_drive::batch`]: each trace
+/// bit for bit the drive's alone), the groups in parallel.
 pub fn simulate_true(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Error> {
-    machine
-        .axes
+    let jobs = true_drive_jobs(machine, run);
+    let groups = vcnc_drive::batch_groups(&jobs, run.ts);
+    let done: Vec<Vec<Result<DriveTrace, vcnc_drive::Error>>> = groups
         .par_iter()
-        .zip(run.axes.par_iter())
-        .map(|(axis, s)| {
-            axis.drive
-                .simulate(s.reference(), run.ts)
+        .map(|g| {
+            let sub: Vec<_> = g.iter().map(|i| jobs[*i]).collect();
+            vcnc_drive::simulate_batch(&sub, run.ts)
+        })
+        .collect();
+    let mut out: Vec<Option<Result<DriveTrace, vcnc_drive::Error>>> =
+        jobs.iter().map(|_| None).collect();
+    for (g, results) in groups.iter().zip(done) {
+        for (i, r) in g.iter().zip(results) {
+            out[*i] = Some(r);
+        }
+    }
+    out.into_iter()
+        .zip(&machine.axes)
+        .map(|(r, axis)| {
+            r.unwrap_or(Err(vcnc_drive::Error::EmptySignal))
                 .map_err(|source| Error::Drive {
                     axis: axis.name,
                     source,
                 })
         })
+        .collect()
+}
+
+/// Each machine axis' true drive with its axis reference of `run` (as many as both have).
+pub(crate) fn true_drive_jobs<'a>(
+    machine: &'a Machine,
+    run: &'a Run,
+) -> Vec<(&'a vcnc_drive::Drive, vcnc_drive::Reference<'a>)> {
+    machine
+        .axes
+        .iter()
+        .zip(&run.axes)
+        .map(|(axis, s)| (&axis.drive, s.reference()))
         .collect()
 }
 

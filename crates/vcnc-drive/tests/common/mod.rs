@@ -238,3 +238,34 @@ pub fn realistic_nmv5000_x() -> vcnc_drive::DriveParams {
     });
     p
 }
+
+/// The drives of a machine file of the repository (`machines/<name>`), X, Y, Z, A, C as the
+/// file holds them: each `[axes.*]` table's drive keys (plant, controller, encoder, servo rate
+/// and the effect tables) read as [`vcnc_drive::DriveParams`]; the machine-level keys (unit,
+/// travel, limits, identification range) are not the drive's and are left out.
+pub fn machine_drives(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
+    const DRIVE_KEYS: [&str; 9] = [
+        "plant",
+        "controller",
+        "encoder",
+        "servo_rate_hz",
+        "compliance",
+        "friction",
+        "current_loop",
+        "feedback",
+        "reference",
+    ];
+    let path = format!("{}/../../machines/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).expect("machine file is readable");
+    let file: toml::Table = text.parse().expect("machine file is TOML");
+    let axes = file["axes"].as_table().expect("[axes]");
+    ["X", "Y", "Z", "A", "C"]
+        .iter()
+        .map(|a| {
+            let mut t = axes[*a].as_table().expect("axis table").clone();
+            t.retain(|k, _| DRIVE_KEYS.contains(&k));
+            let p: vcnc_drive::DriveParams = t.try_into().expect("drive keys parse");
+            (a.to_string(), p)
+        })
+        .collect()
+}

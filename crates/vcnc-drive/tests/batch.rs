@@ -1,0 +1,349 @@
+//! The batch simulation (several drives with effects in SIMD lanes, `vcnc_drive::batch`) against
+//! its truth, the single-drive simulator: every channel of every trace bit for bit, for the
+//! realistic axes and for randomised combinations of effects and control laws.
+//!
+//! `VCNC_BATCH_CASES=n` runs n random structures instead of the CI's bounded number.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use vcnc_drive::{
+    Compliance, ControllerSpec, CurrentLoop, CurrentLoopOrder, Drive, DriveParams, DriveTrace,
+    Feedback, FeedbackSource, Friction, FrictionLocation, PoleDesign, Reference, ReferenceShaping,
+    ShapingFilter, batch_groups, simulate_batch,
+};
+
+mod common;
+
+/// Every channel of `a` and `b` as bits (so that −0.0 ≠ 0.0 and NaN = NaN), and the
+/// saturation count.
+fn assert_bit_identical(a: &DriveTrace, b: &DriveTrace, what: &str) {
+    let channels = |t: &DriveTrace| {
+        [
+            t.position.clone(),
+            t.true_position.clone(),
+            t.velocity.clone(),
+            t.control.clone(),
+            t.motor_position.clone(),
+            t.motor_torque.clone(),
+        ]
+    };
+    let names = [
+        "position",
+        "true_position",
+        "velocity",
+        "control",
+        "motor_position",
+        "motor_torque",
+    ];
+    for ((ca, cb), name) in channels(a).iter().zip(channels(b).iter()).zip(names) {
+        assert_eq!(ca.len(), cb.len(), "{what}: {name} length");
+        if let Some(k) = ca
+            .iter()
+            .zip(cb)
+            .position(|(x, y)| x.to_bits() != y.to_bits())
+        {
+            panic!(
+                "{what}: {name} differs first at sample {k}: batch {:e} vs single {:e}",
+                ca[k], cb[k]
+            );
+        }
+    }
+    assert_eq!(
+        a.saturated_ticks, b.saturated_ticks,
+        "{what}: saturated ticks"
+    );
+    assert_eq!(a.ts.to_bits(), b.ts.to_bits(), "{what}: ts");
+}
+
+/// Runs `jobs` through the batch and each drive alone; compares; returns the groups.
+fn check_batch(jobs: &[(&Drive, Reference<'_>)], ts: f64, what: &str) -> Vec<Vec<usize>> {
+    let batch = simulate_batch(jobs, ts);
+    assert_eq!(batch.len(), jobs.len());
+    for (i, ((d, r), b)) in jobs.iter().zip(&batch).enumerate() {
+        let single = d.simulate(*r, ts);
+        match (b, &single) {
+            (Ok(b), Ok(s)) => assert_bit_identical(b, s, &format!("{what}, drive {i}")),
+            (Err(b), Err(s)) => assert_eq!(b, s, "{what}, drive {i}"),
+            _ => panic!("{what}, drive {i}: batch {b:?} vs single {single:?}"),
+        }
+    }
+    batch_groups(jobs, ts)
+}
+
+#[test]
+fn every_realistic_nmv5000_axis_in_lanes_is_bit_identical_to_it_alone() {
+    // Truth: `Drive::simulate` of each axis alone. The five drives of
+    // machines/nmv5000-realistic.toml (two-mass, Maxwell-slip, current loop, two encoders, dead
+    // time, velocity filter, reference filter and delay; A and C with backlash, so lanes in the
+    // backlash gap beside lanes without), each on its own program.
+    let axes = common::machine_drives("nmv5000-realistic.toml");
+    let drives: Vec<Drive> = axes
+        .iter()
+        .map(|(a, p)| p.validate().unwrap_or_else(|e| panic!("axis {a}: {e}")))
+        .collect();
+    let progs: Vec<common::Program> = (0..drives.len() as u64)
+        .map(|i| common::identification_program(10 + i, 4.0, 1e-3, 0.0, 20.0, 250.0, 2500.0))
+        .collect();
+    let jobs: Vec<(&Drive, Reference<'_>)> = drives
+        .iter()
+        .zip(&progs)
+        .map(|(d, p)| (d, p.reference()))
+        .collect();
+    let groups = check_batch(&jobs, 1e-3, "nmv5000-realistic");
+    // All five share the structure: four lanes, and the fifth alone.
+    assert_eq!(groups, vec![vec![0, 1, 2, 3], vec![4]]);
+    // In the other order the backlash axes A and C share the batch with X and Y.
+    let rev: Vec<(&Drive, Reference<'_>)> = jobs.iter().rev().copied().collect();
+    assert_eq!(
+        check_batch(&rev, 1e-3, "nmv5000-realistic, C to X"),
+        vec![vec![0, 1, 2, 3], vec![4]]
+    );
+}
+
+#[test]
+fn realistic_variants_in_lanes_are_bit_identical_to_each_alone() {
+    // Truth: `Drive::simulate` of each drive alone. The realistic NMV5000 X drive and the
+    // realistic Table 1 drive (every effect), with their variants: backlash (a lane in the gap
+    // while the others are in contact), a different seed and noise, a different dead time and
+    // number of Maxwell-slip elements, and a tight torque limit (saturation in some lanes).
+    let prog = common::identification_program(3, 6.0, 1e-3, 0.0, 20.0, 250.0, 2500.0);
+    let x = common::realistic_nmv5000_x();
+    let t1 = common::realistic_table1();
+    let mut with_backlash = x.clone();
+    with_backlash.compliance.as_mut().unwrap().backlash = 0.004;
+    let mut other_noise = x.clone();
+    other_noise.encoder.seed = 99;
+    other_noise.encoder.noise_std = 1e-4;
+    let mut slow = x.clone();
+    if let Some(Friction::MaxwellSlip { elements, .. }) = slow.friction.as_mut() {
+        *elements = 7;
+    }
+    slow.feedback.as_mut().unwrap().dead_time_cycles = 5;
+    slow.feedback.as_mut().unwrap().motor_noise_std = 3e-5;
+    let mut limited = t1.clone();
+    limited.current_loop.as_mut().unwrap().torque_max = Some(1.5);
+    limited.feedback.as_mut().unwrap().motor_resolution = Some(1e-5);
+    let drives: Vec<Drive> = [x, with_backlash, other_noise, slow, t1, limited]
+        .into_iter()
+        .map(|p| p.validate().expect("valid"))
+        .collect();
+    let jobs: Vec<(&Drive, Reference<'_>)> = drives.iter().map(|d| (d, prog.reference())).collect();
+    let groups = check_batch(&jobs, 1e-3, "realistic");
+    // The four X variants share a structure; the Table 1 drives (dead time 1, motor encoder
+    // noise off) share theirs.
+    assert_eq!(groups, vec![vec![0, 1, 2, 3], vec![4, 5]]);
+    let limited_trace = drives[5].simulate(prog.reference(), 1e-3).unwrap();
+    assert!(limited_trace.saturated_ticks > 0, "the limit is reached");
+}
+
+/// A random drive of a random structure: which effects it has and how its loop is built are
+/// drawn from `structure`'s generator, its numbers from `numbers`'s.
+fn random_drive(structure: &mut ChaCha8Rng, numbers: &mut ChaCha8Rng) -> DriveParams {
+    let s = structure;
+    let n = numbers;
+    let mut p = vcnc_drive::table1_drive();
+    let scale = |n: &mut ChaCha8Rng, v: f64| v * n.random_range(0.7..1.3);
+    p.plant.j = scale(n, p.plant.j);
+    p.plant.b = scale(n, p.plant.b);
+    p.plant.coulomb_torque = scale(n, 0.3);
+    p.encoder.seed = n.random_range(0..1000);
+    p.encoder.noise_std = if s.random_bool(0.7) {
+        scale(n, 5e-5)
+    } else {
+        0.0
+    };
+    p.encoder.resolution = if s.random_bool(0.8) { 1e-4 } else { 0.0 };
+    if s.random_bool(0.3) {
+        p.plant.u_max = Some(scale(n, 6.0));
+    }
+    let design = PoleDesign {
+        p_hz: scale(n, 10.0),
+        wn_hz: scale(n, 30.0),
+        zeta: n.random_range(0.4..0.8),
+    };
+    p.controller = match s.random_range(0..3) {
+        0 => ControllerSpec::PPi {
+            kv: None,
+            kp: None,
+            ki: None,
+            design: Some(design),
+            vff: n.random_range(0.0..1.0),
+            bff: n.random_range(0.0..1.0),
+            jff: n.random_range(0.0..1.0),
+        },
+        1 => ControllerSpec::Pid {
+            kp: None,
+            ki: None,
+            kd: None,
+            design: Some(design),
+            jff: n.random_range(0.0..1.0),
+            bff: n.random_range(0.0..1.0),
+        },
+        _ => ControllerSpec::Smc {
+            lambda: None,
+            ks: None,
+            rho: None,
+            je_hat: None,
+            be_hat: None,
+            design: Some(design),
+        },
+    };
+    let two_mass = s.random_bool(0.6);
+    if two_mass {
+        p.compliance = Some(Compliance {
+            j_motor: p.plant.j * n.random_range(0.3..0.7),
+            stiffness: None,
+            mode_hz: Some(scale(n, 150.0)),
+            damping: None,
+            mode_zeta: Some(n.random_range(0.02..0.1)),
+            // Backlash in some lanes only (a per-lane number).
+            backlash: if n.random_bool(0.5) {
+                scale(n, 3e-3)
+            } else {
+                0.0
+            },
+        });
+    }
+    let location = if two_mass && s.random_bool(0.3) {
+        FrictionLocation::Motor
+    } else {
+        FrictionLocation::Load
+    };
+    p.friction = match s.random_range(0..4) {
+        0 => None,
+        1 => Some(Friction::Coulomb {
+            coulomb_torque_negative: Some(scale(n, 0.25)),
+            location,
+        }),
+        2 => Some(Friction::Stribeck {
+            static_torque: scale(n, 0.45),
+            stribeck_velocity: scale(n, 2.0),
+            stribeck_exponent: n.random_range(0.5..3.0),
+            coulomb_torque_negative: None,
+            static_torque_negative: None,
+            location,
+        }),
+        _ => Some(Friction::MaxwellSlip {
+            presliding_displacement: scale(n, 2e-3),
+            elements: n.random_range(1..7),
+            static_torque: if n.random_bool(0.7) {
+                Some(scale(n, 0.45))
+            } else {
+                None
+            },
+            stribeck_velocity: Some(scale(n, 2.0)),
+            stribeck_exponent: if n.random_bool(0.5) {
+                2.0
+            } else {
+                n.random_range(0.5..3.0)
+            },
+            coulomb_torque_negative: Some(scale(n, 0.25)),
+            static_torque_negative: None,
+            location,
+        }),
+    };
+    if s.random_bool(0.6) {
+        let order = if s.random_bool(0.5) {
+            CurrentLoopOrder::FirstOrder
+        } else {
+            CurrentLoopOrder::SecondOrder
+        };
+        p.current_loop = Some(CurrentLoop {
+            order,
+            bandwidth_hz: Some(scale(n, 1500.0)),
+            zeta: (order == CurrentLoopOrder::SecondOrder).then(|| n.random_range(0.5..1.0)),
+            // Tight in some lanes: saturation.
+            torque_max: n.random_bool(0.5).then(|| scale(n, 3.0)),
+        });
+    } else if s.random_bool(0.3) {
+        p.current_loop = Some(CurrentLoop {
+            order: CurrentLoopOrder::FirstOrder,
+            bandwidth_hz: None,
+            zeta: None,
+            torque_max: Some(scale(n, 3.0)),
+        });
+    }
+    if s.random_bool(0.7) {
+        let source = if two_mass && s.random_bool(0.3) {
+            FeedbackSource::Motor
+        } else {
+            FeedbackSource::Load
+        };
+        let delayed = s.random_bool(0.6);
+        p.feedback = Some(Feedback {
+            source,
+            dead_time_cycles: if delayed { n.random_range(1..4) } else { 0 },
+            velocity_filter_hz: n.random_bool(0.7).then(|| scale(n, 1500.0)),
+            motor_resolution: (two_mass && source == FeedbackSource::Load)
+                .then(|| if n.random_bool(0.7) { 1e-5 } else { 0.0 }),
+            motor_noise_std: if two_mass && source == FeedbackSource::Load && n.random_bool(0.5) {
+                scale(n, 2e-5)
+            } else {
+                0.0
+            },
+        });
+    }
+    // Reference shaping: a per-lane choice (the shaper runs per lane).
+    if n.random_bool(0.7) {
+        let filter = match n.random_range(0..4) {
+            0 => None,
+            1 => Some(ShapingFilter::FirstOrder {
+                time_constant_s: scale(n, 2e-3),
+            }),
+            2 => Some(ShapingFilter::SecondOrder {
+                time_constant_s: scale(n, 2e-3),
+                zeta: n.random_range(0.4..1.2),
+            }),
+            _ => Some(ShapingFilter::MovingAverage {
+                window_s: n.random_range(1..80) as f64 * 5e-5,
+            }),
+        };
+        p.reference = Some(ReferenceShaping {
+            filter,
+            interpolation_delay_s: n.random_range(0..40) as f64 * 5e-5,
+        });
+    }
+    p
+}
+
+#[test]
+fn random_effect_combinations_in_lanes_are_bit_identical_to_each_alone() {
+    // Truth: `Drive::simulate` of each drive alone. Per case, a random structure (law, rigid or
+    // two-mass, friction model and body, current loop order, feedback path) with one to five
+    // drives of it (random numbers: gains, masses, levels, backlash or none, limits, noise,
+    // dead time, Maxwell-slip elements, reference shaping), plus a drive of another random
+    // structure in the same call (a group of its own, or a lane of another group).
+    let cases: usize = std::env::var("VCNC_BATCH_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(24);
+    let prog = common::identification_program(5, 2.0, 1e-3, 0.0, 10.0, 200.0, 2500.0);
+    let mut numbers = ChaCha8Rng::seed_from_u64(2);
+    let (mut batched, mut lanes_total) = (0, 0);
+    for case in 0..cases as u64 {
+        let mut drives = Vec::new();
+        let count = 1 + (case as usize % 5);
+        for _ in 0..count {
+            let mut s = ChaCha8Rng::seed_from_u64(1000 + case);
+            if let Ok(d) = random_drive(&mut s, &mut numbers).validate() {
+                drives.push(d);
+            }
+        }
+        let mut s = ChaCha8Rng::seed_from_u64(5000 + case);
+        if let Ok(d) = random_drive(&mut s, &mut numbers).validate() {
+            drives.push(d);
+        }
+        let jobs: Vec<(&Drive, Reference<'_>)> =
+            drives.iter().map(|d| (d, prog.reference())).collect();
+        let groups = check_batch(&jobs, 1e-3, &format!("case {case}"));
+        for g in groups.iter().filter(|g| g.len() > 1) {
+            batched += 1;
+            lanes_total += g.len();
+        }
+    }
+    // The test means something only if many drives really ran in lanes.
+    assert!(
+        batched >= cases / 3 && lanes_total >= cases,
+        "{batched} batches, {lanes_total} lanes"
+    );
+}
