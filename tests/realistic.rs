@@ -101,7 +101,7 @@ fn demo_realistic_reports_identification_and_both_discrepancies() {
 }
 
 /// The effect budget: eight identifications of the machine (about 2 minutes on 2 cores), so
-/// not in CI: `cargo test --release --test main realistic -- --ignored`.
+/// not in CI: `cargo test --release --test integration realistic -- --ignored`.
 #[test]
 #[ignore]
 fn demo_realistic_effect_budget() {
@@ -226,7 +226,7 @@ fn frf_measures_a_soft_drives_resonance() {
         ("Z", 2, modes[2], 0.0045, 0.008),
     ];
     for (axis, i, mode_hz, j_motor, j) in axes {
-        // Truth: the two-mass formulas (crates/vcnc-drive/REALISM.md §1):
+        // Truth: the two-mass formulas (docs/machine-file.md#compliance):
         // ω_r² = k (J_m + J_L)/(J_m J_L), ω_a² = k/J_L, so ω_a = ω_r sqrt(J_m/(J_m + J_L)).
         let fa = mode_hz * (j_motor / j).sqrt();
         let a = &s["axes"][axis];

@@ -530,7 +530,7 @@ fn short_tag(s: vcnc_identify::ModelStructure) -> &'static str {
 /// The budget table's note.
 const BUDGET_NOTE: &str = "ideal: the drives without any effect table and without encoder \
      noise; each other row adds one group of machines/nmv5000-realistic.toml \
-     (crates/vcnc-drive/REALISM.md); |prediction − true| over the feed moves; vcnc+lat.: vcnc's \
+     (docs/machine-file.md, Drive effects); |prediction − true| over the feed moves; vcnc+lat.: vcnc's \
      models with the actual-value latency stated from the configuration (dead_time_cycles / \
      servo_rate_hz; 0 without a dead time); structures chosen per axis: P paper, D delay, F1/F2 \
      first/second-order reference filter, XP extra pole";

@@ -35,7 +35,7 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
         "measurement",
         "each true drive simulated on a multisine (1-500 Hz, about 120 log-spaced lines, 5 axis \
          units/s peak on a 25 axis units/s bias), every drive effect included \
-         (crates/vcnc-drive/REALISM.md section 7)",
+         (docs/machine-file.md, Frequency response of the true drive)",
     );
     for (i, a) in machine.axes.iter().enumerate() {
         let truth = a.true_model();

@@ -64,6 +64,12 @@ pub fn predict(
         machine: machine.name.clone(),
         program: run.file.clone(),
         models: source,
+        actual_latency_s: machine
+            .axes
+            .iter()
+            .zip(&latency)
+            .map(|(a, l)| (a.name.to_string(), *l))
+            .collect(),
         warnings: run.warnings.clone(),
     };
     let table_path = write_contour_table(out, &machine, &run, &p, table)?;

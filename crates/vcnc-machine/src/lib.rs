@@ -34,7 +34,7 @@ pub mod embedded {
     /// `machines/nmv5000.toml`.
     pub const NMV5000_TOML: &str = include_str!("../../../machines/nmv5000.toml");
     /// `machines/nmv5000-realistic.toml`: the same machine with every drive effect of
-    /// crates/vcnc-drive/REALISM.md (it uses `machines/nmv5000.urdf` too).
+    /// docs/machine-file.md#drive-effects (it uses `machines/nmv5000.urdf` too).
     pub const NMV5000_REALISTIC_TOML: &str =
         include_str!("../../../machines/nmv5000-realistic.toml");
     /// `machines/nmv5000.urdf`.

@@ -1,8 +1,8 @@
 //! Frequency responses of closed-loop models: Bode data of the tracking and disturbance
 //! transfer functions (docs/drive-model.md), and the tracking bandwidth; and the true drive's
 //! tracking response measured by simulating it on a multisine (every drive effect included:
-//! crates/vcnc-drive/REALISM.md §7), which shows what no 7-parameter model can have — the
-//! resonance of a compliant transmission.
+//! docs/machine-file.md#frequency-response-of-the-true-drive), which shows what no 7-parameter
+//! model can have — the resonance of a compliant transmission.
 
 use std::collections::BTreeMap;
 use std::f64::consts::TAU;
@@ -179,7 +179,7 @@ impl MeasuredFrfSummary {
     }
 }
 
-/// The two-mass transmission's modes by formula (crates/vcnc-drive/REALISM.md §1).
+/// The two-mass transmission's modes by formula (docs/machine-file.md#compliance).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct TwoMassSummary {
     /// Resonance $\omega_r/2\pi = \sqrt{k(J_m + J_L)/(J_m J_L)}/2\pi$, Hz.

@@ -292,6 +292,10 @@ pub struct PredictSummary {
     pub program: String,
     /// Where the models come from (a file, or "identified on the fly").
     pub models: String,
+    /// The actual-value latency stated per axis (axis letter → s) by which the models'
+    /// positions were advanced (docs/drive-model.md#actual-value-latency); 0 for an axis
+    /// without one.
+    pub actual_latency_s: BTreeMap<String, f64>,
     /// Warnings of the run.
     pub warnings: Vec<String>,
 }

@@ -1,7 +1,7 @@
 //! A machine whose drives are not the 7-parameter model's own structure (`vcnc demo
 //! --realistic`): identification accuracy, the prediction discrepancy of the paper's method and
 //! of vcnc's best model, and the effect budget — which drive effect costs how much prediction
-//! accuracy (crates/vcnc-drive/REALISM.md names the effects).
+//! accuracy (docs/machine-file.md#drive-effects names the effects).
 //!
 //! # The evaluation
 //!
@@ -46,7 +46,7 @@ pub const TARGET_TIP_UM: f64 = 2.0;
 /// The target's largest orientation discrepancy, mrad.
 pub const TARGET_ORIENTATION_MRAD: f64 = 0.02;
 
-/// One group of drive effects (crates/vcnc-drive/REALISM.md, sections 1-6), as the budget
+/// One group of drive effects (docs/machine-file.md#drive-effects), as the budget
 /// switches them on one at a time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
