@@ -38,7 +38,7 @@ fn demo_realistic_reports_identification_and_both_discrepancies() {
         assert!(v.is_finite() && v > 0.0, "{v}");
     }
     // vcnc's chosen models predict no worse than the paper's method (measured: 1.86 vs 31.9 µm,
-    // 0.069 vs 0.156 mrad).
+    // 0.0207 vs 0.156 mrad).
     assert!(model <= paper, "vcnc {model} µm vs paper {paper} µm");
     assert!(
         model_o <= paper_o,
@@ -52,7 +52,7 @@ fn demo_realistic_reports_identification_and_both_discrepancies() {
     assert_eq!(s["target"]["reached"].as_bool(), Some(reached));
     // vcnc's models with the actual-value latency stated from the control's configuration
     // (dead_time_cycles = 2 at 20 kHz: 0.1 ms per axis; docs/drive-model.md). Truth: the same
-    // true machine. Measured: 1.73 µm and 0.0084 mrad (without it 1.86 µm, 0.069 mrad: the
+    // true machine. Measured: 1.73 µm and 0.0084 mrad (without it 1.86 µm, 0.0207 mrad: the
     // orientation was the dead time's, which the shift removes).
     let lat = &s["stated_latency"]["actual_latency_s"];
     for axis in ["X", "Y", "Z", "A", "C"] {
@@ -150,7 +150,7 @@ fn demo_realistic_effect_budget() {
     }
     // The stated actual-value latency is 0 without a dead time (the row's figures unchanged)
     // and, in the dead-time row, removes the orientation discrepancy the dead time costs
-    // (measured 0.069 mrad without it).
+    // (measured 0.0177 mrad without it, 0.0015 with it).
     for r in rows {
         let (m, st) = (&r["model"], &r["model_stated_latency"]);
         if r["effect"] == "dead time" {
