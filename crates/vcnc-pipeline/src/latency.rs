@@ -175,10 +175,10 @@ mod tests {
             // The bound is tight, not vacuous: the error reaches a good share of it.
             assert!(err > 0.5 * bound, "tau {tau}: error {err} ≪ bound {bound}");
             let end_bound = ts.powi(4) * a * w.powi(4);
-            for k in n - m..n {
+            for (k, yk) in y.iter().enumerate().skip(n - m) {
                 let q = k as f64 + tau / ts;
                 if q <= (n - 1) as f64 + 1.0 {
-                    let e = (y[k] - a * (w * (k as f64 * ts + tau)).sin()).abs();
+                    let e = (yk - a * (w * (k as f64 * ts + tau)).sin()).abs();
                     assert!(e <= end_bound, "tau {tau}, sample {k}: {e} > {end_bound}");
                 }
             }
