@@ -38,8 +38,8 @@ pub use generate::{
     spiral_points, tcp_program,
 };
 pub use interp::{
-    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath,
-    interpret,
+    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, ProgramRead, StartPosition,
+    Toolpath, interpret,
 };
 pub use interpolate::stream::{ProgramSource, SampleChunk, StreamOptions, StreamPlan, plan};
 pub use interpolate::{

@@ -413,6 +413,44 @@ impl ChunkParser {
         program
     }
 
+    /// Where the next piece starts: the number of lines read so far and the byte offset (in
+    /// the text as parsed) of the next line.
+    pub(crate) fn position(&self) -> (u32, usize) {
+        (self.line_no, self.base)
+    }
+
+    /// Parse again whole lines read before, starting after line `line` at byte offset `base`
+    /// (a streamed program's jump back, `interp/seek.rs`): the blocks are those the first
+    /// reading gave, the diagnostics are not reported again, and the parser's position is
+    /// kept. Returns the blocks and the position after them.
+    pub(crate) fn parse_again(
+        &mut self,
+        src: &str,
+        line: u32,
+        base: usize,
+    ) -> (Program, u32, usize) {
+        let kept = (
+            self.line_no,
+            self.base,
+            self.blocks_so_far,
+            self.stopped,
+            std::mem::replace(&mut self.sink, Sink::new(1)),
+        );
+        self.line_no = line;
+        self.base = base;
+        self.stopped = false;
+        let program = self.parse_chunk(src);
+        let end = (self.line_no, self.base);
+        (
+            self.line_no,
+            self.base,
+            self.blocks_so_far,
+            self.stopped,
+            self.sink,
+        ) = kept;
+        (program, end.0, end.1)
+    }
+
     /// Every diagnostic of every piece, in order.
     pub fn finish(self) -> Vec<Diagnostic> {
         self.sink.finish()

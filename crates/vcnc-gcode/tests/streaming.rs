@@ -310,17 +310,14 @@ fn fine_block_chains_stream_bit_for_bit() {
 }
 
 #[test]
-fn a_program_with_o_words_is_not_streamed() {
+fn a_repeat_loop_streams_bit_for_bit() {
     let src = "G21 G90\no100 repeat [3]\nG1 X10 F600\nG1 X0\no100 endrepeat\nM2\n";
-    let e = plan(
+    same(
         src,
         &InterpOptions::default(),
         &Limits::uniform(100.0, 1000.0),
         &InterpolateOptions::default(),
-        &StreamOptions::default(),
-    )
-    .unwrap_err();
-    assert!(matches!(e, Error::NotStreamable { line: 2, .. }), "{e}");
+    );
 }
 
 #[test]
