@@ -252,32 +252,30 @@ impl Source<'_> {
                 }
                 continue;
             }
-            // Behind the first reading: a subroutine's body up to its endsub, or on from the
-            // nearest known line start before the block (an indexed statement, the end of a
-            // cached piece, where the run ended, the file's start).
+            // Behind the first reading: on from the nearest known line start before the block
+            // (the end of a cached piece, an indexed statement, where the run ended, the
+            // file's start); from a `sub` (a call), its body up to the endsub.
             let chunk = self.chunk_bytes;
             let sub = n.checked_sub(1).and_then(|s| match flow.jumps.get(&s) {
                 Some(Jump::Sub { end }) => Some((self.index.get(&s)?, self.index.get(end)?)),
                 _ => None,
             });
-            let (at, limit) = match sub {
-                Some((s, e)) => (*s, chunk.min((e.file - s.file) as usize + 1)),
-                None => {
-                    let known = self.index.range(..=n).next_back().map(|(_, p)| *p);
-                    let ends = self.cache.iter().map(|p| p.end);
-                    let at = ends
-                        .chain(known)
-                        .chain(self.mark)
-                        .filter(|p| p.block <= n)
-                        .max_by_key(|p| (p.block, p.file))
-                        .unwrap_or(Point {
-                            file: 0,
-                            line: 0,
-                            text: 0,
-                            block: 0,
-                        });
-                    (at, chunk)
-                }
+            let known = self.index.range(..=n).next_back().map(|(_, p)| *p);
+            let ends = self.cache.iter().map(|p| p.end);
+            let at = ends
+                .chain(known)
+                .chain(self.mark)
+                .filter(|p| p.block <= n)
+                .max_by_key(|p| (p.block, p.file))
+                .unwrap_or(Point {
+                    file: 0,
+                    line: 0,
+                    text: 0,
+                    block: 0,
+                });
+            let limit = match sub {
+                Some((s, e)) if *s == at => chunk.min((e.file - s.file) as usize + 1),
+                _ => chunk,
             };
             if !self.read_again(at, limit)? {
                 return Err(Error::Read {
