@@ -22,9 +22,9 @@
 //!   the segments within one braking distance of the last one read — how far a control must look
 //!   ahead — however long the program.
 //! - **Pieces of source.** The source is read about [`StreamOptions::chunk_bytes`] at a time, cut
-//!   at line breaks, parsed ([`ChunkParser`]) and interpreted ([`ChunkInterp`]) a piece at a
-//!   time. A program with O-word statements needs its whole text for the jumps and is refused
-//!   with [`Error::NotStreamable`]; callers then read it whole.
+//!   at line breaks, parsed ([`crate::ChunkParser`]) and interpreted ([`ChunkInterp`]) a piece at a
+//!   time. O-word statements (subroutines, conditions, loops) are indexed as they are first read,
+//!   and a jump back reads the file again from the statement's offset ([`ChunkInterp`]).
 
 use std::collections::VecDeque;
 
@@ -168,8 +168,8 @@ struct Decisions {
 
 /// First pass: parse, interpret and plan `src` without sampling ([module doc](self)).
 ///
-/// Errors are those of [`crate::load`] (the first piece with an error ends the pass, with its
-/// diagnostics), [`Error::NotStreamable`] for a program with O-words and [`Error::Read`].
+/// Errors are those of [`crate::load`] (a program with errors gives all its diagnostics, as
+/// there) and [`Error::Read`].
 pub fn plan(
     src: &(impl ProgramSource + ?Sized),
     interp: &InterpOptions,
