@@ -481,6 +481,8 @@ struct Interp<'a> {
     prog: &'a Program,
     /// Index in the whole file of `prog.blocks[0]` (0 for a whole program).
     first: usize,
+    /// The names [`NameId`]s refer to (the program's, or a streamed program's parser's).
+    names: &'a [String],
     sink: Sink,
     st: State,
     params: Params,
@@ -529,6 +531,7 @@ impl<'a> Interp<'a> {
             opts,
             prog,
             first: 0,
+            names: &prog.names,
             sink: Sink::new(opts.max_diagnostics),
             st: State {
                 pos: start,
@@ -595,12 +598,19 @@ impl<'a> Interp<'a> {
     }
 
     /// Go on with the next piece `prog` of a program from the carried state.
-    /// `prog` holds the blocks of the file from index `first` on.
-    fn resume(prog: &'a Program, first: usize, opts: &'a InterpOptions, c: Carry) -> Self {
+    /// `prog` holds the blocks of the file from index `first` on; `names` are the file's.
+    fn resume(
+        prog: &'a Program,
+        first: usize,
+        names: &'a [String],
+        opts: &'a InterpOptions,
+        c: Carry,
+    ) -> Self {
         Interp {
             opts,
             prog,
             first,
+            names,
             sink: c.sink,
             st: c.st,
             params: c.params,
@@ -609,6 +619,11 @@ impl<'a> Interp<'a> {
             frames: c.frames,
             loop_iterations: c.loop_iterations,
         }
+    }
+
+    /// The name `id`.
+    fn name(&self, id: NameId) -> &'a str {
+        self.names.get(id.index()).map_or("", String::as_str)
     }
 
     fn frame(&self) -> &Frame {
@@ -936,7 +951,7 @@ impl<'a> Interp<'a> {
         let Some(&sub) = flow.subs.get(&o.label) else {
             let name = match o.label {
                 OLabel::Number(n) => format!("o{n}"),
-                OLabel::Name(n) => format!("o<{}>", self.prog.name(n)),
+                OLabel::Name(n) => format!("o<{}>", self.name(n)),
             };
             self.err(o.label_span, DiagnosticKind::UndefinedSubroutine, || {
                 format!("subroutine {name} is not defined in this file (no '{name} sub')")

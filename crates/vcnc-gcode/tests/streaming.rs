@@ -343,7 +343,11 @@ fn same_err(src: &str, interp: &InterpOptions, needle: &str) {
 #[test]
 fn a_repeat_loop_streams_bit_for_bit() {
     let src = "G21 G90\no100 repeat [3]\nG1 X10 F600\nG1 X0\no100 endrepeat\nM2\n";
-    same_ok(src, &InterpOptions::default(), &Limits::uniform(100.0, 1000.0));
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(100.0, 1000.0),
+    );
 }
 
 #[test]
@@ -375,7 +379,11 @@ o<square> endsub
 G0 Z5
 %
 ";
-    same_ok(src, &InterpOptions::default(), &Limits::uniform(100.0, 1000.0));
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(100.0, 1000.0),
+    );
 }
 
 #[test]
@@ -415,7 +423,11 @@ o10 endwhile
 G0 X0 Y0 Z10
 M30
 ";
-    same_ok(src, &InterpOptions::default(), &Limits::uniform(100.0, 1000.0));
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(100.0, 1000.0),
+    );
 }
 
 #[test]
@@ -443,7 +455,11 @@ M2
     )
     .unwrap();
     assert!(whole.toolpath.moves.len() > 2 * vcnc_gcode::interp::YIELD_MOVES);
-    same_ok(src, &InterpOptions::default(), &Limits::uniform(250.0, 2500.0));
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
+    );
 }
 
 /// A subroutine and a loop far apart: the main program calls a subroutine defined 1.2 MB before
@@ -452,21 +468,34 @@ M2
 /// wrong offset, line number or block index shows as other moves, other lines or an error.
 #[test]
 fn jumps_farther_than_a_piece_read_the_file_again_bit_for_bit() {
-    let mut src = String::from("G21 G90 G64\no7 sub\nG1 X#1 Y[#2 + 0.5] F2000\nG1 Z#3\no7 endsub\n");
+    let mut src =
+        String::from("G21 G90 G64\no7 sub\nG1 X#1 Y[#2 + 0.5] F2000\nG1 Z#3\no7 endsub\n");
     // 1.2 MB of blocks (a straight run along X and back) between the subroutine and its calls.
     for k in 0..36_000 {
-        let _ = writeln!(src, "G1 X{:.3} F6000 ( filler {k:05} )", (k % 200) as f64 * 0.05);
+        let _ = writeln!(
+            src,
+            "G1 X{:.3} F6000 ( filler {k:05} )",
+            (k % 200) as f64 * 0.05
+        );
     }
     src.push_str("#5 = 0\no8 repeat [3]\n");
     for k in 0..30_000 {
-        let _ = writeln!(src, "G1 Y{:.3} F6000 ( body {k:05} padding )", (k % 100) as f64 * 0.02);
+        let _ = writeln!(
+            src,
+            "G1 Y{:.3} F6000 ( body {k:05} padding )",
+            (k % 100) as f64 * 0.02
+        );
         if k % 10_000 == 0 {
             src.push_str("o7 call [#5] [#5 * 2] [-1]\n#5 = [#5 + 1]\n");
         }
     }
     src.push_str("o8 endrepeat\no7 call [1] [2] [3]\nM2\n");
     assert!(src.len() > 2 << 20, "{}", src.len());
-    same_ok(&src, &InterpOptions::default(), &Limits::uniform(250.0, 2500.0));
+    same_ok(
+        &src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
+    );
 }
 
 #[test]
@@ -611,12 +640,19 @@ fn jumps_after_bytes_that_are_not_utf8_read_the_right_lines() {
         )
         .unwrap();
         let mut pos = Vec::new();
-        p.sample(path.as_path(), &mut |c: &SampleChunk| -> Result<(), Error> {
-            pos.extend_from_slice(&c.pos[0]);
-            Ok(())
-        })
+        p.sample(
+            path.as_path(),
+            &mut |c: &SampleChunk| -> Result<(), Error> {
+                pos.extend_from_slice(&c.pos[0]);
+                Ok(())
+            },
+        )
         .unwrap();
-        assert_eq!(bits(&pos), bits(&whole.trajectory.axes[0].pos), "{chunk_bytes}");
+        assert_eq!(
+            bits(&pos),
+            bits(&whole.trajectory.axes[0].pos),
+            "{chunk_bytes}"
+        );
         assert_eq!(p.warnings, whole.warnings);
     }
     let _ = std::fs::remove_dir_all(&dir);

@@ -256,8 +256,7 @@ M2
             },
             vcnc_gcode::StreamOptions::default(),
         ] {
-            let s = stream::plan_file(&machine, &path, false, &so)
-                .expect("planned");
+            let s = stream::plan_file(&machine, &path, false, &so).expect("planned");
             assert_eq!(s.len(), whole.len(), "{name}: samples");
             let n_axes = machine.axes.len();
             let mut got: Vec<[Vec<f64>; 3]> = vec![Default::default(); n_axes];
@@ -307,8 +306,7 @@ fn a_streamed_program_beyond_travel_is_refused_with_its_line() {
     let src = "G21 G90 G64\nG1 X10 F3000\nG1 X400\nG1 X0\nM2\n";
     std::fs::write(&path, src).expect("program written");
     let whole = run::prepare(&machine, src, &path.display().to_string(), false).unwrap_err();
-    let s = stream::plan_file(&machine, &path, false, &Default::default())
-        .expect("planned");
+    let s = stream::plan_file(&machine, &path, false, &Default::default()).expect("planned");
     let e = s.run(&machine, &path, &mut |_| Ok(())).unwrap_err();
     assert_eq!(e.to_string(), whole.to_string());
     assert!(e.to_string().contains(":3:"), "{e}");

@@ -109,7 +109,7 @@ pub(super) fn analyse(program: &Program, skip: &dyn Fn(usize) -> bool, sink: &mu
     let mut flow = Flow::default();
     for (i, b) in program.blocks.iter().enumerate() {
         if !skip(i) {
-            a.statement(i, b, program, &mut flow, sink);
+            a.statement(i, b, &program.names, &mut flow, sink);
         }
     }
     a.finish(&mut flow, sink);
@@ -123,13 +123,13 @@ pub(super) struct Analyser {
 }
 
 impl Analyser {
-    /// The next block of the file, `i`, from the piece `program` (its names): its O-word
-    /// statement, if any, goes into `flow`.
+    /// The next block of the file, `i` (`names`: the file's): its O-word statement, if any,
+    /// goes into `flow`.
     pub(super) fn statement(
         &mut self,
         i: usize,
         b: &Block,
-        program: &Program,
+        names: &[String],
         flow: &mut Flow,
         sink: &mut Sink,
     ) {
@@ -139,7 +139,7 @@ impl Analyser {
         let mut a = Pass {
             state: self,
             flow,
-            program,
+            names,
             sink,
         };
         let (label, span) = (o.label, o.keyword_span);
@@ -203,12 +203,11 @@ impl Analyser {
     }
 }
 
-/// One statement's analysis: the state, the piece holding the statement (for its names) and
-/// where errors go.
+/// One statement's analysis: the state, the table, the file's names and where errors go.
 struct Pass<'a> {
     state: &'a mut Analyser,
     flow: &'a mut Flow,
-    program: &'a Program,
+    names: &'a [String],
     sink: &'a mut Sink,
 }
 
@@ -216,7 +215,10 @@ impl Pass<'_> {
     fn label(&self, l: OLabel) -> String {
         match l {
             OLabel::Number(n) => format!("o{n}"),
-            OLabel::Name(n) => format!("o<{}>", self.program.name(n)),
+            OLabel::Name(n) => format!(
+                "o<{}>",
+                self.names.get(n.index()).map_or("", String::as_str)
+            ),
         }
     }
 

@@ -145,7 +145,7 @@ impl Source<'_> {
             return Ok(false);
         }
         let text = String::from_utf8_lossy(&self.buf);
-        let prog = self.parser.parse_chunk(&text);
+        let prog = self.parser.parse_piece(&text);
         let (line, base) = self.parser.position();
         let end = Point {
             file: start.file + self.buf.len() as u64,
@@ -183,7 +183,7 @@ impl Source<'_> {
             };
             self.index.insert(g, at);
             self.analyser
-                .statement(g, b, &prog, flow, &mut self.flow_sink);
+                .statement(g, b, self.parser.names(), flow, &mut self.flow_sink);
         }
         drop(text);
         let bytes = self.buf.len();
@@ -234,9 +234,9 @@ impl Source<'_> {
         }
     }
 
-    /// The cached piece holding block `n` (reading it if needed), moved to the back of the
-    /// cache; `None` past the file's last block (or after a parse error).
-    fn locate(&mut self, n: usize, flow: &mut Flow) -> Result<Option<&Piece>, Error> {
+    /// Put the piece holding block `n` at the back of the cache (reading it if needed); `false`
+    /// past the file's last block (or after a parse error).
+    fn locate(&mut self, n: usize, flow: &mut Flow) -> Result<bool, Error> {
         loop {
             if let Some(i) = self.cache.iter().position(|p| p.holds(n)) {
                 if i + 1 != self.cache.len()
@@ -244,11 +244,11 @@ impl Source<'_> {
                 {
                     self.cache.push_back(p);
                 }
-                return Ok(self.cache.back());
+                return Ok(true);
             }
             if n >= self.frontier.block {
                 if !self.advance(flow)? || self.parse_failed {
-                    return Ok(None);
+                    return Ok(false);
                 }
                 continue;
             }
@@ -402,7 +402,8 @@ impl<'r> ChunkInterp<'r> {
                 Next::Goto(n) | Next::Test(n) => n,
                 Next::End => usize::MAX,
             };
-            let Some(piece) = self.source.locate(n, &mut self.flow)? else {
+            let found = self.source.locate(n, &mut self.flow)?;
+            let Some(piece) = self.source.cache.back().filter(|_| found) else {
                 // Past the last block: the program ends without an end.
                 self.phase = Phase::Ended { at: n, line: None };
                 continue;
@@ -411,7 +412,8 @@ impl<'r> ChunkInterp<'r> {
                 return Ok(false);
             };
             let piece_start = piece.start;
-            let mut it = Interp::resume(&piece.prog, piece.first, &self.opts, carry);
+            let names = self.source.parser.names();
+            let mut it = Interp::resume(&piece.prog, piece.first, names, &self.opts, carry);
             let exit = it.run_piece(next, &self.flow, YIELD_MOVES);
             // Under StartPosition::FirstMove the first motion still rewrites the moves before
             // it; the last move may still be marked as a stop.
@@ -469,7 +471,8 @@ impl<'r> ChunkInterp<'r> {
                 let flow = std::mem::take(&mut self.flow);
                 let mut none = Flow::default();
                 let mut get = |i: usize| -> Result<Option<(bool, Span)>, Error> {
-                    Ok(src.locate(i, &mut none)?.and_then(|p| {
+                    let found = src.locate(i, &mut none)?;
+                    Ok(src.cache.back().filter(|_| found).and_then(|p| {
                         p.prog
                             .blocks
                             .get(i - p.first)
