@@ -16,7 +16,10 @@
 //!    path mode, distance modes, retract mode, `G10`/`G28`/`G30`/`G52`/`G92`, motion, stops.
 //!
 //! O-word statements (subroutines, conditions, loops) are matched once before the run
-//! (module `flow`), so the run is linear in the program length apart from the loops themselves. A
+//! (module `flow`), so the run is linear in the program length apart from the loops themselves.
+//! A streamed program ([`ChunkInterp`], module `seek`) runs through the same loop
+//! (`Interp::run_piece`) a piece of the file at a time, its statements matched as they are
+//! first read. A
 //! program that does not end is stopped by [`InterpOptions::max_loop_iterations`].
 //!
 //! **Coordinates.** The interpreter keeps the machine position (machine coordinates, mm and

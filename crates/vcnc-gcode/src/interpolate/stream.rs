@@ -317,12 +317,8 @@ fn run_source<E>(
     loop {
         out.clear();
         let more = interp.next_moves(&mut out)?;
-        if interp.has_errors() {
-            planned = Ok(());
-            // Nothing more is planned.
-            moves = usize::MAX;
-        }
-        if moves != usize::MAX && planned.is_ok() {
+        // Until the first error of the program or of the planner.
+        if planned.is_ok() && !interp.has_errors() {
             moves += out.len();
             for m in out.drain(..) {
                 if let Err(e) = planner.push(m) {
