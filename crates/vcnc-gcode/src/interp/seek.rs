@@ -313,8 +313,8 @@ enum Phase {
     Halted,
 }
 
-/// An interpreter that reads its program from a [`ProgramRead`] a piece at a time ([module
-/// doc](self)), handing back the moves as they are made. For any program, the moves, the
+/// An interpreter that reads its program from a [`ProgramRead`] a piece at a time (docs/performance.md,
+/// "Streaming"), handing back the moves as they are made. For any program, the moves, the
 /// toolpath's start and axes and the diagnostics are those of [`crate::load`]'s parse and
 /// [`super::interpret`] on the whole program (tested in `tests/streaming.rs`), in memory that
 /// does not grow with the program's length.
