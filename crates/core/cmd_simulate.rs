@@ -4,13 +4,13 @@ use std::path::Path;
 
 use anyhow::Result;
 use vcnc_machine::{Machine, ModelSet};
-use vcnc_pipeline::run::{self, InterpolateSummary};
+use vcnc_pipeline::run;
 use vcnc_pipeline::simulate;
 
 use crate::Ctx;
 use crate::figures;
 use crate::output::{ensure_dir, write_json};
-use crate::sink::{TableOptions, write_table, write_table_rows};
+use crate::sink::{TableOptions, write_table};
 use crate::table::{print_warnings, table as text_table};
 use crate::writers::{report_table_file, run_report};
 
@@ -23,67 +23,13 @@ pub fn interpolate(
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
-    if let Some(stream) = vcnc_pipeline::stream::plan_file(
+    let stream = vcnc_pipeline::stream::plan_file(
         &machine,
         program,
         ctx.lenient,
         &vcnc_gcode::StreamOptions::default(),
-    )? {
-        return interpolate_streamed(machine_path, &machine, program, &stream, out, table, ctx);
-    }
-    let run = run::prepare_file(&machine, program, ctx.lenient)?;
-    print_warnings(&run.warnings);
-    ensure_dir(out)?;
-    let tcp = run.has_tcp();
-    let names: Vec<vcnc_gcode::AxisName> = run.axes.iter().map(|a| a.name).collect();
-    // Tool tip in the workpiece frame (the reference poses), then every machine axis.
-    let header = reference_header(tcp, &names);
-    // Computed a row group at a time (docs/performance.md).
-    let table_path = write_table_rows(out, "reference", header, run.len(), table, |rows, cols| {
-        let mut c = cols.iter_mut();
-        let mut next = || c.next().expect("one buffer per header column");
-        next().extend(rows.clone().map(|k| run.time(k)));
-        if tcp {
-            let p = run
-                .reference_poses_at(&machine, rows.clone())
-                .unwrap_or_default();
-            for i in 0..3 {
-                next().extend(p.iter().map(|q| q.p[i]));
-            }
-        }
-        for a in &run.axes {
-            for s in [&a.pos, &a.vel, &a.acc] {
-                next().extend_from_slice(&s[rows.clone()]);
-            }
-        }
-    })?;
-    write_json(
-        &out.join("summary.json"),
-        &InterpolateSummary::of(&machine, &run),
     )?;
-    let mut report = run_report(
-        out,
-        "interpolate",
-        machine_path,
-        &machine,
-        &run,
-        None,
-        table,
-        ctx,
-    );
-    figures::reference(&mut report, &run)?;
-    finish_reference_report(report, &table_path)?;
-    if !ctx.quiet {
-        println!(
-            "{}: {} samples, {:.3} s at Ts = {} s -> {}",
-            program.display(),
-            run.len(),
-            run.duration_s(),
-            run.ts,
-            out.display()
-        );
-    }
-    Ok(())
+    interpolate_streamed(machine_path, &machine, program, &stream, out, table, ctx)
 }
 
 /// The end of `interpolate`'s report: the reference table's entry, then the page.

@@ -451,23 +451,6 @@ pub fn simulation_tracking(report: &mut RunReport, run: &Run, tr: &[AxisTracking
     )
 }
 
-/// The reference of a program (`vcnc interpolate`): the velocity of each axis it moves.
-pub fn reference(report: &mut RunReport, run: &Run) -> Result<()> {
-    let t = run.times();
-    let axes: Vec<ReferenceAxis<'_>> = run
-        .axes
-        .iter()
-        .map(|a| ReferenceAxis {
-            name: a.name,
-            unit: a.unit,
-            moved: a.pos.iter().any(|p| *p != a.pos[0]),
-            t: &t,
-            vel: &a.vel,
-        })
-        .collect();
-    reference_axes(report, &run.file, &axes)
-}
-
 /// One axis of the reference figure: its velocity at the times `t` (every sample, or a
 /// streamed run's min/max envelope).
 pub struct ReferenceAxis<'a> {

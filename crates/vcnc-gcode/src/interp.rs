@@ -16,7 +16,10 @@
 //!    path mode, distance modes, retract mode, `G10`/`G28`/`G30`/`G52`/`G92`, motion, stops.
 //!
 //! O-word statements (subroutines, conditions, loops) are matched once before the run
-//! (module `flow`), so the run is linear in the program length apart from the loops themselves. A
+//! (module `flow`), so the run is linear in the program length apart from the loops themselves.
+//! A streamed program ([`ChunkInterp`], module `seek`) runs through the same loop
+//! (`Interp::run_piece`) a piece of the file at a time, its statements matched as they are
+//! first read. A
 //! program that does not end is stopped by [`InterpOptions::max_loop_iterations`].
 //!
 //! **Coordinates.** The interpreter keeps the machine position (machine coordinates, mm and
@@ -48,6 +51,9 @@ mod cycles;
 mod eval;
 mod flow;
 mod motion;
+mod seek;
+
+pub use seek::{ChunkInterp, ProgramRead, YIELD_MOVES};
 
 use std::collections::HashMap;
 
@@ -432,6 +438,34 @@ fn after_end_warning(span: Span, end_line: u32) -> Diagnostic {
     )
 }
 
+/// `true` when a block holds code (words or assignments), not only comments or a label.
+fn has_code(b: &crate::syntax::Block) -> bool {
+    !b.words.is_empty() || !b.assignments.is_empty()
+}
+
+/// Code after the program's end at block `at` (on line `end_line`) never runs: the warning at
+/// the first block after it holding code, subroutine definitions skipped. `get(i)` gives block
+/// `i`'s [`has_code`] and span (`None` past the last block).
+fn after_end<E>(
+    flow: &Flow,
+    at: usize,
+    end_line: u32,
+    get: &mut dyn FnMut(usize) -> Result<Option<(bool, Span)>, E>,
+) -> Result<Option<Diagnostic>, E> {
+    let mut i = at + 1;
+    loop {
+        if let Some(Jump::Sub { end }) = flow.jumps.get(&i) {
+            i = end + 1;
+            continue;
+        }
+        match get(i)? {
+            None => return Ok(None),
+            Some((true, span)) => return Ok(Some(after_end_warning(span, end_line))),
+            Some((false, _)) => i += 1,
+        }
+    }
+}
+
 /// The interpreter's state between two pieces of a program ([`ChunkInterp`]).
 #[derive(Debug)]
 struct Carry {
@@ -444,141 +478,14 @@ struct Carry {
     loop_iterations: u64,
 }
 
-/// An interpreter fed a program a piece at a time: the pieces of a
-/// [`crate::syntax::ChunkParser`], in order. It hands back the moves made so far after each
-/// piece (keeping the last one, which a following `M0`/`M2` may still mark as a stop), so a
-/// program of any length is interpreted in memory bounded by its longest piece.
-///
-/// It runs programs without O-word statements: a subroutine call or a loop needs the blocks it
-/// jumps to, which a piece may not hold. [`ChunkInterp::run_chunk`] refuses a piece holding one
-/// ([`crate::Error::NotStreamable`]); such a program is interpreted whole ([`interpret`]).
-/// For any program it runs, the moves, the toolpath's start and axes and the diagnostics are
-/// those of [`interpret`] on the whole program (tested).
-#[derive(Debug)]
-pub struct ChunkInterp {
-    opts: InterpOptions,
-    carry: Option<Carry>,
-    /// A block has been seen (the first `%` opens the program, a later one ends it).
-    seen_block: bool,
-    /// Line of the program end (`M2`, `M30`, closing `%`), once reached.
-    ended_at: Option<u32>,
-    /// The warning about blocks after the end has been given.
-    warned_after_end: bool,
-    /// The last block seen.
-    last_span: Option<Span>,
-    /// Moves handed back so far.
-    moves_out: usize,
-}
-
-impl ChunkInterp {
-    /// An interpreter at the start of a program.
-    pub fn new(opts: &InterpOptions) -> Self {
-        let empty = Program::default();
-        let carry = Interp::new(&empty, opts).into_carry();
-        ChunkInterp {
-            opts: opts.clone(),
-            carry: Some(carry),
-            seen_block: false,
-            ended_at: None,
-            warned_after_end: false,
-            last_span: None,
-            moves_out: 0,
-        }
-    }
-
-    /// `true` once an error has been reported.
-    pub fn has_errors(&self) -> bool {
-        self.carry.as_ref().is_some_and(|c| c.sink.has_errors())
-    }
-
-    /// Run the next piece; returns the moves completed so far (in order, after those returned
-    /// before). A piece holding an O-word statement is refused with its line.
-    pub fn run_chunk(&mut self, prog: &Program) -> Result<Vec<Move>, crate::Error> {
-        if let Some(b) = prog.blocks.iter().find(|b| b.o_word.is_some()) {
-            return Err(crate::Error::NotStreamable {
-                line: b.line,
-                reason: "an O-word statement (subroutine, condition or loop) needs the whole \
-                         program"
-                    .into(),
-            });
-        }
-        let Some(carry) = self.carry.take() else {
-            return Ok(Vec::new());
-        };
-        let mut it = Interp::resume(prog, &self.opts, carry);
-        let delete = self.opts.block_delete;
-        for block in &prog.blocks {
-            self.last_span = Some(block.span);
-            if let Some(end_line) = self.ended_at {
-                if !self.warned_after_end
-                    && (!block.words.is_empty() || !block.assignments.is_empty())
-                {
-                    it.sink.push(after_end_warning(block.span, end_line));
-                    self.warned_after_end = true;
-                }
-                continue;
-            }
-            let first = !self.seen_block;
-            self.seen_block = true;
-            if block.percent {
-                if !first {
-                    self.ended_at = Some(block.line);
-                }
-                continue;
-            }
-            if block.block_delete && delete {
-                continue;
-            }
-            it.st.line = block.line;
-            if it.block(block) {
-                self.ended_at = Some(block.line);
-            }
-            if it.tp.moves.len() > self.opts.max_moves {
-                it.err(
-                    block.span,
-                    DiagnosticKind::Limit,
-                    format!(
-                        "the program makes more than {} moves (InterpOptions::max_moves)",
-                        self.opts.max_moves
-                    ),
-                );
-                // Nothing more runs: the program is refused.
-                self.ended_at = Some(block.line);
-                self.warned_after_end = true;
-            }
-        }
-        // Under StartPosition::FirstMove the first motion still rewrites the moves before it;
-        // the last move may still be marked as a stop by the next piece.
-        let out = if it.st.started && it.tp.moves.len() > 1 {
-            let keep = it.tp.moves.len() - 1;
-            it.tp.moves.drain(..keep).collect()
-        } else {
-            Vec::new()
-        };
-        self.moves_out += out.len();
-        self.carry = Some(it.into_carry());
-        Ok(out)
-    }
-
-    /// End of the program: the remaining moves (the last one marked as a stop), the toolpath's
-    /// start and used axes (in a [`Toolpath`] holding only the remaining moves), and every
-    /// diagnostic — or every diagnostic when one is an error.
-    pub fn finish(mut self) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
-        let Some(mut c) = self.carry.take() else {
-            return Err(Vec::new());
-        };
-        if self.ended_at.is_none()
-            && let Some(span) = self.last_span
-        {
-            c.sink.push(no_end_warning(span));
-        }
-        conclude(c.sink, c.tp)
-    }
-}
-
 struct Interp<'a> {
     opts: &'a InterpOptions,
+    /// The program, or the piece of it being run.
     prog: &'a Program,
+    /// Index in the whole file of `prog.blocks[0]` (0 for a whole program).
+    first: usize,
+    /// The names [`NameId`]s refer to (the program's, or a streamed program's parser's).
+    names: &'a [String],
     sink: Sink,
     st: State,
     params: Params,
@@ -588,12 +495,32 @@ struct Interp<'a> {
     loop_iterations: u64,
 }
 
-/// How the run goes on after a statement.
+/// How the run goes on after a statement (block indices count the blocks of the whole file).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Next {
     /// Continue at this block.
     Goto(usize),
+    /// Test the `elseif` (or reach the `else` or `endif`) at this block: the branches before
+    /// it did not run.
+    Test(usize),
     /// The program ends (`M2`, `M30`, `%`, or an error that leaves nowhere to go).
     End,
+}
+
+/// Why [`Interp::run_piece`] returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Exit {
+    /// The run goes on at a block outside the piece (or past the file's last block).
+    Leave(Next),
+    /// The run goes on inside the piece, but the moves made so far should be handed on first.
+    Yield(Next),
+    /// The O-word statement the run goes on at has partners not analysed yet.
+    Unresolved(Next),
+    /// The program ended at block `at`: by its end (`M2`, `M30`, `%`) on line `line`, or by an
+    /// error (`None`).
+    End { at: usize, line: Option<u32> },
+    /// Too many moves (an error): nothing more runs and nothing more is said.
+    Stop,
 }
 
 impl<'a> Interp<'a> {
@@ -606,6 +533,8 @@ impl<'a> Interp<'a> {
         let mut it = Interp {
             opts,
             prog,
+            first: 0,
+            names: &prog.names,
             sink: Sink::new(opts.max_diagnostics),
             st: State {
                 pos: start,
@@ -672,10 +601,19 @@ impl<'a> Interp<'a> {
     }
 
     /// Go on with the next piece `prog` of a program from the carried state.
-    fn resume(prog: &'a Program, opts: &'a InterpOptions, c: Carry) -> Self {
+    /// `prog` holds the blocks of the file from index `first` on; `names` are the file's.
+    fn resume(
+        prog: &'a Program,
+        first: usize,
+        names: &'a [String],
+        opts: &'a InterpOptions,
+        c: Carry,
+    ) -> Self {
         Interp {
             opts,
             prog,
+            first,
+            names,
             sink: c.sink,
             st: c.st,
             params: c.params,
@@ -684,6 +622,11 @@ impl<'a> Interp<'a> {
             frames: c.frames,
             loop_iterations: c.loop_iterations,
         }
+    }
+
+    /// The name `id`.
+    fn name(&self, id: NameId) -> &'a str {
+        self.names.get(id.index()).map_or("", String::as_str)
     }
 
     fn frame(&self) -> &Frame {
@@ -727,31 +670,72 @@ impl<'a> Interp<'a> {
         if self.sink.has_errors() {
             return;
         }
-        let blocks = &prog.blocks;
-        let mut pc = 0usize;
-        let mut ended_at: Option<u32> = None;
-        while pc < blocks.len() {
-            let block = &blocks[pc];
+        match self.run_piece(Next::Goto(0), &flow, usize::MAX) {
+            Exit::End {
+                at,
+                line: Some(end_line),
+            } => {
+                let mut get =
+                    |i: usize| Ok::<_, ()>(prog.blocks.get(i).map(|b| (has_code(b), b.span)));
+                if let Ok(Some(w)) = after_end(&flow, at, end_line, &mut get) {
+                    self.sink.push(w);
+                }
+            }
+            Exit::Stop => {}
+            _ => {
+                if let Some(last) = prog.blocks.last() {
+                    self.sink.push(no_end_warning(last.span));
+                }
+            }
+        }
+    }
+
+    /// Run the blocks of the piece `self.prog` from `next` until the run leaves the piece, needs
+    /// an O-word statement's partners not analysed yet, has `yield_at` moves waiting or ends.
+    fn run_piece(&mut self, mut next: Next, flow: &Flow, yield_at: usize) -> Exit {
+        let prog = self.prog;
+        let delete = self.opts.block_delete;
+        loop {
+            let (pc, test) = match next {
+                Next::Goto(n) => (n, false),
+                Next::Test(n) => (n, true),
+                Next::End => return Exit::End { at: 0, line: None },
+            };
+            let Some(block) = pc.checked_sub(self.first).and_then(|i| prog.blocks.get(i)) else {
+                return Exit::Leave(next);
+            };
             if block.percent {
                 if pc > 0 {
-                    ended_at = Some(block.line);
-                    break;
+                    return Exit::End {
+                        at: pc,
+                        line: Some(block.line),
+                    };
                 }
-                pc += 1;
+                next = Next::Goto(pc + 1);
                 continue;
             }
-            if skip(pc) {
-                pc += 1;
+            if block.block_delete && delete {
+                next = Next::Goto(pc + 1);
                 continue;
             }
-            self.st.line = block.line;
-            let next = match block.o_word.as_deref() {
-                Some(o) => self.control(pc, o, &flow),
-                None if self.block(block) => {
-                    ended_at = Some(block.line);
-                    Next::End
+            let mut ended = None;
+            let after = match block.o_word.as_deref() {
+                Some(o) if !flow.resolved(pc, o) => return Exit::Unresolved(next),
+                // The branches before this one did not run (the `if`'s line stays current).
+                Some(o) if test => self.branch_test(pc, o, flow),
+                Some(o) => {
+                    self.st.line = block.line;
+                    self.control(pc, o, block.span, flow)
                 }
-                None => Next::Goto(pc + 1),
+                None => {
+                    self.st.line = block.line;
+                    if self.block(block) {
+                        ended = Some(block.line);
+                        Next::End
+                    } else {
+                        Next::Goto(pc + 1)
+                    }
+                }
             };
             if self.tp.moves.len() > self.opts.max_moves {
                 self.err(
@@ -762,37 +746,23 @@ impl<'a> Interp<'a> {
                         self.opts.max_moves
                     ),
                 );
-                return;
+                return Exit::Stop;
             }
-            match next {
-                Next::Goto(n) => pc = n,
-                Next::End => break,
+            if after == Next::End {
+                return Exit::End {
+                    at: pc,
+                    line: ended,
+                };
             }
-        }
-        let Some(end_line) = ended_at else {
-            if let Some(last) = blocks.last() {
-                self.sink.push(no_end_warning(last.span));
+            next = after;
+            if self.tp.moves.len() >= yield_at {
+                return Exit::Yield(next);
             }
-            return;
-        };
-        // Code after the end (subroutine definitions aside) never runs: say so.
-        let mut i = pc + 1;
-        while i < blocks.len() {
-            if let Some(Jump::Sub { end }) = flow.jumps.get(&i) {
-                i = end + 1;
-                continue;
-            }
-            let b = &blocks[i];
-            if !b.words.is_empty() || !b.assignments.is_empty() {
-                self.sink.push(after_end_warning(b.span, end_line));
-                break;
-            }
-            i += 1;
         }
     }
 
     /// Execute an O-word statement at block `pc`.
-    fn control(&mut self, pc: usize, o: &OWord, flow: &Flow) -> Next {
+    fn control(&mut self, pc: usize, o: &OWord, block_span: Span, flow: &Flow) -> Next {
         let span = o.keyword_span;
         let cond = |it: &mut Self, e| match it.eval(e) {
             Ok(v) => Some(v),
@@ -815,13 +785,13 @@ impl<'a> Interp<'a> {
                     },
                     None => None,
                 };
-                self.ret(value, pc)
+                self.ret(value, block_span)
             }
             (OStatement::Call(args), _) => self.call(pc, o, args, flow),
             (OStatement::If(c), Some(Jump::Branch { next, .. })) => match cond(self, *c) {
                 None => Next::End,
                 Some(v) if v != 0.0 => Next::Goto(pc + 1),
-                Some(_) => self.next_branch(next, flow),
+                Some(_) => Next::Test(next),
             },
             // Reached from a branch that ran: leave the if.
             (OStatement::ElseIf(_), Some(Jump::Branch { endif, .. }))
@@ -845,17 +815,30 @@ impl<'a> Interp<'a> {
             },
             (
                 OStatement::EndWhile | OStatement::While(_) | OStatement::EndRepeat,
-                Some(Jump::LoopEnd { start, kind }),
-            ) => self.loop_end(pc, start, kind, o),
-            (OStatement::Break, Some(Jump::LoopExit { start, end, kind })) => {
+                Some(Jump::LoopEnd { start, head, kind }),
+            ) => self.loop_end(pc, start, head, kind, o),
+            (
+                OStatement::Break,
+                Some(Jump::LoopExit {
+                    start, end, kind, ..
+                }),
+            ) => {
                 if kind == LoopKind::Repeat {
                     self.pop_repeat(start);
                 }
                 Next::Goto(end + 1)
             }
-            (OStatement::Continue, Some(Jump::LoopExit { start, end, kind })) => match kind {
+            (
+                OStatement::Continue,
+                Some(Jump::LoopExit {
+                    start,
+                    head,
+                    end,
+                    kind,
+                }),
+            ) => match kind {
                 LoopKind::While => {
-                    if !self.count_iteration(start) {
+                    if !self.count_iteration(head) {
                         return Next::End;
                     }
                     Next::Goto(start)
@@ -875,37 +858,30 @@ impl<'a> Interp<'a> {
         }
     }
 
-    /// From a failed `if`/`elseif`, find the branch that runs.
-    fn next_branch(&mut self, mut at: usize, flow: &Flow) -> Next {
-        loop {
-            let Some(o) = self.prog.blocks[at].o_word.as_deref() else {
-                return Next::Goto(at + 1);
-            };
-            match (&o.statement, flow.jumps.get(&at).copied()) {
-                (OStatement::ElseIf(c), Some(Jump::Branch { next, .. })) => match self.eval(*c) {
-                    Err(e) => {
-                        self.sink
-                            .report_msg(e.span, Severity::Error, e.kind, e.message);
-                        return Next::End;
-                    }
-                    Ok(v) if v != 0.0 => return Next::Goto(at + 1),
-                    Ok(_) => at = next,
-                },
-                // `else` runs; `endif` means no branch ran.
-                _ => return Next::Goto(at + 1),
-            }
+    /// A branch statement reached from a failed `if`/`elseif`: an `elseif` tests its
+    /// condition; an `else` runs; an `endif` means no branch ran.
+    fn branch_test(&mut self, at: usize, o: &OWord, flow: &Flow) -> Next {
+        match (&o.statement, flow.jumps.get(&at).copied()) {
+            (OStatement::ElseIf(c), Some(Jump::Branch { next, .. })) => match self.eval(*c) {
+                Err(e) => {
+                    self.sink
+                        .report_msg(e.span, Severity::Error, e.kind, e.message);
+                    Next::End
+                }
+                Ok(v) if v != 0.0 => Next::Goto(at + 1),
+                Ok(_) => Next::Test(next),
+            },
+            _ => Next::Goto(at + 1),
         }
     }
 
     /// Count one loop iteration against the budget; `false` (and an error naming the loop)
     /// when it is exhausted.
-    fn count_iteration(&mut self, start: usize) -> bool {
+    fn count_iteration(&mut self, head: Span) -> bool {
         self.loop_iterations += 1;
         if self.loop_iterations > self.opts.max_loop_iterations {
-            let b = &self.prog.blocks[start];
-            let span = b.o_word.as_deref().map_or(b.span, |o| o.keyword_span);
-            let line = b.line;
-            self.err(span, DiagnosticKind::LoopBudget, || {
+            let line = head.line;
+            self.err(head, DiagnosticKind::LoopBudget, || {
                 format!(
                     "the loop at line {line} has run more than {} iterations in all (InterpOptions::max_loop_iterations): the program does not end",
                     self.opts.max_loop_iterations
@@ -916,11 +892,11 @@ impl<'a> Interp<'a> {
         true
     }
 
-    /// The closing statement of a loop at `pc`, opened at `start`.
-    fn loop_end(&mut self, pc: usize, start: usize, kind: LoopKind, o: &OWord) -> Next {
+    /// The closing statement of a loop at `pc`, opened at `start` by the keyword `head`.
+    fn loop_end(&mut self, pc: usize, start: usize, head: Span, kind: LoopKind, o: &OWord) -> Next {
         match kind {
             LoopKind::While => {
-                if !self.count_iteration(start) {
+                if !self.count_iteration(head) {
                     return Next::End;
                 }
                 Next::Goto(start)
@@ -936,7 +912,7 @@ impl<'a> Interp<'a> {
                         Next::End
                     }
                     Ok(v) if v != 0.0 => {
-                        if !self.count_iteration(start) {
+                        if !self.count_iteration(head) {
                             return Next::End;
                         }
                         Next::Goto(start + 1)
@@ -953,7 +929,7 @@ impl<'a> Interp<'a> {
                     _ => false,
                 };
                 if again {
-                    if !self.count_iteration(start) {
+                    if !self.count_iteration(head) {
                         return Next::End;
                     }
                     Next::Goto(start + 1)
@@ -978,7 +954,7 @@ impl<'a> Interp<'a> {
         let Some(&sub) = flow.subs.get(&o.label) else {
             let name = match o.label {
                 OLabel::Number(n) => format!("o{n}"),
-                OLabel::Name(n) => format!("o<{}>", self.prog.name(n)),
+                OLabel::Name(n) => format!("o<{}>", self.name(n)),
             };
             self.err(o.label_span, DiagnosticKind::UndefinedSubroutine, || {
                 format!("subroutine {name} is not defined in this file (no '{name} sub')")
@@ -1031,13 +1007,12 @@ impl<'a> Interp<'a> {
     }
 
     /// `endsub`/`return`: back to the caller, restoring its `#1`–`#30`.
-    fn ret(&mut self, value: Option<f64>, pc: usize) -> Next {
+    fn ret(&mut self, value: Option<f64>, block_span: Span) -> Next {
         if self.frames.len() <= 1 {
             // Flowing into an `endsub` in the main program (a `sub` skipped by a jump) is
             // prevented by the pre-pass; reaching one means the program ends here.
-            let b = &self.prog.blocks[pc];
             self.err(
-                b.span,
+                block_span,
                 DiagnosticKind::ControlFlow,
                 "endsub or return reached outside a subroutine call",
             );

@@ -38,8 +38,8 @@ pub use generate::{
     spiral_points, tcp_program,
 };
 pub use interp::{
-    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, StartPosition, Toolpath,
-    interpret,
+    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, ProgramRead, StartPosition,
+    Toolpath, interpret,
 };
 pub use interpolate::stream::{ProgramSource, SampleChunk, StreamOptions, StreamPlan, plan};
 pub use interpolate::{
@@ -142,14 +142,6 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
-    /// A program cannot be read a piece at a time (streamed); it is read whole instead.
-    #[error("line {line}: the program cannot be streamed: {reason}")]
-    NotStreamable {
-        /// Source line of the first block that needs the whole program.
-        line: u32,
-        /// Why.
-        reason: String,
-    },
     /// The program file could not be read.
     #[error("cannot read the program: {message}")]
     Read {
@@ -182,7 +174,7 @@ impl Error {
             | Error::ParameterFile { .. }
             | Error::ToolTable { .. }
             | Error::InvalidGenerator { .. } => true,
-            Error::NotStreamable { .. } | Error::Read { .. } => false,
+            Error::Read { .. } => false,
         }
     }
 }

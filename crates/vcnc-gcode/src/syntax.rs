@@ -331,6 +331,19 @@ impl ChunkParser {
     /// Parse the next piece: whole lines, the line break of its last line included (except at
     /// the end of the program).
     pub fn parse_chunk(&mut self, src: &str) -> Program {
+        let mut program = self.parse_piece(src);
+        program.names = self.names.clone();
+        program
+    }
+
+    /// The names of every piece so far ([`Program::names`]).
+    pub(crate) fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// [`ChunkParser::parse_chunk`] without a copy of the names in the piece (they are
+    /// [`ChunkParser::names`]).
+    pub(crate) fn parse_piece(&mut self, src: &str) -> Program {
         let mut builder = Builder {
             exprs: Vec::new(),
             names: std::mem::take(&mut self.names),
@@ -404,13 +417,51 @@ impl ChunkParser {
         self.line_no = line_no;
         self.blocks_so_far += blocks.len();
         self.index = builder.index;
-        let program = Program {
+        self.names = builder.names;
+        Program {
             blocks,
             exprs: builder.exprs,
-            names: builder.names.clone(),
-        };
-        self.names = builder.names;
-        program
+            names: Vec::new(),
+        }
+    }
+
+    /// Where the next piece starts: the number of lines read so far and the byte offset (in
+    /// the text as parsed) of the next line.
+    pub(crate) fn position(&self) -> (u32, usize) {
+        (self.line_no, self.base)
+    }
+
+    /// Parse again whole lines read before, starting after line `line` at byte offset `base`
+    /// (a streamed program's jump back, `interp/seek.rs`): the blocks are those the first
+    /// reading gave, the diagnostics are not reported again, and the parser's position is
+    /// kept. Returns the blocks (without the names: [`ChunkParser::names`]) and the position
+    /// after them.
+    pub(crate) fn parse_again(
+        &mut self,
+        src: &str,
+        line: u32,
+        base: usize,
+    ) -> (Program, u32, usize) {
+        let kept = (
+            self.line_no,
+            self.base,
+            self.blocks_so_far,
+            self.stopped,
+            std::mem::replace(&mut self.sink, Sink::new(1)),
+        );
+        self.line_no = line;
+        self.base = base;
+        self.stopped = false;
+        let program = self.parse_piece(src);
+        let end = (self.line_no, self.base);
+        (
+            self.line_no,
+            self.base,
+            self.blocks_so_far,
+            self.stopped,
+            self.sink,
+        ) = kept;
+        (program, end.0, end.1)
     }
 
     /// Every diagnostic of every piece, in order.

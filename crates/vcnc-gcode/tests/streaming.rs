@@ -74,13 +74,19 @@ fn same(src: &str, interp: &InterpOptions, limits: &Limits, opts: &InterpolateOp
         let (whole, (p, g)) = match (&whole, streamed) {
             (Ok(w), Ok(s)) => (w, s),
             (Err(a), Err(b)) => {
-                // Both refuse; the kind of error agrees.
+                // Both refuse; the kind of error agrees, and a program's diagnostics are the
+                // same, in the same order.
                 assert_eq!(
                     std::mem::discriminant(a),
                     std::mem::discriminant(&b),
                     "{a} vs {b}"
                 );
-                return;
+                if let (Error::Program { diagnostics: d1 }, Error::Program { diagnostics: d2 }) =
+                    (a, &b)
+                {
+                    assert_eq!(d1, d2, "diagnostics ({so:?})");
+                }
+                continue;
             }
             (Ok(_), Err(e)) => panic!("stream refused what load accepts: {e}"),
             (Err(e), Ok(_)) => panic!("stream accepted what load refuses: {e}"),
@@ -309,18 +315,347 @@ fn fine_block_chains_stream_bit_for_bit() {
     );
 }
 
+/// `same`, and the program must be accepted (so that a test of a working program cannot pass
+/// by both paths refusing it).
+fn same_ok(src: &str, interp: &InterpOptions, limits: &Limits) {
+    load(src, interp, limits, &InterpolateOptions::default()).expect("the whole path runs it");
+    same(src, interp, limits, &InterpolateOptions::default());
+}
+
+/// `same`, for a program both paths must refuse with diagnostics naming `needle`.
+fn same_err(src: &str, interp: &InterpOptions, needle: &str) {
+    let limits = Limits::uniform(100.0, 1000.0);
+    match load(src, interp, &limits, &InterpolateOptions::default()) {
+        Err(Error::Program { diagnostics }) => assert!(
+            diagnostics.iter().any(|d| d.message.contains(needle)),
+            "{diagnostics:?}"
+        ),
+        other => panic!("expected a program error naming '{needle}': {other:?}"),
+    }
+    same(src, interp, &limits, &InterpolateOptions::default());
+}
+
+// O-word programs (LinuxCNC subroutines, conditions and loops). The truth is `load`, whose
+// interpreter is checked against LinuxCNC's own in tests/linuxcnc.rs. With pieces of 1 byte
+// (one line per piece, two pieces cached) every jump back and every call reads the file again
+// from an indexed offset; with 300 bytes some jumps stay inside a piece.
+
 #[test]
-fn a_program_with_o_words_is_not_streamed() {
+fn a_repeat_loop_streams_bit_for_bit() {
     let src = "G21 G90\no100 repeat [3]\nG1 X10 F600\nG1 X0\no100 endrepeat\nM2\n";
-    let e = plan(
+    same_ok(
         src,
         &InterpOptions::default(),
         &Limits::uniform(100.0, 1000.0),
+    );
+}
+
+#[test]
+fn subroutines_with_parameters_stream_bit_for_bit() {
+    // A named subroutine defined after its first call, one calling another, a return with a
+    // value, local and global named parameters, G64 chains through the calls.
+    let src = "\
+%
+G21 G90 G64 P0.01
+#<_side> = 4
+o<square> call [0] [0] [#<_side>]
+o200 sub
+  #<k> = [#1 * 2]
+  G1 X[#<k>] Y[#2] F1200
+  o200 return [#<k> + 1]
+o200 endsub
+o<square> call [10] [5] [2.5]
+o200 call [7] [3]
+G1 X[#<_value>] Y0
+o<square> sub
+  ( #1 #2: corner, #3: side )
+  G1 X#1 Y#2 F900
+  G1 X[#1 + #3]
+  G1 Y[#2 + #3]
+  o200 call [#1 + 1] [#2 + #3]
+  G1 X#1
+  G1 Y#2
+o<square> endsub
+G0 Z5
+%
+";
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(100.0, 1000.0),
+    );
+}
+
+#[test]
+fn nested_loops_and_conditions_stream_bit_for_bit() {
+    let src = "\
+G21 G90 G64
+#1 = 0
+o10 while [#1 LT 6]
+  #2 = 0
+  o20 do
+    o30 if [[#1 + #2] MOD 3 EQ 0]
+      G1 X[#1 * 3] Y[#2 * 2] F1500
+    o30 elseif [#2 EQ 1]
+      G1 X[#1 * 3 + 1] Y[#2 * 2] F900
+    o30 elseif [#2 EQ 2]
+      o40 if [#1 GT 3]
+        G0 Z[#1]
+      o40 endif
+    o30 else
+      G1 X[#1 * 3] Y[#2 * 2 + 1] F600
+    o30 endif
+    #2 = [#2 + 1]
+    o25 if [#2 GT 4]
+      o20 break
+    o25 endif
+  o20 while [#2 LT 10]
+  #1 = [#1 + 1]
+  o50 if [#1 EQ 2]
+    o10 continue
+  o50 endif
+  G4 P0.01
+  o60 repeat [2]
+    G1 Z-1 F300
+    G1 Z0
+  o60 endrepeat
+o10 endwhile
+G0 X0 Y0 Z10
+M30
+";
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(100.0, 1000.0),
+    );
+}
+
+#[test]
+fn a_long_loop_streams_bit_for_bit_in_pieces_of_moves() {
+    // 12 000 moves from a loop of four lines: more than ChunkInterp's hand-over of 4096, so
+    // the moves go on in several batches from inside one piece.
+    let src = "\
+G21 G90 G64 P0.02
+G0 X0 Y0
+#1 = 0
+o1 while [#1 LT 3000]
+  G1 X[10 * SIN[#1 * 0.7]] Y[10 * COS[#1 * 0.3]] F3000
+  G1 Z[0.1 * [#1 MOD 7]]
+  G1 X[#1 * 0.001] Y[-#1 * 0.002]
+  G1 Z0
+  #1 = [#1 + 1]
+o1 endwhile
+M2
+";
+    let whole = load(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
         &InterpolateOptions::default(),
-        &StreamOptions::default(),
     )
-    .unwrap_err();
-    assert!(matches!(e, Error::NotStreamable { line: 2, .. }), "{e}");
+    .unwrap();
+    assert!(whole.toolpath.moves.len() > 2 * vcnc_gcode::interp::YIELD_MOVES);
+    same_ok(
+        src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
+    );
+}
+
+/// A subroutine and a loop far apart: the main program calls a subroutine defined 1.2 MB before
+/// the call and repeats a loop whose body is longer than the default 1 MiB piece, so every call,
+/// return and repetition reads the file again from an indexed offset at every piece size. A
+/// wrong offset, line number or block index shows as other moves, other lines or an error.
+#[test]
+fn jumps_farther_than_a_piece_read_the_file_again_bit_for_bit() {
+    let mut src =
+        String::from("G21 G90 G64\no7 sub\nG1 X#1 Y[#2 + 0.5] F2000\nG1 Z#3\no7 endsub\n");
+    // 1.2 MB of blocks (a straight run along X and back) between the subroutine and its calls.
+    for k in 0..36_000 {
+        let _ = writeln!(
+            src,
+            "G1 X{:.3} F6000 ( filler {k:05} )",
+            (k % 200) as f64 * 0.05
+        );
+    }
+    src.push_str("#5 = 0\no8 repeat [3]\n");
+    for k in 0..30_000 {
+        let _ = writeln!(
+            src,
+            "G1 Y{:.3} F6000 ( body {k:05} padding )",
+            (k % 100) as f64 * 0.02
+        );
+        if k % 10_000 == 0 {
+            src.push_str("o7 call [#5] [#5 * 2] [-1]\n#5 = [#5 + 1]\n");
+        }
+    }
+    src.push_str("o8 endrepeat\no7 call [1] [2] [3]\nM2\n");
+    assert!(src.len() > 2 << 20, "{}", src.len());
+    same_ok(
+        &src,
+        &InterpOptions::default(),
+        &Limits::uniform(250.0, 2500.0),
+    );
+}
+
+#[test]
+fn block_delete_and_program_end_with_o_words_stream_bit_for_bit() {
+    // Deleted lines hold O-word statements; the program ends inside a subroutine; code and
+    // subroutine definitions follow the end.
+    let src = "\
+G21 G90
+/o1 if [1]
+o2 sub
+  G1 X#1 F600
+  o3 if [#1 GT 5]
+    M2
+  o3 endif
+o2 endsub
+/o1 endif
+o2 call [3]
+o2 call [8]
+G1 X0
+o4 sub
+  G1 Y1
+o4 endsub
+G1 Y7
+";
+    for block_delete in [false, true] {
+        let interp = InterpOptions {
+            block_delete,
+            ..InterpOptions::default()
+        };
+        let whole = load(
+            src,
+            &interp,
+            &Limits::uniform(100.0, 1000.0),
+            &InterpolateOptions::default(),
+        );
+        if block_delete {
+            let w = whole.expect("runs with the switch on");
+            assert!(
+                w.warnings
+                    .iter()
+                    .any(|d| d.message.contains("after the program end on line 6") && d.line == 12),
+                "{:?}",
+                w.warnings
+            );
+        } else {
+            // With the switch off, `/o1 if` opens around the sub definition: a flow error.
+            assert!(whole.is_err());
+        }
+        same(
+            src,
+            &interp,
+            &Limits::uniform(100.0, 1000.0),
+            &InterpolateOptions::default(),
+        );
+    }
+}
+
+#[test]
+fn o_word_programs_with_errors_give_the_whole_paths_diagnostics() {
+    let d = InterpOptions::default();
+    // Undefined subroutine, after moves.
+    same_err("G21\nG1 X1 F100\no9 call [1]\nM2\n", &d, "not defined");
+    // A loop never closed: only the flow error, though an unknown word comes first.
+    same_err(
+        "G21\nG1 X1 Q5 F100\no1 while [1]\nG1 X2\nM2\n",
+        &d,
+        "never closed",
+    );
+    // Flow errors found at the end of the file after moves were made.
+    same_err(
+        "G21\nG1 X1 F100\no1 if [1]\nG1 X2\no1 endif\nG1 X3\no2 endsub\nM2\n",
+        &d,
+        "without a o2 sub",
+    );
+    // Recursion beyond the call depth.
+    same_err(
+        "G21\no1 sub\nG1 X#1 F100\no1 call [#1 + 1]\no1 endsub\no1 call [0]\nM2\n",
+        &d,
+        "nested more than",
+    );
+    // A loop that does not end.
+    let few = InterpOptions {
+        max_loop_iterations: 500,
+        ..InterpOptions::default()
+    };
+    same_err(
+        "G21\n#1 = 0\no1 while [1]\nG1 X[#1 MOD 5] F3000\n#1 = [#1 + 1]\no1 endwhile\nM2\n",
+        &few,
+        "iterations in all",
+    );
+    // Errors in several places of a looping program: all of them, in order.
+    same_err(
+        "G21\no1 repeat [3]\nG1 X1 F100\no2 if [#1 EQ 0]\nG1 X2 Q1\no2 else\nG1 X3\no2 endif\n#1 = [#1 + 1]\no1 endrepeat\nG1 Y1 R2\nM2\n",
+        &d,
+        "",
+    );
+    // A parse error after the loop: the parser's diagnostics only.
+    same_err(
+        "G21\no1 repeat [2]\nG1 X1 F100\no1 endrepeat\nG1 X#\nM2\n",
+        &d,
+        "",
+    );
+    // A duplicate definition and a return outside a subroutine.
+    same_err(
+        "G21\no1 sub\nG1 X1\no1 endsub\no1 sub\nG1 X2\no1 endsub\no5 return\nM2\n",
+        &d,
+        "defined twice (first at line 2)",
+    );
+}
+
+/// Bytes that are not UTF-8 before O-word statements: the parsed text (with U+FFFD) and the
+/// file's bytes then have different offsets, and the jumps must seek by the file's.
+#[test]
+fn jumps_after_bytes_that_are_not_utf8_read_the_right_lines() {
+    let mut bytes = b"G21 G90 (caf\xe9 \xff\xfe)\n".to_vec();
+    bytes.extend_from_slice(b"o1 sub\n(\xe9\xe9)G1 X#1 F600\nG1 Y#1\no1 endsub\n");
+    bytes.extend_from_slice(b"o2 repeat [3]\n(\xc3)o1 call [1]\no1 call [2]\no2 endrepeat\nM2\n");
+    let dir = std::env::temp_dir().join(format!("vcnc-stream-utf8-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("prog.ngc");
+    std::fs::write(&path, &bytes).unwrap();
+    let text = String::from_utf8_lossy(&bytes).into_owned();
+    let limits = Limits::uniform(100.0, 1000.0);
+    let whole = load(
+        &text,
+        &InterpOptions::default(),
+        &limits,
+        &InterpolateOptions::default(),
+    )
+    .unwrap();
+    for chunk_bytes in [1, 30, 1 << 20] {
+        let so = StreamOptions {
+            chunk_bytes,
+            chunk_samples: 100,
+        };
+        let p = plan(
+            path.as_path(),
+            &InterpOptions::default(),
+            &limits,
+            &InterpolateOptions::default(),
+            &so,
+        )
+        .unwrap();
+        let mut pos = Vec::new();
+        p.sample(
+            path.as_path(),
+            &mut |c: &SampleChunk| -> Result<(), Error> {
+                pos.extend_from_slice(&c.pos[0]);
+                Ok(())
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            bits(&pos),
+            bits(&whole.trajectory.axes[0].pos),
+            "{chunk_bytes}"
+        );
+        assert_eq!(p.warnings, whole.warnings);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

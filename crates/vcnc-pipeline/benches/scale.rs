@@ -59,7 +59,7 @@ fn long_program(c: &mut Criterion) {
                         false,
                         &vcnc_gcode::StreamOptions::default(),
                     );
-                    if let Ok(Some(s)) = s {
+                    if let Ok(s) = s {
                         let _ = s.run(&machine, &path, &mut |c| {
                             black_box(c.len());
                             Ok(())

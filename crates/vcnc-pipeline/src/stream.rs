@@ -3,8 +3,8 @@
 //! piece of samples goes through the inverse kinematics, the travel check and the statistics
 //! before it is handed over and dropped. Memory does not grow with the program's length.
 //!
-//! The samples are those of [`crate::run::prepare`] bit for bit (tested); a program with O-word
-//! control flow cannot be streamed and is prepared whole ([`plan_file`] returns `None`).
+//! The samples are those of [`crate::run::prepare`] bit for bit (tested), O-word control flow
+//! included (the reader seeks back to the statements a jump leads to, docs/performance.md).
 
 use std::path::Path;
 
@@ -73,14 +73,13 @@ pub struct StreamStats {
     pub warnings: Vec<String>,
 }
 
-/// First pass over the program at `path` on `machine`; `None` when the program needs to be read
-/// whole (O-word control flow).
+/// First pass over the program at `path` on `machine`.
 pub fn plan_file(
     machine: &Machine,
     path: &Path,
     lenient: bool,
     opts: &StreamOptions,
-) -> Result<Option<ReferenceStream>, Error> {
+) -> Result<ReferenceStream, Error> {
     let file = path.display().to_string();
     let interpolate = vcnc_gcode::InterpolateOptions {
         // The whole-program path's sample budget bounds the memory it holds; streamed, the
@@ -97,7 +96,6 @@ pub fn plan_file(
         opts,
     ) {
         Ok(p) => p,
-        Err(vcnc_gcode::Error::NotStreamable { .. }) => return Ok(None),
         // The machine lacks the axis (its limits are 0): said as the whole-program path says it.
         Err(vcnc_gcode::Error::AxisCannotMove {
             axis: Some(name),
@@ -119,11 +117,11 @@ pub fn plan_file(
         .iter()
         .map(|d| format!("{file}:{}:{}: warning: {}", d.line, d.col, d.message))
         .collect();
-    Ok(Some(ReferenceStream {
+    Ok(ReferenceStream {
         file,
         plan,
         warnings,
-    }))
+    })
 }
 
 impl ReferenceStream {

@@ -218,7 +218,33 @@ fn the_streamed_reference_equals_the_whole_program_path_bit_for_bit() {
     use vcnc_pipeline::stream;
     let machine = machine();
     let dir = tempfile::tempdir().expect("temporary folder");
-    for (name, src) in programs() {
+    // With O-word control flow: a subroutine called from nested loops, a condition.
+    let oword = "\
+G21 G90 G64 P0.01
+G0 X0 Y0 Z0
+o<pocket> sub
+  G1 X[#1] Y[#2] F2400
+  G1 X[#1 + #3] C[#4]
+  G1 Y[#2 + #3]
+  o1 if [#4 GT 40]
+    G1 Z-2 F600
+  o1 else
+    G1 Z-1 F600
+  o1 endif
+  G1 X[#1] Y[#2]
+o<pocket> endsub
+#10 = 0
+o2 while [#10 LT 12]
+  o3 repeat [2]
+    o<pocket> call [#10 * 3] [#10 * 2] [5] [#10 * 8]
+  o3 endrepeat
+  #10 = [#10 + 1]
+o2 endwhile
+G0 Z10
+M2
+"
+    .to_string();
+    for (name, src) in programs().into_iter().chain([("oword.ngc", oword)]) {
         let path = dir.path().join(name);
         std::fs::write(&path, &src).expect("program written");
         let whole = run::prepare(&machine, &src, &path.display().to_string(), false)
@@ -230,9 +256,7 @@ fn the_streamed_reference_equals_the_whole_program_path_bit_for_bit() {
             },
             vcnc_gcode::StreamOptions::default(),
         ] {
-            let s = stream::plan_file(&machine, &path, false, &so)
-                .expect("planned")
-                .expect("streamable");
+            let s = stream::plan_file(&machine, &path, false, &so).expect("planned");
             assert_eq!(s.len(), whole.len(), "{name}: samples");
             let n_axes = machine.axes.len();
             let mut got: Vec<[Vec<f64>; 3]> = vec![Default::default(); n_axes];
@@ -257,9 +281,14 @@ fn the_streamed_reference_equals_the_whole_program_path_bit_for_bit() {
                 assert_eq!(bits(&g[1]), bits(&a.vel), "{name}: {} velocity", a.name);
                 assert_eq!(bits(&g[2]), bits(&a.acc), "{name}: {} acceleration", a.name);
             }
+            // Tool tips are streamed for TCP programs only.
+            assert_eq!(s.plan.any_tcp, whole.has_tcp(), "{name}: TCP");
             let poses = whole.reference_poses(&machine).expect("poses");
             for (j, tip) in tips.iter().enumerate() {
-                let want: Vec<f64> = poses.iter().map(|q| q.p[j]).collect();
+                let want: Vec<f64> = match s.plan.any_tcp {
+                    true => poses.iter().map(|q| q.p[j]).collect(),
+                    false => Vec::new(),
+                };
                 assert_eq!(bits(tip), bits(&want), "{name}: tip {j}");
             }
             assert_eq!(
@@ -282,9 +311,7 @@ fn a_streamed_program_beyond_travel_is_refused_with_its_line() {
     let src = "G21 G90 G64\nG1 X10 F3000\nG1 X400\nG1 X0\nM2\n";
     std::fs::write(&path, src).expect("program written");
     let whole = run::prepare(&machine, src, &path.display().to_string(), false).unwrap_err();
-    let s = stream::plan_file(&machine, &path, false, &Default::default())
-        .expect("planned")
-        .expect("streamable");
+    let s = stream::plan_file(&machine, &path, false, &Default::default()).expect("planned");
     let e = s.run(&machine, &path, &mut |_| Ok(())).unwrap_err();
     assert_eq!(e.to_string(), whole.to_string());
     assert!(e.to_string().contains(":3:"), "{e}");

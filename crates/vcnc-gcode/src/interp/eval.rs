@@ -150,7 +150,7 @@ impl Interp<'_> {
             ExprKind::Param(r) => self.read_param(r, span)?,
             ExprKind::Neg(a) => -self.eval(a)?,
             ExprKind::Exists(n) => {
-                let name = self.prog.name(n);
+                let name = self.name(n);
                 let exists = is_system_name(name)
                     || self.params.globals.contains_key(&n)
                     || self.frame().locals.contains_key(&n);
@@ -224,11 +224,11 @@ impl Interp<'_> {
             ParamRef::Numbered(n) => Ok(Target::Numbered(n)),
             ParamRef::Indirect(e) => Ok(Target::Numbered(self.indirect(e, span)?)),
             ParamRef::Named(n) => {
-                if is_system_name(self.prog.name(n)) {
+                if is_system_name(self.name(n)) {
                     Err(fail(
                         span,
                         DiagnosticKind::Block,
-                        format!("#<{}> is a read-only parameter", self.prog.name(n)),
+                        format!("#<{}> is a read-only parameter", self.name(n)),
                     ))
                 } else {
                     Ok(Target::Named(n))
@@ -253,7 +253,7 @@ impl Interp<'_> {
         match t {
             Target::Numbered(n) => self.params.set(n, v),
             Target::Named(n) => {
-                if self.prog.name(n).starts_with('_') {
+                if self.name(n).starts_with('_') {
                     self.params.globals.insert(n, v);
                 } else {
                     self.frame_mut().locals.insert(n, v);
@@ -267,7 +267,7 @@ impl Interp<'_> {
             ParamRef::Numbered(n) => Ok(self.read_numbered(n)),
             ParamRef::Indirect(e) => Ok(self.read_numbered(self.indirect(e, span)?)),
             ParamRef::Named(n) => {
-                let name = self.prog.name(n);
+                let name = self.name(n);
                 if let Some(v) = self.system_param(name) {
                     return Ok(v);
                 }

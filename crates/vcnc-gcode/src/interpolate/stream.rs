@@ -22,12 +22,11 @@
 //!   the segments within one braking distance of the last one read — how far a control must look
 //!   ahead — however long the program.
 //! - **Pieces of source.** The source is read about [`StreamOptions::chunk_bytes`] at a time, cut
-//!   at line breaks, parsed ([`ChunkParser`]) and interpreted ([`ChunkInterp`]) a piece at a
-//!   time. A program with O-word statements needs its whole text for the jumps and is refused
-//!   with [`Error::NotStreamable`]; callers then read it whole.
+//!   at line breaks, parsed ([`crate::ChunkParser`]) and interpreted ([`ChunkInterp`]) a piece at a
+//!   time. O-word statements (subroutines, conditions, loops) are indexed as they are first read,
+//!   and a jump back reads the file again from the statement's offset ([`ChunkInterp`]).
 
 use std::collections::VecDeque;
-use std::io::BufRead;
 
 use super::{
     Limits, Move, MoveClass, MoveKind, Piece, Seg, Slowdown, Slowed, Trap, central_rates,
@@ -35,24 +34,24 @@ use super::{
     output_axes, samples_for, segment, single,
 };
 use crate::diag::{Diagnostic, Span};
-use crate::interp::ChunkInterp;
-use crate::syntax::{ChunkParser, ParseOptions};
+use crate::interp::{ChunkInterp, ProgramRead};
 use crate::{AxisName, Error, InterpOptions, InterpolateOptions};
 
-/// Where a streamed program comes from; it is read twice ([module doc](self)).
+/// Where a streamed program comes from; it is read twice ([module doc](self)), and read again
+/// from earlier offsets where O-word statements jump back.
 pub trait ProgramSource {
     /// A reader at the start of the program.
-    fn open(&self) -> std::io::Result<Box<dyn BufRead + '_>>;
+    fn open(&self) -> std::io::Result<Box<dyn ProgramRead + '_>>;
 }
 
 impl ProgramSource for str {
-    fn open(&self) -> std::io::Result<Box<dyn BufRead + '_>> {
-        Ok(Box::new(self.as_bytes()))
+    fn open(&self) -> std::io::Result<Box<dyn ProgramRead + '_>> {
+        Ok(Box::new(std::io::Cursor::new(self.as_bytes())))
     }
 }
 
 impl ProgramSource for std::path::Path {
-    fn open(&self) -> std::io::Result<Box<dyn BufRead + '_>> {
+    fn open(&self) -> std::io::Result<Box<dyn ProgramRead + '_>> {
         Ok(Box::new(std::io::BufReader::with_capacity(
             1 << 16,
             std::fs::File::open(self)?,
@@ -169,8 +168,8 @@ struct Decisions {
 
 /// First pass: parse, interpret and plan `src` without sampling ([module doc](self)).
 ///
-/// Errors are those of [`crate::load`] (the first piece with an error ends the pass, with its
-/// diagnostics), [`Error::NotStreamable`] for a program with O-words and [`Error::Read`].
+/// Errors are those of [`crate::load`] (a program with errors gives all its diagnostics, as
+/// there) and [`Error::Read`].
 pub fn plan(
     src: &(impl ProgramSource + ?Sized),
     interp: &InterpOptions,
@@ -297,105 +296,54 @@ struct SourceRun {
 }
 
 /// Read, parse and interpret `src` a piece at a time, feeding the moves to `planner`.
+///
+/// As [`crate::load`], a program with errors gives every diagnostic: the moves stop going to the
+/// planner at the first error, and the interpreter runs on to the end. A planner error is
+/// returned only for a program without errors (the whole-program path interprets before it
+/// interpolates).
 fn run_source<E>(
     src: &(impl ProgramSource + ?Sized),
     interp_opts: &InterpOptions,
     stream: &StreamOptions,
     planner: &mut Planner<'_, '_, E>,
 ) -> Result<SourceRun, Error> {
-    let read_err = |e: std::io::Error| Error::Read {
+    let reader = src.open().map_err(|e| Error::Read {
         message: e.to_string(),
-    };
-    let mut reader = src.open().map_err(read_err)?;
-    let parse_opts = ParseOptions {
-        lenient: interp_opts.lenient,
-        // Pieces bound the memory; the block count does not matter here.
-        max_blocks: usize::MAX,
-        ..ParseOptions::default()
-    };
-    let mut parser = ChunkParser::new(&parse_opts);
-    let mut interp = ChunkInterp::new(interp_opts);
-    let mut buf: Vec<u8> = Vec::with_capacity(stream.chunk_bytes + 4096);
+    })?;
+    let mut interp = ChunkInterp::new(reader, interp_opts, stream.chunk_bytes);
     let mut moves = 0usize;
-    let mut failed = false;
+    let mut planned: Result<(), Error> = Ok(());
+    let mut out = Vec::new();
     loop {
-        buf.clear();
-        // Whole lines up to about chunk_bytes.
-        while buf.len() < stream.chunk_bytes {
-            let n = reader.read_until(b'\n', &mut buf).map_err(read_err)?;
-            if n == 0 {
-                break;
+        out.clear();
+        let more = interp.next_moves(&mut out)?;
+        // Until the first error of the program or of the planner.
+        if planned.is_ok() && !interp.has_errors() {
+            moves += out.len();
+            for m in out.drain(..) {
+                if let Err(e) = planner.push(m) {
+                    planned = Err(e);
+                    break;
+                }
             }
         }
-        if buf.is_empty() {
+        if !more {
             break;
         }
-        let text = String::from_utf8_lossy(&buf);
-        let prog = parser.parse_chunk(&text);
-        drop(text);
-        if parser.has_errors() {
-            // Report every parse error of the program, as a whole parse does.
-            return Err(Error::Program {
-                diagnostics: parse_rest(&mut *reader, parser, &mut buf, stream)?,
-            });
-        }
-        let out = interp.run_chunk(&prog)?;
-        if interp.has_errors() {
-            // As a whole-program load: every error of the interpreter, unless the parser finds
-            // one further on (then only the parser's).
-            failed = true;
-            continue;
-        }
-        moves += out.len();
-        for m in out {
-            planner.push(m)?;
-        }
     }
-    let mut diags = parser.finish();
-    match interp.finish() {
-        Ok((tp, warnings)) if !failed => {
-            diags.extend(warnings);
-            moves += tp.moves.len();
-            for m in tp.moves {
-                planner.push(m)?;
-            }
-            planner.finish()?;
-            Ok(SourceRun {
-                warnings: diags,
-                axes_used: tp.axes_used,
-                start: tp.start,
-                moves,
-            })
-        }
-        Ok((_, d)) | Err(d) => {
-            diags.extend(d);
-            Err(Error::Program { diagnostics: diags })
-        }
+    let (tp, diags) = interp.finish()?;
+    planned?;
+    moves += tp.moves.len();
+    for m in tp.moves {
+        planner.push(m)?;
     }
-}
-
-/// Parse the rest of the source only for its diagnostics.
-fn parse_rest(
-    reader: &mut dyn BufRead,
-    mut parser: ChunkParser,
-    buf: &mut Vec<u8>,
-    stream: &StreamOptions,
-) -> Result<Vec<Diagnostic>, Error> {
-    loop {
-        buf.clear();
-        while buf.len() < stream.chunk_bytes {
-            let n = reader.read_until(b'\n', buf).map_err(|e| Error::Read {
-                message: e.to_string(),
-            })?;
-            if n == 0 {
-                break;
-            }
-        }
-        if buf.is_empty() {
-            return Ok(parser.finish());
-        }
-        parser.parse_chunk(&String::from_utf8_lossy(buf));
-    }
+    planner.finish()?;
+    Ok(SourceRun {
+        warnings: diags,
+        axes_used: tp.axes_used,
+        start: tp.start,
+        moves,
+    })
 }
 
 /// The sampling side of the second pass.
