@@ -185,58 +185,17 @@ pub fn realistic_table1() -> vcnc_drive::DriveParams {
     p
 }
 
-/// The X axis of machines/nmv5000-realistic.toml (same values; the drive crate does not read
-/// TOML): the NMV5000 X drive of `nmv5000_axis_design` with a 110 Hz two-mass screw,
-/// Maxwell-slip Stribeck friction, a 1.5 kHz current loop, a linear scale with 10 nm steps and
-/// 20 nm noise, two cycles of dead time, a 1 kHz velocity filter, a 2 ms moving-average nominal
-/// filter and a 2 ms interpolation delay.
+/// The X axis of machines/nmv5000-realistic.toml, read from the file (its drive keys, as
+/// [`machine_drives`] reads them): a two-mass screw (180 Hz first mode), Maxwell-slip Stribeck
+/// friction, a 1.5 kHz current loop, a linear scale with 10 nm steps and 20 nm noise, two cycles
+/// of dead time, a 1 kHz velocity filter, a 2 ms moving-average nominal filter and a 2 ms
+/// interpolation delay.
 pub fn realistic_nmv5000_x() -> vcnc_drive::DriveParams {
-    use vcnc_drive::{
-        Compliance, CurrentLoop, CurrentLoopOrder, Encoder, Feedback, FeedbackSource, Friction,
-        FrictionLocation, ReferenceShaping, ShapingFilter,
-    };
-    let mut p = vcnc_drive::nmv5000_axis_design(vcnc_drive::AxisName::X).expect("X exists");
-    p.encoder = Encoder {
-        resolution: 1e-5,
-        noise_std: 2e-5,
-        seed: 11,
-    };
-    p.compliance = Some(Compliance {
-        j_motor: 0.007,
-        stiffness: None,
-        mode_hz: Some(110.0),
-        damping: None,
-        mode_zeta: Some(0.03),
-        backlash: 0.0,
-    });
-    p.friction = Some(Friction::MaxwellSlip {
-        presliding_displacement: 0.002,
-        elements: 4,
-        static_torque: Some(0.42),
-        stribeck_velocity: Some(2.0),
-        stribeck_exponent: 2.0,
-        coulomb_torque_negative: None,
-        static_torque_negative: None,
-        location: FrictionLocation::Load,
-    });
-    p.current_loop = Some(CurrentLoop {
-        order: CurrentLoopOrder::FirstOrder,
-        bandwidth_hz: Some(1500.0),
-        zeta: None,
-        torque_max: Some(60.0),
-    });
-    p.feedback = Some(Feedback {
-        source: FeedbackSource::Load,
-        dead_time_cycles: 2,
-        velocity_filter_hz: Some(1000.0),
-        motor_resolution: Some(1e-5),
-        motor_noise_std: 0.0,
-    });
-    p.reference = Some(ReferenceShaping {
-        filter: Some(ShapingFilter::MovingAverage { window_s: 0.002 }),
-        interpolation_delay_s: 0.002,
-    });
-    p
+    machine_drives("nmv5000-realistic.toml")
+        .into_iter()
+        .find(|(a, _)| a == "X")
+        .map(|(_, p)| p)
+        .expect("the realistic NMV5000 has an X axis")
 }
 
 /// The drives of a machine file of the repository (`machines/<name>`), X, Y, Z, A, C as the
