@@ -46,7 +46,7 @@ use vcnc_kinematics::nalgebra::Vector3;
 
 pub use error::{Error, Result, Sequence};
 
-use path::{ReferencePath, brute_force_foot, checked};
+use path::{ReferencePath, brute_force_segment, checked};
 
 /// The foot point of one actual sample on the reference path.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -297,28 +297,21 @@ pub fn contour_errors_brute_force(reference: &[Pose], actual: &[Pose]) -> Result
     if actual.is_empty() {
         return Err(Error::Empty(Sequence::Actual));
     }
-    let refs = reference
-        .iter()
-        .enumerate()
-        .map(|(k, pose)| checked(pose, Sequence::Reference, k))
-        .collect::<Result<Vec<_>>>()?;
-    // The knots, to move each polyline foot onto the reference curve as the windowed search
-    // does (the brute force checks the search; the refinement is the same function of the
-    // same polyline foot).
+    // The knots (every pose checked), to move each polyline foot onto the reference curve as
+    // the windowed search does: the brute force checks the search's choice of the polyline
+    // foot; the refinement is the same function of it.
     let path = ReferencePath::new(reference.iter().copied())?;
+    let tips: Vec<Vector3<f64>> = reference.iter().map(|pose| pose.p).collect();
     let mut acc = Accumulator::new(actual.len(), true);
     let per_sample = reference.len().saturating_sub(1).max(1) as u64;
     for (k, pose) in actual.iter().enumerate() {
         let (x, o) = checked(pose, Sequence::Actual, k)?;
-        let Some((polyline_foot, raw)) = brute_force_foot(&refs, &x) else {
+        let Some((seg, t)) = brute_force_segment(&tips, &x) else {
             return Err(Error::Empty(Sequence::Reference));
         };
         acc.evals += per_sample;
-        let foot = match raw {
-            Some((seg, t)) => path.foot(&path.refine(&path.candidate_on_raw(seg, t, &x), &x)),
-            None => polyline_foot,
-        };
-        acc.push(&x, &o, foot);
+        let on_curve = path.refine(&path.candidate_on_raw(seg, t, &x), &x);
+        acc.push(&x, &o, path.foot(&on_curve));
     }
     Ok(acc.finish())
 }

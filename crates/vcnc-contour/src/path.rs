@@ -183,6 +183,14 @@ impl ReferencePath {
         let a = &self.p[s];
         let b = &self.p[s + 1];
         let (t, q, d2) = project(x, a, b);
+        self.candidate(s, t, q, d2)
+    }
+
+    /// The candidate at fraction `t` of piece `s` (point `q`, squared distance `d2`), with its
+    /// path parameter: $u = \text{last}_s + t$, or the first sample of the knot's run when
+    /// $t = 0$.
+    #[inline]
+    fn candidate(&self, s: usize, t: f64, q: Vector3<f64>, d2: f64) -> Candidate {
         let u = if t == 0.0 {
             self.first[s] as f64
         } else {
@@ -201,13 +209,7 @@ impl ReferencePath {
     fn only_knot(&self, x: &Vector3<f64>) -> Option<Candidate> {
         if self.segments() == 0 {
             let q = *self.p.first()?;
-            Some(Candidate {
-                d2: (x - q).norm_squared(),
-                u: 0.0,
-                seg: 0,
-                t: 0.0,
-                q,
-            })
+            Some(self.candidate(0, 0.0, q, (x - q).norm_squared()))
         } else {
             None
         }
@@ -310,17 +312,23 @@ impl ReferencePath {
         }
     }
 
-    /// Tangent of the reference tip curve at knot `i`, mm per knot step.
-    fn tangent(&self, i: usize) -> Vector3<f64> {
-        Self::tangent_of(&self.p, i)
+    /// Piece `s` of the C¹ curve through the knot values `v`: its end values and their
+    /// [`tangent_of`](Self::tangent_of)s, $(v_s, m_s, v_{s+1}, m_{s+1})$.
+    fn piece_of(v: &[Vector3<f64>], s: usize) -> [Vector3<f64>; 4] {
+        [
+            v[s],
+            Self::tangent_of(v, s),
+            v[s + 1],
+            Self::tangent_of(v, s + 1),
+        ]
     }
 
-    /// The reference tip curve on piece `s` (knot `s` → knot `s + 1`) at $\tau \in [0, 1]$: the
-    /// cubic Hermite interpolant with the knots' [`tangent`](Self::tangent)s (Catmull–Rom),
-    /// with its first and second derivatives in $\tau$.
-    fn curve(&self, s: usize, tau: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
-        let (p0, p1) = (&self.p[s], &self.p[s + 1]);
-        let (m0, m1) = (self.tangent(s), self.tangent(s + 1));
+    /// The cubic Hermite interpolant of a piece `[v0, m0, v1, m1]` ([`piece_of`](Self::piece_of))
+    /// at $\tau \in [0, 1]$, with its first and second derivatives in $\tau$: on the knots'
+    /// tips, the reference tip curve (Catmull–Rom); on their tool axes, the reference tool axis
+    /// before normalisation.
+    fn hermite(piece: &[Vector3<f64>; 4], tau: f64) -> [Vector3<f64>; 3] {
+        let [p0, m0, p1, m1] = piece;
         let (t, t2) = (tau, tau * tau);
         let t3 = t2 * t;
         let c = p0 * (2.0 * t3 - 3.0 * t2 + 1.0)
@@ -335,7 +343,7 @@ impl ReferencePath {
             + m0 * (6.0 * t - 4.0)
             + p1 * (6.0 - 12.0 * t)
             + m1 * (6.0 * t - 2.0);
-        (c, d1, d2)
+        [c, d1, d2]
     }
 
     /// Whether piece `s` is longer than [`MIN_PIECE_MM`]: a shorter one (a tool rotating about
@@ -354,10 +362,10 @@ impl ReferencePath {
     /// Why: between two reference samples the polyline turns by a finite angle $\theta$ at each
     /// knot, and from inside a bend the nearest polyline point jumps by about
     /// $2 d \tan(\theta/2)$ along the path as the tool passes a knot ($d$ the contour error). The
-    /// reference orientation, taken at the foot, jumps with it: on the spiral, where C turns
-    /// about 3 mrad per sample and the true tip lags up to 0.45 mm, by up to 0.05 mrad from one
-    /// sample to the next. The reference path the control interpolated is smooth; its samples
-    /// are. The curve's foot moves continuously.
+    /// reference orientation, taken at the foot, jumps with it: on the spiral, where the tool
+    /// axis turns up to 1 mrad per sample and the true tip lags up to 0.45 mm, by up to
+    /// 0.05 mrad from one sample to the next. The curve through the samples has no corner at
+    /// each sample, and its foot moves continuously.
     ///
     /// A deterministic function of `c` and `x`, so the windowed search and the brute force,
     /// which find the same polyline foot, refine it to the same bits. Where Newton's method does
@@ -381,10 +389,11 @@ impl ReferencePath {
         if !self.has_length(s) {
             return *c;
         }
+        let mut piece = Self::piece_of(&self.p, s);
         let mut moves = 0;
         let mut converged = false;
         for _ in 0..MAX_NEWTON_STEPS {
-            let (q, d1, d2) = self.curve(s, tau);
+            let [q, d1, d2] = Self::hermite(&piece, tau);
             let r = q - x;
             let f = r.dot(&d1);
             let fp = d1.norm_squared() + r.dot(&d2);
@@ -412,7 +421,9 @@ impl ReferencePath {
             }
             let step = (next - tau).abs();
             tau = next;
-            if !moved && step <= NEWTON_TOLERANCE {
+            if moved {
+                piece = Self::piece_of(&self.p, s);
+            } else if step <= NEWTON_TOLERANCE {
                 converged = true;
                 break;
             }
@@ -420,26 +431,15 @@ impl ReferencePath {
         if !converged {
             return *c;
         }
-        let (q, _, _) = self.curve(s, tau);
+        let [q, _, _] = Self::hermite(&piece, tau);
         let d2 = (x - q).norm_squared();
         // The curve stays within a fraction of a piece of its chord; a foot farther than one
         // piece from the polyline's is not the nearest point being refined.
-        let piece = (self.p[s + 1] - self.p[s]).norm();
-        if d2.is_nan() || d2.sqrt() > c.d2.sqrt() + piece {
+        let length = (self.p[s + 1] - self.p[s]).norm();
+        if d2.is_nan() || d2.sqrt() > c.d2.sqrt() + length {
             return *c;
         }
-        let u = if tau == 0.0 {
-            self.first[s] as f64
-        } else {
-            self.last[s] as f64 + tau
-        };
-        Candidate {
-            d2,
-            u,
-            seg: s,
-            t: tau,
-            q,
-        }
+        self.candidate(s, tau, q, d2)
     }
 
     /// The polyline candidate of a foot the brute force found on the raw reference samples
@@ -452,13 +452,7 @@ impl ReferencePath {
             self.eval(s, x)
         } else {
             let q = self.p[s];
-            Candidate {
-                d2: (x - q).norm_squared(),
-                u: self.first[s] as f64,
-                seg: s,
-                t: 0.0,
-                q,
-            }
+            self.candidate(s, 0.0, q, (x - q).norm_squared())
         }
     }
 
@@ -495,41 +489,23 @@ impl ReferencePath {
         if tau <= 0.0 || tau >= 1.0 || s + 1 >= self.o.len() {
             return None;
         }
-        let (o0, o1) = (&self.o[s], &self.o[s + 1]);
-        let (m0, m1) = (
-            Self::tangent_of(&self.o, s),
-            Self::tangent_of(&self.o, s + 1),
-        );
-        let (t, t2) = (tau, tau * tau);
-        let t3 = t2 * t;
-        let v = o0 * (2.0 * t3 - 3.0 * t2 + 1.0)
-            + m0 * (t3 - 2.0 * t2 + t)
-            + o1 * (3.0 * t2 - 2.0 * t3)
-            + m1 * (t3 - t2);
+        let [v, _, _] = Self::hermite(&Self::piece_of(&self.o, s), tau);
         let n = v.norm();
         (n > 1e-6).then(|| v / n)
     }
 }
 
-/// Brute-force oracle over the raw reference samples (no merging of rests): every segment
-/// $k \to k+1$ with $u = k + t$, the same projection, interpolation and tie rule.
-pub(crate) fn brute_force_foot(
-    reference: &[(Vector3<f64>, Vector3<f64>)],
-    x: &Vector3<f64>,
-) -> Option<(Foot, Option<(usize, f64)>)> {
-    let (p0, o0) = reference.first()?;
-    if reference.len() == 1 {
-        let foot = Foot {
-            u: 0.0,
-            point: *p0,
-            orientation: *o0,
-        };
-        return Some((foot, None));
+/// Brute-force oracle over the raw reference tips (no merging of rests): the nearest point of
+/// every segment $k \to k+1$ with $u = k + t$, the same projection and tie rule as the
+/// windowed search; returned as the segment and fraction `(k, t)` (`(0, 0.0)` for a single
+/// sample, `None` for none), for [`ReferencePath::candidate_on_raw`].
+pub(crate) fn brute_force_segment(tips: &[Vector3<f64>], x: &Vector3<f64>) -> Option<(usize, f64)> {
+    if tips.len() == 1 {
+        return Some((0, 0.0));
     }
-    let mut best: Option<(Candidate, usize)> = None;
-    for (k, w) in reference.windows(2).enumerate() {
-        let [(pa, _), (pb, _)] = w else { continue };
-        let (t, q, d2) = project(x, pa, pb);
+    let mut best: Option<Candidate> = None;
+    for (k, w) in tips.windows(2).enumerate() {
+        let (t, q, d2) = project(x, &w[0], &w[1]);
         let c = Candidate {
             d2,
             u: k as f64 + t,
@@ -537,16 +513,9 @@ pub(crate) fn brute_force_foot(
             t,
             q,
         };
-        if best.as_ref().is_none_or(|(b, _)| c.better_than(b)) {
-            best = Some((c, k));
+        if best.as_ref().is_none_or(|b| c.better_than(b)) {
+            best = Some(c);
         }
     }
-    let (c, k) = best?;
-    let (oa, ob) = (&reference.get(k)?.1, &reference.get(k + 1)?.1);
-    let foot = Foot {
-        u: c.u,
-        point: c.q,
-        orientation: nlerp(oa, ob, c.t),
-    };
-    Some((foot, Some((k, c.t))))
+    best.map(|c| (c.seg, c.t))
 }

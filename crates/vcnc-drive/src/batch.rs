@@ -108,16 +108,7 @@ fn run_group(
     let n_sub = drives[0].ticks_per_sample(ts).ok()?;
     let h = ts / n_sub as f64;
     let mut traces: Vec<DriveTrace> = (0..group.len())
-        .map(|_| DriveTrace {
-            ts,
-            position: Vec::with_capacity(n),
-            true_position: Vec::with_capacity(n),
-            velocity: Vec::with_capacity(n),
-            control: Vec::with_capacity(n),
-            saturated_ticks: 0,
-            motor_position: Vec::with_capacity(n),
-            motor_torque: Vec::with_capacity(n),
-        })
+        .map(|_| DriveTrace::with_capacity(ts, n))
         .collect();
     match real_sim::simulate_lanes(&drives, &references, n_sub, h, &mut traces) {
         Ok(true) => Some(traces),

@@ -1734,17 +1734,7 @@ pub(crate) fn simulate_lanes(
             let ef = lanes::EngineF::of(lane_engines, L::lanes(&laws), lane_readers);
             let mut traces: [DriveTrace; LANES] = std::array::from_fn(|l| {
                 let t = &self.traces[pick(l)];
-                let n = t.position.capacity();
-                DriveTrace {
-                    ts: t.ts,
-                    position: Vec::with_capacity(n),
-                    true_position: Vec::with_capacity(n),
-                    velocity: Vec::with_capacity(n),
-                    control: Vec::with_capacity(n),
-                    saturated_ticks: 0,
-                    motor_position: Vec::with_capacity(n),
-                    motor_torque: Vec::with_capacity(n),
-                }
+                DriveTrace::with_capacity(t.ts, t.position.capacity())
             });
             lanes::run_batch(&ef, &mut inputs, self.n_sub, h, &mut traces)?;
             for (out, t) in self.traces.iter_mut().zip(traces) {

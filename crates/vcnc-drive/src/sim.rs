@@ -83,6 +83,20 @@ pub struct DriveTrace {
 }
 
 impl DriveTrace {
+    /// An empty trace of period `ts` with room for `n` samples in every channel.
+    pub(crate) fn with_capacity(ts: f64, n: usize) -> Self {
+        DriveTrace {
+            ts,
+            position: Vec::with_capacity(n),
+            true_position: Vec::with_capacity(n),
+            velocity: Vec::with_capacity(n),
+            control: Vec::with_capacity(n),
+            saturated_ticks: 0,
+            motor_position: Vec::with_capacity(n),
+            motor_torque: Vec::with_capacity(n),
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.position.len()

@@ -65,19 +65,9 @@ pub fn shifted(x: &[f64], shift_s: f64, ts: f64) -> Vec<f64> {
         ];
         l[0] * at(last - 3) + l[1] * at(last - 2) + l[2] * at(last - 1) + l[3] * at(last)
     };
-    let near_end = |j: i64| n >= 4 && if u == 0.0 { j > last } else { j + 2 > last };
-    if u == 0.0 {
-        return (0..n as i64)
-            .map(|k| {
-                let j = k + m;
-                if near_end(j) {
-                    end_cubic(j, 0.0)
-                } else {
-                    at(j)
-                }
-            })
-            .collect();
-    }
+    // The last node the interior formula reads: x_j itself for a whole number of samples,
+    // x_{j+2} otherwise; from there on the end cubic is used.
+    let reach = if u == 0.0 { 0 } else { 2 };
     let w = [
         -u * (u - 1.0) * (u - 2.0) / 6.0,
         (u + 1.0) * (u - 1.0) * (u - 2.0) / 2.0,
@@ -87,8 +77,10 @@ pub fn shifted(x: &[f64], shift_s: f64, ts: f64) -> Vec<f64> {
     (0..n as i64)
         .map(|k| {
             let j = k + m;
-            if near_end(j) {
+            if n >= 4 && j + reach > last {
                 end_cubic(j, u)
+            } else if u == 0.0 {
+                at(j)
             } else {
                 w[0] * at(j - 1) + w[1] * at(j) + w[2] * at(j + 1) + w[3] * at(j + 2)
             }
