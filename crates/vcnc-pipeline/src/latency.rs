@@ -41,51 +41,150 @@ use crate::Error;
 /// `x` (samples at period `ts`, s) advanced by `shift_s` (s; negative: delayed), by the cubic
 /// Lagrange interpolation of the module documentation (the start held, the end extrapolated by
 /// at most one sample):
-/// $y_k = x(kT_s + \text{shift})$.
+/// $y_k = x(kT_s + \text{shift})$. [`Shifter`] gives the same values, bit for bit, from a signal
+/// that arrives a piece at a time.
 pub fn shifted(x: &[f64], shift_s: f64, ts: f64) -> Vec<f64> {
     let n = x.len();
     if n == 0 || shift_s == 0.0 {
         return x.to_vec();
     }
-    let s = shift_s / ts;
-    let m = s.floor();
-    let u = s - m;
-    let m = m as i64;
+    let shift = Shift::new(shift_s, ts);
     let last = n as i64 - 1;
     let at = |i: i64| x[i.clamp(0, last) as usize];
-    // The cubic through the last four samples at $e$ samples after the fourth-last, $e \le 4$
-    // (one sample past the end).
-    let end_cubic = |j: i64, u: f64| {
-        let e = ((j - (last - 3)) as f64 + u).min(4.0);
-        let l = [
-            -(e - 1.0) * (e - 2.0) * (e - 3.0) / 6.0,
-            e * (e - 2.0) * (e - 3.0) / 2.0,
-            -e * (e - 1.0) * (e - 3.0) / 2.0,
-            e * (e - 1.0) * (e - 2.0) / 6.0,
-        ];
-        l[0] * at(last - 3) + l[1] * at(last - 2) + l[2] * at(last - 1) + l[3] * at(last)
-    };
-    // The last node the interior formula reads: x_j itself for a whole number of samples,
-    // x_{j+2} otherwise; from there on the end cubic is used.
-    let reach = if u == 0.0 { 0 } else { 2 };
-    let w = [
-        -u * (u - 1.0) * (u - 2.0) / 6.0,
-        (u + 1.0) * (u - 1.0) * (u - 2.0) / 2.0,
-        -(u + 1.0) * u * (u - 2.0) / 2.0,
-        (u + 1.0) * u * (u - 1.0) / 6.0,
-    ];
-    (0..n as i64)
-        .map(|k| {
-            let j = k + m;
-            if n >= 4 && j + reach > last {
-                end_cubic(j, u)
-            } else if u == 0.0 {
-                at(j)
-            } else {
-                w[0] * at(j - 1) + w[1] * at(j) + w[2] * at(j + 1) + w[3] * at(j + 2)
-            }
-        })
-        .collect()
+    (0..n as i64).map(|k| shift.value(k, last, at)).collect()
+}
+
+/// The shift by $m + u$ samples of the module documentation: what one output sample needs.
+#[derive(Debug, Clone, Copy)]
+struct Shift {
+    /// Whole samples.
+    m: i64,
+    /// Fraction of a sample, `0 <= u < 1`.
+    u: f64,
+    /// The last node the interior formula reads, after $x_{k+m}$: 0 for a whole number of
+    /// samples (an exact copy), 2 otherwise.
+    reach: i64,
+    /// The interior formula's Lagrange weights at `u`.
+    w: [f64; 4],
+}
+
+impl Shift {
+    fn new(shift_s: f64, ts: f64) -> Shift {
+        let s = shift_s / ts;
+        let m = s.floor();
+        let u = s - m;
+        Shift {
+            m: m as i64,
+            u,
+            reach: if u == 0.0 { 0 } else { 2 },
+            w: [
+                -u * (u - 1.0) * (u - 2.0) / 6.0,
+                (u + 1.0) * (u - 1.0) * (u - 2.0) / 2.0,
+                -(u + 1.0) * u * (u - 2.0) / 2.0,
+                (u + 1.0) * u * (u - 1.0) / 6.0,
+            ],
+        }
+    }
+
+    /// Whether output sample `k` is computed by the interior formula whatever the signal's
+    /// length, given that samples up to `known` are known: everything it reads is known.
+    fn interior(&self, k: i64, known: i64) -> bool {
+        k + self.m + self.reach <= known
+    }
+
+    /// Output sample `k` of a signal whose last sample is `last` (`at(i)`: sample `i`, clamped
+    /// to `0..=last`).
+    #[inline]
+    fn value(&self, k: i64, last: i64, at: impl Fn(i64) -> f64) -> f64 {
+        let (u, w) = (self.u, &self.w);
+        let j = k + self.m;
+        if last >= 3 && j + self.reach > last {
+            // The cubic through the last four samples at $e$ samples after the fourth-last,
+            // $e \le 4$ (one sample past the end).
+            let e = ((j - (last - 3)) as f64 + u).min(4.0);
+            let l = [
+                -(e - 1.0) * (e - 2.0) * (e - 3.0) / 6.0,
+                e * (e - 2.0) * (e - 3.0) / 2.0,
+                -e * (e - 1.0) * (e - 3.0) / 2.0,
+                e * (e - 1.0) * (e - 2.0) / 6.0,
+            ];
+            l[0] * at(last - 3) + l[1] * at(last - 2) + l[2] * at(last - 1) + l[3] * at(last)
+        } else if u == 0.0 {
+            at(j)
+        } else {
+            w[0] * at(j - 1) + w[1] * at(j) + w[2] * at(j + 1) + w[3] * at(j + 2)
+        }
+    }
+}
+
+/// [`shifted`] of a signal that arrives a piece at a time (a streamed prediction,
+/// docs/performance.md): the same values bit for bit, each given out as soon as the samples it
+/// reads have arrived — $m + 2$ samples after its own for a shift of $m + u$ samples, the last
+/// ones at [`Shifter::finish`]. It holds a few samples, never the signal.
+#[derive(Debug, Clone)]
+pub struct Shifter {
+    /// `None`: no shift (samples pass through).
+    shift: Option<Shift>,
+    /// Samples `base..base + buf.len()` of the input.
+    buf: std::collections::VecDeque<f64>,
+    base: i64,
+    /// Samples received.
+    received: i64,
+    /// The next output sample.
+    next: i64,
+}
+
+impl Shifter {
+    /// A shifter by `shift_s` (s) of samples at period `ts` (s).
+    pub fn new(shift_s: f64, ts: f64) -> Shifter {
+        Shifter {
+            shift: (shift_s != 0.0).then(|| Shift::new(shift_s, ts)),
+            buf: std::collections::VecDeque::new(),
+            base: 0,
+            received: 0,
+            next: 0,
+        }
+    }
+
+    /// Takes the next samples of the signal and appends to `out` every output sample that is
+    /// now known.
+    pub fn feed(&mut self, x: &[f64], out: &mut Vec<f64>) {
+        let Some(shift) = self.shift else {
+            out.extend_from_slice(x);
+            self.received += x.len() as i64;
+            return;
+        };
+        self.buf.extend(x);
+        self.received += x.len() as i64;
+        let known = self.received - 1;
+        while self.next < self.received && shift.interior(self.next, known) {
+            let (buf, base) = (&self.buf, self.base);
+            out.push(shift.value(self.next, known, |i| {
+                buf[(i.clamp(0, known) - base) as usize]
+            }));
+            self.next += 1;
+        }
+        // Keep what later samples read: from the next one's first node, and the last four
+        // (the end's cubic).
+        let keep_from = (self.next + shift.m - 1).min(self.received - 4).max(0);
+        while self.base < keep_from {
+            self.buf.pop_front();
+            self.base += 1;
+        }
+    }
+
+    /// The signal has ended: appends the remaining output samples to `out`.
+    pub fn finish(mut self, out: &mut Vec<f64>) {
+        let Some(shift) = self.shift else {
+            return;
+        };
+        let last = self.received - 1;
+        let (buf, base) = (&self.buf, self.base);
+        while self.next < self.received {
+            out.push(shift.value(self.next, last, |i| buf[(i.clamp(0, last) - base) as usize]));
+            self.next += 1;
+        }
+    }
 }
 
 /// The bound of the shift's interpolation error for a signal whose fourth derivative is at most
@@ -203,6 +302,39 @@ mod tests {
         }
         let flat = shifted(&[3.0; 7], 0.6e-3, 1e-3);
         assert!(flat.iter().all(|v| (v - 3.0).abs() < 1e-15), "{flat:?}");
+    }
+
+    #[test]
+    fn the_shifter_gives_the_whole_signal_shift_bit_for_bit_for_any_pieces() {
+        // Truth: `shifted` over the whole signal. Lengths from 1 sample (start and end rules
+        // at once) to several hundred; shifts whole, fractional, over several samples, and
+        // negative; pieces of 1, 2, 7 samples, the whole, and irregular ones.
+        let signal = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|k| (0.37 * k as f64).sin() * 5.0 + 1e-3 * (k * k) as f64)
+                .collect()
+        };
+        let splits: [&[usize]; 5] = [&[1], &[2], &[7], &[usize::MAX], &[3, 1, 11, 2, 29, 5]];
+        for n in [1, 2, 3, 4, 5, 9, 300] {
+            let x = signal(n);
+            for tau in [0.0, 1e-4, 1e-3, 2.5e-3, 7.3e-3, -1.6e-3] {
+                let want = shifted(&x, tau, 1e-3);
+                for split in splits {
+                    let mut sh = Shifter::new(tau, 1e-3);
+                    let mut got = Vec::new();
+                    let (mut at, mut i) = (0, 0);
+                    while at < n {
+                        let len = split[i % split.len()].min(n - at);
+                        sh.feed(&x[at..at + len], &mut got);
+                        at += len;
+                        i += 1;
+                    }
+                    sh.finish(&mut got);
+                    let bits = |v: &[f64]| v.iter().map(|y| y.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&got), bits(&want), "n {n}, tau {tau}, split {split:?}");
+                }
+            }
+        }
     }
 
     #[test]
