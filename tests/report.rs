@@ -193,6 +193,48 @@ fn every_computing_command_writes_a_report_that_vcnc_report_rebuilds() {
         "no block line marked"
     );
 
+    // Streamed (docs/performance.md#streamed-prediction): the same table and summary byte for
+    // byte, the errors against time drawn from their envelopes.
+    ok(&vcnc(&[
+        "-q",
+        "predict",
+        "machines/nmv5000.toml",
+        &s(&prog),
+        "--stream",
+        "--out",
+        &s(&d("predict-stream")),
+    ]));
+    check_folder(&d("predict-stream"), &["contour_error.svg"]);
+    for f in ["contour.csv", "summary.json"] {
+        let read = |dir: &str| std::fs::read(d(dir).join(f)).unwrap();
+        assert!(
+            read("predict") == read("predict-stream"),
+            "{f} differs when streamed"
+        );
+    }
+
+    for (dir, extra) in [("simulate", None), ("simulate-stream", Some("--stream"))] {
+        let mut args = vec![
+            "-q".to_string(),
+            "simulate".into(),
+            "machines/nmv5000-realistic.toml".into(),
+            s(&prog),
+            "--out".into(),
+            s(&d(dir)),
+        ];
+        args.extend(extra.map(String::from));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&vcnc(&args));
+    }
+    check_folder(&d("simulate-stream"), &["tracking.svg"]);
+    for f in ["trace.csv", "summary.json"] {
+        let read = |dir: &str| std::fs::read(d(dir).join(f)).unwrap();
+        assert!(
+            read("simulate") == read("simulate-stream"),
+            "{f} differs when streamed"
+        );
+    }
+
     let set1 = "axes.X.controller.vff=0.3,0.5,0.7";
     ok(&vcnc(&[
         "-q",

@@ -63,6 +63,11 @@ pub enum Command {
         /// Output folder (trace.csv, summary.json, tracking.svg).
         #[arg(long, default_value = "vcnc-simulate")]
         out: PathBuf,
+        /// Stream the run (bounded memory, `tracking.svg` from min/max envelopes; the same
+        /// table and summary bit for bit). Programs over 8 MiB are always streamed
+        /// (docs/performance.md).
+        #[arg(long)]
+        stream: bool,
         #[command(flatten)]
         table: TableArgs,
     },
@@ -83,6 +88,11 @@ pub enum Command {
         /// the feed moves (G1 G2 G3, cycles' feed parts): what is cut.
         #[arg(long)]
         include_rapids: bool,
+        /// Stream the run (bounded memory, figures from min/max envelopes; the same table and
+        /// statistics bit for bit). Programs over 8 MiB are always streamed
+        /// (docs/performance.md).
+        #[arg(long)]
+        stream: bool,
         #[command(flatten)]
         table: TableArgs,
     },

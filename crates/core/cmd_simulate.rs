@@ -161,16 +161,25 @@ fn interpolate_streamed(
     Ok(())
 }
 
-/// `vcnc simulate MACHINE PROGRAM [--model MODEL] --out DIR`: `trace.csv` and `summary.json`.
+/// `vcnc simulate MACHINE PROGRAM [--model MODEL] --out DIR`: `trace.csv` and `summary.json`;
+/// streamed with `stream` or for a program over
+/// [`crate::cmd_predict::STREAM_ABOVE_BYTES`] (docs/performance.md).
+#[allow(clippy::too_many_arguments)]
 pub fn simulate(
     machine_path: &Path,
     program: &Path,
     model: Option<&Path>,
     out: &Path,
     table: &TableOptions,
+    stream: bool,
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
+    let large = std::fs::metadata(program)
+        .is_ok_and(|m| m.len() > crate::cmd_predict::STREAM_ABOVE_BYTES);
+    if stream || large {
+        return simulate_streamed(machine_path, &machine, program, model, out, table, ctx);
+    }
     let run = run::prepare_file(&machine, program, ctx.lenient)?;
     print_warnings(&run.warnings);
     let models = match model {
@@ -183,15 +192,13 @@ pub fn simulate(
     let sim = simulate::simulate(&machine, &run, models.as_ref().map(|m| m.1.as_slice()))?;
     ensure_dir(out)?;
     let t = run.times();
-    let mut header = vec!["t".to_string()];
+    let names: Vec<String> = run.axes.iter().map(|a| a.name.to_string()).collect();
+    let header = trace_header(&names, sim.predicted.is_some());
     let mut cols: Vec<&[f64]> = vec![&t];
     for (i, (a, tr)) in run.axes.iter().zip(&sim.traces).enumerate() {
-        header.push(format!("{}_ref", a.name));
-        header.push(format!("{}_act", a.name));
         cols.push(&a.pos);
         cols.push(&tr.position);
         if let Some(p) = &sim.predicted {
-            header.push(format!("{}_model", a.name));
             cols.push(&p[i]);
         }
     }
@@ -261,6 +268,164 @@ pub fn simulate(
         }
         print!("{}", text_table(&header, &rows));
         println!("-> {}", out.display());
+    }
+    Ok(())
+}
+
+/// The columns of `trace.csv`: `t`, then per axis `<A>_ref`, `<A>_act` and, with models,
+/// `<A>_model`.
+fn trace_header(names: &[String], models: bool) -> Vec<String> {
+    let mut header = vec!["t".to_string()];
+    for a in names {
+        header.push(format!("{a}_ref"));
+        header.push(format!("{a}_act"));
+        if models {
+            header.push(format!("{a}_model"));
+        }
+    }
+    header
+}
+
+/// `vcnc simulate` streamed (docs/performance.md, "Streamed prediction"): `trace.csv` written a
+/// piece at a time, the summary's tracking figures accumulated on the way (bit for bit the
+/// whole run's), and `tracking.svg` drawn from min/max envelopes.
+#[allow(clippy::too_many_arguments)]
+fn simulate_streamed(
+    machine_path: &Path,
+    machine: &Machine,
+    program: &Path,
+    model: Option<&Path>,
+    out: &Path,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> Result<()> {
+    use vcnc_pipeline::stream::Envelope;
+    let stream = vcnc_pipeline::stream::plan_file(
+        machine,
+        program,
+        ctx.lenient,
+        &vcnc_gcode::StreamOptions::default(),
+    )?;
+    print_warnings(&stream.warnings);
+    let models = match model {
+        Some(p) => Some((
+            p.display().to_string(),
+            ModelSet::load(p)?.for_machine(machine, &p.display().to_string())?,
+        )),
+        None => None,
+    };
+    ensure_dir(out)?;
+    let n = stream.len();
+    let ts = stream.plan.ts;
+    let names: Vec<String> = machine.axes.iter().map(|a| a.name.to_string()).collect();
+    let header = trace_header(&names, models.is_some());
+    let mut writer = crate::sink::TableWriter::create_sized(out, "trace", header, table, Some(n))?;
+    let axes = machine.axes.len();
+    let mut env_true: Vec<Envelope> = (0..axes).map(|_| Envelope::new(n, 2000)).collect();
+    let mut env_model: Vec<Envelope> = (0..axes).map(|_| Envelope::new(n, 2000)).collect();
+    let mut t = Vec::new();
+    let mut scratch = Vec::new();
+    let mut write_err: Option<anyhow::Error> = None;
+    let result = vcnc_pipeline::stream_simulate::simulate_streamed(
+        machine,
+        &stream,
+        program,
+        models.as_ref().map(|m| m.1.as_slice()),
+        &mut |p| {
+            t.clear();
+            t.extend((p.first..p.first + p.len()).map(|k| k as f64 * ts));
+            let mut cols: Vec<&[f64]> = vec![&t];
+            for (i, a) in machine.axes.iter().enumerate() {
+                cols.push(&p.reference[i]);
+                cols.push(&p.traces[i].position);
+                let k = a.unit.micro_factor();
+                scratch.clear();
+                scratch.extend(
+                    p.reference[i]
+                        .iter()
+                        .zip(&p.traces[i].position)
+                        .map(|(r, x)| (r - x) * k),
+                );
+                env_true[i].add(p.first, &scratch);
+                if let Some(pred) = &p.predicted {
+                    cols.push(&pred[i]);
+                    scratch.clear();
+                    scratch.extend(p.reference[i].iter().zip(&pred[i]).map(|(r, x)| (r - x) * k));
+                    env_model[i].add(p.first, &scratch);
+                }
+            }
+            if let Err(e) = writer.write(&cols) {
+                write_err = Some(e);
+                return Err(vcnc_pipeline::Error::Usage(
+                    "the table could not be written".into(),
+                ));
+            }
+            Ok(())
+        },
+    );
+    if let Some(e) = write_err {
+        return Err(e);
+    }
+    let sim = result?;
+    let table_path = writer.finish()?;
+    print_warnings(&sim.stats.warnings);
+    let summary = simulate::simulate_summary_of(
+        machine,
+        (&stream.file, n, stream.duration_s()),
+        &sim.tracking,
+        models.as_ref().map(|(f, m)| (f.as_str(), m.as_slice())),
+    );
+    write_json(&out.join("summary.json"), &summary)?;
+    let mut warnings = stream.warnings.clone();
+    warnings.extend(sim.stats.warnings.iter().cloned());
+    let info = crate::writers::RunInfo {
+        file: &stream.file,
+        samples: n,
+        duration_s: stream.duration_s(),
+        ts,
+        warnings: &warnings,
+    };
+    let mut report = crate::writers::run_report_info(
+        out,
+        "simulate",
+        machine_path,
+        machine,
+        &info,
+        models.as_ref().map(|(f, _)| f.as_str()),
+        table,
+        ctx,
+    );
+    let true_lines: Vec<(Vec<f64>, Vec<f64>)> = env_true.iter().map(|e| e.polyline(ts)).collect();
+    let model_lines: Vec<(Vec<f64>, Vec<f64>)> =
+        env_model.iter().map(|e| e.polyline(ts)).collect();
+    let figure_axes: Vec<figures::StreamedAxis<'_>> = machine
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| figures::StreamedAxis {
+            name: a.name,
+            unit: a.unit,
+            moved: sim.stats.moved[i],
+            truth: (&true_lines[i].0, &true_lines[i].1),
+            model: models
+                .is_some()
+                .then(|| (model_lines[i].0.as_slice(), model_lines[i].1.as_slice())),
+        })
+        .collect();
+    figures::simulation_tracking_streamed(&mut report, &stream.file, &figure_axes)?;
+    report_table_file(
+        &mut report,
+        &table_path,
+        "per sample: t and per axis the reference, the true drive's encoder reading and, with \
+         --model, the model's position (docs/cli.md)",
+    );
+    report.finish()?;
+    if !ctx.quiet {
+        println!(
+            "{}: {n} samples simulated streamed -> {}",
+            program.display(),
+            out.display()
+        );
     }
     Ok(())
 }

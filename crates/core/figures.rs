@@ -833,3 +833,132 @@ pub fn sweep(report: &mut RunReport, keys: &[String], outcome: &SweepOutcome) ->
         }
     }
 }
+
+/// The envelopes of a streamed prediction's errors (min and max per time bucket, so no spike is
+/// lost), as polylines `(t, value)`: tool tip µm and orientation mrad, of the true machine, of
+/// the models and of |models − true machine|.
+pub struct StreamedErrors {
+    /// True machine, tool tip, µm.
+    pub true_tip: (Vec<f64>, Vec<f64>),
+    /// Models, tool tip, µm.
+    pub predicted_tip: (Vec<f64>, Vec<f64>),
+    /// |models − true machine|, tool tip, µm.
+    pub discrepancy_tip: (Vec<f64>, Vec<f64>),
+    /// True machine, orientation, mrad.
+    pub true_orientation: (Vec<f64>, Vec<f64>),
+    /// Models, orientation, mrad.
+    pub predicted_orientation: (Vec<f64>, Vec<f64>),
+    /// |models − true machine|, orientation, mrad.
+    pub discrepancy_orientation: (Vec<f64>, Vec<f64>),
+}
+
+/// `contour_error.svg` of a streamed prediction: the errors against time, each drawn from its
+/// min/max envelope per pixel column (every extreme kept).
+pub fn prediction_streamed(report: &mut RunReport, file: &str, e: &StreamedErrors) -> Result<()> {
+    let line = |label: &'static str, role: Role, s: &'_ (Vec<f64>, Vec<f64>)| {
+        Series::line(label, role, &s.0, &s.1)
+    };
+    let panels = vec![
+        vr::Panel::new(
+            Axis::linear("tool-tip contour error", units::UM),
+            vec![
+                line(TRUE_MACHINE, Role::TrueMachine, &e.true_tip),
+                line(VCNC_MODEL, Role::Model, &e.predicted_tip),
+            ],
+        ),
+        vr::Panel::new(
+            Axis::linear("|model − true machine|, tool tip", units::UM),
+            vec![line(VCNC_MODEL, Role::Model, &e.discrepancy_tip)],
+        ),
+        vr::Panel::new(
+            Axis::linear("orientation contour error", "mrad"),
+            vec![
+                line(TRUE_MACHINE, Role::TrueMachine, &e.true_orientation),
+                line(VCNC_MODEL, Role::Model, &e.predicted_orientation),
+            ],
+        ),
+        vr::Panel::new(
+            Axis::linear("|model − true machine|, orientation", "mrad"),
+            vec![line(VCNC_MODEL, Role::Model, &e.discrepancy_orientation)],
+        ),
+    ];
+    let fig = vr::LineFigure::new(
+        format!("{}: contour and orientation errors", program_name(file)),
+        Axis::linear("time t", units::S),
+        panels,
+    );
+    report.figure(
+        "contour_error.svg",
+        vr::line_figure(&fig),
+        "Tool-tip contour error (µm) and tool-orientation error (mrad) against time, of the true \
+         machine and as predicted by the vcnc model, and model − true machine under each. The \
+         program was predicted streamed (docs/performance.md): each curve is the minimum and \
+         maximum of its samples in each of about 2 000 time buckets, so no spike is lost; the \
+         table holds every sample.",
+        section::CONTOUR,
+    )
+}
+
+/// One axis of a streamed simulation's tracking figure: min/max envelopes over time of its
+/// tracking error (and the model's), µm or mdeg.
+pub struct StreamedAxis<'a> {
+    /// The axis.
+    pub name: vcnc_gcode::AxisName,
+    /// mm or deg.
+    pub unit: vcnc_machine::Unit,
+    /// The program moves it (else it is listed, not drawn).
+    pub moved: bool,
+    /// The true drive's tracking error envelope `(t, value)`.
+    pub truth: (&'a [f64], &'a [f64]),
+    /// The model's, when simulated.
+    pub model: Option<(&'a [f64], &'a [f64])>,
+}
+
+/// `tracking.svg` of a streamed simulation: per moved axis the tracking error x_r − x of the
+/// true drive (encoder reading) and of the model, each from its min/max envelope over time.
+pub fn simulation_tracking_streamed(
+    report: &mut RunReport,
+    file: &str,
+    axes: &[StreamedAxis<'_>],
+) -> Result<()> {
+    let (moved, still): (Vec<_>, Vec<_>) = axes.iter().partition(|a| a.moved);
+    let panels: Vec<vr::Panel> = moved
+        .iter()
+        .map(|a| {
+            let mut series = vec![Series::line(
+                TRUE_MACHINE,
+                Role::TrueMachine,
+                a.truth.0,
+                a.truth.1,
+            )];
+            if let Some((t, v)) = a.model {
+                series.push(Series::line(VCNC_MODEL, Role::Model, t, v));
+            }
+            vr::Panel::new(
+                Axis::linear(
+                    format!("axis {} x_r − x", a.name),
+                    vr::style::error_unit(a.unit),
+                ),
+                series,
+            )
+        })
+        .collect();
+    let mut fig = vr::LineFigure::new(
+        format!("{}: tracking errors x_r − x per axis", program_name(file)),
+        Axis::linear("time t", units::S),
+        panels,
+    );
+    if !still.is_empty() {
+        let names: Vec<&str> = still.iter().map(|a| a.name.as_str()).collect();
+        fig.note = format!("not moved by the program, not shown: {}", names.join(", "));
+    }
+    report.figure(
+        "tracking.svg",
+        vr::line_figure(&fig),
+        "Tracking error x_r − x of each axis the program moves: the true drive (encoder reading) \
+         and, when given, the model. The program was simulated streamed (docs/performance.md): \
+         each curve is the minimum and maximum of its samples in each of about 2 000 time \
+         buckets, so no spike is lost; the table holds every sample.",
+        section::TRACKING,
+    )
+}

@@ -127,6 +127,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             program,
             model,
             out,
+            stream,
             table,
         } => cmd_simulate::simulate(
             &machine,
@@ -134,6 +135,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             model.as_deref(),
             &out,
             &table.options(),
+            stream,
             ctx,
         ),
         Command::Predict {
@@ -142,6 +144,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             model,
             out,
             include_rapids,
+            stream,
             table,
         } => cmd_predict::predict(
             &machine,
@@ -154,6 +157,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
                 vcnc_pipeline::run::Measured::Feed
             },
             &table.options(),
+            stream,
             ctx,
         ),
         Command::Compensate(args) => cmd_compensate::compensate(&args, ctx),

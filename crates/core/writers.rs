@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::Machine;
+use vcnc_pipeline::stream_predict::PredictPiece;
 use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
 use vcnc_pipeline::predict::poses_at;
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
@@ -279,27 +280,8 @@ pub fn write_contour_table(
     opts: &TableOptions,
 ) -> Result<PathBuf> {
     let n = run.len();
-    let mut header = vec!["t".to_string(), "line".to_string()];
-    for a in &run.axes {
-        header.push(format!("{}_ref", a.name));
-        header.push(format!("{}_true", a.name));
-        header.push(format!("{}_pred", a.name));
-    }
-    let names = ["px", "py", "pz", "ox", "oy", "oz"];
-    for prefix in ["ref", "true", "pred"] {
-        for nm in names {
-            header.push(format!("{prefix}_{nm}"));
-        }
-    }
-    header.extend(
-        [
-            "true_contour_um",
-            "pred_contour_um",
-            "true_orientation_mrad",
-            "pred_orientation_mrad",
-        ]
-        .map(String::from),
-    );
+    let names: Vec<String> = run.axes.iter().map(|a| a.name.to_string()).collect();
+    let header = contour_header(&names);
     let axis_cols: Vec<[&[f64]; 3]> = run
         .axes
         .iter()
@@ -363,6 +345,67 @@ pub fn write_contour_table(
         return Err(e.into());
     }
     path
+}
+
+/// Columns of `contour.csv` (axes named `names`, in machine order): `t`, `line`, per axis its
+/// reference, true and predicted positions, the reference, true and predicted poses, and the
+/// four errors (µm, mrad).
+pub fn contour_header(names: &[String]) -> Vec<String> {
+    let mut header = vec!["t".to_string(), "line".to_string()];
+    for a in names {
+        header.push(format!("{a}_ref"));
+        header.push(format!("{a}_true"));
+        header.push(format!("{a}_pred"));
+    }
+    let pose = ["px", "py", "pz", "ox", "oy", "oz"];
+    for prefix in ["ref", "true", "pred"] {
+        for nm in pose {
+            header.push(format!("{prefix}_{nm}"));
+        }
+    }
+    header.extend(
+        [
+            "true_contour_um",
+            "pred_contour_um",
+            "true_orientation_mrad",
+            "pred_orientation_mrad",
+        ]
+        .map(String::from),
+    );
+    header
+}
+
+/// The columns of [`contour_header`] for a piece of a streamed prediction (sample period
+/// `ts`), into `cols` (one buffer per column, cleared first): the values
+/// [`write_contour_table`] writes for those samples.
+pub fn contour_columns(p: &PredictPiece, ts: f64, cols: &mut [Vec<f64>]) {
+    cols.iter_mut().for_each(Vec::clear);
+    let mut c = cols.iter_mut();
+    let mut next = || c.next().expect("one buffer per header column");
+    next().extend((p.first..p.first + p.len()).map(|k| k as f64 * ts));
+    next().extend(p.lines.iter().map(|l| f64::from(*l)));
+    for i in 0..p.reference.len() {
+        for s in [&p.reference[i], &p.truth[i], &p.predicted[i]] {
+            next().extend_from_slice(s);
+        }
+    }
+    for poses in [&p.reference_poses, &p.true_poses, &p.predicted_poses] {
+        for i in 0..6 {
+            next().extend(
+                poses
+                    .iter()
+                    .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
+            );
+        }
+    }
+    for e in [
+        &p.true_tip_mm,
+        &p.predicted_tip_mm,
+        &p.true_orientation_rad,
+        &p.predicted_orientation_rad,
+    ] {
+        next().extend(e.iter().map(|x| x * 1000.0));
+    }
 }
 
 /// The per-sample table as a report lists it.

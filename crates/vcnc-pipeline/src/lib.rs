@@ -52,6 +52,8 @@ pub mod run;
 pub mod simulate;
 pub mod stats;
 pub mod stream;
+pub mod stream_predict;
+pub mod stream_simulate;
 pub mod summary;
 pub mod sweep;
 pub mod table;

@@ -263,29 +263,64 @@ pub fn simulate_summary(
     tracking: &[AxisTracking],
     models: Option<(&str, &[DriveModel])>,
 ) -> SimulateSummary {
-    let axes = tracking
+    let figures: Vec<AxisFigures> = tracking
         .iter()
+        .map(|t| AxisFigures {
+            tracking: (t.tracking_max, t.tracking_rms),
+            model_vs_true: t.model_vs_true_max.zip(t.model_vs_true_rms),
+        })
+        .collect();
+    simulate_summary_of(
+        machine,
+        (&run.file, run.len(), run.duration_s()),
+        &figures,
+        models,
+    )
+}
+
+/// The tracking figures of one axis, µm or mdeg: max and RMS of the tracking error, and of the
+/// model's departure from the true drive when a model was simulated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisFigures {
+    /// max |x_r − x|, RMS of x_r − x.
+    pub tracking: (f64, f64),
+    /// max |x_model − x|, RMS of x_model − x.
+    pub model_vs_true: Option<(f64, f64)>,
+}
+
+/// [`simulate_summary`] from the figures of each machine axis (`figures`, in machine order) of
+/// the program `(path, samples, duration s)`.
+pub fn simulate_summary_of(
+    machine: &Machine,
+    (program, samples, duration_s): (&str, usize, f64),
+    figures: &[AxisFigures],
+    models: Option<(&str, &[DriveModel])>,
+) -> SimulateSummary {
+    let axes = machine
+        .axes
+        .iter()
+        .zip(figures)
         .enumerate()
-        .map(|(i, t)| {
+        .map(|(i, (axis, f))| {
             (
-                t.axis.to_string(),
+                axis.name.to_string(),
                 SimulateAxisSummary {
-                    unit: t.unit,
-                    tracking: (t.tracking_max, t.tracking_rms),
-                    true_model: ModelSummary::of(&t.true_model),
+                    unit: axis.unit,
+                    tracking: f.tracking,
+                    true_model: ModelSummary::of(&axis.true_model()),
                     model: models.map(|(_, m)| ModelSummary::of_drive(&m[i])),
-                    model_vs_true: t.model_vs_true_max.zip(t.model_vs_true_rms),
-                    controller: t.controller,
+                    model_vs_true: f.model_vs_true,
+                    controller: axis.drive.controller().kind(),
                 },
             )
         })
         .collect();
     SimulateSummary {
         machine: machine.name.clone(),
-        program: run.file.clone(),
+        program: program.to_string(),
         models: models.map(|(f, _)| f.to_string()),
-        samples: run.len(),
-        duration_s: run.duration_s(),
+        samples,
+        duration_s,
         axes,
     }
 }

@@ -44,6 +44,8 @@ pub struct ReferenceChunk {
     pub tip: Option<[Vec<f64>; 3]>,
     /// Per sample: class of its block (`None` without one).
     pub class: Vec<Option<MoveClass>>,
+    /// Per sample: the source line of the block running (0 where none is).
+    pub line: Vec<u32>,
 }
 
 impl ReferenceChunk {
@@ -267,6 +269,8 @@ impl ReferenceStream {
             };
             chunk.class.clear();
             chunk.class.extend_from_slice(&c.class);
+            chunk.line.clear();
+            chunk.line.extend_from_slice(&c.line);
             stats.feed_samples += c
                 .class
                 .iter()

@@ -1,0 +1,560 @@
+//! `vcnc predict` streamed (docs/performance.md, "Streamed prediction"): the reference of a
+//! program of any length goes a piece at a time through the true drives and the models, the
+//! models' actual-value latency, the forward kinematics and the contour searches, and each
+//! piece of finished samples is handed to the caller (who writes it) and dropped, with the
+//! statistics of `summary.json` accumulated on the way. Memory does not grow with the
+//! program's length.
+//!
+//! Every value is the whole-run prediction's ([`crate::predict::predict_releasing_rates`]) bit
+//! for bit: the drives and models are the same simulations made resumable
+//! ([`vcnc_drive::DriveStream`], [`vcnc_drive::ModelStream`]), the latency shift is
+//! [`latency::Shifter`], the contour searches are [`vcnc_contour::ContourStream`], and the
+//! statistics are the same sums in the same order (tested on the spiral and on a long
+//! generated program, `tests/stream_predict.rs`).
+//!
+//! What is held at any time: the samples between the newest reference sample and the oldest
+//! sample not yet finished — the models' latency look-ahead (a few samples) and the contour
+//! searches' look-ahead (the window of the path the search may still move along, about a
+//! piece) — plus per source line of the program its largest errors (for the worst blocks: a
+//! line's samples may recur in loops, so no line can be forgotten; about 50 bytes a line).
+
+use std::collections::{BTreeMap, VecDeque};
+use std::path::Path;
+
+use rayon::prelude::*;
+use vcnc_contour::{ContourStream, SearchWindow, StreamLimits};
+use vcnc_drive::{Channels, DriveModel, DriveTrace, Reference, SimOptions};
+use vcnc_gcode::MoveClass;
+use vcnc_kinematics::Pose;
+use vcnc_machine::Machine;
+
+use crate::predict::{ContourFigures, ContourSummary, Figure, WORST_BLOCKS, WorstBlock};
+use crate::run::Measured;
+use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats};
+use crate::{Error, latency};
+
+/// Finished samples of a streamed prediction, `first..first + len()`: everything a row of
+/// `contour.csv` holds.
+#[derive(Debug, Clone, Default)]
+pub struct PredictPiece {
+    /// Index of the first sample.
+    pub first: usize,
+    /// Per sample: the source line of the block running (0 where none is).
+    pub lines: Vec<u32>,
+    /// Per sample: the kind of move running.
+    pub classes: Vec<Option<MoveClass>>,
+    /// Per machine axis: the reference position, mm or deg.
+    pub reference: Vec<Vec<f64>>,
+    /// Per machine axis: the true drive's (physical) position.
+    pub truth: Vec<Vec<f64>>,
+    /// Per machine axis: the model's position, advanced by the stated latency.
+    pub predicted: Vec<Vec<f64>>,
+    /// Reference tool poses (workpiece frame, mm, unit tool axis).
+    pub reference_poses: Vec<Pose>,
+    /// The true machine's tool poses.
+    pub true_poses: Vec<Pose>,
+    /// The models' tool poses.
+    pub predicted_poses: Vec<Pose>,
+    /// The true machine's tool-tip contour error, mm.
+    pub true_tip_mm: Vec<f64>,
+    /// The models' tool-tip contour error, mm.
+    pub predicted_tip_mm: Vec<f64>,
+    /// The true machine's orientation contour error, rad.
+    pub true_orientation_rad: Vec<f64>,
+    /// The models' orientation contour error, rad.
+    pub predicted_orientation_rad: Vec<f64>,
+}
+
+impl PredictPiece {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// `true` without samples.
+    pub fn is_empty(&self) -> bool {
+        self.lines.is_empty()
+    }
+
+    fn clear(&mut self) {
+        self.lines.clear();
+        self.classes.clear();
+        for v in self
+            .reference
+            .iter_mut()
+            .chain(&mut self.truth)
+            .chain(&mut self.predicted)
+        {
+            v.clear();
+        }
+        self.reference_poses.clear();
+        self.true_poses.clear();
+        self.predicted_poses.clear();
+        self.true_tip_mm.clear();
+        self.predicted_tip_mm.clear();
+        self.true_orientation_rad.clear();
+        self.predicted_orientation_rad.clear();
+    }
+}
+
+/// What a streamed prediction measured.
+#[derive(Debug, Clone)]
+pub struct StreamedPrediction {
+    /// The contour statistics of `summary.json` (bit for bit the whole run's).
+    pub summary: ContourSummary,
+    /// The same statistics as the tables print them.
+    pub figures: ContourFigures,
+    /// What streaming the reference measured (rates, warnings).
+    pub stats: StreamStats,
+    /// Per machine axis: servo ticks at which the true drive's command saturated.
+    pub saturated_ticks: Vec<u64>,
+}
+
+/// Running max and sum of squares over the measured samples, in sample order (the sums of
+/// [`crate::stats::max_abs`] and [`crate::stats::rms`] over the picked samples, so the same
+/// bits).
+#[derive(Debug, Clone, Copy, Default)]
+struct MaxRms {
+    max: f64,
+    sq: f64,
+}
+
+impl MaxRms {
+    fn add(&mut self, x: f64) {
+        self.max = self.max.max(x.abs());
+        self.sq += x * x;
+    }
+
+    fn max_rms(&self, n: usize) -> (f64, f64) {
+        if n == 0 {
+            (0.0, 0.0)
+        } else {
+            (self.max, (self.sq / n as f64).sqrt())
+        }
+    }
+}
+
+/// The statistics of [`crate::predict::Prediction::figures`] and
+/// [`crate::predict::worst_blocks`], accumulated sample by sample.
+#[derive(Debug, Default)]
+struct Figures {
+    /// true tip, true orientation, predicted tip, predicted orientation, |Δ tip|, |Δ orientation|.
+    acc: [MaxRms; 6],
+    measured: usize,
+    samples: usize,
+    per_line: BTreeMap<u32, (f64, f64)>,
+}
+
+impl Figures {
+    fn add(&mut self, p: &PredictPiece, which: Measured) {
+        self.samples += p.len();
+        for k in 0..p.len() {
+            let m = match which {
+                Measured::All => true,
+                Measured::Feed => p.classes[k] == Some(MoveClass::Feed),
+            };
+            if !m {
+                continue;
+            }
+            self.measured += 1;
+            let (tt, to) = (p.true_tip_mm[k], p.true_orientation_rad[k]);
+            let (pt, po) = (p.predicted_tip_mm[k], p.predicted_orientation_rad[k]);
+            for (a, x) in self.acc.iter_mut().zip([
+                tt,
+                to,
+                pt,
+                po,
+                (tt - pt).abs(),
+                (to - po).abs(),
+            ]) {
+                a.add(x);
+            }
+            if p.lines[k] != 0 {
+                let e = self.per_line.entry(p.lines[k]).or_insert((0.0, 0.0));
+                e.0 = e.0.max(tt);
+                e.1 = e.1.max(to);
+            }
+        }
+    }
+
+    fn finish(self, which: Measured) -> (ContourSummary, ContourFigures) {
+        let n = self.measured;
+        let pair = |tip: usize, or: usize, rms: bool| {
+            let (t, o) = (self.acc[tip].max_rms(n), self.acc[or].max_rms(n));
+            let pick = |x: (f64, f64)| if rms { x.1 } else { x.0 };
+            Figure {
+                tip_um: pick(t) * 1e3,
+                orientation_mrad: pick(o) * 1e3,
+            }
+        };
+        let figures = ContourFigures {
+            true_max: pair(0, 1, false),
+            true_rms: pair(0, 1, true),
+            predicted_max: pair(2, 3, false),
+            predicted_rms: pair(2, 3, true),
+            discrepancy_max: pair(4, 5, false),
+            discrepancy_rms: pair(4, 5, true),
+        };
+        let mut worst: Vec<WorstBlock> = self
+            .per_line
+            .into_iter()
+            .map(|(line, (t, o))| WorstBlock {
+                line,
+                contour_max_um: t * 1e3,
+                orientation_max_mrad: o * 1e3,
+            })
+            .collect();
+        worst.sort_by(|a, b| {
+            b.contour_max_um
+                .total_cmp(&a.contour_max_um)
+                .then(a.line.cmp(&b.line))
+        });
+        worst.truncate(WORST_BLOCKS);
+        let rows = figures.rows();
+        let summary = ContourSummary {
+            contour_um: rows.iter().map(|(_, k, f)| (*k, f.tip_um)).collect(),
+            orientation_mrad: rows
+                .iter()
+                .map(|(_, k, f)| (*k, f.orientation_mrad))
+                .collect(),
+            samples: self.samples,
+            measured: match which {
+                Measured::Feed => "feed",
+                Measured::All => "all",
+            },
+            measured_samples: n,
+            worst_blocks: worst,
+        };
+        (summary, figures)
+    }
+}
+
+/// Samples waiting to be finished, from sample `base` on.
+#[derive(Debug, Default)]
+struct Pending {
+    base: usize,
+    lines: VecDeque<u32>,
+    classes: VecDeque<Option<MoveClass>>,
+    reference: Vec<VecDeque<f64>>,
+    truth: Vec<VecDeque<f64>>,
+    predicted: Vec<VecDeque<f64>>,
+    reference_poses: VecDeque<Pose>,
+    true_poses: VecDeque<Pose>,
+    predicted_poses: VecDeque<Pose>,
+    /// (tip mm, orientation rad) of the true machine and of the models.
+    true_errors: VecDeque<(f64, f64)>,
+    predicted_errors: VecDeque<(f64, f64)>,
+}
+
+impl Pending {
+    fn new(axes: usize) -> Pending {
+        Pending {
+            reference: vec![VecDeque::new(); axes],
+            truth: vec![VecDeque::new(); axes],
+            predicted: vec![VecDeque::new(); axes],
+            ..Pending::default()
+        }
+    }
+
+    /// Samples known from both the true drives and the models (the models' may trail by the
+    /// latency look-ahead).
+    fn actual_known(&self) -> usize {
+        let len = |v: &[VecDeque<f64>]| v.iter().map(VecDeque::len).min().unwrap_or(0);
+        self.base + len(&self.truth).min(len(&self.predicted))
+    }
+
+    /// Samples finished: both contour errors known.
+    fn finished(&self) -> usize {
+        self.base + self.true_errors.len().min(self.predicted_errors.len())
+    }
+
+    /// Moves the samples up to `end` into `piece`.
+    fn take(&mut self, end: usize, piece: &mut PredictPiece) {
+        let n = end - self.base;
+        piece.clear();
+        piece.first = self.base;
+        piece.lines.extend(self.lines.drain(..n));
+        piece.classes.extend(self.classes.drain(..n));
+        let axes = self.reference.len();
+        piece.reference.resize_with(axes, Vec::new);
+        piece.truth.resize_with(axes, Vec::new);
+        piece.predicted.resize_with(axes, Vec::new);
+        for (dst, src) in [
+            (&mut piece.reference, &mut self.reference),
+            (&mut piece.truth, &mut self.truth),
+            (&mut piece.predicted, &mut self.predicted),
+        ] {
+            for (d, s) in dst.iter_mut().zip(src.iter_mut()) {
+                d.extend(s.drain(..n));
+            }
+        }
+        piece
+            .reference_poses
+            .extend(self.reference_poses.drain(..n));
+        piece.true_poses.extend(self.true_poses.drain(..n));
+        piece.predicted_poses.extend(self.predicted_poses.drain(..n));
+        for (t, o) in self.true_errors.drain(..n) {
+            piece.true_tip_mm.push(t);
+            piece.true_orientation_rad.push(o);
+        }
+        for (t, o) in self.predicted_errors.drain(..n) {
+            piece.predicted_tip_mm.push(t);
+            piece.predicted_orientation_rad.push(o);
+        }
+        self.base = end;
+    }
+}
+
+/// The contour search of one actual pose sequence (the true machine's or the models'), with
+/// the poses it has been given.
+struct Search {
+    stream: ContourStream,
+    /// Actual samples pushed.
+    pushed: usize,
+}
+
+impl Search {
+    fn new() -> Result<Search, Error> {
+        Ok(Search {
+            stream: ContourStream::new(&SearchWindow::default(), false, StreamLimits::default())?,
+            pushed: 0,
+        })
+    }
+
+    /// Pushes the actual samples `self.pushed..end` (axis positions `pos` per machine axis,
+    /// from sample `base`), keeping their poses, and collects the finished errors.
+    fn advance(
+        &mut self,
+        machine: &Machine,
+        pos: &mut [VecDeque<f64>],
+        base: usize,
+        end: usize,
+        poses: &mut VecDeque<Pose>,
+        errors: &mut VecDeque<(f64, f64)>,
+    ) -> Result<(), Error> {
+        let kin = machine.require_kinematics()?;
+        let cols: Vec<&[f64]> = pos.iter_mut().map(|p| &*p.make_contiguous()).collect();
+        for k in self.pushed..end {
+            let q = kin.model.forward(&kin.axes.at(&cols, k - base));
+            self.stream.push_actual(&q)?;
+            poses.push_back(q);
+        }
+        self.pushed = end;
+        self.stream.drain(|_, tip, or, _| errors.push_back((tip, or)))?;
+        Ok(())
+    }
+}
+
+/// Runs `stream` (the program at `path`, planned on `machine`) through the true drives and
+/// `models` (one per machine axis, each advanced by its axis' `actual_latency_s`, s; empty:
+/// none) and the contour searches, handing each piece of finished samples to `sink` in order.
+/// The statistics cover the samples `which` selects.
+pub fn predict_streamed(
+    machine: &Machine,
+    stream: &ReferenceStream,
+    path: &Path,
+    models: &[DriveModel],
+    actual_latency_s: &[f64],
+    which: Measured,
+    sink: &mut dyn FnMut(&PredictPiece) -> Result<(), Error>,
+) -> Result<StreamedPrediction, Error> {
+    let axes = machine.axes.len();
+    if models.len() != axes {
+        return Err(Error::Usage(format!(
+            "{} models for {axes} axes",
+            models.len()
+        )));
+    }
+    latency::check(actual_latency_s, axes)?;
+    let kin = machine.require_kinematics()?;
+    let ts = stream.plan.ts;
+    let drive_err = |i: usize| {
+        move |source: vcnc_drive::Error| Error::Drive {
+            axis: machine.axes[i].name,
+            source,
+        }
+    };
+    let opts = SimOptions::default();
+    let mut drives = machine
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| a.drive.stream(ts, Channels::TruePosition).map_err(drive_err(i)))
+        .collect::<Result<Vec<_>, Error>>()?;
+    let mut model_streams = models
+        .iter()
+        .enumerate()
+        .map(|(i, m)| m.stream(ts, &opts).map_err(drive_err(i)))
+        .collect::<Result<Vec<_>, Error>>()?;
+    let mut shifters: Vec<latency::Shifter> = (0..axes)
+        .map(|i| latency::Shifter::new(actual_latency_s.get(i).copied().unwrap_or(0.0), ts))
+        .collect();
+    let (mut true_search, mut pred_search) = (Search::new()?, Search::new()?);
+    let mut pending = Pending::new(axes);
+    let mut figures = Figures::default();
+    let mut piece = PredictPiece::default();
+    // Per axis: the true drive's trace of the current piece and the model's positions before
+    // and after the latency shift (buffers kept from piece to piece).
+    let mut traces: Vec<DriveTrace> = (0..axes).map(|_| DriveTrace::default()).collect();
+    let mut logged: Vec<Vec<f64>> = vec![Vec::new(); axes];
+    let mut shifted: Vec<Vec<f64>> = vec![Vec::new(); axes];
+
+    // Pushes the known actual samples to both searches and hands the finished ones to `sink`.
+    let advance = |pending: &mut Pending,
+                       true_search: &mut Search,
+                       pred_search: &mut Search,
+                       figures: &mut Figures,
+                       piece: &mut PredictPiece,
+                       sink: &mut dyn FnMut(&PredictPiece) -> Result<(), Error>|
+     -> Result<(), Error> {
+        let end = pending.actual_known();
+        let base = pending.base;
+        let Pending {
+            truth,
+            predicted,
+            true_poses,
+            predicted_poses,
+            true_errors,
+            predicted_errors,
+            ..
+        } = pending;
+        let (a, b) = rayon::join(
+            || true_search.advance(machine, truth, base, end, true_poses, true_errors),
+            || pred_search.advance(machine, predicted, base, end, predicted_poses, predicted_errors),
+        );
+        a?;
+        b?;
+        let done = pending.finished();
+        if done > pending.base {
+            pending.take(done, piece);
+            figures.add(piece, which);
+            sink(piece)?;
+        }
+        Ok(())
+    };
+
+    let mut on_chunk = |c: &ReferenceChunk| -> Result<(), Error> {
+        let n = c.len();
+        // The true drives and the models, every axis in parallel (each stream in order).
+        let (a, b) = rayon::join(
+            || {
+                drives
+                    .par_iter_mut()
+                    .zip(traces.par_iter_mut())
+                    .enumerate()
+                    .map(|(i, (d, t))| {
+                        t.true_position.clear();
+                        d.feed(reference_of(c, i), t).map_err(drive_err(i))
+                    })
+                    .collect::<Result<Vec<()>, Error>>()
+            },
+            || {
+                model_streams
+                    .par_iter_mut()
+                    .zip(shifters.par_iter_mut())
+                    .zip(logged.par_iter_mut().zip(shifted.par_iter_mut()))
+                    .enumerate()
+                    .map(|(i, ((m, sh), (x, y)))| {
+                        x.clear();
+                        y.clear();
+                        m.feed(reference_of(c, i), x).map_err(drive_err(i))?;
+                        sh.feed(x, y);
+                        Ok(())
+                    })
+                    .collect::<Result<Vec<()>, Error>>()
+            },
+        );
+        a?;
+        b?;
+        pending.lines.extend(&c.line);
+        pending.classes.extend(&c.class);
+        for i in 0..axes {
+            pending.reference[i].extend(&c.pos[i]);
+            pending.truth[i].extend(&traces[i].true_position);
+            pending.predicted[i].extend(&shifted[i]);
+        }
+        // The reference poses, to both searches.
+        let pos: Vec<&[f64]> = c.pos.iter().map(Vec::as_slice).collect();
+        let poses: Vec<Pose> = (0..n)
+            .map(|k| kin.model.forward(&kin.axes.at(&pos, k)))
+            .collect();
+        true_search.stream.push_reference(poses.iter().copied())?;
+        pred_search.stream.push_reference(poses.iter().copied())?;
+        pending.reference_poses.extend(poses);
+        advance(
+            &mut pending,
+            &mut true_search,
+            &mut pred_search,
+            &mut figures,
+            &mut piece,
+            sink,
+        )
+    };
+    let stats = stream.run(machine, path, &mut on_chunk)?;
+
+    // The end: the drives' saturation counts, the models' last shifted samples, the searches'
+    // last feet.
+    let saturated_ticks = drives
+        .into_iter()
+        .enumerate()
+        .map(|(i, d)| d.finish().map_err(drive_err(i)))
+        .collect::<Result<Vec<u64>, Error>>()?;
+    for (i, ((m, sh), y)) in model_streams
+        .into_iter()
+        .zip(shifters)
+        .zip(&mut shifted)
+        .enumerate()
+    {
+        m.finish().map_err(drive_err(i))?;
+        y.clear();
+        sh.finish(y);
+        pending.predicted[i].extend(y.iter());
+    }
+    true_search.stream.end_reference();
+    pred_search.stream.end_reference();
+    advance(
+        &mut pending,
+        &mut true_search,
+        &mut pred_search,
+        &mut figures,
+        &mut piece,
+        sink,
+    )?;
+    for (search, errors) in [
+        (true_search, &mut pending.true_errors),
+        (pred_search, &mut pending.predicted_errors),
+    ] {
+        search
+            .stream
+            .finish(|_, tip, or, _| errors.push_back((tip, or)))?;
+    }
+    let done = pending.finished();
+    if done > pending.base {
+        pending.take(done, &mut piece);
+        figures.add(&piece, which);
+        sink(&piece)?;
+    }
+    if pending.base != stream.len() {
+        return Err(Error::Usage(format!(
+            "the streamed prediction finished {} of {} samples",
+            pending.base,
+            stream.len()
+        )));
+    }
+    let (summary, figures) = figures.finish(which);
+    Ok(StreamedPrediction {
+        summary,
+        figures,
+        stats,
+        saturated_ticks,
+    })
+}
+
+/// Axis `i`'s reference in a chunk.
+fn reference_of(c: &ReferenceChunk, i: usize) -> Reference<'_> {
+    Reference {
+        pos: &c.pos[i],
+        vel: &c.vel[i],
+        acc: &c.acc[i],
+    }
+}
