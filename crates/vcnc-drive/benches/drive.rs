@@ -6,8 +6,8 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use vcnc_drive::{
-    AxisName, Drive, DriveTrace, Reference, SimOptions, nmv5000_axis_design, simulate_batch,
-    table1_drive,
+    AxisName, Drive, DriveModel, DriveTrace, Reference, ReferenceFilter, SimOptions,
+    nmv5000_axis_design, simulate_batch, table1_drive,
 };
 
 #[path = "../tests/common/mod.rs"]
@@ -106,6 +106,26 @@ fn drive(c: &mut Criterion) {
             b.iter(|| {
                 black_box(
                     model
+                        .simulate(black_box(prog.reference()), 1e-3, &SimOptions::default())
+                        .expect("simulates"),
+                )
+            })
+        },
+    );
+    // The extended model as `predict` runs it: a sub-sample dead time (two exact pieces per
+    // sample), a first-order reference filter and an extra pole.
+    let extended = DriveModel {
+        delay_s: 1.5e-3,
+        reference_filter: Some(ReferenceFilter::FirstOrder { tau_s: 2e-3 }),
+        extra_pole_hz: Some(150.0),
+        ..DriveModel::from(model)
+    };
+    group.bench_function(
+        "DriveModel::simulate, 30 000 samples (1.5 ms dead time, filter, extra pole)",
+        |b| {
+            b.iter(|| {
+                black_box(
+                    extended
                         .simulate(black_box(prog.reference()), 1e-3, &SimOptions::default())
                         .expect("simulates"),
                 )

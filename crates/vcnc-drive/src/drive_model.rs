@@ -511,8 +511,9 @@ impl DriveModel {
     }
 
     /// Free run with the friction level of every sample (the identifier fits the friction the
-    /// model itself would apply). `opts.integrator` is ignored: the scheme is exact.
-    #[allow(clippy::needless_range_loop)] // small dense kernels: indices read best
+    /// model itself would apply). `opts.integrator` is ignored: the scheme is exact. With
+    /// [`ModelInput::Derivatives`] this is the stream of [`DriveModel::stream`] fed the whole
+    /// reference at once.
     pub fn simulate_run(
         &self,
         input: ModelInput<'_>,
@@ -524,8 +525,80 @@ impl DriveModel {
             return Err(Error::BadSamplePeriod { ts });
         }
         let n = input.check()?;
-        let real = self.realisation();
-        let mut d = self.delay_s / ts;
+        let stepper = Stepper::new(self, ts)?;
+        let mut out = ModelRun {
+            position: Vec::with_capacity(n),
+            friction: Vec::with_capacity(n),
+        };
+        match input {
+            ModelInput::Derivatives(r) => {
+                let mut stream = ExtendedStream::new(stepper, *opts);
+                stream.feed(r, 0, &mut out.position, Some(&mut out.friction))?;
+                out.friction.push(0.0);
+            }
+            ModelInput::Positions(p) => {
+                let r0 = p[0];
+                // Sample j as [r - r0, slope after sample j, 0] (the slope changes are
+                // impulses), at rest before the first sample.
+                let sample = |j: isize| -> [f64; 3] {
+                    if j < 0 {
+                        return [0.0; 3];
+                    }
+                    let j = (j as usize).min(n - 1);
+                    let slope = if j + 1 < n {
+                        (p[j + 1] - p[j]) / ts
+                    } else {
+                        0.0
+                    };
+                    [p[j] - r0, slope, 0.0]
+                };
+                let mut z = vec![0.0; stepper.ns];
+                let mut next = vec![0.0; stepper.ns];
+                out.position.push(r0);
+                for k in 0..n - 1 {
+                    let j = k as isize - stepper.m as isize;
+                    let (f, x) = stepper.step(&mut z, &mut next, j, true, sample, opts);
+                    out.friction.push(f);
+                    out.position.push(x + r0);
+                }
+                out.friction.push(0.0);
+                if out.position.iter().any(|v| !v.is_finite()) {
+                    return Err(Error::NonFiniteModel);
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A [`DriveModel`] discretised at one sample period, and its step from one sample to the
+/// next (module documentation, "Simulation").
+#[derive(Debug, Clone)]
+pub(crate) struct Stepper {
+    /// Output rows of the position and of the core velocity.
+    cx: Vec<f64>,
+    cv: Vec<f64>,
+    /// One piece per sample period, or two ($\varphi T_s$ and $(1 - \varphi)T_s$) with a
+    /// sub-sample dead time.
+    pieces: Vec<Piece>,
+    /// Friction column over the whole step.
+    gf_total: Vec<f64>,
+    /// Core velocity drop over one step under full friction.
+    l: f64,
+    /// Input column of the reference acceleration (the impulses of positions).
+    b_acc: Vec<f64>,
+    /// States.
+    ns: usize,
+    /// Dead time $T_d = (m + \varphi)T_s$.
+    m: usize,
+    phi: f64,
+}
+
+impl Stepper {
+    /// The discretisation of `model` (validated by the caller) at `ts` (checked).
+    fn new(model: &DriveModel, ts: f64) -> Result<Stepper, Error> {
+        let real = model.realisation();
+        let mut d = model.delay_s / ts;
         // A dead time within rounding of whole samples is whole samples.
         if (d - d.round()).abs() < 1e-9 {
             d = d.round();
@@ -552,30 +625,36 @@ impl DriveModel {
         }
         let l = -dot(&real.cv, &gf_total);
         let b_acc: Vec<f64> = (0..ns).map(|i| real.b[(i, 2)]).collect();
-        let r0 = match input {
-            ModelInput::Derivatives(r) => r.pos[0],
-            ModelInput::Positions(p) => p[0],
-        };
-        // Input sample j as [r - r0, rd, rdd] (positions: rd is the slope after sample j,
-        // rdd 0, the slope changes are impulses), at rest before the first sample.
-        let sample = |j: isize| -> [f64; 3] {
-            if j < 0 {
-                return [0.0; 3];
-            }
-            let j = (j as usize).min(n - 1);
-            match input {
-                ModelInput::Derivatives(r) => [r.pos[j] - r0, r.vel[j], r.acc[j]],
-                ModelInput::Positions(p) => {
-                    let slope = if j + 1 < n {
-                        (p[j + 1] - p[j]) / ts
-                    } else {
-                        0.0
-                    };
-                    [p[j] - r0, slope, 0.0]
-                }
-            }
-        };
-        let positions = matches!(input, ModelInput::Positions(_));
+        Ok(Stepper {
+            cx: real.cx,
+            cv: real.cv,
+            pieces,
+            gf_total,
+            l,
+            b_acc,
+            ns,
+            m,
+            phi,
+        })
+    }
+
+    /// The step from $t_k$ to $t_{k+1}$ of state `z` (`next`: work space of the same length):
+    /// `j` $= k - m$ is the input sample whose knot lies in the step, `sample(i)` input sample
+    /// $i$ as $[x_r - x_{r,0}, \dot x_r, \ddot x_r]$ (zero before the first; `positions`: the
+    /// slope after sample $i$ and 0, the slope changes being impulses of acceleration).
+    /// Returns the friction level held over the step and the position $x_{k+1} - x_{r,0}$.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // small dense kernels: indices read best
+    fn step(
+        &self,
+        z: &mut Vec<f64>,
+        next: &mut Vec<f64>,
+        j: isize,
+        positions: bool,
+        sample: impl Fn(isize) -> [f64; 3],
+        opts: &SimOptions,
+    ) -> (f64, f64) {
+        let (ns, phi) = (self.ns, self.phi);
         // The input at time t_j - phi T within [t_{j-1}, t_j]: position interpolated; the
         // slope of positions is constant over the interval.
         let between = |j: isize| -> [f64; 3] {
@@ -587,70 +666,153 @@ impl DriveModel {
             }
         };
         let slope_before = |j: isize| -> f64 { if j <= 0 { 0.0 } else { sample(j - 1)[1] } };
-        let mut z = vec![0.0; ns];
-        let mut next = vec![0.0; ns];
-        let mut out = ModelRun {
-            position: vec![0.0; n],
-            friction: vec![0.0; n],
-        };
-        out.position[0] = r0;
-        let advance = |p: &Piece, z: &[f64], u0: &[f64; 3], u1: &[f64; 3], out: &mut [f64]| {
-            for i in 0..ns {
-                let row = &p.phi[i * ns..(i + 1) * ns];
-                let mut s: f64 = row.iter().zip(z).map(|(a, b)| a * b).sum();
-                for j in 0..3 {
-                    s += p.gamma[i * 3 + j] * u0[j] + p.ramp[i * 3 + j] * (u1[j] - u0[j]);
+        let v_start = dot(&self.cv, z);
+        if phi == 0.0 {
+            let (u0, u1) = (sample(j), sample(j + 1));
+            if positions {
+                let dv = u0[1] - slope_before(j);
+                for i in 0..ns {
+                    z[i] += self.b_acc[i] * dv;
                 }
-                out[i] = s;
             }
-        };
-        for k in 0..n - 1 {
-            // Original sample whose knot lies in this step: j = k - m.
-            let j = k as isize - m as isize;
-            let v_start = dot(&real.cv, &z);
-            if phi == 0.0 {
-                let (u0, u1) = (sample(j), sample(j + 1));
-                if positions {
-                    let dv = u0[1] - slope_before(j);
-                    for i in 0..ns {
-                        z[i] += b_acc[i] * dv;
-                    }
+            let u1 = if positions { [u1[0], u0[1], 0.0] } else { u1 };
+            advance(&self.pieces[0], ns, z, &u0, &u1, next);
+        } else {
+            // First piece: from t_k (between samples j-1 and j) to the knot of sample j.
+            let u0 = between(j);
+            let uk = sample(j);
+            let uk_in = if positions { [uk[0], u0[1], 0.0] } else { uk };
+            advance(&self.pieces[0], ns, z, &u0, &uk_in, next);
+            std::mem::swap(z, next);
+            if positions {
+                let dv = uk[1] - slope_before(j);
+                for i in 0..ns {
+                    z[i] += self.b_acc[i] * dv;
                 }
-                let u1 = if positions { [u1[0], u0[1], 0.0] } else { u1 };
-                advance(&pieces[0], &z, &u0, &u1, &mut next);
-            } else {
-                // First piece: from t_k (between samples j-1 and j) to the knot of sample j.
-                let u0 = between(j);
-                let uk = sample(j);
-                let uk_in = if positions { [uk[0], u0[1], 0.0] } else { uk };
-                advance(&pieces[0], &z, &u0, &uk_in, &mut next);
-                std::mem::swap(&mut z, &mut next);
-                if positions {
-                    let dv = uk[1] - slope_before(j);
-                    for i in 0..ns {
-                        z[i] += b_acc[i] * dv;
-                    }
-                }
-                let u1 = between(j + 1);
-                let u1 = if positions { [u1[0], uk[1], 0.0] } else { u1 };
-                advance(&pieces[1], &z, &uk, &u1, &mut next);
             }
-            let v_free = dot(&real.cv, &next);
-            let f = if opts.sticking {
-                implicit_friction_level(v_free, l)
-            } else {
-                friction_sign(v_start, opts.friction_deadband)
-            };
-            for i in 0..ns {
-                z[i] = next[i] + gf_total[i] * f;
-            }
-            out.friction[k] = f;
-            out.position[k + 1] = dot(&real.cx, &z) + r0;
+            let u1 = between(j + 1);
+            let u1 = if positions { [u1[0], uk[1], 0.0] } else { u1 };
+            advance(&self.pieces[1], ns, z, &uk, &u1, next);
         }
-        if out.position.iter().any(|v| !v.is_finite()) {
+        let v_free = dot(&self.cv, next);
+        let f = if opts.sticking {
+            implicit_friction_level(v_free, self.l)
+        } else {
+            friction_sign(v_start, opts.friction_deadband)
+        };
+        for i in 0..ns {
+            z[i] = next[i] + self.gf_total[i] * f;
+        }
+        (f, dot(&self.cx, z))
+    }
+}
+
+/// $z(h)$ of piece `p` from state `z` under the input ramp from `u0` to `u1`, into `out`.
+#[inline(always)]
+fn advance(p: &Piece, ns: usize, z: &[f64], u0: &[f64; 3], u1: &[f64; 3], out: &mut [f64]) {
+    for i in 0..ns {
+        let row = &p.phi[i * ns..(i + 1) * ns];
+        let mut s: f64 = row.iter().zip(z).map(|(a, b)| a * b).sum();
+        for j in 0..3 {
+            s += p.gamma[i * 3 + j] * u0[j] + p.ramp[i * 3 + j] * (u1[j] - u0[j]);
+        }
+        out[i] = s;
+    }
+}
+
+/// A [`DriveModel`] driven by reference samples (position, velocity, acceleration) one piece
+/// at a time ([`crate::ModelStream`]): the step of sample $k$ reads input samples up to
+/// $k - m$, so it keeps the last $m + 3$ of them (and at most as many again before it
+/// compacts), not the run.
+#[derive(Debug, Clone)]
+pub(crate) struct ExtendedStream {
+    stepper: Stepper,
+    opts: SimOptions,
+    /// First reference position $x_{r,0}$, axis units.
+    r0: f64,
+    /// Input samples from number `base` on, as $[x_r - x_{r,0}, \dot x_r, \ddot x_r]$.
+    hist: Vec<[f64; 3]>,
+    base: usize,
+    /// Samples fed.
+    count: usize,
+    z: Vec<f64>,
+    next: Vec<f64>,
+}
+
+impl ExtendedStream {
+    /// Before the first sample.
+    pub(crate) fn new(stepper: Stepper, opts: SimOptions) -> ExtendedStream {
+        let ns = stepper.ns;
+        ExtendedStream {
+            stepper,
+            opts,
+            r0: 0.0,
+            hist: Vec::new(),
+            base: 0,
+            count: 0,
+            z: vec![0.0; ns],
+            next: vec![0.0; ns],
+        }
+    }
+
+    /// The stream of `model` (validated by the caller) at `ts` (checked).
+    pub(crate) fn of(model: &DriveModel, ts: f64, opts: SimOptions) -> Result<Self, Error> {
+        Ok(ExtendedStream::new(Stepper::new(model, ts)?, opts))
+    }
+
+    /// Runs the next samples (checked by the caller; `first` samples came before) and appends
+    /// the position at each to `position` and, if given, the friction level of each step that
+    /// ends at one of them to `friction`. [`Error::NonFiniteModel`] if a position is not
+    /// finite.
+    pub(crate) fn feed(
+        &mut self,
+        piece: Reference<'_>,
+        first: usize,
+        position: &mut Vec<f64>,
+        mut friction: Option<&mut Vec<f64>>,
+    ) -> Result<(), Error> {
+        debug_assert_eq!(first, self.count);
+        let start = position.len();
+        let keep = self.stepper.m + 3;
+        for ((p, v), a) in piece.pos.iter().zip(piece.vel).zip(piece.acc) {
+            if self.count == 0 {
+                self.r0 = *p;
+            }
+            if self.hist.len() >= 2 * keep + 1024 {
+                let drop = self.hist.len() - keep;
+                self.hist.drain(..drop);
+                self.base += drop;
+            }
+            self.hist.push([p - self.r0, *v, *a]);
+            self.count += 1;
+            if self.count == 1 {
+                position.push(self.r0);
+                continue;
+            }
+            // The step from sample k = count - 2 to the new one; its knot is input sample
+            // k - m (inputs up to k + 1 - m are read, all fed).
+            let k = self.count - 2;
+            let j = k as isize - self.stepper.m as isize;
+            let (hist, base) = (&self.hist, self.base);
+            let sample = |i: isize| -> [f64; 3] {
+                if i < 0 {
+                    [0.0; 3]
+                } else {
+                    hist[i as usize - base]
+                }
+            };
+            let (f, x) =
+                self.stepper
+                    .step(&mut self.z, &mut self.next, j, false, sample, &self.opts);
+            if let Some(fr) = friction.as_deref_mut() {
+                fr.push(f);
+            }
+            position.push(x + self.r0);
+        }
+        if position[start..].iter().any(|v| !v.is_finite()) {
             return Err(Error::NonFiniteModel);
         }
-        Ok(out)
+        Ok(())
     }
 }
 

@@ -18,6 +18,10 @@
 //! - [`drive_model`]: model structures beyond the paper ([`DriveModel`]: dead time, reference
 //!   filter, extra pole), with simulation from positions alone or with derivatives.
 //! - [`presets`]: the paper's Table 1 drive and the NMV5000 axes designed from Table 3.
+//! - [`stream`]: the true drives and the models fed the reference a piece at a time
+//!   ([`Drive::stream`] → [`DriveStream`], [`DriveModel::stream`] → [`ModelStream`]): state
+//!   kept between pieces, memory O(piece), results the whole run's bit for bit for any split
+//!   (the whole-run simulations are these streams fed everything at once).
 //!
 //! ```
 //! use vcnc_drive::{Reference, SimOptions, table1_drive};
@@ -53,6 +57,7 @@ pub mod params;
 pub mod presets;
 mod real_sim;
 pub mod sim;
+pub mod stream;
 
 pub use batch::{BATCH_LANES, batch_groups, simulate_batch};
 pub use design::{design_pid, design_ppi, design_smc};
@@ -71,6 +76,7 @@ pub use params::{
 };
 pub use presets::{NMV5000_TABLE3, TABLE1_MODEL, nmv5000_axis_design, table1_drive};
 pub use sim::{DriveTrace, simulate_drive};
+pub use stream::{Channels, DriveStream, ModelStream};
 pub use vcnc_axis::AxisName;
 
 /// Errors of the drive crate. Each variant carries the values needed to act on it.

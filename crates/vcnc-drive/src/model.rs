@@ -170,8 +170,18 @@ pub struct Reference<'a> {
 impl<'a> Reference<'a> {
     /// Checks that the three slices have the same, non-zero length and finite values.
     pub fn check(&self) -> Result<usize, Error> {
+        self.check_piece(0)
+    }
+
+    /// Checks the next piece of a reference fed in pieces ([`crate::DriveStream`],
+    /// [`crate::ModelStream`]) whose first `first` samples came before: the three slices of
+    /// the same length and finite values, a bad value named by its index in the whole
+    /// reference (`first` + its index in the piece). The first piece must not be empty
+    /// ([`Error::EmptySignal`], as [`Reference::check`]); a later empty piece is accepted.
+    /// Returns the piece's length.
+    pub(crate) fn check_piece(&self, first: usize) -> Result<usize, Error> {
         let n = self.pos.len();
-        if n == 0 {
+        if n == 0 && first == 0 {
             return Err(Error::EmptySignal);
         }
         if self.vel.len() != n || self.acc.len() != n {
@@ -189,7 +199,7 @@ impl<'a> Reference<'a> {
             if let Some(k) = s.iter().position(|v| !v.is_finite()) {
                 return Err(Error::NonFinite {
                     signal: name,
-                    index: k,
+                    index: first + k,
                 });
             }
         }
@@ -526,35 +536,77 @@ impl ClosedLoopModel {
         deadband: f64,
         out: &mut [f64],
     ) {
-        let x0 = r.pos[0];
-        let (a, b) = self.state_space();
-        let mut z = SVector::<f64, 3>::zeros();
-        let h = ts / substeps as f64;
-        out[0] = x0;
-        for k in 0..out.len() - 1 {
-            let f = friction_sign(z[2], deadband);
-            let u0 = [r.pos[k] - x0, r.vel[k], r.acc[k]];
-            let u1 = [r.pos[k + 1] - x0, r.vel[k + 1], r.acc[k + 1]];
-            let input = |tau: f64| {
-                let w = tau / ts;
-                SVector::<f64, 4>::new(
-                    u0[0] + w * (u1[0] - u0[0]),
-                    u0[1] + w * (u1[1] - u0[1]),
-                    u0[2] + w * (u1[2] - u0[2]),
-                    f,
-                )
-            };
-            let deriv = |z: &SVector<f64, 3>, tau: f64| a * z + b * input(tau);
-            for j in 0..substeps {
-                let t0 = j as f64 * h;
-                let k1 = deriv(&z, t0);
-                let k2 = deriv(&(z + k1 * (h / 2.0)), t0 + h / 2.0);
-                let k3 = deriv(&(z + k2 * (h / 2.0)), t0 + h / 2.0);
-                let k4 = deriv(&(z + k3 * h), t0 + h);
-                z += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
-            }
-            out[k + 1] = z[1] + x0;
+        let mut s = Rk4Stream::new(self, ts, substeps, deadband);
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = s.sample(r.pos[k], r.vel[k], r.acc[k]);
         }
+    }
+}
+
+/// The RK4 integration of [`ClosedLoopModel::simulate`] one sample at a time.
+#[derive(Debug, Clone)]
+pub(crate) struct Rk4Stream {
+    a: SMatrix<f64, 3, 3>,
+    b: SMatrix<f64, 3, 4>,
+    ts: f64,
+    substeps: u32,
+    deadband: f64,
+    /// The rest position $x_0$ and the last sample fed, once one has been.
+    x0: f64,
+    prev: Option<[f64; 3]>,
+    z: SVector<f64, 3>,
+}
+
+impl Rk4Stream {
+    /// Before the first sample; `substeps` ≥ 1.
+    pub(crate) fn new(m: &ClosedLoopModel, ts: f64, substeps: u32, deadband: f64) -> Rk4Stream {
+        let (a, b) = m.state_space();
+        Rk4Stream {
+            a,
+            b,
+            ts,
+            substeps,
+            deadband,
+            x0: 0.0,
+            prev: None,
+            z: SVector::<f64, 3>::zeros(),
+        }
+    }
+
+    /// The model position at the next sample (position `p`, velocity `v`, acceleration `acc`):
+    /// the first sample is the rest position; each later one integrates the step from the
+    /// previous sample.
+    pub(crate) fn sample(&mut self, p: f64, v: f64, acc: f64) -> f64 {
+        let Some(prev) = self.prev.replace([p, v, acc]) else {
+            self.x0 = p;
+            return p;
+        };
+        let (x0, ts, a, b) = (self.x0, self.ts, &self.a, &self.b);
+        let f = friction_sign(self.z[2], self.deadband);
+        let u0 = [prev[0] - x0, prev[1], prev[2]];
+        let u1 = [p - x0, v, acc];
+        let input = |tau: f64| {
+            let w = tau / ts;
+            SVector::<f64, 4>::new(
+                u0[0] + w * (u1[0] - u0[0]),
+                u0[1] + w * (u1[1] - u0[1]),
+                u0[2] + w * (u1[2] - u0[2]),
+                f,
+            )
+        };
+        let deriv = |z: &SVector<f64, 3>, tau: f64| a * z + b * input(tau);
+        let h = ts / self.substeps as f64;
+        let mut z = self.z;
+        for j in 0..self.substeps {
+            let t0 = j as f64 * h;
+            let k1 = deriv(&z, t0);
+            let k2 = deriv(&(z + k1 * (h / 2.0)), t0 + h / 2.0);
+            let k3 = deriv(&(z + k2 * (h / 2.0)), t0 + h / 2.0);
+            let k4 = deriv(&(z + k3 * h), t0 + h);
+            z += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
+        }
+        self.z = z;
+        z[1] + x0
     }
 }
 
@@ -629,44 +681,81 @@ impl Discretized {
                 acc: out.len(),
             });
         }
-        let x0 = r.pos[0];
-        let (phi, g0, g1, gf) = (&self.phi, &self.g0, &self.g1, &self.gf);
-        // Velocity drop over one step caused by full friction (f = 1).
-        let l = -gf[2];
-        let (mut q, mut x, mut v) = (0.0, 0.0, 0.0);
-        let mut u0 = [0.0, r.vel[0], r.acc[0]];
-        out[0] = x0;
+        let mut st = self.start(r.pos[0], r.vel[0], r.acc[0]);
+        out[0] = st.x0;
         for k in 0..n - 1 {
-            let u1 = [r.pos[k + 1] - x0, r.vel[k + 1], r.acc[k + 1]];
-            let mut next = [0.0; 3];
-            for (i, nx) in next.iter_mut().enumerate() {
-                *nx = phi[(i, 0)] * q
-                    + phi[(i, 1)] * x
-                    + phi[(i, 2)] * v
-                    + g0[(i, 0)] * u0[0]
-                    + g0[(i, 1)] * u0[1]
-                    + g0[(i, 2)] * u0[2]
-                    + g1[(i, 0)] * u1[0]
-                    + g1[(i, 1)] * u1[1]
-                    + g1[(i, 2)] * u1[2];
-            }
-            let f = if opts.sticking {
-                implicit_friction_level(next[2], l)
-            } else {
-                friction_sign(v, opts.friction_deadband)
-            };
-            q = next[0] + gf[0] * f;
-            x = next[1] + gf[1] * f;
-            v = if opts.sticking && l > 0.0 && next[2].abs() <= l {
-                0.0
-            } else {
-                next[2] + gf[2] * f
-            };
-            u0 = u1;
-            out[k + 1] = x + x0;
+            out[k + 1] = self.step(&mut st, r.pos[k + 1], r.vel[k + 1], r.acc[k + 1], opts);
         }
         Ok(())
     }
+
+    /// The state at rest at the first sample (position `p0`, velocity `v0`, acceleration
+    /// `a0`), whose model position is `p0`.
+    pub(crate) fn start(&self, p0: f64, v0: f64, a0: f64) -> FohState {
+        FohState {
+            x0: p0,
+            q: 0.0,
+            x: 0.0,
+            v: 0.0,
+            u0: [0.0, v0, a0],
+        }
+    }
+
+    /// One step to the next sample (position `p1`, velocity `v1`, acceleration `a1`): the
+    /// model position there (see [`Discretized::simulate_into`]).
+    #[inline(always)]
+    pub(crate) fn step(
+        &self,
+        st: &mut FohState,
+        p1: f64,
+        v1: f64,
+        a1: f64,
+        opts: &SimOptions,
+    ) -> f64 {
+        let (phi, g0, g1, gf) = (&self.phi, &self.g0, &self.g1, &self.gf);
+        // Velocity drop over one step caused by full friction (f = 1).
+        let l = -gf[2];
+        let (q, x, v, u0) = (st.q, st.x, st.v, st.u0);
+        let u1 = [p1 - st.x0, v1, a1];
+        let mut next = [0.0; 3];
+        for (i, nx) in next.iter_mut().enumerate() {
+            *nx = phi[(i, 0)] * q
+                + phi[(i, 1)] * x
+                + phi[(i, 2)] * v
+                + g0[(i, 0)] * u0[0]
+                + g0[(i, 1)] * u0[1]
+                + g0[(i, 2)] * u0[2]
+                + g1[(i, 0)] * u1[0]
+                + g1[(i, 1)] * u1[1]
+                + g1[(i, 2)] * u1[2];
+        }
+        let f = if opts.sticking {
+            implicit_friction_level(next[2], l)
+        } else {
+            friction_sign(v, opts.friction_deadband)
+        };
+        st.q = next[0] + gf[0] * f;
+        st.x = next[1] + gf[1] * f;
+        st.v = if opts.sticking && l > 0.0 && next[2].abs() <= l {
+            0.0
+        } else {
+            next[2] + gf[2] * f
+        };
+        st.u0 = u1;
+        st.x + st.x0
+    }
+}
+
+/// The state of [`Discretized`]'s simulation between samples: deviations from the rest
+/// position $x_0$ (axis units), $q$, $x - x_0$, $v$, and the last input $[x_r - x_0, \dot x_r,
+/// \ddot x_r]$.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FohState {
+    x0: f64,
+    q: f64,
+    x: f64,
+    v: f64,
+    u0: [f64; 3],
 }
 
 #[cfg(test)]

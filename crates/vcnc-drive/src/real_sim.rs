@@ -35,7 +35,10 @@ use crate::effects::{
 use crate::model::{Reference, check_exp_norm};
 use crate::noise::Normals;
 use crate::params::{Controller, Drive, PPiGains, PidGains, Plant, SmcGains};
-use crate::sim::{DriveTrace, RefSample, quantise_to};
+use crate::sim::{
+    AllChannels, DriveTrace, Logged, RefSample, SampleLog, TruePositionOnly, quantise_to,
+};
+use crate::stream::Channels;
 
 #[cfg(target_arch = "x86_64")]
 mod lanes;
@@ -54,7 +57,7 @@ pub(crate) const LANES: usize = 4;
 /// It is affine in $(\hat x_p, x_f)$; like [`crate::sim`]'s laws it is evaluated as the terms at
 /// $\hat x_p = x_f = 0$ plus slopes, so that the readings enter $u$ through one multiply-add
 /// each (an algebraic rearrangement, checked against the plain law in the tests).
-pub(crate) trait RLaw: Copy {
+pub(crate) trait RLaw: Copy + Send + 'static {
     /// `(direct, ΔI)` with $\hat x_p = x_f = 0$.
     fn terms0(&self, r: RefSample, xr1: f64, e1: f64, xf1: f64, xf2: f64) -> (f64, f64);
     /// $[\partial\,\text{direct}/\partial\hat x_p, \partial\,\text{direct}/\partial x_f,
@@ -785,6 +788,7 @@ pub(crate) struct TickOut {
 ///
 /// `N` states; `TM`: two-mass layout `[x_m, v_m, x_L, v_L, current...]`, else rigid
 /// `[x, v, current...]`. Both are compile-time so that the state lives in registers.
+#[derive(Clone)]
 pub(crate) struct Engine<L, const N: usize, const TM: bool> {
     law: L,
     /// Current-loop states (0, 1, 2).
@@ -1158,84 +1162,55 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         }
     }
 
-    /// Runs the drive through `reference` (samples at `ts`, `n_sub` ticks each) into `trace`.
-    fn run(
+    /// Runs `refs.len()` consecutive ticks (`refs` the nominal references, shaped here when the
+    /// drive shapes them; the readings' noise drawn ahead, as the tick reads it) and logs the
+    /// last one: the ticks from the previous logged sample up to and including the first tick
+    /// of the next sample. Returns the saturated ticks.
+    #[allow(clippy::too_many_arguments)] // the loop's parts, kept apart for the registers
+    #[inline(always)]
+    fn run_block(
         &self,
-        reference: Reference<'_>,
-        n_sub: usize,
-        shaping: Option<crate::effects::Shaping>,
-        h: f64,
+        st: &mut RState<N>,
+        shaper: &mut Shaper,
+        shaped: bool,
         readers: &mut (Reader, Reader),
-        trace: &mut DriveTrace,
-    ) -> Result<(), Error> {
-        let n = reference.pos.len();
-        let (pos, vel, acc) = (reference.pos, reference.vel, reference.acc);
-        let x0 = pos[0];
-        let xm0 = quantise_to(x0, readers.0.q, readers.0.inv_q);
-        let mut st = self.rest(x0, xm0);
-        let r0 = RefSample {
-            xr: pos[0],
-            vr: vel[0],
-            ar: acc[0],
-        };
-        let mut shaper = Shaper::new(shaping, h, r0)?;
-        let inv_sub = 1.0 / n_sub as f64;
-        let mut saturated_ticks = 0u64;
-        let (pr, mr) = (&mut readers.0, &mut readers.1);
-        // The loop's reference for the ticks of one sample, made ahead of them (it does not
-        // depend on the loop): the fine interpolation, shaped if the drive shapes it.
-        let shaped = shaping.is_some();
-        let mut refs = vec![r0; n_sub];
-        // The readings' noise for the ticks of one sample, drawn ahead of them (the motor
-        // encoder's only where it is read, as `draw_noise`).
-        let mut noise_p = vec![0.0; n_sub];
-        let mut noise_m = vec![0.0; n_sub];
-        for k in 0..n {
-            let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
-            let last = k + 1 == n;
-            let (dp, dv, da) = if last {
-                (0.0, 0.0, 0.0)
-            } else {
-                (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
-            };
-            let fine = |j: usize| {
-                let w = j as f64 * inv_sub;
-                RefSample {
-                    xr: p0 + w * dp,
-                    vr: v0 + w * dv,
-                    ar: a0 + w * da,
-                }
-            };
-            let ticks = if last { 1 } else { n_sub };
-            let refs = &mut refs[..ticks];
-            for (j, r) in refs.iter_mut().enumerate() {
-                *r = fine(j);
-            }
-            if shaped {
-                shaper.shape_block(refs);
-            }
-            let (noise_p, noise_m) = (&mut noise_p[..ticks], &mut noise_m[..ticks]);
-            pr.fill_noise(noise_p);
-            if self.second_encoder {
-                mr.fill_noise(noise_m);
-            }
-            let (xl, vl, xm) = (st.z[Self::XL], st.z[Self::VL], st.z[0]);
-            let z_before = st.z;
-            let out = self.tick(&mut st, refs[0], 0.0, pr, mr, (noise_p[0], noise_m[0]));
-            saturated_ticks += out.saturated as u64;
-            trace.position.push(out.xp);
-            trace.true_position.push(xl);
-            trace.velocity.push(vl);
-            trace.control.push(out.u);
-            trace.motor_position.push(xm);
-            trace.motor_torque.push(self.torque(&z_before, out.u_in));
-            for ((r, np), nm) in refs.iter().zip(noise_p.iter()).zip(noise_m.iter()).skip(1) {
-                let out = self.tick(&mut st, *r, 0.0, pr, mr, (*np, *nm));
-                saturated_ticks += out.saturated as u64;
-            }
+        refs: &mut [RefSample],
+        noise: &mut (Vec<f64>, Vec<f64>),
+        log: &mut impl SampleLog,
+    ) -> u64 {
+        let ticks = refs.len();
+        if shaped {
+            shaper.shape_block(refs);
         }
-        trace.saturated_ticks = saturated_ticks;
-        Ok(())
+        let (pr, mr) = (&mut readers.0, &mut readers.1);
+        let (noise_p, noise_m) = (&mut noise.0[..ticks], &mut noise.1[..ticks]);
+        pr.fill_noise(noise_p);
+        if self.second_encoder {
+            mr.fill_noise(noise_m);
+        }
+        let mut saturated_ticks = 0u64;
+        let last = ticks - 1;
+        for ((r, np), nm) in refs[..last]
+            .iter()
+            .zip(&noise_p[..last])
+            .zip(&noise_m[..last])
+        {
+            let out = self.tick(st, *r, 0.0, pr, mr, (*np, *nm));
+            saturated_ticks += out.saturated as u64;
+        }
+        let (xl, vl, xm) = (st.z[Self::XL], st.z[Self::VL], st.z[0]);
+        let z_before = st.z;
+        let out = self.tick(st, refs[last], 0.0, pr, mr, (noise_p[last], noise_m[last]));
+        saturated_ticks += out.saturated as u64;
+        log.log(Logged {
+            position: out.xp,
+            true_position: xl,
+            velocity: vl,
+            control: out.u,
+            motor_position: xm,
+            motor_torque: self.torque(&z_before, out.u_in),
+        });
+        saturated_ticks
     }
 
     /// Linearised state as a vector: $z$, integrator, $e_1$, $x_{f1}$, $x_{f2}$, the pending
@@ -1569,51 +1544,185 @@ pub(crate) fn readers(drive: &Drive, ideal: bool) -> (Reader, Reader) {
     )
 }
 
-/// Simulates a drive with effects (called by [`Drive::simulate_into`]).
-pub(crate) fn simulate_effects(
+/// A drive with effects as a stream ([`crate::DriveStream`]), over the monomorphised engine.
+pub(crate) trait EffectsFeed: Send {
+    /// Runs the next samples (checked by the caller; empty only after the first) and logs the
+    /// channels asked for into `out`.
+    fn feed(
+        &mut self,
+        piece: Reference<'_>,
+        channels: Channels,
+        out: &mut DriveTrace,
+    ) -> Result<(), Error>;
+    /// Servo ticks saturated so far.
+    fn saturated_ticks(&self) -> u64;
+}
+
+/// The loop of a drive with effects between pieces of the reference: the engine (constants),
+/// the readers (their noise streams), and, after the first sample, the loop state, the
+/// reference shaper and the last sample.
+struct EffectsStream<L, const N: usize, const TM: bool> {
+    engine: Engine<L, N, TM>,
+    h: f64,
+    n_sub: usize,
+    shaping: Option<crate::effects::Shaping>,
+    readers: (Reader, Reader),
+    run: Option<Running<N>>,
+    saturated_ticks: u64,
+    /// Work buffers of one block of ticks: references, position and motor-reading noise.
+    refs: Vec<RefSample>,
+    noise: (Vec<f64>, Vec<f64>),
+}
+
+/// The state a stream carries from one sample to the next.
+struct Running<const N: usize> {
+    st: RState<N>,
+    shaper: Shaper,
+    /// The last sample fed (unshaped).
+    prev: RefSample,
+}
+
+impl<L: RLaw, const N: usize, const TM: bool> EffectsStream<L, N, TM> {
+    /// Runs the next samples, as [`crate::sim`]'s loop does (module docs of [`crate::sim`],
+    /// "Timing"): each new sample $k$ is one block of ticks, the ticks $1 \ldots n_{sub} - 1$
+    /// of sample $k - 1$ (interpolating towards sample $k$) and tick 0 of sample $k$, logged;
+    /// the first sample is the block of its tick 0 alone, from rest.
+    fn feed_to(&mut self, piece: Reference<'_>, log: &mut impl SampleLog) -> Result<(), Error> {
+        let (pos, vel, acc) = (piece.pos, piece.vel, piece.acc);
+        let n = pos.len();
+        let sample = |k: usize| RefSample {
+            xr: pos[k],
+            vr: vel[k],
+            ar: acc[k],
+        };
+        let e = &self.engine;
+        let shaped = self.shaping.is_some();
+        let mut saturated_ticks = 0u64;
+        let mut k0 = 0;
+        let mut running = match self.run.take() {
+            Some(r) => r,
+            None => {
+                if n == 0 {
+                    return Ok(());
+                }
+                let r0 = sample(0);
+                let xm0 = self.readers.0.quantise(r0.xr);
+                let mut running = Running {
+                    st: e.rest(r0.xr, xm0),
+                    shaper: Shaper::new(self.shaping, self.h, r0)?,
+                    prev: r0,
+                };
+                self.refs[0] = r0;
+                saturated_ticks += e.run_block(
+                    &mut running.st,
+                    &mut running.shaper,
+                    shaped,
+                    &mut self.readers,
+                    &mut self.refs[..1],
+                    &mut self.noise,
+                    log,
+                );
+                k0 = 1;
+                running
+            }
+        };
+        let n_sub = self.n_sub;
+        let inv_sub = 1.0 / n_sub as f64;
+        for k in k0..n {
+            let r = sample(k);
+            let p = running.prev;
+            let (dp, dv, da) = (r.xr - p.xr, r.vr - p.vr, r.ar - p.ar);
+            for (j, rj) in self.refs[..n_sub - 1].iter_mut().enumerate() {
+                let w = (j + 1) as f64 * inv_sub;
+                *rj = RefSample {
+                    xr: p.xr + w * dp,
+                    vr: p.vr + w * dv,
+                    ar: p.ar + w * da,
+                };
+            }
+            self.refs[n_sub - 1] = r;
+            saturated_ticks += e.run_block(
+                &mut running.st,
+                &mut running.shaper,
+                shaped,
+                &mut self.readers,
+                &mut self.refs,
+                &mut self.noise,
+                log,
+            );
+            running.prev = r;
+        }
+        self.run = Some(running);
+        self.saturated_ticks += saturated_ticks;
+        Ok(())
+    }
+}
+
+impl<L: RLaw, const N: usize, const TM: bool> EffectsFeed for EffectsStream<L, N, TM> {
+    fn feed(
+        &mut self,
+        piece: Reference<'_>,
+        channels: Channels,
+        out: &mut DriveTrace,
+    ) -> Result<(), Error> {
+        match channels {
+            Channels::All => self.feed_to(piece, &mut AllChannels(out)),
+            Channels::TruePosition => {
+                self.feed_to(piece, &mut TruePositionOnly(&mut out.true_position))
+            }
+        }
+    }
+
+    fn saturated_ticks(&self) -> u64 {
+        self.saturated_ticks
+    }
+}
+
+/// The stream of a drive with effects at `n_sub` ticks of `h` a sample, before its first
+/// sample.
+pub(crate) fn effects_stream(
     drive: &Drive,
-    reference: Reference<'_>,
     n_sub: usize,
     h: f64,
-    trace: &mut DriveTrace,
-) -> Result<(), Error> {
-    struct Sim<'a, 'r> {
-        reference: Reference<'r>,
+) -> Result<Box<dyn EffectsFeed>, Error> {
+    struct Make {
         n_sub: usize,
         h: f64,
         shaping: Option<crate::effects::Shaping>,
         readers: (Reader, Reader),
-        trace: &'a mut DriveTrace,
     }
-    impl Job for Sim<'_, '_> {
-        type Out = Result<(), Error>;
-        fn run<L: RLaw, const N: usize, const TM: bool>(
-            mut self,
-            e: &Engine<L, N, TM>,
-        ) -> Self::Out {
-            e.run(
-                self.reference,
-                self.n_sub,
-                self.shaping,
-                self.h,
-                &mut self.readers,
-                self.trace,
-            )
+    impl Job for Make {
+        type Out = Box<dyn EffectsFeed>;
+        fn run<L: RLaw, const N: usize, const TM: bool>(self, e: &Engine<L, N, TM>) -> Self::Out {
+            let r0 = RefSample {
+                xr: 0.0,
+                vr: 0.0,
+                ar: 0.0,
+            };
+            Box::new(EffectsStream {
+                engine: e.clone(),
+                h: self.h,
+                n_sub: self.n_sub,
+                shaping: self.shaping,
+                readers: self.readers,
+                run: None,
+                saturated_ticks: 0,
+                refs: vec![r0; self.n_sub],
+                noise: (vec![0.0; self.n_sub], vec![0.0; self.n_sub]),
+            })
         }
     }
     with_engine(
         drive,
         h,
         Build::Full,
-        Sim {
-            reference,
+        Make {
             n_sub,
             h,
             shaping: drive.effects().shaping,
             readers: readers(drive, false),
-            trace,
         },
-    )?
+    )
 }
 
 /// What the drives of one batch ([`lanes`]) must share: the loop's structure. The numbers

@@ -56,6 +56,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::Error;
 use crate::model::{ClosedLoopModel, Poles, Reference};
 use crate::params::{Controller, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, SmcGains};
+use crate::stream::Channels;
 
 /// What a drive simulation logs at every sample of the reference (period `ts`). Memory is
 /// O(samples), independent of the servo rate.
@@ -396,42 +397,54 @@ impl EncoderReader {
     }
 }
 
-/// What the servo loop logs at each sample's first tick: every channel of a [`DriveTrace`],
-/// or the true position alone ([`Drive::simulate_true_position`]).
-trait SampleLog {
-    /// Encoder reading `xm`, true position `x` and velocity `v` (before the tick), control `u`
-    /// and torque computed at the tick.
-    fn log(&mut self, xm: f64, x: f64, v: f64, u: f64, torque: f64);
-    /// Servo ticks at which the control was saturated.
-    fn set_saturated_ticks(&mut self, n: u64);
+/// One logged sample: every channel of a [`DriveTrace`] at a sample's first servo tick (the
+/// states before the tick, the control and torque computed at it).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Logged {
+    /// Position reading the loop used, axis units.
+    pub(crate) position: f64,
+    /// True (load) position, axis units.
+    pub(crate) true_position: f64,
+    /// True (load) velocity, axis units/s.
+    pub(crate) velocity: f64,
+    /// Control after the limit, V.
+    pub(crate) control: f64,
+    /// Motor-side position, axis units.
+    pub(crate) motor_position: f64,
+    /// Motor torque, N·m.
+    pub(crate) motor_torque: f64,
 }
 
-impl SampleLog for DriveTrace {
-    fn log(&mut self, xm: f64, x: f64, v: f64, u: f64, torque: f64) {
-        self.position.push(xm);
-        self.true_position.push(x);
-        self.motor_position.push(x);
-        self.velocity.push(v);
-        self.control.push(u);
-        self.motor_torque.push(torque);
-    }
-    fn set_saturated_ticks(&mut self, n: u64) {
-        self.saturated_ticks = n;
+/// Where a servo loop writes its logged samples: the channels a stream keeps
+/// ([`crate::Channels`]). Monomorphised, so a channel left out costs nothing.
+pub(crate) trait SampleLog {
+    /// Appends one sample.
+    fn log(&mut self, s: Logged);
+}
+
+/// Every channel of a [`DriveTrace`].
+pub(crate) struct AllChannels<'a>(pub(crate) &'a mut DriveTrace);
+
+impl SampleLog for AllChannels<'_> {
+    #[inline(always)]
+    fn log(&mut self, s: Logged) {
+        let t = &mut *self.0;
+        t.position.push(s.position);
+        t.true_position.push(s.true_position);
+        t.velocity.push(s.velocity);
+        t.control.push(s.control);
+        t.motor_position.push(s.motor_position);
+        t.motor_torque.push(s.motor_torque);
     }
 }
 
-/// The true position of each sample, and the saturated ticks.
-struct TruePositionLog {
-    x: Vec<f64>,
-    saturated_ticks: u64,
-}
+/// The true position alone (what a prediction keeps: 8 bytes a sample instead of 48).
+pub(crate) struct TruePositionOnly<'a>(pub(crate) &'a mut Vec<f64>);
 
-impl SampleLog for TruePositionLog {
-    fn log(&mut self, _xm: f64, x: f64, _v: f64, _u: f64, _torque: f64) {
-        self.x.push(x);
-    }
-    fn set_saturated_ticks(&mut self, n: u64) {
-        self.saturated_ticks = n;
+impl SampleLog for TruePositionOnly<'_> {
+    #[inline(always)]
+    fn log(&mut self, s: Logged) {
+        self.0.push(s.true_position);
     }
 }
 
@@ -529,64 +542,99 @@ impl<L: Law> Servo<L> {
         (u_applied, saturated)
     }
 
-    fn run(
+    /// Tick 0 of a sample (reference `r`, the sample itself): reads the encoder, ticks, and
+    /// logs the sample.
+    #[inline(always)]
+    fn log_tick(
         &self,
-        reference: Reference<'_>,
+        st: &mut LoopState,
+        r: RefSample,
+        enc: &mut EncoderReader,
+        saturated_ticks: &mut u64,
+        log: &mut impl SampleLog,
+    ) {
+        let xm = enc.read(st.x);
+        let (x, v) = (st.x, st.v);
+        let (u, sat) = self.tick(st, xm, r);
+        *saturated_ticks += sat as u64;
+        log.log(Logged {
+            position: xm,
+            true_position: x,
+            velocity: v,
+            control: u,
+            motor_position: x,
+            motor_torque: self.ka_kt * u,
+        });
+    }
+
+    /// Runs the loop through the next samples of the reference (`piece`, not empty unless
+    /// `run` is already set), `n_sub` ticks a sample (module docs, "Timing"). `run` holds the
+    /// loop state and the last sample fed (`None` before the first sample: the loop then
+    /// starts at rest on it). Each new sample $k$ first completes sample $k - 1$: its ticks
+    /// $1 \ldots n_{sub} - 1$, which interpolate towards sample $k$; then tick 0 of sample $k$
+    /// is run and logged. The last sample of a run thus runs its first tick only.
+    fn feed(
+        &self,
+        piece: Reference<'_>,
         n_sub: usize,
         enc: &mut EncoderReader,
-        trace: &mut impl SampleLog,
+        run: &mut Option<(LoopState, RefSample)>,
+        saturated_ticks: &mut u64,
+        log: &mut impl SampleLog,
     ) {
-        let n = reference.pos.len();
-        let (pos, vel, acc) = (reference.pos, reference.vel, reference.acc);
-        let x0 = pos[0];
-        let xm0 = enc.quantise(x0);
-        let mut st = LoopState {
-            x: x0,
-            v: 0.0,
-            ctrl: CtrlState {
-                integ: 0.0,
-                xm1: xm0,
-                xm2: xm0,
-                xr1: x0,
-            },
+        let (pos, vel, acc) = (piece.pos, piece.vel, piece.acc);
+        let n = pos.len();
+        let sample = |k: usize| RefSample {
+            xr: pos[k],
+            vr: vel[k],
+            ar: acc[k],
+        };
+        let mut sat = 0u64;
+        let mut k0 = 0;
+        let (mut st, mut prev) = match *run {
+            Some(running) => running,
+            None => {
+                if n == 0 {
+                    return;
+                }
+                // At rest at the first sample with every controller state zero.
+                let r = sample(0);
+                let xm0 = enc.quantise(r.xr);
+                let mut st = LoopState {
+                    x: r.xr,
+                    v: 0.0,
+                    ctrl: CtrlState {
+                        integ: 0.0,
+                        xm1: xm0,
+                        xm2: xm0,
+                        xr1: r.xr,
+                    },
+                };
+                self.log_tick(&mut st, r, enc, &mut sat, log);
+                k0 = 1;
+                (st, r)
+            }
         };
         let inv_sub = 1.0 / n_sub as f64;
-        let mut saturated_ticks = 0u64;
-        for k in 0..n {
-            let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
-            let last = k + 1 == n;
-            let (dp, dv, da) = if last {
-                (0.0, 0.0, 0.0)
-            } else {
-                (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
-            };
-            // Tick 0 of the sample: log it.
-            let xm = enc.read(st.x);
-            let r = RefSample {
-                xr: p0,
-                vr: v0,
-                ar: a0,
-            };
-            let (x, v) = (st.x, st.v);
-            let (u, sat) = self.tick(&mut st, xm, r);
-            saturated_ticks += sat as u64;
-            trace.log(xm, x, v, u, self.ka_kt * u);
-            if last {
-                break;
-            }
+        for k in k0..n {
+            let r = sample(k);
+            let (dp, dv, da) = (r.xr - prev.xr, r.vr - prev.vr, r.ar - prev.ar);
             for j in 1..n_sub {
                 let w = j as f64 * inv_sub;
-                let r = RefSample {
-                    xr: p0 + w * dp,
-                    vr: v0 + w * dv,
-                    ar: a0 + w * da,
+                let rj = RefSample {
+                    xr: prev.xr + w * dp,
+                    vr: prev.vr + w * dv,
+                    ar: prev.ar + w * da,
                 };
                 let xm = enc.read(st.x);
-                let (_, sat) = self.tick(&mut st, xm, r);
-                saturated_ticks += sat as u64;
+                let (_, s) = self.tick(&mut st, xm, rj);
+                sat += s as u64;
             }
+            self.log_tick(&mut st, r, enc, &mut sat, log);
+            prev = r;
         }
-        trace.set_saturated_ticks(saturated_ticks);
+        *run = Some((st, prev));
+        *saturated_ticks += sat;
     }
 
     /// One tick of the linear loop (ideal encoder, zero reference): for building the sampled
@@ -602,13 +650,9 @@ impl<L: Law> Servo<L> {
     }
 }
 
-/// Dispatches once on the controller kind to a monomorphised servo loop.
-fn with_servo<R>(
-    drive: &Drive,
-    h: f64,
-    plant_override: Option<&Plant>,
-    f: impl FnOnce(ServoRef<'_>) -> R,
-) -> Result<R, Error> {
+/// The servo loop of `drive` at servo period `h` (with `plant_override` instead of its plant,
+/// if given), monomorphised on the controller kind.
+fn servo(drive: &Drive, h: f64, plant_override: Option<&Plant>) -> Result<IdealServo, Error> {
     let plant = plant_override.unwrap_or(drive.plant());
     let plant_step = PlantStep::new(plant, h)?;
     let u_max = plant.u_max.unwrap_or(f64::INFINITY);
@@ -622,7 +666,7 @@ fn with_servo<R>(
             vff,
             bff,
             jff,
-        }) => f(ServoRef::PPi(&Servo::new(
+        }) => IdealServo::PPi(Servo::new(
             PPiLaw {
                 kp,
                 ki,
@@ -637,14 +681,14 @@ fn with_servo<R>(
             plant_step,
             u_max,
             k,
-        ))),
+        )),
         Controller::Pid(PidGains {
             kp,
             ki,
             kd,
             jff,
             bff,
-        }) => f(ServoRef::Pid(&Servo::new(
+        }) => IdealServo::Pid(Servo::new(
             PidLaw {
                 kp,
                 ki,
@@ -657,14 +701,14 @@ fn with_servo<R>(
             plant_step,
             u_max,
             k,
-        ))),
+        )),
         Controller::Smc(SmcGains {
             lambda,
             ks,
             rho,
             je_hat,
             be_hat,
-        }) => f(ServoRef::Smc(&Servo::new(
+        }) => IdealServo::Smc(Servo::new(
             SmcLaw {
                 lambda,
                 ks,
@@ -677,14 +721,70 @@ fn with_servo<R>(
             plant_step,
             u_max,
             k,
-        ))),
+        )),
     })
 }
 
-enum ServoRef<'a> {
-    PPi(&'a Servo<PPiLaw>),
-    Pid(&'a Servo<PidLaw>),
-    Smc(&'a Servo<SmcLaw>),
+/// The ideal servo loop of one controller kind.
+enum IdealServo {
+    PPi(Servo<PPiLaw>),
+    Pid(Servo<PidLaw>),
+    Smc(Servo<SmcLaw>),
+}
+
+/// The ideal drive's loop as a stream ([`crate::DriveStream`]): the servo loop, the encoder
+/// (its seeded noise stream) and, after the first sample, the loop state and the last sample.
+pub(crate) struct IdealStream {
+    servo: IdealServo,
+    n_sub: usize,
+    enc: EncoderReader,
+    run: Option<(LoopState, RefSample)>,
+    saturated_ticks: u64,
+}
+
+impl IdealStream {
+    /// The loop of the ideal `drive` at `n_sub` ticks of `h` a sample, before its first sample.
+    pub(crate) fn new(drive: &Drive, h: f64, n_sub: usize) -> Result<IdealStream, Error> {
+        Ok(IdealStream {
+            servo: servo(drive, h, None)?,
+            n_sub,
+            enc: EncoderReader::new(drive.encoder()),
+            run: None,
+            saturated_ticks: 0,
+        })
+    }
+
+    /// Runs the next samples (checked by the caller; empty only after the first) and logs
+    /// the channels asked for into `out`.
+    pub(crate) fn feed(&mut self, piece: Reference<'_>, channels: Channels, out: &mut DriveTrace) {
+        match channels {
+            Channels::All => self.feed_to(piece, &mut AllChannels(out)),
+            Channels::TruePosition => {
+                self.feed_to(piece, &mut TruePositionOnly(&mut out.true_position))
+            }
+        }
+    }
+
+    fn feed_to(&mut self, piece: Reference<'_>, log: &mut impl SampleLog) {
+        let IdealStream {
+            servo,
+            n_sub,
+            enc,
+            run,
+            saturated_ticks,
+        } = self;
+        let n_sub = *n_sub;
+        match servo {
+            IdealServo::PPi(s) => s.feed(piece, n_sub, enc, run, saturated_ticks, log),
+            IdealServo::Pid(s) => s.feed(piece, n_sub, enc, run, saturated_ticks, log),
+            IdealServo::Smc(s) => s.feed(piece, n_sub, enc, run, saturated_ticks, log),
+        }
+    }
+
+    /// Servo ticks saturated so far.
+    pub(crate) fn saturated_ticks(&self) -> u64 {
+        self.saturated_ticks
+    }
 }
 
 /// Servo ticks per logging period: `servo_rate_hz * ts` rounded, which must match to 1e-9.
@@ -711,7 +811,9 @@ impl Drive {
     /// Simulates the drive through `reference` (samples at period `ts`, s), with the controller
     /// at the servo rate, which must be an integer multiple of $1/T_s$. The drive starts at rest
     /// at `reference.pos[0]` with every controller state zero. See the module documentation for
-    /// the interpolation, the plant step and the controller discretisation.
+    /// the interpolation, the plant step and the controller discretisation. This is
+    /// [`Drive::stream`] fed the whole reference at once: a stream fed the same samples in
+    /// pieces gives the same trace bit for bit.
     ///
     /// Errors: the reference's ([`Reference::check`]: empty, lengths, non-finite),
     /// [`Error::BadSamplePeriod`], [`Error::ServoRate`]. Cost: about 10 ns per servo tick
@@ -724,31 +826,21 @@ impl Drive {
 
     /// [`Drive::simulate`]'s true position alone, and its saturated servo ticks: the same
     /// values bit for bit, without the other channels (a long run's prediction needs only
-    /// this, at 8 bytes a sample instead of 48; docs/performance.md). A drive with effects is
-    /// simulated in full and its true position kept.
+    /// this, at 8 bytes a sample instead of 48; docs/performance.md).
     pub fn simulate_true_position(
         &self,
         reference: Reference<'_>,
         ts: f64,
     ) -> Result<(Vec<f64>, u64), Error> {
-        if !self.effects().is_ideal() {
-            let t = self.simulate(reference, ts)?;
-            return Ok((t.true_position, t.saturated_ticks));
-        }
         let n = reference.check()?;
-        let n_sub = self.ticks_per_sample(ts)?;
-        let h = ts / n_sub as f64;
-        let mut log = TruePositionLog {
-            x: Vec::with_capacity(n),
-            saturated_ticks: 0,
+        let mut stream = self.stream(ts, Channels::TruePosition)?;
+        let mut out = DriveTrace {
+            true_position: Vec::with_capacity(n),
+            ..DriveTrace::default()
         };
-        let mut enc = EncoderReader::new(self.encoder());
-        with_servo(self, h, None, |servo| match servo {
-            ServoRef::PPi(s) => s.run(reference, n_sub, &mut enc, &mut log),
-            ServoRef::Pid(s) => s.run(reference, n_sub, &mut enc, &mut log),
-            ServoRef::Smc(s) => s.run(reference, n_sub, &mut enc, &mut log),
-        })?;
-        Ok((log.x, log.saturated_ticks))
+        stream.feed(reference, &mut out)?;
+        let saturated_ticks = stream.finish()?;
+        Ok((out.true_position, saturated_ticks))
     }
 
     /// As [`Drive::simulate`], reusing `trace`'s buffers (cleared first).
@@ -759,9 +851,7 @@ impl Drive {
         trace: &mut DriveTrace,
     ) -> Result<(), Error> {
         let n = reference.check()?;
-        let n_sub = self.ticks_per_sample(ts)?;
-        let h = ts / n_sub as f64;
-        trace.ts = ts;
+        let mut stream = self.stream(ts, Channels::All)?;
         for v in [
             &mut trace.position,
             &mut trace.true_position,
@@ -774,15 +864,9 @@ impl Drive {
             v.reserve(n);
         }
         trace.saturated_ticks = 0;
-        if !self.effects().is_ideal() {
-            return crate::real_sim::simulate_effects(self, reference, n_sub, h, trace);
-        }
-        let mut enc = EncoderReader::new(self.encoder());
-        with_servo(self, h, None, |servo| match servo {
-            ServoRef::PPi(s) => s.run(reference, n_sub, &mut enc, trace),
-            ServoRef::Pid(s) => s.run(reference, n_sub, &mut enc, trace),
-            ServoRef::Smc(s) => s.run(reference, n_sub, &mut enc, trace),
-        })
+        stream.feed(reference, trace)?;
+        trace.saturated_ticks = stream.finish()?;
+        Ok(())
     }
 
     /// Transition matrix $M$ of the sampled linear closed loop at the servo rate (friction,
@@ -799,7 +883,8 @@ impl Drive {
             ..self.plant().clone()
         };
         let to_vec = |s: &LoopState| [s.x, s.v, s.ctrl.integ, s.ctrl.xm1, s.ctrl.xm2];
-        with_servo(self, h, Some(&linear_plant), |servo| {
+        let servo = servo(self, h, Some(&linear_plant))?;
+        {
             let mut m = SMatrix::<f64, 5, 5>::zeros();
             for col in 0..5 {
                 let mut z = [0.0; 5];
@@ -814,17 +899,17 @@ impl Drive {
                         xr1: 0.0,
                     },
                 };
-                match servo {
-                    ServoRef::PPi(s) => s.linear_tick(&mut st),
-                    ServoRef::Pid(s) => s.linear_tick(&mut st),
-                    ServoRef::Smc(s) => s.linear_tick(&mut st),
+                match &servo {
+                    IdealServo::PPi(s) => s.linear_tick(&mut st),
+                    IdealServo::Pid(s) => s.linear_tick(&mut st),
+                    IdealServo::Smc(s) => s.linear_tick(&mut st),
                 }
                 for (row, v) in to_vec(&st).iter().enumerate() {
                     m[(row, col)] = *v;
                 }
             }
-            m
-        })
+            Ok(m)
+        }
     }
 
     /// Effective continuous poles of the sampled closed loop: the three slowest eigenvalues $z$
