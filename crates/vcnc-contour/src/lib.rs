@@ -22,6 +22,12 @@
 //! global foot. Runs of identical reference poses (the machine at rest) are merged into one
 //! knot; zero-length segments project onto their start.
 //!
+//! [`ContourStream`] is the same search over a reference that arrives in pieces, interleaved
+//! with the actual poses, in memory bounded by [`StreamLimits`] whatever the run's length
+//! (docs/contour.md#streamed-search): a sample is searched once the knots its search reads have
+//! arrived, so its answer is the whole-path search's, bit for bit, given the first-sample and
+//! history conditions stated there. [`ContourSearch`] is that search with the whole path held.
+//!
 //! **Units:** positions in mm, angles in rad (the caller converts to µm and mrad for output).
 //!
 //! ```

@@ -277,7 +277,9 @@ impl ReferencePath {
 
     /// Drops the knots before global index `to` (at most up to the last knot held).
     pub fn drop_before(&mut self, to: usize) {
-        let d = to.saturating_sub(self.base).min(self.p.len().saturating_sub(1));
+        let d = to
+            .saturating_sub(self.base)
+            .min(self.p.len().saturating_sub(1));
         if d > 0 {
             self.p.drain(..d);
             self.o.drain(..d);

@@ -49,7 +49,13 @@ impl Default for StreamLimits {
 impl StreamLimits {
     /// Checks the limits against the search window's settings.
     pub fn validate(&self, window: &SearchWindow) -> Result<()> {
-        let bad = |name, value, reason| Err(Error::BadLimits { name, value, reason });
+        let bad = |name, value, reason| {
+            Err(Error::BadLimits {
+                name,
+                value,
+                reason,
+            })
+        };
         if self.history < window.min_margin.saturating_add(MAX_PIECE_MOVES + 2) {
             return bad(
                 "history",

@@ -10,8 +10,8 @@ mod common;
 use common::{Spiral, actual, low_pass, reference};
 use proptest::prelude::*;
 use vcnc_contour::{
-    ContourPath, ContourReport, ContourSearch, ContourStream, Error, Foot, SearchWindow,
-    Sequence, StreamHeld, StreamLimits,
+    ContourPath, ContourReport, ContourSearch, ContourStream, Error, Foot, SearchWindow, Sequence,
+    StreamHeld, StreamLimits,
 };
 use vcnc_kinematics::Pose;
 use vcnc_kinematics::nalgebra::Vector3;
@@ -130,7 +130,9 @@ fn assert_same(w: &ContourReport, out: &[Sample], report: &ContourReport, same_e
         report.orientation_rms_rad.to_bits(),
         w.orientation_rms_rad.to_bits()
     );
-    assert!(report.tip_mm.is_empty() && report.orientation_rad.is_empty() && report.foot.is_empty());
+    assert!(
+        report.tip_mm.is_empty() && report.orientation_rad.is_empty() && report.foot.is_empty()
+    );
     if same_evals {
         assert_eq!(report.segment_evaluations, w.segment_evaluations);
     }
@@ -260,6 +262,7 @@ fn actual_far_from_the_path_streams_bit_for_bit() {
     let w = check_all_schedules(&r, &a);
     assert!(w.tip_max_mm > 3.9, "{}", w.tip_max_mm);
     let per_sample = w.segment_evaluations as f64 / a.len() as f64;
+    eprintln!("{per_sample:.1} projections a sample");
     assert!(per_sample > 100.0, "{per_sample} projections a sample");
 }
 
@@ -273,7 +276,11 @@ fn first_sample_off_the_start_is_found_in_the_first_window() {
     let r = reference(&spiral, None, 0);
     let a = actual(&spiral, None, 3000, -1.5, 5.0, 0.2);
     let w = whole(&r, &a);
-    assert!(w.foot[0].u > 1400.0 && w.foot[0].u < 2000.0, "{}", w.foot[0].u);
+    assert!(
+        w.foot[0].u > 1400.0 && w.foot[0].u < 2000.0,
+        "{}",
+        w.foot[0].u
+    );
     let limits = StreamLimits {
         first_window: 2500,
         ..StreamLimits::default()
@@ -545,8 +552,8 @@ fn long_reference(k: usize) -> Pose {
 fn a_two_million_sample_run_streams_in_bounded_memory() {
     // 2 M reference samples and 2 M actual ones (the reference 4 samples late, 3 µm outward),
     // pushed in pieces of 65 536: the reference piece, then the actual piece of the same
-    // samples, then a drain. The knots held stay below the limits (history + the pieces in
-    // flight), whatever the run's length; the contour error is the 3 µm offset.
+    // samples, then a drain. The knots held stay below the limits (the history and the piece
+    // in flight), whatever the run's length; the contour error is the 3 µm offset.
     const N: usize = 2_000_000;
     const PIECE: usize = 65_536;
     let limits = StreamLimits {
@@ -587,14 +594,18 @@ fn a_two_million_sample_run_streams_in_bounded_memory() {
     }
     let report = ok(s.finish(|k, tip, _, _| check(k, tip)));
     assert_eq!(count, N);
+    eprintln!("most held: {most:?}; tip max {} mm", report.tip_max_mm);
     assert!(most.knots <= limits.knots, "{most:?}");
     assert!(most.queued <= limits.queue, "{most:?}");
-    // Measured bound: the knots dropped a quarter at a time, so at most 4/3 of (history + two
-    // pieces), well under the 2 M knots of the run.
-    assert!(most.knots < (4 * (limits.history + 2 * PIECE)) / 3, "{most:?}");
+    // Pushed a piece at a time and drained, the stream holds the history, one piece and the
+    // few knots around the foot (69 639 measured), not the run's 2 M knots.
+    assert!(most.knots <= limits.history + PIECE + 64, "{most:?}");
     // The 3 µm offset, within the helix's chord sag (0.05² / (8 · 20) mm ≈ 16 nm, absent on
     // the curve) and its 1 mm a turn climb (the offset is radial, the curve's normal is too).
-    assert!((report.tip_max_mm - 3e-3).abs() < 1e-6, "{}", report.tip_max_mm);
+    assert!(
+        (report.tip_max_mm - 3e-3).abs() < 1e-6,
+        "{}",
+        report.tip_max_mm
+    );
     assert_eq!(worst, report.tip_max_mm);
 }
-
