@@ -109,6 +109,10 @@ pub struct StreamHeld {
 /// within [`StreamLimits::first_window`], and that no search reaches back more than
 /// [`StreamLimits::history`] knots (else an error). Knots farther back are dropped.
 ///
+/// Errors: a bad pose is refused with the poses before it taken; a full queue refuses the
+/// pose; a search reaching back beyond the history leaves its sample waiting (it would fail
+/// again). After any error, the results of the run are incomplete.
+///
 /// ```
 /// use vcnc_contour::{ContourStream, SearchWindow, StreamLimits};
 /// use vcnc_kinematics::{Pose, nalgebra::Vector3};
