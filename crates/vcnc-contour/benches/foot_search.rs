@@ -1,5 +1,6 @@
 //! Windowed vs brute-force foot-point search on a 10 000-sample docs/contour.md spiral
-//! (actual = reference delayed 4 ms with a 5 µm offset and a 0.2 mrad tilt).
+//! (actual = reference delayed 4 ms with a 5 µm offset and a 0.2 mrad tilt), and the windowed
+//! search streamed (docs/contour.md#streamed-search) in pieces of 1000 samples.
 //!
 //! `cargo bench -p vcnc-contour --bench foot_search`
 
@@ -9,7 +10,27 @@ mod common;
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use vcnc_contour::{contour_errors, contour_errors_brute_force};
+use vcnc_contour::{
+    ContourStream, Result, SearchWindow, StreamLimits, contour_errors, contour_errors_brute_force,
+};
+use vcnc_kinematics::Pose;
+
+/// The stream fed a piece of reference, then the actual poses of the same samples, then
+/// drained; the tip errors summed (so that nothing is optimised away).
+fn streamed(reference: &[Pose], actual: &[Pose], piece: usize) -> Result<f64> {
+    let mut s = ContourStream::new(&SearchWindow::default(), StreamLimits::default())?;
+    let mut sum = 0.0;
+    for (r, a) in reference.chunks(piece).zip(actual.chunks(piece)) {
+        s.push_reference(r.iter().copied())?;
+        for pose in a {
+            s.push_actual(pose)?;
+        }
+        s.drain(|_, tip, _, _| sum += tip)?;
+    }
+    s.end_reference();
+    s.finish(|_, tip, _, _| sum += tip)?;
+    Ok(sum)
+}
 
 fn foot_search(c: &mut Criterion) {
     let spiral = common::Spiral::new();
@@ -35,6 +56,9 @@ fn foot_search(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("windowed", |b| {
         b.iter(|| contour_errors(black_box(&reference), black_box(&actual)))
+    });
+    group.bench_function("streamed", |b| {
+        b.iter(|| streamed(black_box(&reference), black_box(&actual), 1000))
     });
     group.bench_function("brute_force", |b| {
         b.iter(|| contour_errors_brute_force(black_box(&reference), black_box(&actual)))

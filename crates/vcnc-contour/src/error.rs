@@ -61,6 +61,68 @@ pub enum Error {
         /// What is required.
         reason: &'static str,
     },
+
+    /// A [`StreamLimits`](crate::StreamLimits) setting is unusable.
+    #[error("bad stream limits: {name} = {value}: {reason}")]
+    BadLimits {
+        /// Field name.
+        name: &'static str,
+        /// The offending value.
+        value: usize,
+        /// What is required.
+        reason: &'static str,
+    },
+
+    /// A streamed foot search reads a reference knot already dropped: the foot moved back, or
+    /// the window grew back, farther than the knots kept behind the previous foot.
+    #[error(
+        "actual sample {sample}: the foot search reads reference knot {knot}, but the stream \
+         keeps only {history} knots behind the previous foot (oldest held: {oldest}); raise \
+         StreamLimits::history"
+    )]
+    HistoryExceeded {
+        /// Index of the actual sample.
+        sample: usize,
+        /// The knot read (index among the path's knots, runs of identical poses merged).
+        knot: usize,
+        /// The oldest knot held.
+        oldest: usize,
+        /// [`StreamLimits::history`](crate::StreamLimits::history).
+        history: usize,
+    },
+
+    /// More actual poses wait for reference than the stream may hold.
+    #[error(
+        "actual sample {sample}: {limit} actual samples already wait for more reference \
+         (push reference ahead of the actual samples, or raise StreamLimits::queue)"
+    )]
+    QueueFull {
+        /// Index of the actual sample refused.
+        sample: usize,
+        /// [`StreamLimits::queue`](crate::StreamLimits::queue).
+        limit: usize,
+    },
+
+    /// More reference knots than the stream may hold.
+    #[error(
+        "reference sample {sample}: the stream already holds {limit} reference knots that \
+         waiting actual samples may need (push and drain actual samples before more \
+         reference, or raise StreamLimits::knots)"
+    )]
+    TooManyKnots {
+        /// Index of the reference sample refused.
+        sample: usize,
+        /// [`StreamLimits::knots`](crate::StreamLimits::knots).
+        limit: usize,
+    },
+
+    /// A [`ContourStream`](crate::ContourStream) method called out of order.
+    #[error("contour stream: {0}")]
+    StreamOrder(&'static str),
+
+    /// A failure of the search itself (a bug), reported rather than panicking.
+    #[error("contour search: internal error: {0}")]
+    Internal(&'static str),
 }
 
 impl Error {

@@ -22,6 +22,12 @@
 //! global foot. Runs of identical reference poses (the machine at rest) are merged into one
 //! knot; zero-length segments project onto their start.
 //!
+//! [`ContourStream`] is the same search over a reference that arrives in pieces, interleaved
+//! with the actual poses, in memory bounded by [`StreamLimits`] whatever the run's length
+//! (docs/contour.md#streamed-search): a sample is searched once the knots its search reads have
+//! arrived, so its answer is the whole-path search's, bit for bit, given the first-sample and
+//! history conditions stated there. [`ContourSearch`] is that search with the whole path held.
+//!
 //! **Units:** positions in mm, angles in rad (the caller converts to µm and mrad for output).
 //!
 //! ```
@@ -40,13 +46,15 @@
 
 mod error;
 mod path;
+mod stream;
 
 use vcnc_kinematics::Pose;
 use vcnc_kinematics::nalgebra::Vector3;
 
 pub use error::{Error, Result, Sequence};
 
-use path::{ReferencePath, brute_force_segment, checked};
+use path::{Reach, ReferencePath, SearchState, brute_force_segment, checked};
+pub use stream::{ContourStream, StreamHeld, StreamLimits};
 
 /// The foot point of one actual sample on the reference path.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,6 +67,17 @@ pub struct Foot {
     /// The reference tool axis at $u^*$ (the cubic through the samples' axes, normalised), unit
     /// length.
     pub orientation: Vector3<f64>,
+}
+
+impl Foot {
+    /// A placeholder for a search to write its foot into (not a foot: zero axis).
+    pub(crate) fn unset() -> Self {
+        Foot {
+            u: 0.0,
+            point: Vector3::zeros(),
+            orientation: Vector3::zeros(),
+        }
+    }
 }
 
 /// Contour errors of an actual pose sequence against a reference one (docs/contour.md).
@@ -194,18 +213,14 @@ impl ContourPath {
 
 /// The windowed contour search fed one actual pose at a time, so that a long run never holds
 /// its actual poses; [`contour_errors_with`] is this search over a slice, and the two give the
-/// same report bit for bit.
+/// same report bit for bit. [`ContourStream`] is the same search over a reference that arrives
+/// in pieces.
 #[derive(Debug)]
 pub struct ContourSearch<'a> {
     path: &'a ReferencePath,
     window: SearchWindow,
     acc: Accumulator,
-    prev: Option<usize>,
-    k: usize,
-    /// Knot cursor of the time hint (see [`ContourSearch::push`]).
-    hint: usize,
-    /// Path parameter of the previous foot, reference samples.
-    prev_u: f64,
+    state: SearchState,
 }
 
 impl<'a> ContourSearch<'a> {
@@ -221,11 +236,8 @@ impl<'a> ContourSearch<'a> {
         Ok(Self {
             path: &path.path,
             window: *window,
-            acc: Accumulator::new(capacity, keep_feet),
-            prev: None,
-            k: 0,
-            hint: 0,
-            prev_u: f64::NEG_INFINITY,
+            acc: Accumulator::new(capacity, true, keep_feet),
+            state: SearchState::new(),
         })
     }
 
@@ -234,6 +246,11 @@ impl<'a> ContourSearch<'a> {
     /// backwards along the path, or the segment at the reference sample of the same index is
     /// closer than it, a second window is searched, started at that segment, and the closer of
     /// the two candidates is kept.
+    ///
+    /// The global search of the first sample is skipped when its tip lies exactly on the first
+    /// reference tip (a run starting from rest where its reference starts): the foot is then
+    /// $u^* = 0$ exactly as the global search finds it (nothing is closer than 0, and ties go
+    /// to the smaller $u$), counted as one projection.
     ///
     /// The second window is the time hint: actual sample $k$ is where the machine was when
     /// reference sample $k$ was commanded, so its foot lies a tracking lag behind that sample.
@@ -246,46 +263,33 @@ impl<'a> ContourSearch<'a> {
     /// global foot; the test costs one projection a sample, the second window is searched only
     /// when it fires, so the cost stays O(N + M).
     pub fn push(&mut self, pose: &Pose) -> Result<()> {
-        let (x, o) = checked(pose, Sequence::Actual, self.k)?;
-        let c = match self.prev {
-            None => self.path.nearest_global(&x, &mut self.acc.evals),
-            Some(s) => {
-                let a = self
-                    .path
-                    .nearest_windowed(&x, s, &self.window, &mut self.acc.evals);
-                let h = self.path.segment_of_sample(self.k, &mut self.hint);
-                let far = h.abs_diff(a.seg) > 2 * self.window.min_margin;
-                if far
-                    && (a.u < self.prev_u || {
-                        self.acc.evals += 1;
-                        self.path.eval(h, &x).better_than(&a)
-                    })
-                {
-                    let b = self
-                        .path
-                        .nearest_windowed(&x, h, &self.window, &mut self.acc.evals);
-                    if b.better_than(&a) { b } else { a }
-                } else {
-                    a
-                }
-            }
-        };
-        self.prev_u = c.u;
-        self.prev = Some(c.seg);
-        // The search moves on along the polyline; what is reported is the foot on the curve.
-        let on_curve = self.path.refine(&c, &x);
-        self.acc.push(&x, &o, self.path.foot(&on_curve));
-        self.k += 1;
+        let (x, o) = checked(pose, Sequence::Actual, self.state.k)?;
+        let mut foot = Foot::unset();
+        whole(self.path.step(
+            &mut self.state,
+            &x,
+            &self.window,
+            usize::MAX,
+            &mut self.acc.evals,
+            &mut foot,
+        ))?;
+        self.acc.push(&x, &o, foot);
         Ok(())
     }
 
     /// The report of the samples pushed (an error when there were none).
     pub fn finish(self) -> Result<ContourReport> {
-        if self.k == 0 {
+        if self.state.k == 0 {
             return Err(Error::Empty(Sequence::Actual));
         }
         Ok(self.acc.finish())
     }
+}
+
+/// A search over a whole (ended) path never needs more reference nor a dropped knot; if it
+/// did, that would be a bug, reported rather than panicking.
+fn whole<T>(r: Reach<T>) -> Result<T> {
+    r.map_err(|_| Error::Internal("the foot search read past the end of a whole reference path"))
 }
 
 /// Contour errors with a brute-force foot search over every reference segment (O(N·M)); the
@@ -302,7 +306,7 @@ pub fn contour_errors_brute_force(reference: &[Pose], actual: &[Pose]) -> Result
     // foot; the refinement is the same function of it.
     let path = ReferencePath::new(reference.iter().copied())?;
     let tips: Vec<Vector3<f64>> = reference.iter().map(|pose| pose.p).collect();
-    let mut acc = Accumulator::new(actual.len(), true);
+    let mut acc = Accumulator::new(actual.len(), true, true);
     let per_sample = reference.len().saturating_sub(1).max(1) as u64;
     for (k, pose) in actual.iter().enumerate() {
         let (x, o) = checked(pose, Sequence::Actual, k)?;
@@ -310,24 +314,27 @@ pub fn contour_errors_brute_force(reference: &[Pose], actual: &[Pose]) -> Result
             return Err(Error::Empty(Sequence::Reference));
         };
         acc.evals += per_sample;
-        let on_curve = path.refine(&path.candidate_on_raw(seg, t, &x), &x);
-        acc.push(&x, &o, path.foot(&on_curve));
+        let on_curve = whole(path.refine(&path.candidate_on_raw(seg, t, &x), &x))?;
+        acc.push(&x, &o, whole(path.foot(&on_curve))?);
     }
     Ok(acc.finish())
 }
 
-/// Collects the per-sample series and the statistics.
+/// Collects the per-sample series (or only their statistics) and the statistics.
 #[derive(Debug)]
 struct Accumulator {
     report: ContourReport,
+    keep_series: bool,
     keep_feet: bool,
     evals: u64,
+    count: usize,
     sum_tip2: f64,
     sum_ori2: f64,
 }
 
 impl Accumulator {
-    fn new(n: usize, keep_feet: bool) -> Self {
+    fn new(n: usize, keep_series: bool, keep_feet: bool) -> Self {
+        let n = if keep_series { n } else { 0 };
         Self {
             report: ContourReport {
                 tip_mm: Vec::with_capacity(n),
@@ -335,14 +342,17 @@ impl Accumulator {
                 foot: Vec::with_capacity(if keep_feet { n } else { 0 }),
                 ..ContourReport::default()
             },
-            keep_feet,
+            keep_series,
+            keep_feet: keep_series && keep_feet,
             evals: 0,
+            count: 0,
             sum_tip2: 0.0,
             sum_ori2: 0.0,
         }
     }
 
-    fn push(&mut self, x: &Vector3<f64>, o: &Vector3<f64>, foot: Foot) {
+    /// Adds a sample; returns its tip (mm) and orientation (rad) contour errors.
+    fn push(&mut self, x: &Vector3<f64>, o: &Vector3<f64>, foot: Foot) -> (f64, f64) {
         let tip = (x - foot.point).norm();
         let ori = orientation_error(o, &foot.orientation);
         let r = &mut self.report;
@@ -350,15 +360,19 @@ impl Accumulator {
         r.orientation_max_rad = r.orientation_max_rad.max(ori);
         self.sum_tip2 += tip * tip;
         self.sum_ori2 += ori * ori;
-        r.tip_mm.push(tip);
-        r.orientation_rad.push(ori);
+        self.count += 1;
+        if self.keep_series {
+            r.tip_mm.push(tip);
+            r.orientation_rad.push(ori);
+        }
         if self.keep_feet {
             r.foot.push(foot);
         }
+        (tip, ori)
     }
 
     fn finish(mut self) -> ContourReport {
-        let n = self.report.tip_mm.len().max(1) as f64;
+        let n = self.count.max(1) as f64;
         self.report.tip_rms_mm = (self.sum_tip2 / n).sqrt();
         self.report.orientation_rms_rad = (self.sum_ori2 / n).sqrt();
         self.report.segment_evaluations = self.evals;
