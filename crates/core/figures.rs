@@ -855,9 +855,9 @@ pub struct StreamedErrors {
 /// `contour_error.svg` of a streamed prediction: the errors against time, each drawn from its
 /// min/max envelope per pixel column (every extreme kept).
 pub fn prediction_streamed(report: &mut RunReport, file: &str, e: &StreamedErrors) -> Result<()> {
-    let line = |label: &'static str, role: Role, s: &'_ (Vec<f64>, Vec<f64>)| {
+    fn line<'a>(label: &'static str, role: Role, s: &'a (Vec<f64>, Vec<f64>)) -> Series<'a> {
         Series::line(label, role, &s.0, &s.1)
-    };
+    }
     let panels = vec![
         vr::Panel::new(
             Axis::linear("tool-tip contour error", units::UM),
