@@ -23,6 +23,12 @@ use crate::writers::{
 /// 8 MiB is about 200 000 blocks, a few million samples of short five-axis segments.
 pub const STREAM_ABOVE_BYTES: u64 = 8 << 20;
 
+/// Samples per piece of a streamed prediction or simulation: a piece's buffers (the reference,
+/// the drives' and models' positions, three poses and the errors of each sample, the table's
+/// columns) are about 1 kB a sample, so 16 384 keep them near 16 MB; longer pieces save
+/// nothing measurable.
+pub const STREAM_PIECE_SAMPLES: usize = 1 << 14;
+
 /// `vcnc predict MACHINE PROGRAM [--model MODEL] --out DIR`: whole-run (every figure at full
 /// resolution), or streamed with `stream` or for a program over [`STREAM_ABOVE_BYTES`] (memory
 /// bounded whatever its length; the same table and statistics bit for bit).
@@ -166,7 +172,10 @@ fn predict_streamed(
         machine,
         program,
         ctx.lenient,
-        &vcnc_gcode::StreamOptions::default(),
+        &vcnc_gcode::StreamOptions {
+            chunk_samples: STREAM_PIECE_SAMPLES,
+            ..vcnc_gcode::StreamOptions::default()
+        },
     )?;
     print_warnings(&stream.warnings);
     let (models, latency, source) = models_of(machine, model)?;

@@ -304,7 +304,10 @@ fn simulate_streamed(
         machine,
         program,
         ctx.lenient,
-        &vcnc_gcode::StreamOptions::default(),
+        &vcnc_gcode::StreamOptions {
+            chunk_samples: crate::cmd_predict::STREAM_PIECE_SAMPLES,
+            ..vcnc_gcode::StreamOptions::default()
+        },
     )?;
     print_warnings(&stream.warnings);
     let models = match model {

@@ -15,8 +15,7 @@
 //! What is held at any time: the samples between the newest reference sample and the oldest
 //! sample not yet finished — the models' latency look-ahead (a few samples) and the contour
 //! searches' look-ahead (the window of the path the search may still move along, about a
-//! piece) — plus per source line of the program its largest errors (for the worst blocks: a
-//! line's samples may recur in loops, so no line can be forgotten; about 50 bytes a line).
+//! piece) — and the ten worst lines so far.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::path::Path;
@@ -142,7 +141,7 @@ struct Figures {
     acc: [MaxRms; 6],
     measured: usize,
     samples: usize,
-    per_line: BTreeMap<u32, (f64, f64)>,
+    worst: WorstLines,
 }
 
 impl Figures {
@@ -170,9 +169,7 @@ impl Figures {
                 a.add(x);
             }
             if p.lines[k] != 0 {
-                let e = self.per_line.entry(p.lines[k]).or_insert((0.0, 0.0));
-                e.0 = e.0.max(tt);
-                e.1 = e.1.max(to);
+                self.worst.add(p.lines[k], tt, to);
             }
         }
     }
@@ -196,7 +193,8 @@ impl Figures {
             discrepancy_rms: pair(4, 5, true),
         };
         let mut worst: Vec<WorstBlock> = self
-            .per_line
+            .worst
+            .finish()
             .into_iter()
             .map(|(line, (t, o))| WorstBlock {
                 line,
@@ -226,6 +224,75 @@ impl Figures {
             worst_blocks: worst,
         };
         (summary, figures)
+    }
+}
+
+/// The [`WORST_BLOCKS`] source lines with the largest true tool-tip contour error, in memory
+/// that does not grow with the program (a 1 GB program has millions of lines): each run of
+/// consecutive measured samples of one line is offered as a whole to a list of the best
+/// [`WORST_BLOCKS`] lines so far, ranked as [`crate::predict::worst_blocks`] ranks them (larger
+/// error first, then the smaller line). The list and every line's largest tool-tip error in it
+/// are exactly the whole run's: a line outside the list at some time had a smaller error than
+/// all of it, and the list's last error only grows. So is each listed line's orientation error,
+/// unless the line ran more than once (O-word loops and calls) and left the list between its
+/// runs: its orientation maximum then covers the runs since it came back (docs/performance.md).
+#[derive(Debug, Default)]
+struct WorstLines {
+    /// The run being read: line, largest tool-tip and orientation errors.
+    run: Option<(u32, f64, f64)>,
+    /// The best lines so far: line → (tool tip, orientation).
+    best: BTreeMap<u32, (f64, f64)>,
+}
+
+impl WorstLines {
+    fn add(&mut self, line: u32, tip: f64, orientation: f64) {
+        match &mut self.run {
+            Some((l, t, o)) if *l == line => {
+                *t = t.max(tip);
+                *o = o.max(orientation);
+            }
+            run => {
+                if let Some(r) = run.replace((line, tip, orientation)) {
+                    self.offer(r);
+                }
+            }
+        }
+    }
+
+    fn offer(&mut self, (line, tip, orientation): (u32, f64, f64)) {
+        if let Some(e) = self.best.get_mut(&line) {
+            e.0 = e.0.max(tip);
+            e.1 = e.1.max(orientation);
+            return;
+        }
+        if self.best.len() < WORST_BLOCKS {
+            self.best.insert(line, (tip, orientation));
+            return;
+        }
+        // The last of the list: the smallest error, of equal ones the largest line.
+        let Some((&last, &(t_last, _))) = self
+            .best
+            .iter()
+            .min_by(|a, b| (a.1.0 * 1e3).total_cmp(&(b.1.0 * 1e3)).then(b.0.cmp(a.0)))
+        else {
+            return;
+        };
+        // Ranked in µm, as the summary's figures (two errors in mm may round to one in µm).
+        if (tip * 1e3)
+            .total_cmp(&(t_last * 1e3))
+            .then(last.cmp(&line))
+            .is_gt()
+        {
+            self.best.remove(&last);
+            self.best.insert(line, (tip, orientation));
+        }
+    }
+
+    fn finish(mut self) -> BTreeMap<u32, (f64, f64)> {
+        if let Some(r) = self.run.take() {
+            self.offer(r);
+        }
+        self.best
     }
 }
 
@@ -316,7 +383,7 @@ struct Search {
 impl Search {
     fn new() -> Result<Search, Error> {
         Ok(Search {
-            stream: ContourStream::new(&SearchWindow::default(), false, StreamLimits::default())?,
+            stream: ContourStream::new(&SearchWindow::default(), StreamLimits::default())?,
             pushed: 0,
         })
     }
@@ -556,5 +623,63 @@ fn reference_of(c: &ReferenceChunk, i: usize) -> Reference<'_> {
         pos: &c.pos[i],
         vel: &c.vel[i],
         acc: &c.acc[i],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Truth: [`crate::predict::worst_blocks`] over the whole series.
+    #[test]
+    fn the_worst_lines_are_the_whole_runs() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for case in 0..200 {
+            let n = 1 + (next() % 3000) as usize;
+            let recur = case % 2 == 1;
+            let (mut lines, mut tip, mut or) = (Vec::new(), Vec::new(), Vec::new());
+            let mut line = 1u32;
+            for _ in 0..n {
+                if next() % 7 == 0 {
+                    // A new block: the next line, or (recurring) an earlier one.
+                    line = if recur && next() % 3 == 0 {
+                        1 + (next() % u64::from(line)) as u32
+                    } else {
+                        line + 1 + (next() % 3) as u32
+                    };
+                }
+                lines.push(if next() % 50 == 0 { 0 } else { line });
+                // Coarse values, so that ties occur.
+                tip.push((next() % 40) as f64 * 1e-4);
+                or.push((next() % 40) as f64 * 1e-5);
+            }
+            let mask: Vec<bool> = (0..n).map(|_| next() % 5 != 0).collect();
+            let want = crate::predict::worst_blocks(&lines, &tip, &or, &mask, WORST_BLOCKS);
+            let mut w = WorstLines::default();
+            for k in 0..n {
+                if mask[k] && lines[k] != 0 {
+                    w.add(lines[k], tip[k], or[k]);
+                }
+            }
+            let got = w.finish();
+            let mut got: Vec<(u32, f64, f64)> =
+                got.into_iter().map(|(l, (t, o))| (l, t * 1e3, o * 1e3)).collect();
+            got.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+            assert_eq!(got.len(), want.len(), "case {case}");
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!((g.0, g.1), (w.line, w.contour_max_um), "case {case}");
+                if !recur {
+                    assert_eq!(g.2, w.orientation_max_mrad, "case {case}");
+                } else {
+                    assert!(g.2 <= w.orientation_max_mrad, "case {case}");
+                }
+            }
+        }
     }
 }
