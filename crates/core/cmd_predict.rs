@@ -131,7 +131,10 @@ pub fn predict(
 /// The models (from `model`, or identified on the fly), the actual-value latency stated for
 /// each axis (the model file's, or the machine's configuration for models identified on the
 /// fly; docs/drive-model.md), and where the models come from.
-fn models_of(machine: &Machine, model: Option<&Path>) -> Result<(Vec<DriveModel>, Vec<f64>, String)> {
+fn models_of(
+    machine: &Machine,
+    model: Option<&Path>,
+) -> Result<(Vec<DriveModel>, Vec<f64>, String)> {
     Ok(match model {
         Some(p) => {
             let set = ModelSet::load(p)?;
@@ -150,8 +153,7 @@ fn models_of(machine: &Machine, model: Option<&Path>) -> Result<(Vec<DriveModel>
                 "identified on the fly".to_string(),
             )
         }
-    }
-    )
+    })
 }
 
 /// `vcnc predict` streamed (docs/performance.md, "Streamed prediction"): the table is written
@@ -185,7 +187,8 @@ fn predict_streamed(
     let names: Vec<String> = machine.axes.iter().map(|a| a.name.to_string()).collect();
     let header = crate::writers::contour_header(&names);
     let width = header.len();
-    let mut writer = crate::sink::TableWriter::create_sized(out, "contour", header, table, Some(n))?;
+    let mut writer =
+        crate::sink::TableWriter::create_sized(out, "contour", header, table, Some(n))?;
     // The figure's curves: min/max envelopes per time bucket (tool tip: true, model, |Δ|;
     // orientation: the same).
     let mut env: [Envelope; 6] = std::array::from_fn(|_| Envelope::new(n, 2000));
@@ -208,7 +211,12 @@ fn predict_streamed(
                 (dt, &p.true_tip_mm, Some(&p.predicted_tip_mm), 1e3),
                 (to, &p.true_orientation_rad, None, 1e3),
                 (po, &p.predicted_orientation_rad, None, 1e3),
-                (dor, &p.true_orientation_rad, Some(&p.predicted_orientation_rad), 1e3),
+                (
+                    dor,
+                    &p.true_orientation_rad,
+                    Some(&p.predicted_orientation_rad),
+                    1e3,
+                ),
             ] {
                 scratch.clear();
                 match b {

@@ -175,8 +175,8 @@ pub fn simulate(
     ctx: &Ctx,
 ) -> Result<()> {
     let machine = Machine::load(machine_path)?;
-    let large = std::fs::metadata(program)
-        .is_ok_and(|m| m.len() > crate::cmd_predict::STREAM_ABOVE_BYTES);
+    let large =
+        std::fs::metadata(program).is_ok_and(|m| m.len() > crate::cmd_predict::STREAM_ABOVE_BYTES);
     if stream || large {
         return simulate_streamed(machine_path, &machine, program, model, out, table, ctx);
     }
@@ -353,7 +353,12 @@ fn simulate_streamed(
                 if let Some(pred) = &p.predicted {
                     cols.push(&pred[i]);
                     scratch.clear();
-                    scratch.extend(p.reference[i].iter().zip(&pred[i]).map(|(r, x)| (r - x) * k));
+                    scratch.extend(
+                        p.reference[i]
+                            .iter()
+                            .zip(&pred[i])
+                            .map(|(r, x)| (r - x) * k),
+                    );
                     env_model[i].add(p.first, &scratch);
                 }
             }
@@ -399,8 +404,7 @@ fn simulate_streamed(
         ctx,
     );
     let true_lines: Vec<(Vec<f64>, Vec<f64>)> = env_true.iter().map(|e| e.polyline(ts)).collect();
-    let model_lines: Vec<(Vec<f64>, Vec<f64>)> =
-        env_model.iter().map(|e| e.polyline(ts)).collect();
+    let model_lines: Vec<(Vec<f64>, Vec<f64>)> = env_model.iter().map(|e| e.polyline(ts)).collect();
     let figure_axes: Vec<figures::StreamedAxis<'_>> = machine
         .axes
         .iter()

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use vcnc_drive::ClosedLoopModel;
 use vcnc_machine::Machine;
-use vcnc_pipeline::stream_predict::PredictPiece;
 use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
 use vcnc_pipeline::predict::poses_at;
+use vcnc_pipeline::stream_predict::PredictPiece;
 use vcnc_pipeline::{AxisIdentification, ContourFigures, Prediction, Run};
 
 use crate::Ctx;

@@ -158,14 +158,11 @@ impl Figures {
             self.measured += 1;
             let (tt, to) = (p.true_tip_mm[k], p.true_orientation_rad[k]);
             let (pt, po) = (p.predicted_tip_mm[k], p.predicted_orientation_rad[k]);
-            for (a, x) in self.acc.iter_mut().zip([
-                tt,
-                to,
-                pt,
-                po,
-                (tt - pt).abs(),
-                (to - po).abs(),
-            ]) {
+            for (a, x) in
+                self.acc
+                    .iter_mut()
+                    .zip([tt, to, pt, po, (tt - pt).abs(), (to - po).abs()])
+            {
                 a.add(x);
             }
             if p.lines[k] != 0 {
@@ -359,7 +356,9 @@ impl Pending {
             .reference_poses
             .extend(self.reference_poses.drain(..n));
         piece.true_poses.extend(self.true_poses.drain(..n));
-        piece.predicted_poses.extend(self.predicted_poses.drain(..n));
+        piece
+            .predicted_poses
+            .extend(self.predicted_poses.drain(..n));
         for (t, o) in self.true_errors.drain(..n) {
             piece.true_tip_mm.push(t);
             piece.true_orientation_rad.push(o);
@@ -407,7 +406,8 @@ impl Search {
             poses.push_back(q);
         }
         self.pushed = end;
-        self.stream.drain(|_, tip, or, _| errors.push_back((tip, or)))?;
+        self.stream
+            .drain(|_, tip, or, _| errors.push_back((tip, or)))?;
         Ok(())
     }
 }
@@ -446,7 +446,11 @@ pub fn predict_streamed(
         .axes
         .iter()
         .enumerate()
-        .map(|(i, a)| a.drive.stream(ts, Channels::TruePosition).map_err(drive_err(i)))
+        .map(|(i, a)| {
+            a.drive
+                .stream(ts, Channels::TruePosition)
+                .map_err(drive_err(i))
+        })
         .collect::<Result<Vec<_>, Error>>()?;
     let mut model_streams = models
         .iter()
@@ -468,11 +472,11 @@ pub fn predict_streamed(
 
     // Pushes the known actual samples to both searches and hands the finished ones to `sink`.
     let advance = |pending: &mut Pending,
-                       true_search: &mut Search,
-                       pred_search: &mut Search,
-                       figures: &mut Figures,
-                       piece: &mut PredictPiece,
-                       sink: &mut dyn FnMut(&PredictPiece) -> Result<(), Error>|
+                   true_search: &mut Search,
+                   pred_search: &mut Search,
+                   figures: &mut Figures,
+                   piece: &mut PredictPiece,
+                   sink: &mut dyn FnMut(&PredictPiece) -> Result<(), Error>|
      -> Result<(), Error> {
         let end = pending.actual_known();
         let base = pending.base;
@@ -487,7 +491,16 @@ pub fn predict_streamed(
         } = pending;
         let (a, b) = rayon::join(
             || true_search.advance(machine, truth, base, end, true_poses, true_errors),
-            || pred_search.advance(machine, predicted, base, end, predicted_poses, predicted_errors),
+            || {
+                pred_search.advance(
+                    machine,
+                    predicted,
+                    base,
+                    end,
+                    predicted_poses,
+                    predicted_errors,
+                )
+            },
         );
         a?;
         b?;
@@ -668,8 +681,10 @@ mod tests {
                 }
             }
             let got = w.finish();
-            let mut got: Vec<(u32, f64, f64)> =
-                got.into_iter().map(|(l, (t, o))| (l, t * 1e3, o * 1e3)).collect();
+            let mut got: Vec<(u32, f64, f64)> = got
+                .into_iter()
+                .map(|(l, (t, o))| (l, t * 1e3, o * 1e3))
+                .collect();
             got.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
             assert_eq!(got.len(), want.len(), "case {case}");
             for (g, w) in got.iter().zip(&want) {

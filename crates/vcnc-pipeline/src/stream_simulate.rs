@@ -200,11 +200,9 @@ pub fn simulate_streamed(
         }
     }
     let tracking = (0..axes)
-        .map(|i| {
-            AxisFigures {
-                tracking: tracking[i].finish(samples),
-                model_vs_true: models.map(|_| model_vs_true[i].finish(samples)),
-            }
+        .map(|i| AxisFigures {
+            tracking: tracking[i].finish(samples),
+            model_vs_true: models.map(|_| model_vs_true[i].finish(samples)),
         })
         .collect();
     Ok(StreamedSimulation {

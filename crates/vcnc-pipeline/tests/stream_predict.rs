@@ -23,7 +23,9 @@ use vcnc_pipeline::stream_predict::{PredictPiece, StreamedPrediction, predict_st
 use vcnc_pipeline::{Run, programs};
 
 fn repo(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(rel)
 }
 
 fn bits(v: &[f64]) -> Vec<u64> {
@@ -104,7 +106,12 @@ fn assert_same(
     assert_eq!(p.lines, run.lines, "{name}: lines");
     assert_eq!(p.classes, run.classes, "{name}: classes");
     for (i, a) in run.axes.iter().enumerate() {
-        assert_eq!(bits(&p.reference[i]), bits(&a.pos), "{name}: {} reference", a.name);
+        assert_eq!(
+            bits(&p.reference[i]),
+            bits(&a.pos),
+            "{name}: {} reference",
+            a.name
+        );
         assert_eq!(
             bits(&p.truth[i]),
             bits(&whole.true_traces[i].true_position),
@@ -120,7 +127,11 @@ fn assert_same(
     }
     let (t, q) = (&whole.true_contour, &whole.predicted_contour);
     assert_eq!(bits(&p.true_tip_mm), bits(&t.tip_mm), "{name}: true tip");
-    assert_eq!(bits(&p.predicted_tip_mm), bits(&q.tip_mm), "{name}: model tip");
+    assert_eq!(
+        bits(&p.predicted_tip_mm),
+        bits(&q.tip_mm),
+        "{name}: model tip"
+    );
     assert_eq!(
         bits(&p.true_orientation_rad),
         bits(&t.orientation_rad),
@@ -150,7 +161,11 @@ fn assert_same(
     }
     let summary = ContourSummary::of(whole, run, which);
     assert_eq!(s.summary, summary, "{name}: summary");
-    assert_eq!(s.figures, whole.figures(&run.measured(which)), "{name}: figures");
+    assert_eq!(
+        s.figures,
+        whole.figures(&run.measured(which)),
+        "{name}: figures"
+    );
     assert!(
         summary.contour_um["true_max"] > 1.0,
         "{name}: a run with contour errors"
@@ -298,7 +313,12 @@ fn streamed_simulation_equals_the_whole_run() {
                     assert_eq!(bits(c), bits(v), "{}: axis {i}", machine.name);
                 }
                 if let Some(p) = &whole.predicted {
-                    assert_eq!(bits(&predicted[i]), bits(&p[i]), "{}: model {i}", machine.name);
+                    assert_eq!(
+                        bits(&predicted[i]),
+                        bits(&p[i]),
+                        "{}: model {i}",
+                        machine.name
+                    );
                 }
                 let f = &s.tracking[i];
                 let w = &tracking[i];
