@@ -486,6 +486,9 @@ impl DriveModel {
     /// starting at rest at `pos[0]`. Returns the position at every sample. See the module
     /// documentation; with no dead time, filter or extra pole this is
     /// [`ClosedLoopModel::simulate`] up to rounding.
+    ///
+    /// This is [`DriveModel::stream`] (of a model that is not core-only) fed the whole
+    /// reference: a stream fed it in pieces gives the same positions bit for bit.
     pub fn simulate(
         &self,
         reference: Reference<'_>,
@@ -596,6 +599,7 @@ pub(crate) struct Stepper {
 
 impl Stepper {
     /// The discretisation of `model` (validated by the caller) at `ts` (checked).
+    #[allow(clippy::needless_range_loop)] // small dense kernels: indices read best
     fn new(model: &DriveModel, ts: f64) -> Result<Stepper, Error> {
         let real = model.realisation();
         let mut d = model.delay_s / ts;
@@ -709,6 +713,7 @@ impl Stepper {
 
 /// $z(h)$ of piece `p` from state `z` under the input ramp from `u0` to `u1`, into `out`.
 #[inline(always)]
+#[allow(clippy::needless_range_loop)] // small dense kernel: indices read best
 fn advance(p: &Piece, ns: usize, z: &[f64], u0: &[f64; 3], u1: &[f64; 3], out: &mut [f64]) {
     for i in 0..ns {
         let row = &p.phi[i * ns..(i + 1) * ns];

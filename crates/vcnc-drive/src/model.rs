@@ -499,6 +499,9 @@ impl ClosedLoopModel {
     /// The model has zero initial conditions, so it simulates deviations from the rest position
     /// ($x - x_0$, $x_r - x_0$) and adds $x_0$ back (docs/drive-model.md): with absolute coordinates and
     /// $q = 0$ the model would see a step of $(b_2 - a_2) x_0$.
+    ///
+    /// The same positions bit for bit come from [`ClosedLoopModel::stream`] fed the reference in
+    /// pieces (both run the same step).
     pub fn simulate(
         &self,
         reference: Reference<'_>,

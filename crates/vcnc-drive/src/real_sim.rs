@@ -8,8 +8,11 @@
 //!
 //! 1. Reference: the fine-interpolated nominal sample (as in [`crate::sim`]) goes through the
 //!    interpolation delay (whole ticks) and the nominal-position filter (exact for a reference
-//!    that is linear between ticks, docs/machine-file.md#reference), for all the ticks of a
-//!    sample ahead of them; so is the readings' noise.
+//!    that is linear between ticks, docs/machine-file.md#reference), for the ticks from one
+//!    logged sample to the next ahead of them (the samples are run as they arrive: module docs
+//!    of [`crate::sim`], "Timing"); so is the readings' noise. Both are independent of how the
+//!    ticks are grouped, so a reference fed in pieces ([`crate::DriveStream`]) gives the
+//!    whole run's trace bit for bit.
 //! 2. Readings: the position sensor (load scale or motor encoder) is read with quantisation and
 //!    seeded noise, and the position loop takes the reading of $n$ ticks ago (dead time). The
 //!    velocity path reads the motor encoder (the same reading in a rigid or semi-closed drive),

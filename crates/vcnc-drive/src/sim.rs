@@ -16,6 +16,12 @@
 //! starts at rest at the first reference sample with every controller state zero; the trace
 //! records each logging instant's encoder reading, true position and velocity, and $u$.
 //!
+//! The sample $k$ is logged at its first tick $t_k$; its other $n_{sub} - 1$ ticks interpolate
+//! towards sample $k + 1$, and the last sample runs its first tick only. So the loop runs
+//! sample by sample as the samples arrive: on sample $k$, the remaining ticks of sample $k - 1$,
+//! then the first tick of sample $k$, logged. This is how [`crate::DriveStream`] runs a reference
+//! fed in pieces, and [`Drive::simulate`] is that stream fed the whole reference.
+//!
 //! # Plant step (exact linear part, implicit friction)
 //!
 //! In axis units, $\ddot x = -\beta \dot x + c\,u - d_c \operatorname{sgn}\dot x$ with
@@ -884,32 +890,30 @@ impl Drive {
         };
         let to_vec = |s: &LoopState| [s.x, s.v, s.ctrl.integ, s.ctrl.xm1, s.ctrl.xm2];
         let servo = servo(self, h, Some(&linear_plant))?;
-        {
-            let mut m = SMatrix::<f64, 5, 5>::zeros();
-            for col in 0..5 {
-                let mut z = [0.0; 5];
-                z[col] = 1.0;
-                let mut st = LoopState {
-                    x: z[0],
-                    v: z[1],
-                    ctrl: CtrlState {
-                        integ: z[2],
-                        xm1: z[3],
-                        xm2: z[4],
-                        xr1: 0.0,
-                    },
-                };
-                match &servo {
-                    IdealServo::PPi(s) => s.linear_tick(&mut st),
-                    IdealServo::Pid(s) => s.linear_tick(&mut st),
-                    IdealServo::Smc(s) => s.linear_tick(&mut st),
-                }
-                for (row, v) in to_vec(&st).iter().enumerate() {
-                    m[(row, col)] = *v;
-                }
+        let mut m = SMatrix::<f64, 5, 5>::zeros();
+        for col in 0..5 {
+            let mut z = [0.0; 5];
+            z[col] = 1.0;
+            let mut st = LoopState {
+                x: z[0],
+                v: z[1],
+                ctrl: CtrlState {
+                    integ: z[2],
+                    xm1: z[3],
+                    xm2: z[4],
+                    xr1: 0.0,
+                },
+            };
+            match &servo {
+                IdealServo::PPi(s) => s.linear_tick(&mut st),
+                IdealServo::Pid(s) => s.linear_tick(&mut st),
+                IdealServo::Smc(s) => s.linear_tick(&mut st),
             }
-            Ok(m)
+            for (row, v) in to_vec(&st).iter().enumerate() {
+                m[(row, col)] = *v;
+            }
         }
+        Ok(m)
     }
 
     /// Effective continuous poles of the sampled closed loop: the three slowest eigenvalues $z$
