@@ -25,7 +25,7 @@
 use std::arch::x86_64::*;
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
-use super::{Engine, Fric, Lin, RLaw, Reader, Shaper};
+use super::{Engine, Fric, Lin, RLaw, Reader, ShapeFilter, Shaper};
 use crate::Error;
 use crate::effects::{FrictionLaw, MAX_ELEMENTS, Shaping};
 use crate::model::Reference;
@@ -210,6 +210,45 @@ impl Not for M {
         // SAFETY: as `ld`.
         stm(unsafe { _mm256_xor_pd(ldm(self), _mm256_castsi256_pd(_mm256_set1_epi64x(-1))) })
     }
+}
+
+/// [`exp_neg`](crate::effects::exp_neg) per lane: the same operations in the same order.
+#[inline(always)]
+fn exp_neg(p: F) -> F {
+    use crate::effects::exp_neg_consts::{C, INV_LN2, LN2_HI, LN2_LO, ROUND};
+    let x = -p;
+    let t = x * F::splat(INV_LN2) + F::splat(ROUND);
+    let n = t - F::splat(ROUND);
+    let r = (x - n * F::splat(LN2_HI)) - n * F::splat(LN2_LO);
+    let c = |i: usize| F::splat(C[i]); // a constant, no intrinsic: no AVX needed to inline
+    let r2 = r * r;
+    let r4 = r2 * r2;
+    let r8 = r4 * r4;
+    let q0 = c(0) + c(1) * r;
+    let q1 = c(2) + c(3) * r;
+    let q2 = c(4) + c(5) * r;
+    let q3 = c(6) + c(7) * r;
+    let q4 = c(8) + c(9) * r;
+    let q5 = c(10) + c(11) * r;
+    let q6 = c(12) + c(13) * r;
+    let s0 = q0 + q1 * r2;
+    let s1 = q2 + q3 * r2;
+    let s2 = q4 + q5 * r2;
+    let u0 = s0 + s1 * r4;
+    let u1 = s2 + q6 * r4;
+    let poly = u0 + u1 * r8;
+    // SAFETY: as `ld` (64-bit integer lanes: AVX2).
+    let scale = unsafe {
+        let k = _mm256_sub_epi64(
+            _mm256_castpd_si256(ld(t)),
+            _mm256_set1_epi64x(ROUND.to_bits() as i64),
+        );
+        _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
+            k,
+            _mm256_set1_epi64x(1023),
+        )))
+    };
+    poly * st(scale)
 }
 
 /// Lane `l` of each of `xs`.
@@ -803,8 +842,8 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 let flat = speed.gt(*v_flat);
                 // The law's own branches (FrictionLaw::level) as selects: the Coulomb level
                 // beyond v_flat, at rest the static level, T_c beyond p = 40, the short series
-                // below p = 1e-4; in between, the exponential (and a general exponent's power)
-                // per lane, libm's as in the scalar loop.
+                // below p = 1e-4, in between the exponential (`exp_neg` on lanes); a general
+                // exponent's level per lane, with libm's power as in the scalar loop.
                 let (tc, ts) = (
                     sel(pos, coulomb[0], coulomb[1]),
                     sel(pos, static_[0], static_[1]),
@@ -825,7 +864,12 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                         tc,
                         sel(trivial, sel(at_rest, ts, tc), sel(big, tc, series)),
                     );
-                    let libm = !flat & !trivial & (*exp_other | !(big | small));
+                    let general = !flat & !trivial;
+                    let exp = general & !(*exp_other | big | small);
+                    if exp.any() {
+                        lev = sel(exp, tc + (ts - tc) * exp_neg(p), lev);
+                    }
+                    let libm = general & *exp_other;
                     if libm.any() {
                         for l in 0..LANES {
                             if libm.at(l) {
@@ -878,6 +922,115 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 st.ms_stiffness = sel(slide, zero, stiffness);
             }
         }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reference shaping on lanes.
+
+/// [`Shaper`] on lanes whose shaping has the same structure (the same delay in ticks, and the
+/// same moving-average window or none): the same buffer and running sums, one lane per drive,
+/// each lane the operations of [`Shaper::shape_block`] for its drive.
+struct ShaperF {
+    ext: Vec<RefF>,
+    start: usize,
+    keep: usize,
+    /// The moving average's window `m`, running sums (position, velocity, acceleration) and
+    /// $1/m$ per lane.
+    avg: Option<(usize, [F; 3], F)>,
+}
+
+impl ShaperF {
+    /// The lanes of `shapers` (one per lane, at rest), if they share their structure.
+    fn of(shapers: &[Shaper]) -> Option<ShaperF> {
+        let s0 = &shapers[0];
+        let window = |s: &Shaper| match s.filter {
+            ShapeFilter::None => Some(None),
+            ShapeFilter::Avg { m, .. } => Some(Some(m)),
+            ShapeFilter::Lin { .. } => None,
+        };
+        let w0 = window(s0)?;
+        if shapers
+            .iter()
+            .any(|s| s.keep != s0.keep || window(s) != Some(w0) || s.start != 0)
+        {
+            return None;
+        }
+        let avg = w0.map(|m| {
+            let lanes = |f: &dyn Fn(&[f64; 3], f64) -> f64| {
+                F::map(|l| match &shapers[l].filter {
+                    ShapeFilter::Avg { sum, inv_m, .. } => f(sum, *inv_m),
+                    _ => unreachable!("the lanes share a structure"),
+                })
+            };
+            (
+                m,
+                [
+                    lanes(&|s, _| s[0]),
+                    lanes(&|s, _| s[1]),
+                    lanes(&|s, _| s[2]),
+                ],
+                lanes(&|_, inv_m| inv_m),
+            )
+        });
+        let ext = (0..s0.keep)
+            .map(|i| RefF {
+                xr: F::map(|l| shapers[l].ext[i].xr),
+                vr: F::map(|l| shapers[l].ext[i].vr),
+                ar: F::map(|l| shapers[l].ext[i].ar),
+            })
+            .collect();
+        Some(ShaperF {
+            ext,
+            start: 0,
+            keep: s0.keep,
+            avg,
+        })
+    }
+
+    /// [`Shaper::shape_block`] per lane.
+    #[inline(always)]
+    fn shape_block(&mut self, buf: &mut [RefF]) {
+        let (b, keep) = (buf.len(), self.keep);
+        if keep == 0 {
+            // No delay and no filter: the reference as it is.
+            return;
+        }
+        if self.start + keep + b > self.ext.len() {
+            self.ext.copy_within(self.start..self.start + keep, 0);
+            self.start = 0;
+            let len = keep + 16 * b;
+            if self.ext.len() < len {
+                self.ext.resize(len, buf[0]);
+            }
+        }
+        let s0 = self.start;
+        self.ext[s0 + keep..s0 + keep + b].copy_from_slice(buf);
+        let ext = &self.ext[s0..s0 + keep + b];
+        match &mut self.avg {
+            Some((m, sum, inv_m)) => {
+                let (m, inv_m) = (*m, *inv_m);
+                let half = F::splat(0.5);
+                let [mut a0, mut a1, mut a2] = *sum;
+                let rows = buf
+                    .iter_mut()
+                    .zip(&ext[m + 1..m + 1 + b])
+                    .zip(ext[..b].iter().zip(&ext[1..b + 1]));
+                for ((out, new), (leaving, oldest)) in rows {
+                    a0 = a0 + (new.xr - leaving.xr);
+                    a1 = a1 + (new.vr - leaving.vr);
+                    a2 = a2 + (new.ar - leaving.ar);
+                    *out = RefF {
+                        xr: (a0 - half * (new.xr + oldest.xr)) * inv_m,
+                        vr: (a1 - half * (new.vr + oldest.vr)) * inv_m,
+                        ar: (a2 - half * (new.ar + oldest.ar)) * inv_m,
+                    };
+                }
+                *sum = [a0, a1, a2];
+            }
+            None => buf.copy_from_slice(&ext[..b]),
+        }
+        self.start += b;
     }
 }
 
@@ -950,13 +1103,24 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
     for (l, input) in inputs.iter().enumerate() {
         shapers.push(Shaper::new(input.shaping, h, r0(l))?);
     }
+    let shaped: [bool; LANES] = std::array::from_fn(|l| inputs[l].shaping.is_some());
+    // All lanes shaped alike (the usual case: a machine's drives share their control's
+    // reference shaping): one shaper on lanes; else one per lane, as the scalar loop.
+    let mut shared = if shaped.iter().all(|s| *s) {
+        ShaperF::of(&shapers)
+    } else {
+        None
+    };
     let inv_sub = 1.0 / n_sub as f64;
     let mut saturated_ticks = [0u64; LANES];
-    // Per lane, as the scalar loop: the sample's fine references (shaped) and noise.
-    let mut refs: Vec<Vec<RefSample>> = (0..LANES).map(|l| vec![r0(l); n_sub]).collect();
-    let mut noise_p = vec![0.0; n_sub];
-    let mut noise_m = vec![0.0; n_sub];
-    // The same, across lanes, tick by tick.
+    // Per lane, as the scalar loop, where the lanes are not shaped alike: the sample's fine
+    // references (shaped).
+    let mut refs: Vec<Vec<RefSample>> = if shared.is_some() {
+        Vec::new()
+    } else {
+        (0..LANES).map(|l| vec![r0(l); n_sub]).collect()
+    };
+    // The same, across lanes, tick by tick, and the readings' noise.
     let zero = F::splat(0.0);
     let mut refs_f = vec![
         RefF {
@@ -967,46 +1131,78 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         n_sub
     ];
     let mut noise_f = vec![(zero, zero); n_sub];
+    let motor_noise = e.second_encoder && inputs.iter().any(|i| i.readers.1.std > 0.0);
     for k in 0..n {
         let last = k + 1 == n;
         let ticks = if last { 1 } else { n_sub };
-        for (l, input) in inputs.iter_mut().enumerate() {
-            let (pos, vel, acc) = (
-                input.reference.pos,
-                input.reference.vel,
-                input.reference.acc,
-            );
-            let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
-            let (dp, dv, da) = if last {
-                (0.0, 0.0, 0.0)
-            } else {
-                (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
+        if let Some(shaper) = shared.as_mut() {
+            // The fine interpolation on lanes (the scalar loop's operations, lane by lane).
+            let at = |k: usize| {
+                let (p, v, a) = (
+                    F::map(|l| inputs[l].reference.pos[k]),
+                    F::map(|l| inputs[l].reference.vel[k]),
+                    F::map(|l| inputs[l].reference.acc[k]),
+                );
+                (p, v, a)
             };
-            let refs = &mut refs[l][..ticks];
-            for (j, r) in refs.iter_mut().enumerate() {
-                let w = j as f64 * inv_sub;
-                *r = RefSample {
+            let (p0, v0, a0) = at(k);
+            let (dp, dv, da) = if last {
+                (zero, zero, zero)
+            } else {
+                let (p1, v1, a1) = at(k + 1);
+                (p1 - p0, v1 - v0, a1 - a0)
+            };
+            for (j, r) in refs_f[..ticks].iter_mut().enumerate() {
+                let w = F::splat(j as f64 * inv_sub);
+                *r = RefF {
                     xr: p0 + w * dp,
                     vr: v0 + w * dv,
                     ar: a0 + w * da,
                 };
             }
-            if input.shaping.is_some() {
-                shapers[l].shape_block(refs);
+            shaper.shape_block(&mut refs_f[..ticks]);
+        }
+        for (l, input) in inputs.iter_mut().enumerate() {
+            if shared.is_none() {
+                let (pos, vel, acc) = (
+                    input.reference.pos,
+                    input.reference.vel,
+                    input.reference.acc,
+                );
+                let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
+                let (dp, dv, da) = if last {
+                    (0.0, 0.0, 0.0)
+                } else {
+                    (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
+                };
+                let refs = &mut refs[l][..ticks];
+                for (j, r) in refs.iter_mut().enumerate() {
+                    let w = j as f64 * inv_sub;
+                    *r = RefSample {
+                        xr: p0 + w * dp,
+                        vr: v0 + w * dv,
+                        ar: a0 + w * da,
+                    };
+                }
+                if shaped[l] {
+                    shapers[l].shape_block(refs);
+                }
+                for (rf, r) in refs_f.iter_mut().zip(refs.iter()) {
+                    rf.xr.0[l] = r.xr;
+                    rf.vr.0[l] = r.vr;
+                    rf.ar.0[l] = r.ar;
+                }
             }
-            for (rf, r) in refs_f.iter_mut().zip(refs.iter()) {
-                rf.xr.0[l] = r.xr;
-                rf.vr.0[l] = r.vr;
-                rf.ar.0[l] = r.ar;
-            }
-            let (np, nm) = (&mut noise_p[..ticks], &mut noise_m[..ticks]);
-            input.readers.0.fill_noise(np);
-            if e.second_encoder {
-                input.readers.1.fill_noise(nm);
-            }
-            for ((nf, p), m) in noise_f.iter_mut().zip(np.iter()).zip(nm.iter()) {
-                nf.0.0[l] = *p;
-                nf.1.0[l] = *m;
+            let nf = &mut noise_f[..ticks];
+            input
+                .readers
+                .0
+                .fill_noise_with(ticks, |j, v| nf[j].0.0[l] = v);
+            if motor_noise {
+                input
+                    .readers
+                    .1
+                    .fill_noise_with(ticks, |j, v| nf[j].1.0[l] = v);
             }
         }
         let (xl, vl, xm) = (
@@ -1037,4 +1233,36 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         trace.saturated_ticks = s;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[target_feature(enable = "avx2")]
+    fn exp_neg_avx2(p: F) -> F {
+        exp_neg(p)
+    }
+
+    #[test]
+    fn exp_neg_on_lanes_is_the_scalar_one_bit_for_bit() {
+        // Truth: `effects::exp_neg`, which the scalar loop's friction level uses; every p of
+        // a log-spaced sweep over the friction law's range (1e-4 to 40) and beyond.
+        if !available() {
+            return;
+        }
+        let ps: Vec<f64> = (0..40_000)
+            .map(|i| 1e-6 * (7e8f64).powf(i as f64 / 40_000.0))
+            .filter(|p| *p <= 700.0)
+            .collect();
+        for c in ps.chunks_exact(LANES) {
+            let p = F(std::array::from_fn(|l| c[l]));
+            // SAFETY: AVX2 is present (checked above).
+            let v = unsafe { exp_neg_avx2(p) };
+            for l in 0..LANES {
+                let s = crate::effects::exp_neg(c[l]);
+                assert_eq!(v.0[l].to_bits(), s.to_bits(), "p = {}", c[l]);
+            }
+        }
+    }
 }
