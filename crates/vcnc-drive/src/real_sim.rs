@@ -464,22 +464,6 @@ impl Reader {
         }
     }
 
-    /// [`Reader::fill_noise`] handing each of the next `n` readings' noise to `put` (index,
-    /// value) instead of storing it in a slice: the lanes store it across their registers.
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-    #[inline(always)]
-    fn fill_noise_with(&mut self, n: usize, mut put: impl FnMut(usize, f64)) {
-        if self.std > 0.0 {
-            for j in 0..n {
-                put(j, self.std * self.normals.sample());
-            }
-        } else {
-            for j in 0..n {
-                put(j, 0.0);
-            }
-        }
-    }
-
     /// The reading of position `x` with this reading's `noise` (from [`Reader::noise`]).
     #[inline(always)]
     fn read(&self, x: f64, noise: f64) -> f64 {

@@ -121,6 +121,12 @@ impl F {
         // SAFETY: as `ld`.
         st(unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), ld(self)) })
     }
+    /// `self` in the lanes of `m`, else +0 (a bitwise and: cheaper than a select).
+    #[inline(always)]
+    fn masked(self, m: M) -> F {
+        // SAFETY: as `ld`.
+        st(unsafe { _mm256_and_pd(ld(self), ldm(m)) })
+    }
     /// `f64::clamp` per lane (the bounds ordered, as the scalar loop asserts).
     #[inline(always)]
     fn clamp(self, lo: F, hi: F) -> F {
@@ -392,6 +398,8 @@ enum FricF {
         laws: [FrictionLaw; LANES],
         /// Elements of the lane with the most.
         n_max: usize,
+        /// Every lane has `n_max` elements (`exists` is all true).
+        uniform: bool,
         /// Element `i` exists in the lane.
         exists: [M; MAX_ELEMENTS],
         /// Number of elements, as a float.
@@ -562,6 +570,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 FricF::Maxwell {
                     laws,
                     n_max,
+                    uniform: each.iter().all(|m| m.1 == n_max),
                     exists: std::array::from_fn(|i| M::of(|l| i < each[l].1)),
                     n: F::map(|l| each[l].1 as f64),
                     k: std::array::from_fn(|i| F::map(|l| each[l].2[i])),
@@ -800,6 +809,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
             FricF::Maxwell {
                 laws,
                 n_max,
+                uniform,
                 exists,
                 n,
                 k,
@@ -856,16 +866,19 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                     let trivial = ts.eq(tc) | at_rest;
                     let r = speed / *vs;
                     let p = sel(*exp2, r * r, r);
-                    let series = tc
-                        + (ts - tc) * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
                     let (big, small) = (p.gt(F::splat(40.0)), p.lt(F::splat(1e-4)));
-                    let mut lev = sel(
-                        flat,
-                        tc,
-                        sel(trivial, sel(at_rest, ts, tc), sel(big, tc, series)),
-                    );
                     let general = !flat & !trivial;
-                    let exp = general & !(*exp_other | big | small);
+                    // Flat, and beyond p = 40: the Coulomb level; at rest the static level.
+                    let mut lev = sel(trivial & !flat, sel(at_rest, ts, tc), tc);
+                    let power = general & !*exp_other;
+                    let short = power & small;
+                    if short.any() {
+                        let series = tc
+                            + (ts - tc)
+                                * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
+                        lev = sel(short, series, lev);
+                    }
+                    let exp = power & !(big | small);
                     if exp.any() {
                         lev = sel(exp, tc + (ts - tc) * exp_neg(p), lev);
                     }
@@ -896,21 +909,37 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                     if refresh.any() {
                         let dd = st.ms_sat * st.ms_level;
                         for i in 0..*n_max {
-                            st.ms[i] = sel(refresh & exists[i], dd * wk[i], st.ms[i]);
+                            let m = if *uniform {
+                                refresh
+                            } else {
+                                refresh & exists[i]
+                            };
+                            st.ms[i] = sel(m, dd * wk[i], st.ms[i]);
                         }
                     }
                     let (mut at_hi, mut at_lo) = (zero, zero);
                     let one = F::splat(1.0);
+                    let every = general.all();
+                    // Sums of non-negative terms, a term masked to +0 where the scalar loop
+                    // skips it: the same numbers (x + 0 = x for x >= 0).
                     for i in 0..*n_max {
-                        let ex = exists[i];
                         let (lo_i, hi_i) = (-lo * wk[i], hi * wk[i]);
                         let d = (st.ms[i] + dx).clamp(lo_i, hi_i);
-                        st.ms[i] = sel(general & ex, d, st.ms[i]);
-                        force = sel(ex, force + k[i] * d, force);
                         let (above, below) = (d.gt(lo_i), d.lt(hi_i));
-                        stiffness = sel(ex & above & below, stiffness + k[i], stiffness);
-                        at_hi = sel(ex & !below, at_hi + one, at_hi);
-                        at_lo = sel(ex & !above, at_lo + one, at_lo);
+                        if *uniform {
+                            st.ms[i] = if every { d } else { sel(general, d, st.ms[i]) };
+                            force = force + k[i] * d;
+                            stiffness = stiffness + k[i].masked(above & below);
+                            at_hi = at_hi + one.masked(!below);
+                            at_lo = at_lo + one.masked(!above);
+                        } else {
+                            let ex = exists[i];
+                            st.ms[i] = sel(general & ex, d, st.ms[i]);
+                            force = sel(ex, force + k[i] * d, force);
+                            stiffness = stiffness + k[i].masked(ex & above & below);
+                            at_hi = at_hi + one.masked(ex & !below);
+                            at_lo = at_lo + one.masked(ex & !above);
+                        }
                     }
                     let (all_hi, all_lo) = (at_hi.eq(*n), at_lo.eq(*n));
                     sat = sel(all_hi, one, sel(all_lo, -one, zero));
@@ -1075,6 +1104,18 @@ fn run_avx2<B: LaneLaw, const N: usize, const TM: bool>(
     run_body(e, inputs, n_sub, h, traces)
 }
 
+/// The noise of one tick's readings, each lane's from its readers' streams (the motor
+/// encoder's where `motor` lanes read it noisily; else it stays 0, as the scalar loop's).
+#[inline(always)]
+fn draw(inputs: &mut [LaneInput<'_>; LANES], motor: bool, out: &mut (F, F)) {
+    for (l, input) in inputs.iter_mut().enumerate() {
+        out.0.0[l] = input.readers.0.noise();
+        if motor {
+            out.1.0[l] = input.readers.1.noise();
+        }
+    }
+}
+
 /// [`Engine::run`] per lane.
 #[inline(always)]
 fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
@@ -1112,7 +1153,9 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         None
     };
     let inv_sub = 1.0 / n_sub as f64;
-    let mut saturated_ticks = [0u64; LANES];
+    // Ticks at the limit per lane, counted in floats (exact below 2^53).
+    let mut saturated_f = F::splat(0.0);
+    let one = F::splat(1.0);
     // Per lane, as the scalar loop, where the lanes are not shaped alike: the sample's fine
     // references (shaped).
     let mut refs: Vec<Vec<RefSample>> = if shared.is_some() {
@@ -1130,11 +1173,23 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         };
         n_sub
     ];
+    // The readings' noise of this sample's ticks, and of the next sample's, drawn during this
+    // sample's ticks (one tick's draws per tick: the generator's work fills the gaps of the
+    // ticks' dependency chain instead of running apart). Each reader's stream in tick order,
+    // as the scalar loop draws it.
     let mut noise_f = vec![(zero, zero); n_sub];
+    let mut noise_next = vec![(zero, zero); n_sub];
     let motor_noise = e.second_encoder && inputs.iter().any(|i| i.readers.1.std > 0.0);
+    let ticks_of = |k: usize| if k + 1 == n { 1 } else { n_sub };
+    if n > 0 {
+        for nf in &mut noise_f[..ticks_of(0)] {
+            draw(inputs, motor_noise, nf);
+        }
+    }
     for k in 0..n {
         let last = k + 1 == n;
-        let ticks = if last { 1 } else { n_sub };
+        let ticks = ticks_of(k);
+        let ticks_next = if last { 0 } else { ticks_of(k + 1) };
         if let Some(shaper) = shared.as_mut() {
             // The fine interpolation on lanes (the scalar loop's operations, lane by lane).
             let at = |k: usize| {
@@ -1193,17 +1248,6 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
                     rf.ar.0[l] = r.ar;
                 }
             }
-            let nf = &mut noise_f[..ticks];
-            input
-                .readers
-                .0
-                .fill_noise_with(ticks, |j, v| nf[j].0.0[l] = v);
-            if motor_noise {
-                input
-                    .readers
-                    .1
-                    .fill_noise_with(ticks, |j, v| nf[j].1.0[l] = v);
-            }
         }
         let (xl, vl, xm) = (
             st.z[EngineF::<B, N, TM>::XL],
@@ -1213,8 +1257,8 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         let z_before = st.z;
         let out = e.tick(&mut st, &refs_f[0], zero, noise_f[0]);
         let torque = e.torque(&z_before, out.u_in);
+        saturated_f = saturated_f + one.masked(out.saturated);
         for (l, trace) in traces.iter_mut().enumerate() {
-            saturated_ticks[l] += out.saturated.at(l) as u64;
             trace.position.push(out.xp.0[l]);
             trace.true_position.push(xl.0[l]);
             trace.velocity.push(vl.0[l]);
@@ -1222,15 +1266,20 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
             trace.motor_position.push(xm.0[l]);
             trace.motor_torque.push(torque.0[l]);
         }
-        for (r, nf) in refs_f[1..ticks].iter().zip(&noise_f[1..ticks]) {
+        if ticks_next > 0 {
+            draw(inputs, motor_noise, &mut noise_next[0]);
+        }
+        for (j, (r, nf)) in refs_f[1..ticks].iter().zip(&noise_f[1..ticks]).enumerate() {
             let out = e.tick(&mut st, r, zero, *nf);
-            for (s, m) in saturated_ticks.iter_mut().zip(out.saturated.0) {
-                *s += (m != 0) as u64;
+            saturated_f = saturated_f + one.masked(out.saturated);
+            if j + 1 < ticks_next {
+                draw(inputs, motor_noise, &mut noise_next[j + 1]);
             }
         }
+        std::mem::swap(&mut noise_f, &mut noise_next);
     }
-    for (trace, s) in traces.iter_mut().zip(saturated_ticks) {
-        trace.saturated_ticks = s;
+    for (trace, s) in traces.iter_mut().zip(saturated_f.0) {
+        trace.saturated_ticks = s as u64;
     }
     Ok(())
 }
