@@ -470,8 +470,8 @@ pub(crate) mod exp_neg_consts {
     /// $1.5 \cdot 2^{52}$: adding it rounds to an integer (ties to even) in the low bits.
     pub(crate) const ROUND: f64 = 6_755_399_441_055_744.0;
     /// $\ln 2$ in two parts; the high part's low 21 bits are zero (fdlibm's split).
-    pub(crate) const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-1;
-    pub(crate) const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
+    pub(crate) const LN2_HI: f64 = 0.693_147_180_369_123_8;
+    pub(crate) const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
     /// $1/i!$, $i = 0 \dots 13$.
     pub(crate) const C: [f64; 14] = [
         1.0,

@@ -10,10 +10,15 @@
 //! decides with a select between the branches' values, computed as the scalar branch computes
 //! them; a branch that no lane takes is skipped as a whole (the same numbers either way).
 //!
-//! What is not vectorised, per lane as in the scalar loop: the reference's fine interpolation
-//! and shaping and the readings' noise (prepared a sample ahead), the Stribeck level where it
-//! needs the exponential (libm's, the scalar loop's own function), and the rare rounding of a
-//! reading beyond $2^{51}$ quanta.
+//! Outside the ticks' dependency chain: the reference's fine interpolation and shaping, on
+//! lanes for a sample at a time when the lanes' shaping shares its structure (the same delay
+//! and moving-average window in ticks, or none; else per lane, as the scalar loop), and the
+//! readings' noise, each lane from its own streams in the scalar loop's order, drawn one tick
+//! at a time during the previous sample's ticks (the generator's scalar work then runs in the
+//! gaps the tick's dependency chain leaves, instead of apart). The Stribeck level's exponential
+//! is [`crate::effects::exp_neg`] on lanes; per lane remain only a Stribeck exponent other than
+//! 1 and 2 (libm's power, the scalar loop's) and the rare rounding of a reading beyond
+//! $2^{51}$ quanta.
 //!
 //! Lanes are four `f64` in a 256-bit AVX register, operated on with `std::arch` intrinsics
 //! (add, subtract, multiply, divide, compare, blend, sign-bit masks: each the IEEE operation of
@@ -1308,9 +1313,9 @@ mod tests {
             let p = F(std::array::from_fn(|l| c[l]));
             // SAFETY: AVX2 is present (checked above).
             let v = unsafe { exp_neg_avx2(p) };
-            for l in 0..LANES {
-                let s = crate::effects::exp_neg(c[l]);
-                assert_eq!(v.0[l].to_bits(), s.to_bits(), "p = {}", c[l]);
+            for (p, v) in c.iter().zip(v.0) {
+                let s = crate::effects::exp_neg(*p);
+                assert_eq!(v.to_bits(), s.to_bits(), "p = {p}");
             }
         }
     }
