@@ -417,7 +417,7 @@ impl FrictionLaw {
         } else if p < 1e-4 {
             tc + (ts - tc) * (1.0 - p * (1.0 - p * (0.5 - p / 6.0)))
         } else {
-            tc + (ts - tc) * (-p).exp()
+            tc + (ts - tc) * exp_neg(p)
         }
     }
 
@@ -425,6 +425,70 @@ impl FrictionLaw {
     pub fn has_stribeck(&self) -> bool {
         self.static_ != self.coulomb
     }
+}
+
+/// $e^{-p}$ for $0 \le p \le 700$, within 2 units in the last place, by the same IEEE operations
+/// on every platform (no libm): the friction level's exponential, which the drives in SIMD lanes
+/// evaluate with the same operations four at a time (`real_sim::lanes`), bit for bit.
+///
+/// Cody–Waite reduction $-p = n \ln 2 + r$, $n = \mathrm{round}(-p/\ln 2)$, $|r| \lesssim
+/// \ln 2 / 2$ ($\ln 2$ split in a high part with $n \ln 2_{hi}$ exact and a low part), then
+/// $e^{-p} = 2^n \sum_{i=0}^{13} r^i/i!$ (the Taylor remainder $r^{14}/14! < 5\cdot10^{-18}$),
+/// the sum in Estrin's order (short dependency chains), the scaling by $2^n$ exact.
+#[inline(always)]
+pub(crate) fn exp_neg(p: f64) -> f64 {
+    let x = -p;
+    let t = x * exp_neg_consts::INV_LN2 + exp_neg_consts::ROUND;
+    let n = t - exp_neg_consts::ROUND;
+    let r = (x - n * exp_neg_consts::LN2_HI) - n * exp_neg_consts::LN2_LO;
+    let c = &exp_neg_consts::C;
+    let r2 = r * r;
+    let r4 = r2 * r2;
+    let r8 = r4 * r4;
+    let q0 = c[0] + c[1] * r;
+    let q1 = c[2] + c[3] * r;
+    let q2 = c[4] + c[5] * r;
+    let q3 = c[6] + c[7] * r;
+    let q4 = c[8] + c[9] * r;
+    let q5 = c[10] + c[11] * r;
+    let q6 = c[12] + c[13] * r;
+    let s0 = q0 + q1 * r2;
+    let s1 = q2 + q3 * r2;
+    let s2 = q4 + q5 * r2;
+    let u0 = s0 + s1 * r4;
+    let u1 = s2 + q6 * r4;
+    let poly = u0 + u1 * r8;
+    // n from the rounding constant's low bits: t = ROUND + n exactly.
+    let k = t.to_bits() as i64 - exp_neg_consts::ROUND.to_bits() as i64;
+    poly * f64::from_bits(((k + 1023) as u64) << 52)
+}
+
+/// Constants of [`exp_neg`].
+pub(crate) mod exp_neg_consts {
+    /// $1/\ln 2$.
+    pub(crate) const INV_LN2: f64 = std::f64::consts::LOG2_E;
+    /// $1.5 \cdot 2^{52}$: adding it rounds to an integer (ties to even) in the low bits.
+    pub(crate) const ROUND: f64 = 6_755_399_441_055_744.0;
+    /// $\ln 2$ in two parts; the high part's low 21 bits are zero (fdlibm's split).
+    pub(crate) const LN2_HI: f64 = 0.693_147_180_369_123_8;
+    pub(crate) const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+    /// $1/i!$, $i = 0 \dots 13$.
+    pub(crate) const C: [f64; 14] = [
+        1.0,
+        1.0,
+        1.0 / 2.0,
+        1.0 / 6.0,
+        1.0 / 24.0,
+        1.0 / 120.0,
+        1.0 / 720.0,
+        1.0 / 5_040.0,
+        1.0 / 40_320.0,
+        1.0 / 362_880.0,
+        1.0 / 3_628_800.0,
+        1.0 / 39_916_800.0,
+        1.0 / 479_001_600.0,
+        1.0 / 6_227_020_800.0,
+    ];
 }
 
 /// Checked current loop.
@@ -1131,4 +1195,40 @@ fn check_shaping(r: &ReferenceShaping, servo_rate_hz: f64) -> Result<Option<Shap
         filter: r.filter,
         delay_ticks,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp_neg_is_the_exponential_within_two_ulp() {
+        // Truth: the platform's libm `exp` (correct to within one unit in the last place), on
+        // a log-spaced sweep of p from 1e-6 to 700 and on every multiple of ln 2 / 2 there (the
+        // reduction's edges), and the exact values e^0 = 1 and e^{-n ln 2} = 2^{-n}.
+        let ulps = |p: f64| {
+            let (a, b) = (exp_neg(p), (-p).exp());
+            (a.to_bits() as i64 - b.to_bits() as i64).abs()
+        };
+        let mut worst = (0, 0.0);
+        let sweep = (0..200_000).map(|i| 1e-6 * (7e8f64).powf(i as f64 / 200_000.0));
+        let edges = (1..2020).map(|i| i as f64 * std::f64::consts::LN_2 / 2.0);
+        for p in sweep.chain(edges).filter(|p| *p <= 700.0) {
+            let u = ulps(p);
+            if u > worst.0 {
+                worst = (u, p);
+            }
+        }
+        assert!(worst.0 <= 2, "{} ulp at p = {}", worst.0, worst.1);
+        assert_eq!(exp_neg(0.0), 1.0);
+        for n in [1, 2, 10, 57] {
+            // p = n ln 2 rounded is not exactly n ln 2: compare within an ulp of 2^-n.
+            let v = exp_neg(n as f64 * std::f64::consts::LN_2);
+            let exact = (0.5f64).powi(n);
+            assert!(
+                (v - exact).abs() <= 2.0 * f64::EPSILON * exact,
+                "n = {n}: {v}"
+            );
+        }
+    }
 }

@@ -101,6 +101,62 @@ fn every_realistic_nmv5000_axis_in_lanes_is_bit_identical_to_it_alone() {
 }
 
 #[test]
+fn lanes_shaped_alike_and_unlike_are_bit_identical_to_each_alone() {
+    // Truth: `Drive::simulate` of each drive alone. The five realistic NMV5000 axes with one
+    // reference shaping for all (the lanes then shape on lanes: none, a delay alone, a moving
+    // average alone, both), then with the shaping differing per lane (each lane shapes alone):
+    // a window or delay of another length, a first-order filter. With Stribeck exponents 1, 2
+    // and 1.5 side by side (the level's exponential on lanes, a general power per lane).
+    let axes = common::machine_drives("nmv5000-realistic.toml");
+    let prog = common::identification_program(21, 3.0, 1e-3, 0.0, 20.0, 250.0, 2500.0);
+    let shaping = |window_s: Option<f64>, delay_s: f64| ReferenceShaping {
+        filter: window_s.map(|window_s| ShapingFilter::MovingAverage { window_s }),
+        interpolation_delay_s: delay_s,
+    };
+    let alike = [
+        shaping(None, 0.0),
+        shaping(None, 1.5e-3),
+        shaping(Some(3.5e-4), 0.0),
+        shaping(Some(3e-3), 1e-3),
+    ];
+    let mut unlike = vec![shaping(Some(2e-3), 2e-3); 5];
+    unlike[1] = shaping(Some(1e-3), 2e-3);
+    unlike[2] = shaping(Some(2e-3), 5e-4);
+    unlike[3] = ReferenceShaping {
+        filter: Some(ShapingFilter::FirstOrder {
+            time_constant_s: 1e-3,
+        }),
+        interpolation_delay_s: 2e-3,
+    };
+    let cases = alike
+        .iter()
+        .map(|s| vec![s.clone(); 5])
+        .chain(std::iter::once(unlike));
+    for (c, per_axis) in cases.enumerate() {
+        let drives: Vec<Drive> = axes
+            .iter()
+            .zip(&per_axis)
+            .enumerate()
+            .map(|(i, ((a, p), s))| {
+                let mut p = p.clone();
+                p.reference = Some(s.clone());
+                if let Some(Friction::MaxwellSlip {
+                    stribeck_exponent, ..
+                }) = p.friction.as_mut()
+                {
+                    *stribeck_exponent = [1.0, 2.0, 1.5, 2.0, 1.0][i];
+                }
+                p.validate().unwrap_or_else(|e| panic!("axis {a}: {e}"))
+            })
+            .collect();
+        let jobs: Vec<(&Drive, Reference<'_>)> =
+            drives.iter().map(|d| (d, prog.reference())).collect();
+        let groups = check_batch(&jobs, 1e-3, &format!("shaping case {c}"));
+        assert_eq!(groups, vec![vec![0, 1, 2, 3], vec![4]], "shaping case {c}");
+    }
+}
+
+#[test]
 fn realistic_variants_in_lanes_are_bit_identical_to_each_alone() {
     // Truth: `Drive::simulate` of each drive alone. The realistic NMV5000 X drive and the
     // realistic Table 1 drive (every effect), with their variants: backlash (a lane in the gap

@@ -10,10 +10,15 @@
 //! decides with a select between the branches' values, computed as the scalar branch computes
 //! them; a branch that no lane takes is skipped as a whole (the same numbers either way).
 //!
-//! What is not vectorised, per lane as in the scalar loop: the reference's fine interpolation
-//! and shaping and the readings' noise (prepared a sample ahead), the Stribeck level where it
-//! needs the exponential (libm's, the scalar loop's own function), and the rare rounding of a
-//! reading beyond $2^{51}$ quanta.
+//! Outside the ticks' dependency chain: the reference's fine interpolation and shaping, on
+//! lanes for a sample at a time when the lanes' shaping shares its structure (the same delay
+//! and moving-average window in ticks, or none; else per lane, as the scalar loop), and the
+//! readings' noise, each lane from its own streams in the scalar loop's order, drawn one tick
+//! at a time during the previous sample's ticks (the generator's scalar work then runs in the
+//! gaps the tick's dependency chain leaves, instead of apart). The Stribeck level's exponential
+//! is [`crate::effects::exp_neg`] on lanes; per lane remain only a Stribeck exponent other than
+//! 1 and 2 (libm's power, the scalar loop's) and the rare rounding of a reading beyond
+//! $2^{51}$ quanta.
 //!
 //! Lanes are four `f64` in a 256-bit AVX register, operated on with `std::arch` intrinsics
 //! (add, subtract, multiply, divide, compare, blend, sign-bit masks: each the IEEE operation of
@@ -25,7 +30,7 @@
 use std::arch::x86_64::*;
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
-use super::{Engine, Fric, Lin, RLaw, Reader, Shaper};
+use super::{Engine, Fric, Lin, RLaw, Reader, ShapeFilter, Shaper};
 use crate::Error;
 use crate::effects::{FrictionLaw, MAX_ELEMENTS, Shaping};
 use crate::model::Reference;
@@ -121,6 +126,12 @@ impl F {
         // SAFETY: as `ld`.
         st(unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), ld(self)) })
     }
+    /// `self` in the lanes of `m`, else +0 (a bitwise and: cheaper than a select).
+    #[inline(always)]
+    fn masked(self, m: M) -> F {
+        // SAFETY: as `ld`.
+        st(unsafe { _mm256_and_pd(ld(self), ldm(m)) })
+    }
     /// `f64::clamp` per lane (the bounds ordered, as the scalar loop asserts).
     #[inline(always)]
     fn clamp(self, lo: F, hi: F) -> F {
@@ -210,6 +221,45 @@ impl Not for M {
         // SAFETY: as `ld`.
         stm(unsafe { _mm256_xor_pd(ldm(self), _mm256_castsi256_pd(_mm256_set1_epi64x(-1))) })
     }
+}
+
+/// [`exp_neg`](crate::effects::exp_neg) per lane: the same operations in the same order.
+#[inline(always)]
+fn exp_neg(p: F) -> F {
+    use crate::effects::exp_neg_consts::{C, INV_LN2, LN2_HI, LN2_LO, ROUND};
+    let x = -p;
+    let t = x * F::splat(INV_LN2) + F::splat(ROUND);
+    let n = t - F::splat(ROUND);
+    let r = (x - n * F::splat(LN2_HI)) - n * F::splat(LN2_LO);
+    let c = |i: usize| F::splat(C[i]); // a constant, no intrinsic: no AVX needed to inline
+    let r2 = r * r;
+    let r4 = r2 * r2;
+    let r8 = r4 * r4;
+    let q0 = c(0) + c(1) * r;
+    let q1 = c(2) + c(3) * r;
+    let q2 = c(4) + c(5) * r;
+    let q3 = c(6) + c(7) * r;
+    let q4 = c(8) + c(9) * r;
+    let q5 = c(10) + c(11) * r;
+    let q6 = c(12) + c(13) * r;
+    let s0 = q0 + q1 * r2;
+    let s1 = q2 + q3 * r2;
+    let s2 = q4 + q5 * r2;
+    let u0 = s0 + s1 * r4;
+    let u1 = s2 + q6 * r4;
+    let poly = u0 + u1 * r8;
+    // SAFETY: as `ld` (64-bit integer lanes: AVX2).
+    let scale = unsafe {
+        let k = _mm256_sub_epi64(
+            _mm256_castpd_si256(ld(t)),
+            _mm256_set1_epi64x(ROUND.to_bits() as i64),
+        );
+        _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
+            k,
+            _mm256_set1_epi64x(1023),
+        )))
+    };
+    poly * st(scale)
 }
 
 /// Lane `l` of each of `xs`.
@@ -353,6 +403,8 @@ enum FricF {
         laws: [FrictionLaw; LANES],
         /// Elements of the lane with the most.
         n_max: usize,
+        /// Every lane has `n_max` elements (`exists` is all true).
+        uniform: bool,
         /// Element `i` exists in the lane.
         exists: [M; MAX_ELEMENTS],
         /// Number of elements, as a float.
@@ -523,6 +575,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 FricF::Maxwell {
                     laws,
                     n_max,
+                    uniform: each.iter().all(|m| m.1 == n_max),
                     exists: std::array::from_fn(|i| M::of(|l| i < each[l].1)),
                     n: F::map(|l| each[l].1 as f64),
                     k: std::array::from_fn(|i| F::map(|l| each[l].2[i])),
@@ -761,6 +814,7 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
             FricF::Maxwell {
                 laws,
                 n_max,
+                uniform,
                 exists,
                 n,
                 k,
@@ -803,8 +857,8 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 let flat = speed.gt(*v_flat);
                 // The law's own branches (FrictionLaw::level) as selects: the Coulomb level
                 // beyond v_flat, at rest the static level, T_c beyond p = 40, the short series
-                // below p = 1e-4; in between, the exponential (and a general exponent's power)
-                // per lane, libm's as in the scalar loop.
+                // below p = 1e-4, in between the exponential (`exp_neg` on lanes); a general
+                // exponent's level per lane, with libm's power as in the scalar loop.
                 let (tc, ts) = (
                     sel(pos, coulomb[0], coulomb[1]),
                     sel(pos, static_[0], static_[1]),
@@ -817,15 +871,23 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                     let trivial = ts.eq(tc) | at_rest;
                     let r = speed / *vs;
                     let p = sel(*exp2, r * r, r);
-                    let series = tc
-                        + (ts - tc) * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
                     let (big, small) = (p.gt(F::splat(40.0)), p.lt(F::splat(1e-4)));
-                    let mut lev = sel(
-                        flat,
-                        tc,
-                        sel(trivial, sel(at_rest, ts, tc), sel(big, tc, series)),
-                    );
-                    let libm = !flat & !trivial & (*exp_other | !(big | small));
+                    let general = !flat & !trivial;
+                    // Flat, and beyond p = 40: the Coulomb level; at rest the static level.
+                    let mut lev = sel(trivial & !flat, sel(at_rest, ts, tc), tc);
+                    let power = general & !*exp_other;
+                    let short = power & small;
+                    if short.any() {
+                        let series = tc
+                            + (ts - tc)
+                                * (one - p * (one - p * (F::splat(0.5) - p / F::splat(6.0))));
+                        lev = sel(short, series, lev);
+                    }
+                    let exp = power & !(big | small);
+                    if exp.any() {
+                        lev = sel(exp, tc + (ts - tc) * exp_neg(p), lev);
+                    }
+                    let libm = general & *exp_other;
                     if libm.any() {
                         for l in 0..LANES {
                             if libm.at(l) {
@@ -852,21 +914,37 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                     if refresh.any() {
                         let dd = st.ms_sat * st.ms_level;
                         for i in 0..*n_max {
-                            st.ms[i] = sel(refresh & exists[i], dd * wk[i], st.ms[i]);
+                            let m = if *uniform {
+                                refresh
+                            } else {
+                                refresh & exists[i]
+                            };
+                            st.ms[i] = sel(m, dd * wk[i], st.ms[i]);
                         }
                     }
                     let (mut at_hi, mut at_lo) = (zero, zero);
                     let one = F::splat(1.0);
+                    let every = general.all();
+                    // Sums of non-negative terms, a term masked to +0 where the scalar loop
+                    // skips it: the same numbers (x + 0 = x for x >= 0).
                     for i in 0..*n_max {
-                        let ex = exists[i];
                         let (lo_i, hi_i) = (-lo * wk[i], hi * wk[i]);
                         let d = (st.ms[i] + dx).clamp(lo_i, hi_i);
-                        st.ms[i] = sel(general & ex, d, st.ms[i]);
-                        force = sel(ex, force + k[i] * d, force);
                         let (above, below) = (d.gt(lo_i), d.lt(hi_i));
-                        stiffness = sel(ex & above & below, stiffness + k[i], stiffness);
-                        at_hi = sel(ex & !below, at_hi + one, at_hi);
-                        at_lo = sel(ex & !above, at_lo + one, at_lo);
+                        if *uniform {
+                            st.ms[i] = if every { d } else { sel(general, d, st.ms[i]) };
+                            force = force + k[i] * d;
+                            stiffness = stiffness + k[i].masked(above & below);
+                            at_hi = at_hi + one.masked(!below);
+                            at_lo = at_lo + one.masked(!above);
+                        } else {
+                            let ex = exists[i];
+                            st.ms[i] = sel(general & ex, d, st.ms[i]);
+                            force = sel(ex, force + k[i] * d, force);
+                            stiffness = stiffness + k[i].masked(ex & above & below);
+                            at_hi = at_hi + one.masked(ex & !below);
+                            at_lo = at_lo + one.masked(ex & !above);
+                        }
                     }
                     let (all_hi, all_lo) = (at_hi.eq(*n), at_lo.eq(*n));
                     sat = sel(all_hi, one, sel(all_lo, -one, zero));
@@ -878,6 +956,115 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 st.ms_stiffness = sel(slide, zero, stiffness);
             }
         }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reference shaping on lanes.
+
+/// [`Shaper`] on lanes whose shaping has the same structure (the same delay in ticks, and the
+/// same moving-average window or none): the same buffer and running sums, one lane per drive,
+/// each lane the operations of [`Shaper::shape_block`] for its drive.
+struct ShaperF {
+    ext: Vec<RefF>,
+    start: usize,
+    keep: usize,
+    /// The moving average's window `m`, running sums (position, velocity, acceleration) and
+    /// $1/m$ per lane.
+    avg: Option<(usize, [F; 3], F)>,
+}
+
+impl ShaperF {
+    /// The lanes of `shapers` (one per lane, at rest), if they share their structure.
+    fn of(shapers: &[Shaper]) -> Option<ShaperF> {
+        let s0 = &shapers[0];
+        let window = |s: &Shaper| match s.filter {
+            ShapeFilter::None => Some(None),
+            ShapeFilter::Avg { m, .. } => Some(Some(m)),
+            ShapeFilter::Lin { .. } => None,
+        };
+        let w0 = window(s0)?;
+        if shapers
+            .iter()
+            .any(|s| s.keep != s0.keep || window(s) != Some(w0) || s.start != 0)
+        {
+            return None;
+        }
+        let avg = w0.map(|m| {
+            let lanes = |f: &dyn Fn(&[f64; 3], f64) -> f64| {
+                F::map(|l| match &shapers[l].filter {
+                    ShapeFilter::Avg { sum, inv_m, .. } => f(sum, *inv_m),
+                    _ => unreachable!("the lanes share a structure"),
+                })
+            };
+            (
+                m,
+                [
+                    lanes(&|s, _| s[0]),
+                    lanes(&|s, _| s[1]),
+                    lanes(&|s, _| s[2]),
+                ],
+                lanes(&|_, inv_m| inv_m),
+            )
+        });
+        let ext = (0..s0.keep)
+            .map(|i| RefF {
+                xr: F::map(|l| shapers[l].ext[i].xr),
+                vr: F::map(|l| shapers[l].ext[i].vr),
+                ar: F::map(|l| shapers[l].ext[i].ar),
+            })
+            .collect();
+        Some(ShaperF {
+            ext,
+            start: 0,
+            keep: s0.keep,
+            avg,
+        })
+    }
+
+    /// [`Shaper::shape_block`] per lane.
+    #[inline(always)]
+    fn shape_block(&mut self, buf: &mut [RefF]) {
+        let (b, keep) = (buf.len(), self.keep);
+        if keep == 0 {
+            // No delay and no filter: the reference as it is.
+            return;
+        }
+        if self.start + keep + b > self.ext.len() {
+            self.ext.copy_within(self.start..self.start + keep, 0);
+            self.start = 0;
+            let len = keep + 16 * b;
+            if self.ext.len() < len {
+                self.ext.resize(len, buf[0]);
+            }
+        }
+        let s0 = self.start;
+        self.ext[s0 + keep..s0 + keep + b].copy_from_slice(buf);
+        let ext = &self.ext[s0..s0 + keep + b];
+        match &mut self.avg {
+            Some((m, sum, inv_m)) => {
+                let (m, inv_m) = (*m, *inv_m);
+                let half = F::splat(0.5);
+                let [mut a0, mut a1, mut a2] = *sum;
+                let rows = buf
+                    .iter_mut()
+                    .zip(&ext[m + 1..m + 1 + b])
+                    .zip(ext[..b].iter().zip(&ext[1..b + 1]));
+                for ((out, new), (leaving, oldest)) in rows {
+                    a0 = a0 + (new.xr - leaving.xr);
+                    a1 = a1 + (new.vr - leaving.vr);
+                    a2 = a2 + (new.ar - leaving.ar);
+                    *out = RefF {
+                        xr: (a0 - half * (new.xr + oldest.xr)) * inv_m,
+                        vr: (a1 - half * (new.vr + oldest.vr)) * inv_m,
+                        ar: (a2 - half * (new.ar + oldest.ar)) * inv_m,
+                    };
+                }
+                *sum = [a0, a1, a2];
+            }
+            None => buf.copy_from_slice(&ext[..b]),
+        }
+        self.start += b;
     }
 }
 
@@ -922,6 +1109,18 @@ fn run_avx2<B: LaneLaw, const N: usize, const TM: bool>(
     run_body(e, inputs, n_sub, h, traces)
 }
 
+/// The noise of one tick's readings, each lane's from its readers' streams (the motor
+/// encoder's where `motor` lanes read it noisily; else it stays 0, as the scalar loop's).
+#[inline(always)]
+fn draw(inputs: &mut [LaneInput<'_>; LANES], motor: bool, out: &mut (F, F)) {
+    for (l, input) in inputs.iter_mut().enumerate() {
+        out.0.0[l] = input.readers.0.noise();
+        if motor {
+            out.1.0[l] = input.readers.1.noise();
+        }
+    }
+}
+
 /// [`Engine::run`] per lane.
 #[inline(always)]
 fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
@@ -950,13 +1149,26 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
     for (l, input) in inputs.iter().enumerate() {
         shapers.push(Shaper::new(input.shaping, h, r0(l))?);
     }
+    let shaped: [bool; LANES] = std::array::from_fn(|l| inputs[l].shaping.is_some());
+    // All lanes shaped alike (the usual case: a machine's drives share their control's
+    // reference shaping): one shaper on lanes; else one per lane, as the scalar loop.
+    let mut shared = if shaped.iter().all(|s| *s) {
+        ShaperF::of(&shapers)
+    } else {
+        None
+    };
     let inv_sub = 1.0 / n_sub as f64;
-    let mut saturated_ticks = [0u64; LANES];
-    // Per lane, as the scalar loop: the sample's fine references (shaped) and noise.
-    let mut refs: Vec<Vec<RefSample>> = (0..LANES).map(|l| vec![r0(l); n_sub]).collect();
-    let mut noise_p = vec![0.0; n_sub];
-    let mut noise_m = vec![0.0; n_sub];
-    // The same, across lanes, tick by tick.
+    // Ticks at the limit per lane, counted in floats (exact below 2^53).
+    let mut saturated_f = F::splat(0.0);
+    let one = F::splat(1.0);
+    // Per lane, as the scalar loop, where the lanes are not shaped alike: the sample's fine
+    // references (shaped).
+    let mut refs: Vec<Vec<RefSample>> = if shared.is_some() {
+        Vec::new()
+    } else {
+        (0..LANES).map(|l| vec![r0(l); n_sub]).collect()
+    };
+    // The same, across lanes, tick by tick, and the readings' noise.
     let zero = F::splat(0.0);
     let mut refs_f = vec![
         RefF {
@@ -966,47 +1178,80 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         };
         n_sub
     ];
+    // The readings' noise of this sample's ticks, and of the next sample's, drawn during this
+    // sample's ticks (one tick's draws per tick: the generator's work fills the gaps of the
+    // ticks' dependency chain instead of running apart). Each reader's stream in tick order,
+    // as the scalar loop draws it.
     let mut noise_f = vec![(zero, zero); n_sub];
+    let mut noise_next = vec![(zero, zero); n_sub];
+    let motor_noise = e.second_encoder && inputs.iter().any(|i| i.readers.1.std > 0.0);
+    let ticks_of = |k: usize| if k + 1 == n { 1 } else { n_sub };
+    if n > 0 {
+        for nf in &mut noise_f[..ticks_of(0)] {
+            draw(inputs, motor_noise, nf);
+        }
+    }
     for k in 0..n {
         let last = k + 1 == n;
-        let ticks = if last { 1 } else { n_sub };
-        for (l, input) in inputs.iter_mut().enumerate() {
-            let (pos, vel, acc) = (
-                input.reference.pos,
-                input.reference.vel,
-                input.reference.acc,
-            );
-            let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
-            let (dp, dv, da) = if last {
-                (0.0, 0.0, 0.0)
-            } else {
-                (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
+        let ticks = ticks_of(k);
+        let ticks_next = if last { 0 } else { ticks_of(k + 1) };
+        if let Some(shaper) = shared.as_mut() {
+            // The fine interpolation on lanes (the scalar loop's operations, lane by lane).
+            let at = |k: usize| {
+                let (p, v, a) = (
+                    F::map(|l| inputs[l].reference.pos[k]),
+                    F::map(|l| inputs[l].reference.vel[k]),
+                    F::map(|l| inputs[l].reference.acc[k]),
+                );
+                (p, v, a)
             };
-            let refs = &mut refs[l][..ticks];
-            for (j, r) in refs.iter_mut().enumerate() {
-                let w = j as f64 * inv_sub;
-                *r = RefSample {
+            let (p0, v0, a0) = at(k);
+            let (dp, dv, da) = if last {
+                (zero, zero, zero)
+            } else {
+                let (p1, v1, a1) = at(k + 1);
+                (p1 - p0, v1 - v0, a1 - a0)
+            };
+            for (j, r) in refs_f[..ticks].iter_mut().enumerate() {
+                let w = F::splat(j as f64 * inv_sub);
+                *r = RefF {
                     xr: p0 + w * dp,
                     vr: v0 + w * dv,
                     ar: a0 + w * da,
                 };
             }
-            if input.shaping.is_some() {
-                shapers[l].shape_block(refs);
-            }
-            for (rf, r) in refs_f.iter_mut().zip(refs.iter()) {
-                rf.xr.0[l] = r.xr;
-                rf.vr.0[l] = r.vr;
-                rf.ar.0[l] = r.ar;
-            }
-            let (np, nm) = (&mut noise_p[..ticks], &mut noise_m[..ticks]);
-            input.readers.0.fill_noise(np);
-            if e.second_encoder {
-                input.readers.1.fill_noise(nm);
-            }
-            for ((nf, p), m) in noise_f.iter_mut().zip(np.iter()).zip(nm.iter()) {
-                nf.0.0[l] = *p;
-                nf.1.0[l] = *m;
+            shaper.shape_block(&mut refs_f[..ticks]);
+        }
+        for (l, input) in inputs.iter_mut().enumerate() {
+            if shared.is_none() {
+                let (pos, vel, acc) = (
+                    input.reference.pos,
+                    input.reference.vel,
+                    input.reference.acc,
+                );
+                let (p0, v0, a0) = (pos[k], vel[k], acc[k]);
+                let (dp, dv, da) = if last {
+                    (0.0, 0.0, 0.0)
+                } else {
+                    (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
+                };
+                let refs = &mut refs[l][..ticks];
+                for (j, r) in refs.iter_mut().enumerate() {
+                    let w = j as f64 * inv_sub;
+                    *r = RefSample {
+                        xr: p0 + w * dp,
+                        vr: v0 + w * dv,
+                        ar: a0 + w * da,
+                    };
+                }
+                if shaped[l] {
+                    shapers[l].shape_block(refs);
+                }
+                for (rf, r) in refs_f.iter_mut().zip(refs.iter()) {
+                    rf.xr.0[l] = r.xr;
+                    rf.vr.0[l] = r.vr;
+                    rf.ar.0[l] = r.ar;
+                }
             }
         }
         let (xl, vl, xm) = (
@@ -1017,8 +1262,8 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         let z_before = st.z;
         let out = e.tick(&mut st, &refs_f[0], zero, noise_f[0]);
         let torque = e.torque(&z_before, out.u_in);
+        saturated_f = saturated_f + one.masked(out.saturated);
         for (l, trace) in traces.iter_mut().enumerate() {
-            saturated_ticks[l] += out.saturated.at(l) as u64;
             trace.position.push(out.xp.0[l]);
             trace.true_position.push(xl.0[l]);
             trace.velocity.push(vl.0[l]);
@@ -1026,15 +1271,52 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
             trace.motor_position.push(xm.0[l]);
             trace.motor_torque.push(torque.0[l]);
         }
-        for (r, nf) in refs_f[1..ticks].iter().zip(&noise_f[1..ticks]) {
+        if ticks_next > 0 {
+            draw(inputs, motor_noise, &mut noise_next[0]);
+        }
+        for (j, (r, nf)) in refs_f[1..ticks].iter().zip(&noise_f[1..ticks]).enumerate() {
             let out = e.tick(&mut st, r, zero, *nf);
-            for (s, m) in saturated_ticks.iter_mut().zip(out.saturated.0) {
-                *s += (m != 0) as u64;
+            saturated_f = saturated_f + one.masked(out.saturated);
+            if j + 1 < ticks_next {
+                draw(inputs, motor_noise, &mut noise_next[j + 1]);
+            }
+        }
+        std::mem::swap(&mut noise_f, &mut noise_next);
+    }
+    for (trace, s) in traces.iter_mut().zip(saturated_f.0) {
+        trace.saturated_ticks = s as u64;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[target_feature(enable = "avx2")]
+    fn exp_neg_avx2(p: F) -> F {
+        exp_neg(p)
+    }
+
+    #[test]
+    fn exp_neg_on_lanes_is_the_scalar_one_bit_for_bit() {
+        // Truth: `effects::exp_neg`, which the scalar loop's friction level uses; every p of
+        // a log-spaced sweep over the friction law's range (1e-4 to 40) and beyond.
+        if !available() {
+            return;
+        }
+        let ps: Vec<f64> = (0..40_000)
+            .map(|i| 1e-6 * (7e8f64).powf(i as f64 / 40_000.0))
+            .filter(|p| *p <= 700.0)
+            .collect();
+        for c in ps.chunks_exact(LANES) {
+            let p = F(std::array::from_fn(|l| c[l]));
+            // SAFETY: AVX2 is present (checked above).
+            let v = unsafe { exp_neg_avx2(p) };
+            for (p, v) in c.iter().zip(v.0) {
+                let s = crate::effects::exp_neg(*p);
+                assert_eq!(v.to_bits(), s.to_bits(), "p = {p}");
             }
         }
     }
-    for (trace, s) in traces.iter_mut().zip(saturated_ticks) {
-        trace.saturated_ticks = s;
-    }
-    Ok(())
 }
