@@ -101,6 +101,40 @@ fn every_realistic_nmv5000_axis_in_lanes_is_bit_identical_to_it_alone() {
 }
 
 #[test]
+fn negative_zero_samples_in_lanes_are_bit_identical_to_each_alone() {
+    // Truth: `Drive::simulate` of each axis alone, whose servo loop takes each sample itself at
+    // its first tick, as the lanes do. A reference at rest at −0.0 for a while, then moving (an
+    // input class the programs above never give). On these drives the sign of a zero reference
+    // is absorbed before any output (`p0 + 0·dp`, the lanes' former first tick, passes too).
+    let axes = common::machine_drives("nmv5000-realistic.toml");
+    let drives: Vec<Drive> = axes
+        .iter()
+        .map(|(a, p)| p.validate().unwrap_or_else(|e| panic!("axis {a}: {e}")))
+        .collect();
+    let n = 600;
+    let pos: Vec<f64> = (0..n)
+        .map(|k| {
+            if k < 200 {
+                -0.0
+            } else {
+                1e-3 * ((k - 200) as f64).powi(2) / 2.0
+            }
+        })
+        .collect();
+    let vel: Vec<f64> = (0..n)
+        .map(|k| if k < 200 { -0.0 } else { (k - 200) as f64 })
+        .collect();
+    let acc: Vec<f64> = (0..n).map(|k| if k < 200 { -0.0 } else { 1e3 }).collect();
+    let r = Reference {
+        pos: &pos,
+        vel: &vel,
+        acc: &acc,
+    };
+    let jobs: Vec<(&Drive, Reference<'_>)> = drives.iter().map(|d| (d, r)).collect();
+    check_batch(&jobs, 1e-3, "nmv5000-realistic from −0.0");
+}
+
+#[test]
 fn lanes_shaped_alike_and_unlike_are_bit_identical_to_each_alone() {
     // Truth: `Drive::simulate` of each drive alone. The five realistic NMV5000 axes with one
     // reference shaping for all (the lanes then shape on lanes: none, a delay alone, a moving

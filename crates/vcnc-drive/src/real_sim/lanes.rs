@@ -1212,8 +1212,15 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
                 let (p1, v1, a1) = at(k + 1);
                 (p1 - p0, v1 - v0, a1 - a0)
             };
-            for (j, r) in refs_f[..ticks].iter_mut().enumerate() {
-                let w = F::splat(j as f64 * inv_sub);
+            // Tick 0 is the sample itself, as in the scalar engine (`p0 + 0·dp` would differ
+            // for a −0.0 sample).
+            refs_f[0] = RefF {
+                xr: p0,
+                vr: v0,
+                ar: a0,
+            };
+            for (j, r) in refs_f[1..ticks].iter_mut().enumerate() {
+                let w = F::splat((j + 1) as f64 * inv_sub);
                 *r = RefF {
                     xr: p0 + w * dp,
                     vr: v0 + w * dv,
@@ -1236,8 +1243,13 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
                     (pos[k + 1] - p0, vel[k + 1] - v0, acc[k + 1] - a0)
                 };
                 let refs = &mut refs[l][..ticks];
-                for (j, r) in refs.iter_mut().enumerate() {
-                    let w = j as f64 * inv_sub;
+                refs[0] = RefSample {
+                    xr: p0,
+                    vr: v0,
+                    ar: a0,
+                };
+                for (j, r) in refs[1..].iter_mut().enumerate() {
+                    let w = (j + 1) as f64 * inv_sub;
                     *r = RefSample {
                         xr: p0 + w * dp,
                         vr: v0 + w * dv,
