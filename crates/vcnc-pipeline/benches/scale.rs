@@ -6,6 +6,8 @@
 //! reference rates dropped as each axis is simulated); and the G-code parser alone on about
 //! 100 MB of the same kind of text.
 //!
+//! The same program is also predicted streamed (`predict_streamed`, docs/performance.md).
+//!
 //! `cargo bench -p vcnc-pipeline --bench scale`
 
 use std::hint::black_box;
@@ -64,6 +66,31 @@ fn long_program(c: &mut Criterion) {
                             black_box(c.len());
                             Ok(())
                         });
+                    }
+                })
+            });
+            // The streamed prediction (`vcnc predict --stream`, without the table writer):
+            // the reference, the true drives and models, both contour searches, the
+            // statistics, a piece of 16 384 samples at a time.
+            group.bench_function("predict_streamed", |b| {
+                b.iter(|| {
+                    let opts = vcnc_gcode::StreamOptions {
+                        chunk_samples: 1 << 14,
+                        ..vcnc_gcode::StreamOptions::default()
+                    };
+                    if let Ok(s) = vcnc_pipeline::stream::plan_file(&machine, &path, false, &opts) {
+                        let _ = vcnc_pipeline::stream_predict::predict_streamed(
+                            &machine,
+                            &s,
+                            &path,
+                            &models,
+                            &[],
+                            run::Measured::Feed,
+                            &mut |p| {
+                                black_box(p.len());
+                                Ok(())
+                            },
+                        );
                     }
                 })
             });
