@@ -458,6 +458,18 @@ impl Reader {
         }
     }
 
+    /// Whether the readings are noisy (then [`Reader::noise`] draws).
+    #[inline(always)]
+    fn noisy(&self) -> bool {
+        self.std > 0.0
+    }
+
+    /// [`Reader::noise`] of a noisy reader ([`Reader::noisy`]).
+    #[inline(always)]
+    fn draw(&mut self) -> f64 {
+        self.std * self.normals.sample()
+    }
+
     /// The reading of position `x` with this reading's `noise` (from [`Reader::noise`]).
     #[inline(always)]
     fn read(&self, x: f64, noise: f64) -> f64 {
@@ -1180,7 +1192,8 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         }
         let (pr, mr) = (&mut readers.0, &mut readers.1);
         let n_next = noise.next_len;
-        let motor = self.second_encoder;
+        // Only noisy readers draw; a quiet one's buffer stays 0 (its noise).
+        let (draw_p, draw_m) = (pr.noisy(), self.second_encoder && mr.noisy());
         let (cur_p, cur_m) = (&noise.cur.0[..ticks], &noise.cur.1[..ticks]);
         let (next_p, next_m) = (&mut noise.next.0[..n_next], &mut noise.next.1[..n_next]);
         let mut saturated_ticks = 0u64;
@@ -1196,9 +1209,11 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         for (((r, np), nm), (dp, dm)) in ticked.zip(drawn) {
             let out = self.tick(st, *r, 0.0, pr, mr, (*np, *nm));
             saturated_ticks += out.saturated as u64;
-            *dp = pr.noise();
-            if motor {
-                *dm = mr.noise();
+            if draw_p {
+                *dp = pr.draw();
+            }
+            if draw_m {
+                *dm = mr.draw();
             }
         }
         let ticked = refs[paired..last]
@@ -1222,9 +1237,11 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             motor_torque: self.torque(&z_before, out.u_in),
         });
         for (dp, dm) in next_p[paired..].iter_mut().zip(&mut next_m[paired..]) {
-            *dp = pr.noise();
-            if motor {
-                *dm = mr.noise();
+            if draw_p {
+                *dp = pr.draw();
+            }
+            if draw_m {
+                *dm = mr.draw();
             }
         }
         std::mem::swap(&mut noise.cur, &mut noise.next);
