@@ -458,16 +458,16 @@ impl Reader {
         }
     }
 
-    /// The noise of the next `out.len()` readings, drawn ahead in one tight loop (the stream
-    /// does not depend on the loop; drawing it apart keeps the servo tick lean).
-    fn fill_noise(&mut self, out: &mut [f64]) {
-        if self.std > 0.0 {
-            for v in out.iter_mut() {
-                *v = self.std * self.normals.sample();
-            }
-        } else {
-            out.fill(0.0);
-        }
+    /// Whether the readings are noisy (then [`Reader::noise`] draws).
+    #[inline(always)]
+    fn noisy(&self) -> bool {
+        self.std > 0.0
+    }
+
+    /// [`Reader::noise`] of a noisy reader ([`Reader::noisy`]).
+    #[inline(always)]
+    fn draw(&mut self) -> f64 {
+        self.std * self.normals.sample()
     }
 
     /// The reading of position `x` with this reading's `noise` (from [`Reader::noise`]).
@@ -1166,9 +1166,14 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
     }
 
     /// Runs `refs.len()` consecutive ticks (`refs` the nominal references, shaped here when the
-    /// drive shapes them; the readings' noise drawn ahead, as the tick reads it) and logs the
-    /// last one: the ticks from the previous logged sample up to and including the first tick
-    /// of the next sample. Returns the saturated ticks.
+    /// drive shapes them) and logs the last one: the ticks from the previous logged sample up
+    /// to and including the first tick of the next sample. Returns the saturated ticks.
+    ///
+    /// `noise` holds the noise of this block's readings, drawn before; the noise of the next
+    /// block's `noise.next_len` readings is drawn during this block's ticks, one tick's draws
+    /// per tick (the generator's work fills the gaps of the tick's dependency chain instead of
+    /// running apart), the rest after them, and becomes `noise`'s current block. Each reader's
+    /// stream is drawn in tick order, as the ticks read it.
     #[allow(clippy::too_many_arguments)] // the loop's parts, kept apart for the registers
     #[inline(always)]
     fn run_block(
@@ -1178,7 +1183,7 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
         shaped: bool,
         readers: &mut (Reader, Reader),
         refs: &mut [RefSample],
-        noise: &mut (Vec<f64>, Vec<f64>),
+        noise: &mut BlockNoise,
         log: &mut impl SampleLog,
     ) -> u64 {
         let ticks = refs.len();
@@ -1186,24 +1191,42 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             shaper.shape_block(refs);
         }
         let (pr, mr) = (&mut readers.0, &mut readers.1);
-        let (noise_p, noise_m) = (&mut noise.0[..ticks], &mut noise.1[..ticks]);
-        pr.fill_noise(noise_p);
-        if self.second_encoder {
-            mr.fill_noise(noise_m);
-        }
+        let n_next = noise.next_len;
+        // Only noisy readers draw; a quiet one's buffer stays 0 (its noise).
+        let (draw_p, draw_m) = (pr.noisy(), self.second_encoder && mr.noisy());
+        let (cur_p, cur_m) = (&noise.cur.0[..ticks], &noise.cur.1[..ticks]);
+        let (next_p, next_m) = (&mut noise.next.0[..n_next], &mut noise.next.1[..n_next]);
         let mut saturated_ticks = 0u64;
         let last = ticks - 1;
-        for ((r, np), nm) in refs[..last]
+        // Ticks with a draw for the next block each, then the rest (the block's last tick is
+        // logged apart).
+        let paired = last.min(n_next);
+        let drawn = next_p[..paired].iter_mut().zip(&mut next_m[..paired]);
+        let ticked = refs[..paired]
             .iter()
-            .zip(&noise_p[..last])
-            .zip(&noise_m[..last])
-        {
+            .zip(&cur_p[..paired])
+            .zip(&cur_m[..paired]);
+        for (((r, np), nm), (dp, dm)) in ticked.zip(drawn) {
+            let out = self.tick(st, *r, 0.0, pr, mr, (*np, *nm));
+            saturated_ticks += out.saturated as u64;
+            if draw_p {
+                *dp = pr.draw();
+            }
+            if draw_m {
+                *dm = mr.draw();
+            }
+        }
+        let ticked = refs[paired..last]
+            .iter()
+            .zip(&cur_p[paired..last])
+            .zip(&cur_m[paired..last]);
+        for ((r, np), nm) in ticked {
             let out = self.tick(st, *r, 0.0, pr, mr, (*np, *nm));
             saturated_ticks += out.saturated as u64;
         }
         let (xl, vl, xm) = (st.z[Self::XL], st.z[Self::VL], st.z[0]);
         let z_before = st.z;
-        let out = self.tick(st, refs[last], 0.0, pr, mr, (noise_p[last], noise_m[last]));
+        let out = self.tick(st, refs[last], 0.0, pr, mr, (cur_p[last], cur_m[last]));
         saturated_ticks += out.saturated as u64;
         log.log(Logged {
             position: out.xp,
@@ -1213,6 +1236,15 @@ impl<L: RLaw, const N: usize, const TM: bool> Engine<L, N, TM> {
             motor_position: xm,
             motor_torque: self.torque(&z_before, out.u_in),
         });
+        for (dp, dm) in next_p[paired..].iter_mut().zip(&mut next_m[paired..]) {
+            if draw_p {
+                *dp = pr.draw();
+            }
+            if draw_m {
+                *dm = mr.draw();
+            }
+        }
+        std::mem::swap(&mut noise.cur, &mut noise.next);
         saturated_ticks
     }
 
@@ -1572,9 +1604,18 @@ struct EffectsStream<L, const N: usize, const TM: bool> {
     readers: (Reader, Reader),
     run: Option<Running<N>>,
     saturated_ticks: u64,
-    /// Work buffers of one block of ticks: references, position and motor-reading noise.
+    /// Work buffer of one block of ticks: references.
     refs: Vec<RefSample>,
-    noise: (Vec<f64>, Vec<f64>),
+    /// The readings' noise of the next block, drawn ahead (after the first sample).
+    noise: BlockNoise,
+}
+
+/// Position and motor-reading noise of a block of ticks (`cur`, drawn) and of the next one
+/// (`next`, `next_len` readings, being drawn): see [`Engine::run_block`].
+struct BlockNoise {
+    cur: (Vec<f64>, Vec<f64>),
+    next: (Vec<f64>, Vec<f64>),
+    next_len: usize,
 }
 
 /// The state a stream carries from one sample to the next.
@@ -1616,6 +1657,11 @@ impl<L: RLaw, const N: usize, const TM: bool> EffectsStream<L, N, TM> {
                     prev: r0,
                 };
                 self.refs[0] = r0;
+                // The first block's one reading; the next blocks' are drawn ahead.
+                self.noise.cur.0[0] = self.readers.0.noise();
+                if e.second_encoder {
+                    self.noise.cur.1[0] = self.readers.1.noise();
+                }
                 saturated_ticks += e.run_block(
                     &mut running.st,
                     &mut running.shaper,
@@ -1711,7 +1757,11 @@ pub(crate) fn effects_stream(
                 run: None,
                 saturated_ticks: 0,
                 refs: vec![r0; self.n_sub],
-                noise: (vec![0.0; self.n_sub], vec![0.0; self.n_sub]),
+                noise: BlockNoise {
+                    cur: (vec![0.0; self.n_sub], vec![0.0; self.n_sub]),
+                    next: (vec![0.0; self.n_sub], vec![0.0; self.n_sub]),
+                    next_len: self.n_sub,
+                },
             })
         }
     }
