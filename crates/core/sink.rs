@@ -83,9 +83,10 @@ pub struct TableWriter {
     rows_in: usize,
     rows_out: usize,
     state: State,
-    /// `auto` decided up front for Parquet: the first rows, gathered into batches of
-    /// [`ROW_GROUP_ROWS`] until row [`AUTO_CSV_ROWS`] + 1 has arrived, as `auto` undecided
-    /// would hand them over when it decides (the Parquet pages, and so the file, are the same).
+    /// Parquet: the rows not yet written, handed to the writer in batches of exactly
+    /// [`ROW_GROUP_ROWS`] (the rest at the end), so that the pages, and so the file, do not
+    /// depend on how the caller splits the rows (a streamed run's pieces, `auto` deciding late
+    /// or up front).
     rechunk: Option<Vec<Vec<f64>>>,
 }
 
@@ -141,15 +142,15 @@ impl TableWriter {
         };
         let kept_rows = rows.map(|n| n.div_ceil(w.decimate));
         w.state = match opts.format {
-            Format::Auto if kept_rows.is_some_and(|n| n > AUTO_CSV_ROWS) => {
-                w.rechunk = Some(vec![Vec::new(); w.keep.len()]);
-                w.open_parquet()?
-            }
+            Format::Auto if kept_rows.is_some_and(|n| n > AUTO_CSV_ROWS) => w.open_parquet()?,
             Format::Auto if kept_rows.is_some() => w.open_csv()?,
             Format::Auto => State::Pending(vec![Vec::new(); w.keep.len()]),
             Format::Csv => w.open_csv()?,
             Format::Parquet => w.open_parquet()?,
         };
+        if matches!(w.state, State::Parquet(..)) {
+            w.rechunk = Some(vec![Vec::new(); w.keep.len()]);
+        }
         Ok(w)
     }
 
@@ -183,33 +184,8 @@ impl TableWriter {
     fn push(&mut self, cols: Vec<Vec<f64>>) -> Result<()> {
         let n = cols.first().map_or(0, Vec::len);
         self.rows_out += n;
-        if let Some(mut buf) = self.rechunk.take() {
-            if buf.first().is_some_and(Vec::is_empty) {
-                buf = cols;
-            } else {
-                for (b, c) in buf.iter_mut().zip(cols) {
-                    b.extend(c);
-                }
-            }
-            let done = self.rows_out > AUTO_CSV_ROWS;
-            loop {
-                let have = buf.first().map_or(0, Vec::len);
-                if have == 0 || (have < ROW_GROUP_ROWS && !done) {
-                    break;
-                }
-                let batch = if have <= ROW_GROUP_ROWS {
-                    buf.iter_mut().map(std::mem::take).collect()
-                } else {
-                    buf.iter_mut()
-                        .map(|b| b.drain(..ROW_GROUP_ROWS).collect())
-                        .collect()
-                };
-                self.emit(batch)?;
-            }
-            if !done {
-                self.rechunk = Some(buf);
-            }
-            return Ok(());
+        if self.rechunk.is_some() {
+            return self.regroup(cols, false);
         }
         if let State::Pending(buf) = &mut self.state {
             for (b, c) in buf.iter_mut().zip(&cols) {
@@ -223,9 +199,41 @@ impl TableWriter {
                 unreachable!("matched above")
             };
             self.state = self.open_parquet()?;
-            return self.emit(buf);
+            self.rechunk = Some(vec![Vec::new(); self.keep.len()]);
+            return self.regroup(buf, false);
         }
         self.emit(cols)
+    }
+
+    /// Parquet: appends `cols` to the rows not yet written and writes every whole batch of
+    /// [`ROW_GROUP_ROWS`] rows; with `last`, the rest too.
+    fn regroup(&mut self, cols: Vec<Vec<f64>>, last: bool) -> Result<()> {
+        let Some(mut buf) = self.rechunk.take() else {
+            return Ok(());
+        };
+        if buf.first().is_some_and(Vec::is_empty) {
+            buf = cols;
+        } else {
+            for (b, c) in buf.iter_mut().zip(cols) {
+                b.extend(c);
+            }
+        }
+        loop {
+            let have = buf.first().map_or(0, Vec::len);
+            if have == 0 || (have < ROW_GROUP_ROWS && !last) {
+                break;
+            }
+            let batch = if have <= ROW_GROUP_ROWS {
+                buf.iter_mut().map(std::mem::take).collect()
+            } else {
+                buf.iter_mut()
+                    .map(|b| b.drain(..ROW_GROUP_ROWS).collect())
+                    .collect()
+            };
+            self.emit(batch)?;
+        }
+        self.rechunk = Some(buf);
+        Ok(())
     }
 
     /// Writes column-major rows to the open file (a Parquet batch of at most
@@ -316,6 +324,8 @@ impl TableWriter {
 
     /// Finishes the file and renames it into place; returns its path.
     pub fn finish(mut self) -> Result<PathBuf> {
+        let empty = vec![Vec::new(); self.keep.len()];
+        self.regroup(empty, true)?;
         if matches!(self.state, State::Pending(_)) {
             let State::Pending(buf) = std::mem::replace(&mut self.state, State::Done) else {
                 unreachable!("matched above")
@@ -545,6 +555,50 @@ mod tests {
             let (pending, sized) = (write(None), write(Some(n)));
             assert_eq!(pending.0, sized.0, "{n} rows / {decimate}");
             assert!(pending.1 == sized.1, "{n} rows / {decimate}: files differ");
+        }
+    }
+
+    #[test]
+    fn parquet_files_do_not_depend_on_how_the_rows_are_split() {
+        // A streamed run hands rows over in pieces of any length (`vcnc predict --stream`);
+        // the file must be the one written a row group at a time.
+        let n = 300_007;
+        let c = columns(n);
+        for (format, decimate) in [
+            (Format::Parquet, 1),
+            (Format::Auto, 1),
+            (Format::Parquet, 7),
+        ] {
+            let opts = TableOptions {
+                format,
+                decimate,
+                ..TableOptions::default()
+            };
+            let write = |pieces: &[usize], rows: Option<usize>| {
+                let dir = tempfile::tempdir().unwrap();
+                let mut w = TableWriter::create_sized(dir.path(), "contour", header(), &opts, rows)
+                    .unwrap();
+                let (mut at, mut i) = (0, 0);
+                while at < n {
+                    let end = (at + pieces[i % pieces.len()]).min(n);
+                    let part: Vec<&[f64]> = c.iter().map(|v| &v[at..end]).collect();
+                    w.write(&part).unwrap();
+                    at = end;
+                    i += 1;
+                }
+                std::fs::read(w.finish().unwrap()).unwrap()
+            };
+            let whole = write(&[ROW_GROUP_ROWS], Some(n));
+            for (pieces, rows) in [
+                (&[16_380, 16_391, 7][..], Some(n)),
+                (&[1_000][..], None),
+                (&[99_999, 3][..], Some(n)),
+            ] {
+                assert!(
+                    write(pieces, rows) == whole,
+                    "{format:?} / {decimate}, pieces {pieces:?}: files differ"
+                );
+            }
         }
     }
 
