@@ -112,17 +112,7 @@ pub fn predict(
     );
     report.finish()?;
     if !ctx.quiet {
-        let rows: Vec<Vec<String>> = contour_rows(&figures_of)
-            .into_iter()
-            .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
-            .collect();
-        print!(
-            "{}",
-            text_table(
-                &["contour error", "tool tip [um]", "orientation [mrad]"],
-                &rows
-            )
-        );
+        print_figures(&figures_of);
         println!("-> {}", out.display());
     }
     Ok(())
@@ -170,15 +160,7 @@ fn predict_streamed(
     ctx: &Ctx,
 ) -> Result<()> {
     use vcnc_pipeline::stream::Envelope;
-    let stream = vcnc_pipeline::stream::plan_file(
-        machine,
-        program,
-        ctx.lenient,
-        &vcnc_gcode::StreamOptions {
-            chunk_samples: STREAM_PIECE_SAMPLES,
-            ..vcnc_gcode::StreamOptions::default()
-        },
-    )?;
+    let stream = plan_streamed(machine, program, ctx)?;
     print_warnings(&stream.warnings);
     let (models, latency, source) = models_of(machine, model)?;
     ensure_dir(out)?;
@@ -226,19 +208,10 @@ fn predict_streamed(
                 e.add(p.first, &scratch);
             }
             let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
-            if let Err(e) = writer.write(&refs) {
-                write_err = Some(e);
-                return Err(vcnc_pipeline::Error::Usage(
-                    "the table could not be written".into(),
-                ));
-            }
-            Ok(())
+            crate::sink::write_streamed(&mut writer, &refs, &mut write_err)
         },
     );
-    if let Some(e) = write_err {
-        return Err(e);
-    }
-    let p = result?;
+    let p = crate::sink::streamed_result(result, write_err)?;
     let table_path = writer.finish()?;
     let mut warnings = stream.warnings.clone();
     warnings.extend(p.stats.warnings.iter().cloned());
@@ -296,18 +269,41 @@ fn predict_streamed(
     );
     report.finish()?;
     if !ctx.quiet {
-        let rows: Vec<Vec<String>> = contour_rows(&p.figures)
-            .into_iter()
-            .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
-            .collect();
-        print!(
-            "{}",
-            text_table(
-                &["contour error", "tool tip [um]", "orientation [mrad]"],
-                &rows
-            )
-        );
+        print_figures(&p.figures);
         println!("-> {} (streamed, {n} samples)", out.display());
     }
     Ok(())
+}
+
+/// The contour figures as a table on the terminal.
+fn print_figures(f: &vcnc_pipeline::ContourFigures) {
+    let rows: Vec<Vec<String>> = contour_rows(f)
+        .into_iter()
+        .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
+        .collect();
+    print!(
+        "{}",
+        text_table(
+            &["contour error", "tool tip [um]", "orientation [mrad]"],
+            &rows
+        )
+    );
+}
+
+/// The first pass of a streamed `predict` or `simulate` over `program`, in pieces of
+/// [`STREAM_PIECE_SAMPLES`].
+pub fn plan_streamed(
+    machine: &Machine,
+    program: &Path,
+    ctx: &Ctx,
+) -> Result<vcnc_pipeline::stream::ReferenceStream> {
+    Ok(vcnc_pipeline::stream::plan_file(
+        machine,
+        program,
+        ctx.lenient,
+        &vcnc_gcode::StreamOptions {
+            chunk_samples: STREAM_PIECE_SAMPLES,
+            ..vcnc_gcode::StreamOptions::default()
+        },
+    )?)
 }

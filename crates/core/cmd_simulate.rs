@@ -98,18 +98,9 @@ fn interpolate_streamed(
             cols.push(&c.acc[i]);
             e.add(c.first, &c.vel[i]);
         }
-        if let Err(e) = writer.write(&cols) {
-            write_err = Some(e);
-            return Err(vcnc_pipeline::Error::Usage(
-                "the table could not be written".into(),
-            ));
-        }
-        Ok(())
+        crate::sink::write_streamed(&mut writer, &cols, &mut write_err)
     });
-    if let Some(e) = write_err {
-        return Err(e);
-    }
-    let stats = stats?;
+    let stats = crate::sink::streamed_result(stats, write_err)?;
     let table_path = writer.finish()?;
     print_warnings(&stats.warnings);
     let summary = stream.summary(machine, &stats);
@@ -300,15 +291,7 @@ fn simulate_streamed(
     ctx: &Ctx,
 ) -> Result<()> {
     use vcnc_pipeline::stream::Envelope;
-    let stream = vcnc_pipeline::stream::plan_file(
-        machine,
-        program,
-        ctx.lenient,
-        &vcnc_gcode::StreamOptions {
-            chunk_samples: crate::cmd_predict::STREAM_PIECE_SAMPLES,
-            ..vcnc_gcode::StreamOptions::default()
-        },
-    )?;
+    let stream = crate::cmd_predict::plan_streamed(machine, program, ctx)?;
     print_warnings(&stream.warnings);
     let models = match model {
         Some(p) => Some((
@@ -362,19 +345,10 @@ fn simulate_streamed(
                     env_model[i].add(p.first, &scratch);
                 }
             }
-            if let Err(e) = writer.write(&cols) {
-                write_err = Some(e);
-                return Err(vcnc_pipeline::Error::Usage(
-                    "the table could not be written".into(),
-                ));
-            }
-            Ok(())
+            crate::sink::write_streamed(&mut writer, &cols, &mut write_err)
         },
     );
-    if let Some(e) = write_err {
-        return Err(e);
-    }
-    let sim = result?;
+    let sim = crate::sink::streamed_result(result, write_err)?;
     let table_path = writer.finish()?;
     print_warnings(&sim.stats.warnings);
     let summary = simulate::simulate_summary_of(

@@ -431,6 +431,31 @@ pub fn write_table_rows(
     w.finish()
 }
 
+/// Writes a piece of a streamed run's rows from inside the stream's callback. A failure is kept
+/// in `failed` and stops the stream; [`streamed_result`] then reports it.
+pub fn write_streamed(
+    writer: &mut TableWriter,
+    cols: &[&[f64]],
+    failed: &mut Option<anyhow::Error>,
+) -> std::result::Result<(), vcnc_pipeline::Error> {
+    writer.write(cols).map_err(|e| {
+        *failed = Some(e);
+        vcnc_pipeline::Error::Usage("the table could not be written".into())
+    })
+}
+
+/// The result of a streamed run whose table was written by [`write_streamed`]: the table's
+/// failure if it stopped the run, else the run's own result.
+pub fn streamed_result<T>(
+    result: std::result::Result<T, vcnc_pipeline::Error>,
+    failed: Option<anyhow::Error>,
+) -> Result<T> {
+    match failed {
+        Some(e) => Err(e),
+        None => Ok(result?),
+    }
+}
+
 /// Parses `--columns a,b,c*`.
 pub fn parse_columns(s: &str) -> Vec<String> {
     s.split(',')

@@ -180,6 +180,12 @@ pub fn worst_blocks(
         e.0 = e.0.max(tip_mm[k]);
         e.1 = e.1.max(orientation_rad.get(k).copied().unwrap_or(0.0));
     }
+    ranked_blocks(per_line, n)
+}
+
+/// The `n` lines of `per_line` (line → largest tool-tip error mm, orientation error rad) with
+/// the largest tool-tip error in µm, worst first (ties: the earlier line).
+pub(crate) fn ranked_blocks(per_line: BTreeMap<u32, (f64, f64)>, n: usize) -> Vec<WorstBlock> {
     let mut v: Vec<WorstBlock> = per_line
         .into_iter()
         .map(|(line, (t, o))| WorstBlock {

@@ -27,7 +27,7 @@ use vcnc_gcode::MoveClass;
 use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 
-use crate::predict::{ContourFigures, ContourSummary, Figure, WORST_BLOCKS, WorstBlock};
+use crate::predict::{ContourFigures, ContourSummary, Figure, WORST_BLOCKS};
 use crate::run::Measured;
 use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats};
 use crate::{Error, latency};
@@ -189,22 +189,7 @@ impl Figures {
             discrepancy_max: pair(4, 5, false),
             discrepancy_rms: pair(4, 5, true),
         };
-        let mut worst: Vec<WorstBlock> = self
-            .worst
-            .finish()
-            .into_iter()
-            .map(|(line, (t, o))| WorstBlock {
-                line,
-                contour_max_um: t * 1e3,
-                orientation_max_mrad: o * 1e3,
-            })
-            .collect();
-        worst.sort_by(|a, b| {
-            b.contour_max_um
-                .total_cmp(&a.contour_max_um)
-                .then(a.line.cmp(&b.line))
-        });
-        worst.truncate(WORST_BLOCKS);
+        let worst = crate::predict::ranked_blocks(self.worst.finish(), WORST_BLOCKS);
         let rows = figures.rows();
         let summary = ContourSummary {
             contour_um: rows.iter().map(|(_, k, f)| (*k, f.tip_um)).collect(),
