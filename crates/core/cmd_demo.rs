@@ -243,12 +243,7 @@ fn demo_report(
         ],
     )?;
     report.include(&id_report, "identify");
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: reference, true and predicted axis positions, tool poses, contour and \
-         orientation errors (docs/cli.md)",
-    );
+    report_table_file(&mut report, &table_path, crate::writers::CONTOUR_TABLE_NOTE);
     report.file(
         "identify/report.html",
         "the identification's own report (its inputs, tables and figures)",

@@ -104,12 +104,7 @@ pub fn predict(
             prediction: p,
         }],
     )?;
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: reference, true and predicted axis positions, tool poses, contour and \
-         orientation errors (docs/cli.md)",
-    );
+    report_table_file(&mut report, &table_path, crate::writers::CONTOUR_TABLE_NOTE);
     report.finish()?;
     if !ctx.quiet {
         print_figures(&figures_of);
@@ -230,19 +225,13 @@ fn predict_streamed(
         warnings: warnings.clone(),
     };
     write_json(&out.join("summary.json"), &summary)?;
-    let info = crate::writers::RunInfo {
-        file: &stream.file,
-        samples: n,
-        duration_s: stream.duration_s(),
-        ts,
-        warnings: &warnings,
-    };
-    let mut report = crate::writers::run_report_info(
+    let mut report = crate::writers::streamed_report(
         out,
         "predict",
         machine_path,
         machine,
-        &info,
+        &stream,
+        &warnings,
         Some(summary.models.as_str()),
         table,
         ctx,
@@ -261,12 +250,7 @@ fn predict_streamed(
             discrepancy_orientation: dor,
         },
     )?;
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: reference, true and predicted axis positions, tool poses, contour and \
-         orientation errors (docs/cli.md)",
-    );
+    report_table_file(&mut report, &table_path, crate::writers::CONTOUR_TABLE_NOTE);
     report.finish()?;
     if !ctx.quiet {
         print_figures(&p.figures);

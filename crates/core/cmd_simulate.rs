@@ -105,19 +105,13 @@ fn interpolate_streamed(
     print_warnings(&stats.warnings);
     let summary = stream.summary(machine, &stats);
     write_json(&out.join("summary.json"), &summary)?;
-    let info = crate::writers::RunInfo {
-        file: &stream.file,
-        samples: n,
-        duration_s: stream.duration_s(),
-        ts,
-        warnings: &summary.warnings,
-    };
-    let mut report = crate::writers::run_report_info(
+    let mut report = crate::writers::streamed_report(
         out,
         "interpolate",
         machine_path,
         machine,
-        &info,
+        stream,
+        &summary.warnings,
         None,
         table,
         ctx,
@@ -244,12 +238,7 @@ pub fn simulate(
          rotary axes",
     );
     figures::simulation_tracking(&mut report, &run, &tracking)?;
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: t and per axis the reference, the true drive's encoder reading and, with \
-         --model, the model's position (docs/cli.md)",
-    );
+    report_table_file(&mut report, &table_path, crate::writers::TRACE_TABLE_NOTE);
     report.finish()?;
     if !ctx.quiet {
         let rows = tracking_rows(vcnc_axis::Unit::micro_label);
@@ -360,19 +349,13 @@ fn simulate_streamed(
     write_json(&out.join("summary.json"), &summary)?;
     let mut warnings = stream.warnings.clone();
     warnings.extend(sim.stats.warnings.iter().cloned());
-    let info = crate::writers::RunInfo {
-        file: &stream.file,
-        samples: n,
-        duration_s: stream.duration_s(),
-        ts,
-        warnings: &warnings,
-    };
-    let mut report = crate::writers::run_report_info(
+    let mut report = crate::writers::streamed_report(
         out,
         "simulate",
         machine_path,
         machine,
-        &info,
+        &stream,
+        &warnings,
         models.as_ref().map(|(f, _)| f.as_str()),
         table,
         ctx,
@@ -394,12 +377,7 @@ fn simulate_streamed(
         })
         .collect();
     figures::simulation_tracking_streamed(&mut report, &stream.file, &figure_axes)?;
-    report_table_file(
-        &mut report,
-        &table_path,
-        "per sample: t and per axis the reference, the true drive's encoder reading and, with \
-         --model, the model's position (docs/cli.md)",
-    );
+    report_table_file(&mut report, &table_path, crate::writers::TRACE_TABLE_NOTE);
     report.finish()?;
     if !ctx.quiet {
         println!(

@@ -490,10 +490,7 @@ pub fn reference_axes(
         Axis::linear("time t", units::S),
         panels,
     );
-    if !still.is_empty() {
-        let names: Vec<&str> = still.iter().map(|a| a.name.as_str()).collect();
-        fig.note = format!("not moved by the program, not shown: {}", names.join(", "));
-    }
+    fig.note = still_note(still.iter().map(|a| a.name));
     report.figure(
         "reference.svg",
         vr::line_figure(&fig),
@@ -948,10 +945,7 @@ pub fn simulation_tracking_streamed(
         Axis::linear("time t", units::S),
         panels,
     );
-    if !still.is_empty() {
-        let names: Vec<&str> = still.iter().map(|a| a.name.as_str()).collect();
-        fig.note = format!("not moved by the program, not shown: {}", names.join(", "));
-    }
+    fig.note = still_note(still.iter().map(|a| a.name));
     report.figure(
         "tracking.svg",
         vr::line_figure(&fig),
@@ -961,4 +955,15 @@ pub fn simulation_tracking_streamed(
          buckets, so no spike is lost; the table holds every sample.",
         section::TRACKING,
     )
+}
+
+/// A figure's note naming the axes the program leaves still (not drawn); empty when it moves
+/// them all.
+fn still_note(still: impl Iterator<Item = vcnc_gcode::AxisName>) -> String {
+    let names: Vec<&str> = still.map(|a| a.as_str()).collect();
+    if names.is_empty() {
+        String::new()
+    } else {
+        format!("not moved by the program, not shown: {}", names.join(", "))
+    }
 }

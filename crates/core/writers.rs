@@ -408,6 +408,47 @@ pub fn contour_columns(p: &PredictPiece, ts: f64, cols: &mut [Vec<f64>]) {
     }
 }
 
+/// How a report lists `predict`'s per-sample table.
+pub const CONTOUR_TABLE_NOTE: &str = "per sample: reference, true and predicted axis positions, \
+     tool poses, contour and orientation errors (docs/cli.md)";
+
+/// How a report lists `simulate`'s per-sample table.
+pub const TRACE_TABLE_NOTE: &str = "per sample: t and per axis the reference, the true drive's \
+     encoder reading and, with --model, the model's position (docs/cli.md)";
+
+/// The report of a streamed run of `command` (`interpolate`, `predict`, `simulate`) of the
+/// program `stream` planned, with its `warnings`.
+#[allow(clippy::too_many_arguments)]
+pub fn streamed_report(
+    out: &Path,
+    command: &str,
+    machine_path: &Path,
+    machine: &Machine,
+    stream: &vcnc_pipeline::stream::ReferenceStream,
+    warnings: &[String],
+    models: Option<&str>,
+    table: &TableOptions,
+    ctx: &Ctx,
+) -> RunReport {
+    let info = RunInfo {
+        file: &stream.file,
+        samples: stream.len(),
+        duration_s: stream.duration_s(),
+        ts: stream.plan.ts,
+        warnings,
+    };
+    run_report_info(
+        out,
+        command,
+        machine_path,
+        machine,
+        &info,
+        models,
+        table,
+        ctx,
+    )
+}
+
 /// The per-sample table as a report lists it.
 pub fn report_table_file(report: &mut RunReport, path: &Path, description: &str) {
     if let Some(name) = path.file_name() {

@@ -90,6 +90,22 @@ pub struct DriveTrace {
 }
 
 impl DriveTrace {
+    /// Empties every channel, keeping each one's memory for `n` samples at least (a trace
+    /// reused from run to run or from piece to piece of a stream).
+    pub fn clear_channels(&mut self, n: usize) {
+        for v in [
+            &mut self.position,
+            &mut self.true_position,
+            &mut self.velocity,
+            &mut self.control,
+            &mut self.motor_position,
+            &mut self.motor_torque,
+        ] {
+            v.clear();
+            v.reserve(n);
+        }
+    }
+
     /// An empty trace of period `ts` with room for `n` samples in every channel.
     pub(crate) fn with_capacity(ts: f64, n: usize) -> Self {
         DriveTrace {
@@ -858,17 +874,7 @@ impl Drive {
     ) -> Result<(), Error> {
         let n = reference.check()?;
         let mut stream = self.stream(ts, Channels::All)?;
-        for v in [
-            &mut trace.position,
-            &mut trace.true_position,
-            &mut trace.velocity,
-            &mut trace.control,
-            &mut trace.motor_position,
-            &mut trace.motor_torque,
-        ] {
-            v.clear();
-            v.reserve(n);
-        }
+        trace.clear_channels(n);
         trace.saturated_ticks = 0;
         stream.feed(reference, trace)?;
         trace.saturated_ticks = stream.finish()?;

@@ -115,16 +115,7 @@ impl DriveStream {
         let result = piece
             .check_piece(self.fed)
             .and_then(|n| self.feed_checked(piece, out).map(|()| n));
-        match result {
-            Ok(n) => {
-                self.fed += n;
-                Ok(())
-            }
-            Err(e) => {
-                self.failed = Some(e.clone());
-                Err(e)
-            }
-        }
+        latch(result, &mut self.fed, &mut self.failed)
     }
 
     fn feed_checked(&mut self, piece: Reference<'_>, out: &mut DriveTrace) -> Result<(), Error> {
@@ -258,16 +249,7 @@ impl ModelStream {
         let result = piece
             .check_piece(self.fed)
             .and_then(|n| self.feed_checked(piece, out).map(|()| n));
-        match result {
-            Ok(n) => {
-                self.fed += n;
-                Ok(())
-            }
-            Err(e) => {
-                self.failed = Some(e.clone());
-                Err(e)
-            }
-        }
+        latch(result, &mut self.fed, &mut self.failed)
     }
 
     fn feed_checked(&mut self, piece: Reference<'_>, out: &mut Vec<f64>) -> Result<(), Error> {
@@ -311,5 +293,24 @@ impl ModelStream {
             return Err(Error::EmptySignal);
         }
         Ok(())
+    }
+}
+
+/// A piece's outcome in a stream: its samples counted (`fed`), or its error kept (`failed`) so
+/// that every later call returns it.
+fn latch(
+    result: Result<usize, Error>,
+    fed: &mut usize,
+    failed: &mut Option<Error>,
+) -> Result<(), Error> {
+    match result {
+        Ok(n) => {
+            *fed += n;
+            Ok(())
+        }
+        Err(e) => {
+            *failed = Some(e.clone());
+            Err(e)
+        }
     }
 }

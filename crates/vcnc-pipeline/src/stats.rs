@@ -8,17 +8,44 @@ pub fn scaled_diff(a: &[f64], b: &[f64], k: f64) -> Vec<f64> {
 /// `(max_abs, rms)` of [`scaled_diff`]`(a, b, k)` without building it (the same sums in the
 /// same order, so the same bits).
 pub fn scaled_diff_max_rms(a: &[f64], b: &[f64], k: f64) -> (f64, f64) {
-    let n = a.len().min(b.len());
-    if n == 0 {
-        return (0.0, 0.0);
-    }
-    let (mut max, mut sq) = (0.0f64, 0.0f64);
+    let mut acc = MaxRms::default();
     for (a, b) in a.iter().zip(b) {
-        let d = (a - b) * k;
-        max = max.max(d.abs());
-        sq += d * d;
+        acc.add((a - b) * k);
     }
-    (max, (sq / n as f64).sqrt())
+    acc.max_rms()
+}
+
+/// [`max_abs`] and [`rms`] of a series given a sample at a time (a streamed run's): the same
+/// sums in the same order, so the same bits as over the whole series.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MaxRms {
+    max: f64,
+    sq: f64,
+    n: usize,
+}
+
+impl MaxRms {
+    /// Adds the next sample.
+    #[inline]
+    pub fn add(&mut self, x: f64) {
+        self.max = self.max.max(x.abs());
+        self.sq += x * x;
+        self.n += 1;
+    }
+
+    /// Samples added.
+    pub fn count(&self) -> usize {
+        self.n
+    }
+
+    /// `(max |x|, RMS)` of the samples added; `(0, 0)` without any.
+    pub fn max_rms(&self) -> (f64, f64) {
+        if self.n == 0 {
+            (0.0, 0.0)
+        } else {
+            (self.max, (self.sq / self.n as f64).sqrt())
+        }
+    }
 }
 
 /// Root mean square of a slice (0 for an empty one).

@@ -29,6 +29,7 @@ use vcnc_machine::Machine;
 
 use crate::predict::{ContourFigures, ContourSummary, Figure, WORST_BLOCKS};
 use crate::run::Measured;
+use crate::stats::MaxRms;
 use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats};
 use crate::{Error, latency};
 
@@ -109,37 +110,12 @@ pub struct StreamedPrediction {
     pub saturated_ticks: Vec<u64>,
 }
 
-/// Running max and sum of squares over the measured samples, in sample order (the sums of
-/// [`crate::stats::max_abs`] and [`crate::stats::rms`] over the picked samples, so the same
-/// bits).
-#[derive(Debug, Clone, Copy, Default)]
-struct MaxRms {
-    max: f64,
-    sq: f64,
-}
-
-impl MaxRms {
-    fn add(&mut self, x: f64) {
-        self.max = self.max.max(x.abs());
-        self.sq += x * x;
-    }
-
-    fn max_rms(&self, n: usize) -> (f64, f64) {
-        if n == 0 {
-            (0.0, 0.0)
-        } else {
-            (self.max, (self.sq / n as f64).sqrt())
-        }
-    }
-}
-
 /// The statistics of [`crate::predict::Prediction::figures`] and
 /// [`crate::predict::worst_blocks`], accumulated sample by sample.
 #[derive(Debug, Default)]
 struct Figures {
     /// true tip, true orientation, predicted tip, predicted orientation, |Δ tip|, |Δ orientation|.
     acc: [MaxRms; 6],
-    measured: usize,
     samples: usize,
     worst: WorstLines,
 }
@@ -155,7 +131,6 @@ impl Figures {
             if !m {
                 continue;
             }
-            self.measured += 1;
             let (tt, to) = (p.true_tip_mm[k], p.true_orientation_rad[k]);
             let (pt, po) = (p.predicted_tip_mm[k], p.predicted_orientation_rad[k]);
             for (a, x) in
@@ -172,9 +147,9 @@ impl Figures {
     }
 
     fn finish(self, which: Measured) -> (ContourSummary, ContourFigures) {
-        let n = self.measured;
+        let n = self.acc[0].count();
         let pair = |tip: usize, or: usize, rms: bool| {
-            let (t, o) = (self.acc[tip].max_rms(n), self.acc[or].max_rms(n));
+            let (t, o) = (self.acc[tip].max_rms(), self.acc[or].max_rms());
             let pick = |x: (f64, f64)| if rms { x.1 } else { x.0 };
             Figure {
                 tip_um: pick(t) * 1e3,

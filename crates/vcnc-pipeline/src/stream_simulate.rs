@@ -13,6 +13,7 @@ use vcnc_machine::Machine;
 
 use crate::Error;
 use crate::simulate::AxisFigures;
+use crate::stats::MaxRms;
 use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats};
 
 /// A piece of a streamed simulation, samples `first..first + len()`.
@@ -49,23 +50,6 @@ pub struct StreamedSimulation {
     pub stats: StreamStats,
     /// Samples simulated.
     pub samples: usize,
-}
-
-/// Running max of |x| and sum of squares, in sample order.
-#[derive(Debug, Clone, Copy, Default)]
-struct MaxSq {
-    max: f64,
-    sq: f64,
-}
-
-impl MaxSq {
-    fn finish(&self, n: usize) -> (f64, f64) {
-        if n == 0 {
-            (0.0, 0.0)
-        } else {
-            (self.max, (self.sq / n as f64).sqrt())
-        }
-    }
 }
 
 /// Runs `stream` (the program at `path`, planned on `machine`) through the true drives (every
@@ -113,8 +97,8 @@ pub fn simulate_streamed(
         predicted: models.map(|_| vec![Vec::new(); axes]),
         first: 0,
     };
-    let mut tracking = vec![MaxSq::default(); axes];
-    let mut model_vs_true = vec![MaxSq::default(); axes];
+    let mut tracking = vec![MaxRms::default(); axes];
+    let mut model_vs_true = vec![MaxRms::default(); axes];
     let mut samples = 0usize;
     let mut on_chunk = |c: &ReferenceChunk| -> Result<(), Error> {
         piece.first = c.first;
@@ -136,16 +120,7 @@ pub fn simulate_streamed(
                     .zip(traces.par_iter_mut())
                     .enumerate()
                     .map(|(i, (d, t))| {
-                        for v in [
-                            &mut t.position,
-                            &mut t.true_position,
-                            &mut t.velocity,
-                            &mut t.control,
-                            &mut t.motor_position,
-                            &mut t.motor_torque,
-                        ] {
-                            v.clear();
-                        }
+                        t.clear_channels(0);
                         d.feed(reference_of(i), t).map_err(drive_err(i))
                     })
                     .collect::<Result<Vec<()>, Error>>()
@@ -175,15 +150,11 @@ pub fn simulate_streamed(
             let k = a.unit.micro_factor();
             let x = &traces[i].position;
             for (r, x) in reference[i].iter().zip(x) {
-                let e = (r - x) * k;
-                tracking[i].max = tracking[i].max.max(e.abs());
-                tracking[i].sq += e * e;
+                tracking[i].add((r - x) * k);
             }
             if let Some(p) = predicted.as_ref() {
                 for (m, x) in p[i].iter().zip(x) {
-                    let d = (m - x) * k;
-                    model_vs_true[i].max = model_vs_true[i].max.max(d.abs());
-                    model_vs_true[i].sq += d * d;
+                    model_vs_true[i].add((m - x) * k);
                 }
             }
         }
@@ -201,8 +172,8 @@ pub fn simulate_streamed(
     }
     let tracking = (0..axes)
         .map(|i| AxisFigures {
-            tracking: tracking[i].finish(samples),
-            model_vs_true: models.map(|_| model_vs_true[i].finish(samples)),
+            tracking: tracking[i].max_rms(),
+            model_vs_true: models.map(|_| model_vs_true[i].max_rms()),
         })
         .collect();
     Ok(StreamedSimulation {
