@@ -75,19 +75,35 @@ pub fn batch_groups(jobs: &[(&Drive, Reference<'_>)], ts: f64) -> Vec<Vec<usize>
 /// drives of a group of [`batch_groups`] in one loop (SIMD lanes). Results in the order of
 /// `jobs`; each is bit for bit [`Drive::simulate`]'s, error included.
 pub fn simulate_batch(jobs: &[(&Drive, Reference<'_>)], ts: f64) -> Vec<Result<DriveTrace, Error>> {
-    let mut out: Vec<Option<Result<DriveTrace, Error>>> = jobs.iter().map(|_| None).collect();
+    let mut traces = Vec::new();
+    simulate_batch_into(jobs, ts, &mut traces)
+        .into_iter()
+        .zip(traces)
+        .map(|(r, t)| r.map(|()| t))
+        .collect()
+}
+
+/// As [`simulate_batch`], into `traces` (one per job, in the order of `jobs`; the vector is
+/// resized to `jobs.len()` and each trace's buffers are reused, as [`Drive::simulate_into`]
+/// reuses its one): a loop that simulates batch after batch allocates nothing. Where a job's
+/// result is an error, its trace holds nothing meaningful.
+pub fn simulate_batch_into(
+    jobs: &[(&Drive, Reference<'_>)],
+    ts: f64,
+    traces: &mut Vec<DriveTrace>,
+) -> Vec<Result<(), Error>> {
+    traces.resize_with(jobs.len(), DriveTrace::default);
+    let mut out: Vec<Option<Result<(), Error>>> = jobs.iter().map(|_| None).collect();
     for group in batch_groups(jobs, ts) {
-        if group.len() > 1
-            && let Some(traces) = run_group(jobs, &group, ts)
-        {
-            for (i, t) in group.iter().zip(traces) {
-                out[*i] = Some(Ok(t));
+        if group.len() > 1 && run_group(jobs, &group, ts, traces) {
+            for i in group {
+                out[i] = Some(Ok(()));
             }
             continue;
         }
         for i in group {
             let (d, r) = &jobs[i];
-            out[i] = Some(d.simulate(*r, ts));
+            out[i] = Some(d.simulate_into(*r, ts, &mut traces[i]));
         }
     }
     out.into_iter()
@@ -95,23 +111,34 @@ pub fn simulate_batch(jobs: &[(&Drive, Reference<'_>)], ts: f64) -> Vec<Result<D
         .collect()
 }
 
-/// One group in one loop; `None` if it cannot run so (then each drive runs alone and reports
-/// its own result).
+/// One group in one loop, into its members' `traces`; `false` if it cannot run so (then each
+/// drive runs alone and reports its own result).
 fn run_group(
     jobs: &[(&Drive, Reference<'_>)],
     group: &[usize],
     ts: f64,
-) -> Option<Vec<DriveTrace>> {
+    traces: &mut [DriveTrace],
+) -> bool {
     let drives: Vec<&Drive> = group.iter().map(|i| jobs[*i].0).collect();
     let references: Vec<Reference<'_>> = group.iter().map(|i| jobs[*i].1).collect();
-    let n = references[0].check().ok()?;
-    let n_sub = drives[0].ticks_per_sample(ts).ok()?;
+    let (Ok(n), Ok(n_sub)) = (references[0].check(), drives[0].ticks_per_sample(ts)) else {
+        return false;
+    };
     let h = ts / n_sub as f64;
-    let mut traces: Vec<DriveTrace> = (0..group.len())
-        .map(|_| DriveTrace::with_capacity(ts, n))
+    // The group's traces, in the group's order (its indices rise: `batch_groups`).
+    let mut members: Vec<&mut DriveTrace> = traces
+        .iter_mut()
+        .enumerate()
+        .filter(|(i, _)| group.contains(i))
+        .map(|(_, t)| t)
         .collect();
-    match real_sim::simulate_lanes(&drives, &references, n_sub, h, &mut traces) {
-        Ok(true) => Some(traces),
-        _ => None,
+    for t in members.iter_mut() {
+        t.ts = ts;
+        t.clear_channels(n);
+        t.saturated_ticks = 0;
     }
+    matches!(
+        real_sim::simulate_lanes(&drives, &references, n_sub, h, &mut members),
+        Ok(true)
+    )
 }

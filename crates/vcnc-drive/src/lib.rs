@@ -47,6 +47,7 @@
 //! ```
 
 pub mod batch;
+mod chacha;
 pub mod design;
 pub mod drive_model;
 pub mod effects;
@@ -59,7 +60,7 @@ mod real_sim;
 pub mod sim;
 pub mod stream;
 
-pub use batch::{BATCH_LANES, batch_groups, simulate_batch};
+pub use batch::{BATCH_LANES, batch_groups, simulate_batch, simulate_batch_into};
 pub use design::{design_pid, design_ppi, design_smc};
 pub use drive_model::{
     DriveModel, MAX_DELAY_S, ModelInput, ModelRun, Realisation, ReferenceFilter,

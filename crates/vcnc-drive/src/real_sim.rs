@@ -1839,7 +1839,7 @@ pub(crate) fn simulate_lanes(
     _references: &[Reference<'_>],
     _n_sub: usize,
     _h: f64,
-    _traces: &mut [DriveTrace],
+    _traces: &mut [&mut DriveTrace],
 ) -> Result<bool, Error> {
     Ok(false)
 }
@@ -1851,16 +1851,16 @@ pub(crate) fn simulate_lanes(
     references: &[Reference<'_>],
     n_sub: usize,
     h: f64,
-    traces: &mut [DriveTrace],
+    traces: &mut [&mut DriveTrace],
 ) -> Result<bool, Error> {
-    struct J<'a, 'r> {
+    struct J<'a, 'r, 't> {
         drives: &'a [&'a Drive],
         references: &'a [Reference<'r>],
         n_sub: usize,
         h: f64,
-        traces: &'a mut [DriveTrace],
+        traces: &'a mut [&'t mut DriveTrace],
     }
-    impl Job for J<'_, '_> {
+    impl Job for J<'_, '_, '_> {
         type Out = Result<bool, Error>;
         fn run<L: RLaw, const N: usize, const TM: bool>(self, e0: &Engine<L, N, TM>) -> Self::Out {
             let (drives, h) = (self.drives, self.h);
@@ -1894,14 +1894,24 @@ pub(crate) fn simulate_lanes(
             let laws = std::array::from_fn(|l| engines[pick(l)].law);
             let lane_readers = std::array::from_fn(|l| &inputs[l].readers);
             let ef = lanes::EngineF::of(lane_engines, L::lanes(&laws), lane_readers);
-            let mut traces: [DriveTrace; LANES] = std::array::from_fn(|l| {
-                let t = &self.traces[pick(l)];
-                DriveTrace::with_capacity(t.ts, t.position.capacity())
-            });
-            lanes::run_batch(&ef, &mut inputs, self.n_sub, h, &mut traces)?;
-            for (out, t) in self.traces.iter_mut().zip(traces) {
-                *out = t;
-            }
+            // The drives' own traces; lanes beyond the drives (repeating the last one) log
+            // into spare traces that are dropped.
+            let mut spare: Vec<DriveTrace> = (self.traces.len()..LANES)
+                .map(|_| {
+                    let t = &self.traces[self.traces.len() - 1];
+                    DriveTrace::with_capacity(t.ts, t.position.capacity())
+                })
+                .collect();
+            let lane_traces: Vec<&mut DriveTrace> = self
+                .traces
+                .iter_mut()
+                .map(|t| &mut **t)
+                .chain(spare.iter_mut())
+                .collect();
+            let Ok(mut lane_traces) = <[&mut DriveTrace; LANES]>::try_from(lane_traces) else {
+                unreachable!("at most LANES drives, checked before the loop is built")
+            };
+            lanes::run_batch(&ef, &mut inputs, self.n_sub, h, &mut lane_traces)?;
             Ok(true)
         }
     }

@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use vcnc_drive::{
     Compliance, ControllerSpec, CurrentLoop, CurrentLoopOrder, Drive, DriveParams, DriveTrace,
     Feedback, FeedbackSource, Friction, FrictionLocation, PoleDesign, Reference, ReferenceShaping,
-    ShapingFilter, batch_groups, simulate_batch,
+    ShapingFilter, batch_groups, simulate_batch, simulate_batch_into,
 };
 
 mod common;
@@ -55,17 +55,35 @@ fn assert_bit_identical(a: &DriveTrace, b: &DriveTrace, what: &str) {
     assert_eq!(a.ts.to_bits(), b.ts.to_bits(), "{what}: ts");
 }
 
-/// Runs `jobs` through the batch and each drive alone; compares; returns the groups.
+/// Runs `jobs` through the batch and each drive alone; compares; returns the groups. The batch
+/// runs twice: `simulate_batch`, and `simulate_batch_into` into traces that already hold other
+/// runs (the jobs in reverse order, one trace too many), whose buffers must not leak into the
+/// new traces.
 fn check_batch(jobs: &[(&Drive, Reference<'_>)], ts: f64, what: &str) -> Vec<Vec<usize>> {
+    let single: Vec<_> = jobs.iter().map(|(d, r)| d.simulate(*r, ts)).collect();
+    let compare =
+        |i: usize, b: Result<&DriveTrace, &vcnc_drive::Error>, how: &str| match (b, &single[i]) {
+            (Ok(b), Ok(s)) => assert_bit_identical(b, s, &format!("{what}, {how}, drive {i}")),
+            (Err(b), Err(s)) => assert_eq!(b, s, "{what}, {how}, drive {i}"),
+            (b, s) => panic!("{what}, {how}, drive {i}: batch {b:?} vs single {s:?}"),
+        };
     let batch = simulate_batch(jobs, ts);
     assert_eq!(batch.len(), jobs.len());
-    for (i, ((d, r), b)) in jobs.iter().zip(&batch).enumerate() {
-        let single = d.simulate(*r, ts);
-        match (b, &single) {
-            (Ok(b), Ok(s)) => assert_bit_identical(b, s, &format!("{what}, drive {i}")),
-            (Err(b), Err(s)) => assert_eq!(b, s, "{what}, drive {i}"),
-            _ => panic!("{what}, drive {i}: batch {b:?} vs single {single:?}"),
-        }
+    for (i, b) in batch.iter().enumerate() {
+        compare(i, b.as_ref(), "simulate_batch");
+    }
+    let rev: Vec<(&Drive, Reference<'_>)> = jobs.iter().rev().copied().collect();
+    let mut traces = vec![DriveTrace::default(); jobs.len() + 1];
+    let _ = simulate_batch_into(&rev, ts, &mut traces);
+    traces.push(DriveTrace::default());
+    let into = simulate_batch_into(jobs, ts, &mut traces);
+    assert_eq!((into.len(), traces.len()), (jobs.len(), jobs.len()));
+    for (i, (r, t)) in into.iter().zip(&traces).enumerate() {
+        compare(
+            i,
+            r.as_ref().map(|()| t),
+            "simulate_batch_into, reused traces",
+        );
     }
     batch_groups(jobs, ts)
 }

@@ -23,7 +23,11 @@
 //! Lanes are four `f64` in a 256-bit AVX register, operated on with `std::arch` intrinsics
 //! (add, subtract, multiply, divide, compare, blend, sign-bit masks: each the IEEE operation of
 //! the scalar code, lane by lane). x86-64 with AVX2 only, checked at run time; elsewhere the
-//! drives run one at a time ([`crate::batch`] falls back), with the same results. No SIMD
+//! drives run one at a time ([`crate::batch`] falls back), with the same results. The loop is
+//! compiled twice, for AVX2 and for AVX2 with AVX-512VL ([`run_avx512vl`], chosen where the
+//! processor has it): the same 256-bit operations, the latter with 32 vector registers instead
+//! of 16 for the loop's thirty-odd live lane values (fewer spills; docs/machine-file.md#cost).
+//! No SIMD
 //! crate: the portable `std::simd` is nightly-only, and the few operations needed are single
 //! intrinsics.
 
@@ -407,8 +411,6 @@ enum FricF {
         uniform: bool,
         /// Element `i` exists in the lane.
         exists: [M; MAX_ELEMENTS],
-        /// Number of elements, as a float.
-        n: F,
         k: [F; MAX_ELEMENTS],
         w: [F; MAX_ELEMENTS],
         w_max: F,
@@ -445,13 +447,19 @@ struct DelayF {
     buf: [F; 128],
     pos: usize,
     d: [usize; LANES],
+    /// The delay every lane has, if they share one (the usual case: one fieldbus): one slot
+    /// read whole instead of a lane from each lane's slot.
+    shared: Option<usize>,
 }
 
 impl DelayF {
     #[inline(always)]
     fn push(&mut self, x: F) -> F {
         self.buf[self.pos] = x;
-        let out = F::map(|l| self.buf[(self.pos + 128 - self.d[l]) & 127].0[l]);
+        let out = match self.shared {
+            Some(d) => self.buf[(self.pos + 128 - d) & 127],
+            None => F::map(|l| self.buf[(self.pos + 128 - self.d[l]) & 127].0[l]),
+        };
         self.pos = (self.pos + 1) & 127;
         out
     }
@@ -577,7 +585,6 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                     n_max,
                     uniform: each.iter().all(|m| m.1 == n_max),
                     exists: std::array::from_fn(|i| M::of(|l| i < each[l].1)),
-                    n: F::map(|l| each[l].1 as f64),
                     k: std::array::from_fn(|i| F::map(|l| each[l].2[i])),
                     w: std::array::from_fn(|i| F::map(|l| each[l].3[i])),
                     w_max: F::map(|l| each[l].4),
@@ -647,6 +654,11 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 buf: [xm0; 128],
                 pos: 0,
                 d: self.dead_time,
+                shared: self
+                    .dead_time
+                    .iter()
+                    .all(|d| *d == self.dead_time[0])
+                    .then_some(self.dead_time[0]),
             }),
             ms: Box::new([zero; MAX_ELEMENTS]),
             ms_force: zero,
@@ -816,7 +828,6 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                 n_max,
                 uniform,
                 exists,
-                n,
                 k,
                 w: wk,
                 w_max,
@@ -922,7 +933,12 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                             st.ms[i] = sel(m, dd * wk[i], st.ms[i]);
                         }
                     }
-                    let (mut at_hi, mut at_lo) = (zero, zero);
+                    // The scalar loop counts the elements at either limit and compares the
+                    // counts with N; a lane's "every element at the limit" is the same truth,
+                    // kept here as a running AND of masks (one instruction an element instead
+                    // of a masked add, and no compare at the end).
+                    let all = M::of(|_| true);
+                    let (mut all_hi, mut all_lo) = (all, all);
                     let one = F::splat(1.0);
                     let every = general.all();
                     // Sums of non-negative terms, a term masked to +0 where the scalar loop
@@ -935,18 +951,17 @@ impl<B: LaneLaw, const N: usize, const TM: bool> EngineF<B, N, TM> {
                             st.ms[i] = if every { d } else { sel(general, d, st.ms[i]) };
                             force = force + k[i] * d;
                             stiffness = stiffness + k[i].masked(above & below);
-                            at_hi = at_hi + one.masked(!below);
-                            at_lo = at_lo + one.masked(!above);
+                            all_hi = all_hi & !below;
+                            all_lo = all_lo & !above;
                         } else {
                             let ex = exists[i];
                             st.ms[i] = sel(general & ex, d, st.ms[i]);
                             force = sel(ex, force + k[i] * d, force);
                             stiffness = stiffness + k[i].masked(ex & above & below);
-                            at_hi = at_hi + one.masked(ex & !below);
-                            at_lo = at_lo + one.masked(ex & !above);
+                            all_hi = all_hi & !(ex & below);
+                            all_lo = all_lo & !(ex & above);
                         }
                     }
-                    let (all_hi, all_lo) = (at_hi.eq(*n), at_lo.eq(*n));
                     sat = sel(all_hi, one, sel(all_lo, -one, zero));
                     level = sel(all_hi, hi, sel(all_lo, lo, zero));
                 }
@@ -1022,31 +1037,51 @@ impl ShaperF {
         })
     }
 
-    /// [`Shaper::shape_block`] per lane.
+    /// Whether the shaping does anything (a delay or a filter); else the loop's references
+    /// are the nominal ones.
+    fn active(&self) -> bool {
+        self.keep > 0
+    }
+
+    /// Room for the next `b` nominal references, in place in the shaper's buffer (no copy):
+    /// fill it, then [`ShaperF::shape_into`] with `b` references. Only for an active shaper.
     #[inline(always)]
-    fn shape_block(&mut self, buf: &mut [RefF]) {
-        let (b, keep) = (buf.len(), self.keep);
-        if keep == 0 {
-            // No delay and no filter: the reference as it is.
-            return;
-        }
+    fn inputs(&mut self, b: usize) -> &mut [RefF] {
+        let keep = self.keep;
         if self.start + keep + b > self.ext.len() {
             self.ext.copy_within(self.start..self.start + keep, 0);
             self.start = 0;
             let len = keep + 16 * b;
             if self.ext.len() < len {
-                self.ext.resize(len, buf[0]);
+                // Beyond the kept inputs every slot is written before it is read.
+                let zero = F::splat(0.0);
+                self.ext.resize(
+                    len,
+                    RefF {
+                        xr: zero,
+                        vr: zero,
+                        ar: zero,
+                    },
+                );
             }
         }
         let s0 = self.start;
-        self.ext[s0 + keep..s0 + keep + b].copy_from_slice(buf);
+        &mut self.ext[s0 + keep..s0 + keep + b]
+    }
+
+    /// [`Shaper::shape_block`] per lane, of the references just written into
+    /// [`ShaperF::inputs`], into `out`.
+    #[inline(always)]
+    fn shape_into(&mut self, out: &mut [RefF]) {
+        let (b, keep) = (out.len(), self.keep);
+        let s0 = self.start;
         let ext = &self.ext[s0..s0 + keep + b];
         match &mut self.avg {
             Some((m, sum, inv_m)) => {
                 let (m, inv_m) = (*m, *inv_m);
                 let half = F::splat(0.5);
                 let [mut a0, mut a1, mut a2] = *sum;
-                let rows = buf
+                let rows = out
                     .iter_mut()
                     .zip(&ext[m + 1..m + 1 + b])
                     .zip(ext[..b].iter().zip(&ext[1..b + 1]));
@@ -1062,9 +1097,35 @@ impl ShaperF {
                 }
                 *sum = [a0, a1, a2];
             }
-            None => buf.copy_from_slice(&ext[..b]),
+            None => out.copy_from_slice(&ext[..b]),
         }
         self.start += b;
+    }
+}
+
+/// The fine interpolation of one sample on lanes, into `out` (its ticks): tick 0 the sample
+/// `s0` itself, as in the scalar engine (`p0 + 0·dp` would differ for a −0.0 sample), tick j
+/// `s0 + (j/n_sub)·d`, the scalar loop's operations lane by lane.
+#[inline(always)]
+fn interpolate(out: &mut [RefF], s0: &RefF, d: &RefF, inv_sub: f64) {
+    out[0] = *s0;
+    for (j, r) in out[1..].iter_mut().enumerate() {
+        let w = F::splat((j + 1) as f64 * inv_sub);
+        *r = RefF {
+            xr: s0.xr + w * d.xr,
+            vr: s0.vr + w * d.vr,
+            ar: s0.ar + w * d.ar,
+        };
+    }
+}
+
+/// Sample `k` of every lane's reference.
+#[inline(always)]
+fn sample_at(inputs: &[LaneInput<'_>; LANES], k: usize) -> RefF {
+    RefF {
+        xr: F::map(|l| inputs[l].reference.pos[k]),
+        vr: F::map(|l| inputs[l].reference.vel[k]),
+        ar: F::map(|l| inputs[l].reference.acc[k]),
     }
 }
 
@@ -1086,10 +1147,16 @@ pub(crate) fn run_batch<B: LaneLaw, const N: usize, const TM: bool>(
     inputs: &mut [LaneInput<'_>; LANES],
     n_sub: usize,
     h: f64,
-    traces: &mut [DriveTrace; LANES],
+    traces: &mut [&mut DriveTrace; LANES],
 ) -> Result<(), Error> {
-    // SAFETY: the lanes run only on a processor with AVX2 (`available`, checked by the caller).
-    unsafe { run_avx2(e, inputs, n_sub, h, traces) }
+    if std::arch::is_x86_feature_detected!("avx512vl") {
+        // SAFETY: checked just above.
+        unsafe { run_avx512vl(e, inputs, n_sub, h, traces) }
+    } else {
+        // SAFETY: the lanes run only on a processor with AVX2 (`available`, checked by the
+        // caller).
+        unsafe { run_avx2(e, inputs, n_sub, h, traces) }
+    }
 }
 
 /// Whether this processor runs lanes (AVX2).
@@ -1097,17 +1164,33 @@ pub(crate) fn available() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
 }
 
-/// [`run_body`] compiled for AVX2.
-#[target_feature(enable = "avx2")]
-fn run_avx2<B: LaneLaw, const N: usize, const TM: bool>(
-    e: &EngineF<B, N, TM>,
-    inputs: &mut [LaneInput<'_>; LANES],
-    n_sub: usize,
-    h: f64,
-    traces: &mut [DriveTrace; LANES],
-) -> Result<(), Error> {
-    run_body(e, inputs, n_sub, h, traces)
+/// [`run_body`] compiled with the target features `$features` (a `target_feature` attribute
+/// takes a literal, hence one function per feature set).
+macro_rules! run_with {
+    ($(#[$doc:meta])* $name:ident, $features:literal) => {
+        $(#[$doc])*
+        #[target_feature(enable = $features)]
+        fn $name<B: LaneLaw, const N: usize, const TM: bool>(
+            e: &EngineF<B, N, TM>,
+            inputs: &mut [LaneInput<'_>; LANES],
+            n_sub: usize,
+            h: f64,
+            traces: &mut [&mut DriveTrace; LANES],
+        ) -> Result<(), Error> {
+            run_body(e, inputs, n_sub, h, traces)
+        }
+    };
 }
+run_with!(
+    /// [`run_body`] compiled for AVX2.
+    run_avx2,
+    "avx2"
+);
+run_with!(
+    /// [`run_body`] compiled for AVX2 with AVX-512VL.
+    run_avx512vl,
+    "avx2,avx512f,avx512vl"
+);
 
 /// The noise of one tick's readings, each lane's from its readers' streams (the motor
 /// encoder's where `motor` lanes read it noisily; else it stays 0, as the scalar loop's).
@@ -1128,7 +1211,7 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
     inputs: &mut [LaneInput<'_>; LANES],
     n_sub: usize,
     h: f64,
-    traces: &mut [DriveTrace; LANES],
+    traces: &mut [&mut DriveTrace; LANES],
 ) -> Result<(), Error> {
     let n = inputs[0].reference.pos.len();
     let x0 = F::map(|l| inputs[l].reference.pos[0]);
@@ -1196,38 +1279,28 @@ fn run_body<B: LaneLaw, const N: usize, const TM: bool>(
         let ticks = ticks_of(k);
         let ticks_next = if last { 0 } else { ticks_of(k + 1) };
         if let Some(shaper) = shared.as_mut() {
-            // The fine interpolation on lanes (the scalar loop's operations, lane by lane).
-            let at = |k: usize| {
-                let (p, v, a) = (
-                    F::map(|l| inputs[l].reference.pos[k]),
-                    F::map(|l| inputs[l].reference.vel[k]),
-                    F::map(|l| inputs[l].reference.acc[k]),
-                );
-                (p, v, a)
-            };
-            let (p0, v0, a0) = at(k);
-            let (dp, dv, da) = if last {
-                (zero, zero, zero)
+            // The fine interpolation on lanes, written straight into the shaper's buffer.
+            let s0 = sample_at(inputs, k);
+            let d = if last {
+                RefF {
+                    xr: zero,
+                    vr: zero,
+                    ar: zero,
+                }
             } else {
-                let (p1, v1, a1) = at(k + 1);
-                (p1 - p0, v1 - v0, a1 - a0)
+                let s1 = sample_at(inputs, k + 1);
+                RefF {
+                    xr: s1.xr - s0.xr,
+                    vr: s1.vr - s0.vr,
+                    ar: s1.ar - s0.ar,
+                }
             };
-            // Tick 0 is the sample itself, as in the scalar engine (`p0 + 0·dp` would differ
-            // for a −0.0 sample).
-            refs_f[0] = RefF {
-                xr: p0,
-                vr: v0,
-                ar: a0,
-            };
-            for (j, r) in refs_f[1..ticks].iter_mut().enumerate() {
-                let w = F::splat((j + 1) as f64 * inv_sub);
-                *r = RefF {
-                    xr: p0 + w * dp,
-                    vr: v0 + w * dv,
-                    ar: a0 + w * da,
-                };
+            if shaper.active() {
+                interpolate(shaper.inputs(ticks), &s0, &d, inv_sub);
+                shaper.shape_into(&mut refs_f[..ticks]);
+            } else {
+                interpolate(&mut refs_f[..ticks], &s0, &d, inv_sub);
             }
-            shaper.shape_block(&mut refs_f[..ticks]);
         }
         for (l, input) in inputs.iter_mut().enumerate() {
             if shared.is_none() {
