@@ -67,19 +67,14 @@ pub fn predict(
     let p = predict::predict_releasing_rates(&machine, &mut run, &models, &latency)?;
     ensure_dir(out)?;
     let figures_of = p.figures(&mask);
-    let summary = PredictSummary {
-        contour: ContourSummary::of(&p, &run, measured),
-        machine: machine.name.clone(),
-        program: run.file.clone(),
-        models: source,
-        actual_latency_s: machine
-            .axes
-            .iter()
-            .zip(&latency)
-            .map(|(a, l)| (a.name.to_string(), *l))
-            .collect(),
-        warnings: run.warnings.clone(),
-    };
+    let summary = PredictSummary::new(
+        &machine,
+        &run.file,
+        ContourSummary::of(&p, &run, measured),
+        source,
+        &latency,
+        run.warnings.clone(),
+    );
     let table_path = write_contour_table(out, &machine, &run, &p, table)?;
     write_json(&out.join("summary.json"), &summary)?;
     let mut report = run_report(
@@ -211,19 +206,14 @@ fn predict_streamed(
     let mut warnings = stream.warnings.clone();
     warnings.extend(p.stats.warnings.iter().cloned());
     print_warnings(&p.stats.warnings);
-    let summary = PredictSummary {
-        contour: p.summary.clone(),
-        machine: machine.name.clone(),
-        program: stream.file.clone(),
-        models: source,
-        actual_latency_s: machine
-            .axes
-            .iter()
-            .zip(&latency)
-            .map(|(a, l)| (a.name.to_string(), *l))
-            .collect(),
-        warnings: warnings.clone(),
-    };
+    let summary = PredictSummary::new(
+        machine,
+        &stream.file,
+        p.summary.clone(),
+        source,
+        &latency,
+        warnings.clone(),
+    );
     write_json(&out.join("summary.json"), &summary)?;
     let mut report = crate::writers::streamed_report(
         out,

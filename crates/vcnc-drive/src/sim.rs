@@ -90,6 +90,28 @@ pub struct DriveTrace {
 }
 
 impl DriveTrace {
+    /// The names of the per-sample channels, in the order of [`DriveTrace::channels`].
+    pub const CHANNELS: [&'static str; 6] = [
+        "position",
+        "true_position",
+        "velocity",
+        "control",
+        "motor_position",
+        "motor_torque",
+    ];
+
+    /// The per-sample channels, in the order of [`DriveTrace::CHANNELS`].
+    pub fn channels(&self) -> [&[f64]; 6] {
+        [
+            &self.position,
+            &self.true_position,
+            &self.velocity,
+            &self.control,
+            &self.motor_position,
+            &self.motor_torque,
+        ]
+    }
+
     /// Empties every channel, keeping each one's memory for `n` samples at least (a trace
     /// reused from run to run or from piece to piece of a stream).
     pub fn clear_channels(&mut self, n: usize) {

@@ -17,25 +17,12 @@ mod common;
 /// Every channel of `a` and `b` as bits (so that −0.0 ≠ 0.0 and NaN = NaN), and the
 /// saturation count.
 fn assert_bit_identical(a: &DriveTrace, b: &DriveTrace, what: &str) {
-    let channels = |t: &DriveTrace| {
-        [
-            t.position.clone(),
-            t.true_position.clone(),
-            t.velocity.clone(),
-            t.control.clone(),
-            t.motor_position.clone(),
-            t.motor_torque.clone(),
-        ]
-    };
-    let names = [
-        "position",
-        "true_position",
-        "velocity",
-        "control",
-        "motor_position",
-        "motor_torque",
-    ];
-    for ((ca, cb), name) in channels(a).iter().zip(channels(b).iter()).zip(names) {
+    for ((ca, cb), name) in a
+        .channels()
+        .iter()
+        .zip(b.channels())
+        .zip(DriveTrace::CHANNELS)
+    {
         assert_eq!(ca.len(), cb.len(), "{what}: {name} length");
         if let Some(k) = ca
             .iter()

@@ -105,14 +105,12 @@ fn assert_trace_bits(got: &DriveTrace, want: &DriveTrace, what: &str) {
         got.saturated_ticks, want.saturated_ticks,
         "{what}: saturated ticks"
     );
-    for (name, g, w) in [
-        ("position", &got.position, &want.position),
-        ("true_position", &got.true_position, &want.true_position),
-        ("velocity", &got.velocity, &want.velocity),
-        ("control", &got.control, &want.control),
-        ("motor_position", &got.motor_position, &want.motor_position),
-        ("motor_torque", &got.motor_torque, &want.motor_torque),
-    ] {
+    for ((g, w), name) in got
+        .channels()
+        .into_iter()
+        .zip(want.channels())
+        .zip(DriveTrace::CHANNELS)
+    {
         assert_bits(g, w, &format!("{what}, {name}"));
     }
 }

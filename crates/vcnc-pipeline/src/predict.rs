@@ -306,6 +306,33 @@ pub struct PredictSummary {
     pub warnings: Vec<String>,
 }
 
+impl PredictSummary {
+    /// The summary of a prediction of `program` on `machine` with models from `models`,
+    /// advanced by the per-axis `actual_latency_s` (in the machine's axis order).
+    pub fn new(
+        machine: &Machine,
+        program: &str,
+        contour: ContourSummary,
+        models: String,
+        actual_latency_s: &[f64],
+        warnings: Vec<String>,
+    ) -> PredictSummary {
+        PredictSummary {
+            contour,
+            machine: machine.name.clone(),
+            program: program.to_string(),
+            models,
+            actual_latency_s: machine
+                .axes
+                .iter()
+                .zip(actual_latency_s)
+                .map(|(a, l)| (a.name.to_string(), *l))
+                .collect(),
+            warnings,
+        }
+    }
+}
+
 /// Runs `run` through the true drives and through `models`, and evaluates both contour errors.
 pub fn predict(machine: &Machine, run: &Run, models: &[DriveModel]) -> Result<Prediction, Error> {
     let mut all = predict_many(machine, run, &[models])?;

@@ -8,6 +8,8 @@
 
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use vcnc_gcode::{MoveClass, SampleChunk, StreamOptions, StreamPlan};
 use vcnc_machine::Machine;
 
@@ -57,6 +59,42 @@ impl ReferenceChunk {
     /// `true` without samples.
     pub fn is_empty(&self) -> bool {
         self.class.is_empty()
+    }
+
+    /// Machine axis `i`'s reference in this chunk.
+    pub fn axis(&self, i: usize) -> vcnc_drive::Reference<'_> {
+        vcnc_drive::Reference {
+            pos: &self.pos[i],
+            vel: &self.vel[i],
+            acc: &self.acc[i],
+        }
+    }
+}
+
+/// Feeds chunk `c` to each machine axis's true-drive stream, every axis in parallel (each
+/// stream in order, so the thread count does not matter), into `traces` (one per axis, its
+/// channels cleared first): the streamed `predict` and `simulate` step.
+pub(crate) fn feed_drives(
+    machine: &Machine,
+    drives: &mut [vcnc_drive::DriveStream],
+    traces: &mut [vcnc_drive::DriveTrace],
+    c: &ReferenceChunk,
+) -> Result<(), Error> {
+    drives
+        .par_iter_mut()
+        .zip(traces.par_iter_mut())
+        .enumerate()
+        .try_for_each(|(i, (d, t))| {
+            t.clear_channels(0);
+            d.feed(c.axis(i), t).map_err(drive_error(machine, i))
+        })
+}
+
+/// The pipeline's error for machine axis `i`'s drive error.
+pub(crate) fn drive_error(machine: &Machine, i: usize) -> impl Fn(vcnc_drive::Error) -> Error + '_ {
+    move |source| Error::Drive {
+        axis: machine.axes[i].name,
+        source,
     }
 }
 

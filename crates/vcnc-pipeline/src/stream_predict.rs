@@ -22,7 +22,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 use vcnc_contour::{ContourStream, SearchWindow, StreamLimits};
-use vcnc_drive::{Channels, DriveModel, DriveTrace, Reference, SimOptions};
+use vcnc_drive::{Channels, DriveModel, DriveTrace, SimOptions};
 use vcnc_gcode::MoveClass;
 use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
@@ -30,7 +30,7 @@ use vcnc_machine::Machine;
 use crate::predict::{ContourFigures, ContourSummary, Figure, WORST_BLOCKS};
 use crate::run::Measured;
 use crate::stats::MaxRms;
-use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats};
+use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats, drive_error, feed_drives};
 use crate::{Error, latency};
 
 /// Finished samples of a streamed prediction, `first..first + len()`: everything a row of
@@ -395,12 +395,7 @@ pub fn predict_streamed(
     latency::check(actual_latency_s, axes)?;
     let kin = machine.require_kinematics()?;
     let ts = stream.plan.ts;
-    let drive_err = |i: usize| {
-        move |source: vcnc_drive::Error| Error::Drive {
-            axis: machine.axes[i].name,
-            source,
-        }
-    };
+    let drive_err = |i: usize| drive_error(machine, i);
     let opts = SimOptions::default();
     let mut drives = machine
         .axes
@@ -477,31 +472,20 @@ pub fn predict_streamed(
         let n = c.len();
         // The true drives and the models, every axis in parallel (each stream in order).
         let (a, b) = rayon::join(
-            || {
-                drives
-                    .par_iter_mut()
-                    .zip(traces.par_iter_mut())
-                    .enumerate()
-                    .map(|(i, (d, t))| {
-                        t.true_position.clear();
-                        d.feed(reference_of(c, i), t).map_err(drive_err(i))
-                    })
-                    .collect::<Result<Vec<()>, Error>>()
-            },
+            || feed_drives(machine, &mut drives, &mut traces, c),
             || {
                 model_streams
                     .par_iter_mut()
                     .zip(shifters.par_iter_mut())
                     .zip(logged.par_iter_mut().zip(shifted.par_iter_mut()))
                     .enumerate()
-                    .map(|(i, ((m, sh), (x, y)))| {
+                    .try_for_each(|(i, ((m, sh), (x, y)))| {
                         x.clear();
                         y.clear();
-                        m.feed(reference_of(c, i), x).map_err(drive_err(i))?;
+                        m.feed(c.axis(i), x).map_err(drive_err(i))?;
                         sh.feed(x, y);
-                        Ok(())
+                        Ok::<(), Error>(())
                     })
-                    .collect::<Result<Vec<()>, Error>>()
             },
         );
         a?;
@@ -588,15 +572,6 @@ pub fn predict_streamed(
         stats,
         saturated_ticks,
     })
-}
-
-/// Axis `i`'s reference in a chunk.
-fn reference_of(c: &ReferenceChunk, i: usize) -> Reference<'_> {
-    Reference {
-        pos: &c.pos[i],
-        vel: &c.vel[i],
-        acc: &c.acc[i],
-    }
 }
 
 #[cfg(test)]

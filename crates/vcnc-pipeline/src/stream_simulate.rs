@@ -14,7 +14,7 @@ use vcnc_machine::Machine;
 use crate::Error;
 use crate::simulate::AxisFigures;
 use crate::stats::MaxRms;
-use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats};
+use crate::stream::{ReferenceChunk, ReferenceStream, StreamStats, drive_error, feed_drives};
 
 /// A piece of a streamed simulation, samples `first..first + len()`.
 #[derive(Debug, Clone, Default)]
@@ -69,12 +69,7 @@ pub fn simulate_streamed(
         return Err(Error::Usage(format!("{} models for {axes} axes", m.len())));
     }
     let ts = stream.plan.ts;
-    let drive_err = |i: usize| {
-        move |source: vcnc_drive::Error| Error::Drive {
-            axis: machine.axes[i].name,
-            source,
-        }
-    };
+    let drive_err = |i: usize| drive_error(machine, i);
     let mut drives = machine
         .axes
         .iter()
@@ -102,11 +97,6 @@ pub fn simulate_streamed(
     let mut samples = 0usize;
     let mut on_chunk = |c: &ReferenceChunk| -> Result<(), Error> {
         piece.first = c.first;
-        let reference_of = |i: usize| vcnc_drive::Reference {
-            pos: &c.pos[i],
-            vel: &c.vel[i],
-            acc: &c.acc[i],
-        };
         let SimulatePiece {
             reference,
             traces,
@@ -114,28 +104,17 @@ pub fn simulate_streamed(
             ..
         } = &mut piece;
         let (a, b) = rayon::join(
-            || {
-                drives
-                    .par_iter_mut()
-                    .zip(traces.par_iter_mut())
-                    .enumerate()
-                    .map(|(i, (d, t))| {
-                        t.clear_channels(0);
-                        d.feed(reference_of(i), t).map_err(drive_err(i))
-                    })
-                    .collect::<Result<Vec<()>, Error>>()
-            },
+            || feed_drives(machine, &mut drives, traces, c),
             || match (model_streams.as_mut(), predicted.as_mut()) {
                 (Some(ms), Some(out)) => ms
                     .par_iter_mut()
                     .zip(out.par_iter_mut())
                     .enumerate()
-                    .map(|(i, (m, x))| {
+                    .try_for_each(|(i, (m, x))| {
                         x.clear();
-                        m.feed(reference_of(i), x).map_err(drive_err(i))
-                    })
-                    .collect::<Result<Vec<()>, Error>>(),
-                _ => Ok(Vec::new()),
+                        m.feed(c.axis(i), x).map_err(drive_err(i))
+                    }),
+                _ => Ok(()),
             },
         );
         a?;

@@ -284,14 +284,7 @@ fn streamed_simulation_equals_the_whole_run() {
             let mut predicted: Vec<Vec<f64>> = vec![Vec::new(); axes];
             let s = simulate_streamed(&machine, &stream, &path, m, &mut |p| {
                 for (i, t) in p.traces.iter().enumerate() {
-                    for (c, v) in channels[i].iter_mut().zip([
-                        &t.position,
-                        &t.true_position,
-                        &t.velocity,
-                        &t.control,
-                        &t.motor_position,
-                        &t.motor_torque,
-                    ]) {
+                    for (c, v) in channels[i].iter_mut().zip(t.channels()) {
                         c.extend(v);
                     }
                     if let Some(x) = &p.predicted {
@@ -302,15 +295,12 @@ fn streamed_simulation_equals_the_whole_run() {
             })
             .expect("streamed");
             for (i, t) in whole.traces.iter().enumerate() {
-                for (c, v) in channels[i].iter().zip([
-                    &t.position,
-                    &t.true_position,
-                    &t.velocity,
-                    &t.control,
-                    &t.motor_position,
-                    &t.motor_torque,
-                ]) {
-                    assert_eq!(bits(c), bits(v), "{}: axis {i}", machine.name);
+                for ((c, v), name) in channels[i]
+                    .iter()
+                    .zip(t.channels())
+                    .zip(vcnc_drive::DriveTrace::CHANNELS)
+                {
+                    assert_eq!(bits(c), bits(v), "{}: axis {i}, {name}", machine.name);
                 }
                 if let Some(p) = &whole.predicted {
                     assert_eq!(

@@ -1149,8 +1149,10 @@ pub(crate) fn run_batch<B: LaneLaw, const N: usize, const TM: bool>(
     h: f64,
     traces: &mut [&mut DriveTrace; LANES],
 ) -> Result<(), Error> {
-    if std::arch::is_x86_feature_detected!("avx512vl") {
-        // SAFETY: checked just above.
+    if std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+    {
+        // SAFETY: both features `run_avx512vl` enables beyond AVX2 are checked just above.
         unsafe { run_avx512vl(e, inputs, n_sub, h, traces) }
     } else {
         // SAFETY: the lanes run only on a processor with AVX2 (`available`, checked by the
