@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use vcnc_machine::Machine;
-use vcnc_pipeline::{predict, run};
+use vcnc_pipeline::{compensate, run};
 
 use crate::util::{json, num, ok, repo, tempdir, text, vcnc};
 
@@ -147,7 +147,7 @@ fn compensation_takes_the_spiral_from_450_um_to_under_5_um_on_the_true_drives() 
         "simulate runs the set-points compensate computed"
     );
     let pos: Vec<&[f64]> = act.iter().map(Vec::as_slice).collect();
-    let (_, c) = predict::contour(&machine, &original, &pos).unwrap();
+    let c = compensate::contour_against(&machine, &original, &pos).unwrap();
     eprintln!(
         "vcnc simulate on compensated.ngc: {:.3} um, {:.5} mrad (encoder readings)",
         c.tip_max_mm * 1e3,

@@ -3,17 +3,33 @@
 
 use std::sync::OnceLock;
 
-use vcnc_drive::{AxisName, DriveModel};
+use vcnc_drive::AxisName;
 use vcnc_machine::{Machine, embedded};
+use vcnc_pipeline::predict::{self, PredictOptions};
 use vcnc_pipeline::run::Measured;
-use vcnc_pipeline::{AxisIdentification, Prediction, Run, identify, predict, run};
+use vcnc_pipeline::{
+    AxisIdentification, PredictOutcome, PredictionRecord, Run, Source, identify, run,
+};
 
 struct Fixture {
     machine: Machine,
     run: Run,
     ids: Vec<AxisIdentification>,
-    refined: Prediction,
-    paper: Prediction,
+    /// The true machine, then the refined models, then the paper's.
+    record: PredictionRecord,
+    outcome: PredictOutcome,
+}
+
+impl Fixture {
+    /// |model set `set` − true machine| per sample: tool tip (mm) and orientation (rad).
+    fn discrepancy(&self, set: usize) -> (Vec<f64>, Vec<f64>) {
+        let (t, m) = (&self.record.truth, &self.record.models[set]);
+        let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).collect();
+        (
+            d(&t.tip_mm, &m.tip_mm),
+            d(&t.orientation_rad, &m.orientation_rad),
+        )
+    }
 }
 
 /// Identify the five axes and predict the spiral once for every test in this file.
@@ -25,19 +41,25 @@ fn fixture() -> &'static Fixture {
             run::prepare(&machine, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
         let axes: Vec<_> = machine.axes.iter().collect();
         let ids = identify::identify_axes(&machine, &axes, None).expect("identification");
-        let refined: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
-        let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
-        let [refined, paper]: [Prediction; 2] =
-            predict::predict_many(&machine, &run, &[&refined, &paper])
-                .expect("prediction")
-                .try_into()
-                .expect("two predictions");
+        let refined = identify::machine_models(&machine, &ids, "identified")
+            .expect("models")
+            .with_latencies(ids.iter().map(|_| 0.0));
+        let paper = identify::paper_models(&machine, &ids).expect("paper models");
+        let mut record = PredictionRecord::default();
+        let outcome = predict::predict(
+            &machine,
+            Source::Prepared(&run),
+            &[&refined, &paper],
+            &PredictOptions::default(),
+            &mut record,
+        )
+        .expect("prediction");
         Fixture {
             machine,
             run,
             ids,
-            refined,
-            paper,
+            record,
+            outcome,
         }
     })
 }
@@ -107,7 +129,7 @@ fn true_contour_error_is_the_published_scale() {
     // and 3.9 mrad.
     // Over the feed moves (the contour statistics' default).
     let f = fixture();
-    let figures = f.refined.figures(&f.run.measured(Measured::Feed));
+    let figures = f.outcome.figures[0];
     let tip = figures.true_max.tip_um;
     let ori = figures.true_max.orientation_mrad;
     assert!((tip - 450.0).abs() < 10.0, "true contour max {tip} µm");
@@ -118,11 +140,12 @@ fn true_contour_error_is_the_published_scale() {
 fn identified_drives_predict_the_contour_error_within_a_micrometre() {
     // Issue 5: max |contour(identified) − contour(true)| ≤ 1 µm and orientation ≤ 0.01 mrad.
     let f = fixture();
-    let d_tip = max(&f.refined.tip_discrepancy()) * 1e3;
-    let d_ori = max(&f.refined.orientation_discrepancy()) * 1e3;
+    let ((dt, dor), (pt, por)) = (f.discrepancy(0), f.discrepancy(1));
+    let d_tip = max(&dt) * 1e3;
+    let d_ori = max(&dor) * 1e3;
     eprintln!("refined: tip discrepancy {d_tip:.4} µm, orientation {d_ori:.5} mrad");
-    let p_tip = max(&f.paper.tip_discrepancy()) * 1e3;
-    let p_ori = max(&f.paper.orientation_discrepancy()) * 1e3;
+    let p_tip = max(&pt) * 1e3;
+    let p_ori = max(&por) * 1e3;
     eprintln!("paper PSO: tip discrepancy {p_tip:.4} µm, orientation {p_ori:.5} mrad");
     assert!(d_tip <= 1.0, "tool-tip discrepancy {d_tip} µm");
     assert!(d_ori <= 0.01, "orientation discrepancy {d_ori} mrad");
@@ -164,22 +187,18 @@ fn windowed_contour_error_equals_brute_force_on_every_spiral_sample() {
     // Truth: the O(N·M) brute-force foot-point search (issue 5).
     let f = fixture();
     let reference = f.run.reference_poses(&f.machine).unwrap();
-    let true_poses =
-        predict::poses_at(&f.machine, &f.refined.true_positions(), 0..f.run.len()).unwrap();
+    let kin = f.machine.require_kinematics().unwrap();
+    let pos = f.record.truth.positions();
+    let true_poses: Vec<_> = (0..f.run.len()).map(|k| kin.pose_at(&pos, k)).collect();
     let brute = vcnc_contour::contour_errors_brute_force(&reference, &true_poses).unwrap();
-    assert_eq!(brute.tip_mm.len(), f.refined.true_contour.tip_mm.len());
-    for (k, (a, b)) in brute
-        .tip_mm
-        .iter()
-        .zip(&f.refined.true_contour.tip_mm)
-        .enumerate()
-    {
+    assert_eq!(brute.tip_mm.len(), f.record.truth.tip_mm.len());
+    for (k, (a, b)) in brute.tip_mm.iter().zip(&f.record.truth.tip_mm).enumerate() {
         assert_eq!(a, b, "tip error differs at sample {k}");
     }
     for (k, (a, b)) in brute
         .orientation_rad
         .iter()
-        .zip(&f.refined.true_contour.orientation_rad)
+        .zip(&f.record.truth.orientation_rad)
         .enumerate()
     {
         assert_eq!(a, b, "orientation error differs at sample {k}");

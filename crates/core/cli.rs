@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use vcnc_axis::AxisName;
-use vcnc_trace::{AxisMap, ChannelRef, GapPolicy, PairOptions, ReadOptions};
+use vcnc_pipeline::AxisName;
+use vcnc_pipeline::traces::{AxisMap, ChannelRef, GapPolicy, PairOptions, ReadOptions};
 
 /// vcnc — a virtual 5-axis CNC: identify the closed-loop dynamics of each feed drive from an
 /// air-cutting run, then predict the contour errors a 5-axis toolpath will leave on the part.
@@ -194,8 +194,8 @@ pub enum Command {
 #[derive(Debug, Clone, Args)]
 pub struct TableArgs {
     /// Table format: `csv`, `parquet`, or `auto` (CSV up to 200 000 rows, Parquet beyond).
-    #[arg(long, value_enum, default_value_t = crate::sink::Format::Auto)]
-    pub format: crate::sink::Format,
+    #[arg(long, value_enum, default_value_t = FormatArg::Auto)]
+    pub format: FormatArg,
     /// Write every N-th sample only (summaries and plots still use every sample).
     #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     pub decimate: u64,
@@ -204,13 +204,32 @@ pub struct TableArgs {
     pub columns: Option<String>,
 }
 
+/// `--format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// CSV up to 200 000 rows, Parquet beyond.
+    Auto,
+    /// Comma-separated text, shortest round-trip numbers.
+    Csv,
+    /// Apache Parquet, one Float64 column per table column.
+    Parquet,
+}
+
 impl TableArgs {
     /// The writer's options.
-    pub fn options(&self) -> crate::sink::TableOptions {
-        crate::sink::TableOptions {
-            format: self.format,
+    pub fn options(&self) -> vcnc_output::table::TableOptions {
+        use vcnc_output::table::Format;
+        vcnc_output::table::TableOptions {
+            format: match self.format {
+                FormatArg::Auto => Format::Auto,
+                FormatArg::Csv => Format::Csv,
+                FormatArg::Parquet => Format::Parquet,
+            },
             decimate: usize::try_from(self.decimate).unwrap_or(usize::MAX),
-            columns: self.columns.as_deref().map(crate::sink::parse_columns),
+            columns: self
+                .columns
+                .as_deref()
+                .map(vcnc_output::table::parse_columns),
         }
     }
 }
@@ -252,7 +271,7 @@ pub struct IdentifyArgs {
     pub machine: Option<PathBuf>,
     /// Axes to identify (default: all).
     #[arg(long = "axis", value_name = "A")]
-    pub axes: Vec<vcnc_gcode::AxisName>,
+    pub axes: Vec<vcnc_pipeline::AxisName>,
     /// Seed of the identification program and the PSO (default: the machine file's).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -443,7 +462,7 @@ pub enum GenCommand {
     Identification {
         /// Axis letter (X Y Z A B C).
         #[arg(long, default_value = "X")]
-        axis: vcnc_gcode::AxisName,
+        axis: vcnc_pipeline::AxisName,
         /// Number of random moves.
         #[arg(long, default_value_t = 70)]
         moves: usize,
@@ -487,8 +506,11 @@ impl TraceReadArgs {
     /// The reader's options and the caller's position unit.
     pub fn options(
         &self,
-    ) -> anyhow::Result<(vcnc_trace::ReadOptions, Option<vcnc_trace::TraceUnit>)> {
-        let mut read = vcnc_trace::ReadOptions::default();
+    ) -> anyhow::Result<(
+        vcnc_pipeline::traces::ReadOptions,
+        Option<vcnc_pipeline::traces::TraceUnit>,
+    )> {
+        let mut read = vcnc_pipeline::traces::ReadOptions::default();
         if let Some(ts) = self.ts {
             if !(ts.is_finite() && ts > 0.0) {
                 return Err(crate::bad_input(format!(
@@ -498,10 +520,12 @@ impl TraceReadArgs {
             read.period_s = Some(ts);
         }
         if let Some(f) = &self.trace_format {
-            read.format = Some(vcnc_trace::Format::from_key(f).ok_or_else(|| {
+            read.format = Some(vcnc_pipeline::traces::Format::from_key(f).ok_or_else(|| {
                 crate::bad_input(format!(
                     "--trace-format {f}: expected one of {}",
-                    vcnc_trace::Format::ALL.map(|f| f.key()).join(", ")
+                    vcnc_pipeline::traces::Format::ALL
+                        .map(|f| f.key())
+                        .join(", ")
                 ))
             })?);
         }
@@ -509,7 +533,7 @@ impl TraceReadArgs {
             read.joints = j
                 .chars()
                 .map(|c| {
-                    vcnc_axis::AxisName::from_letter(c).ok_or_else(|| {
+                    vcnc_pipeline::AxisName::from_letter(c).ok_or_else(|| {
                         crate::bad_input(format!(
                             "--joints {j}: '{c}' is not an axis letter (X Y Z A B C)"
                         ))
@@ -521,7 +545,7 @@ impl TraceReadArgs {
             .units
             .as_deref()
             .map(|u| {
-                vcnc_trace::TraceUnit::parse(u)
+                vcnc_pipeline::traces::TraceUnit::parse(u)
                     .filter(|t| t.to_base().is_some())
                     .ok_or_else(|| {
                         crate::bad_input(format!(

@@ -1,26 +1,26 @@
 //! `vcnc frf`: tracking and disturbance frequency responses of each axis.
 
 use std::path::Path;
-use vcnc_drive::DriveModel;
 
 use anyhow::Result;
-use vcnc_machine::{Machine, ModelSet};
+use vcnc_output::figures::Role;
 use vcnc_pipeline::frf::{frf_summary, measure_tracking};
-use vcnc_report::Role;
+use vcnc_pipeline::{DriveModel, Machine, MachineModels};
 
 use crate::Ctx;
-use crate::figures::{self, FrfModel, MEASUREMENT, MeasuredFrf, TRUE_MACHINE, VCNC_MODEL, section};
-use crate::output::{ensure_dir, write_json};
-use crate::report::RunReport;
-use crate::table::table;
+use vcnc_output::figures::{
+    self, FrfModel, MEASUREMENT, MeasuredFrf, TRUE_MACHINE, VCNC_MODEL, section,
+};
+use vcnc_output::files::{ensure_dir, write_json};
+use vcnc_output::report::RunReport;
+use vcnc_output::text::table;
 
 /// `vcnc frf MACHINE [--model MODEL] --out DIR`.
 pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> Result<()> {
     let machine = Machine::load(machine_path)?;
-    let models = match model {
-        Some(p) => Some(ModelSet::load(p)?.for_machine(&machine, &p.display().to_string())?),
-        None => None,
-    };
+    let models = model
+        .map(|p| MachineModels::load(p, &machine))
+        .transpose()?;
     let measured = measure_tracking(&machine)?;
     ensure_dir(out)?;
     let mut report = RunReport::new(out, format!("vcnc frf: {}", machine.name));
@@ -56,7 +56,7 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
                 tag: "model",
                 label: VCNC_MODEL,
                 role: Role::Model,
-                model: m[i],
+                model: *m.get(i),
             });
         }
         figures::frf_with_measured(
@@ -81,7 +81,11 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
             ),
         );
     }
-    let summary = frf_summary(&machine, models.as_deref(), Some(&measured));
+    let summary = frf_summary(
+        &machine,
+        models.as_ref().map(MachineModels::models),
+        Some(&measured),
+    );
     write_json(&out.join("summary.json"), &summary)?;
     report.finish()?;
     if !ctx.quiet {

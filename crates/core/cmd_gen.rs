@@ -3,8 +3,7 @@
 use std::io::Write;
 
 use anyhow::Result;
-use vcnc_gcode::IdentificationOptions;
-use vcnc_pipeline::programs::{spiral_program, write_long_tcp_program};
+use vcnc_pipeline::programs::{identification_program, spiral_program, write_long_tcp_program};
 
 use crate::bad_input;
 use crate::cli::GenCommand;
@@ -17,17 +16,8 @@ pub fn generate(what: &GenCommand) -> Result<()> {
             range,
             max_feed,
             seed,
-        } => {
-            let opts = IdentificationOptions {
-                moves: *moves,
-                range: *range,
-                max_feed: *max_feed,
-                min_feed: (max_feed / 10.0).min(IdentificationOptions::default().min_feed),
-                seed: *seed,
-                ..IdentificationOptions::default()
-            };
-            vcnc_gcode::identification(*axis, &opts).map_err(|e| bad_input(e.to_string()))?
-        }
+        } => identification_program(*axis, *moves, *range, *max_feed, *seed)
+            .map_err(|e| bad_input(e.to_string()))?,
         GenCommand::Spiral { feed, segment } => spiral_program(*feed, *segment)?,
         GenCommand::Long {
             segments,

@@ -4,18 +4,19 @@
 use std::path::Path;
 
 use anyhow::Result;
-use vcnc_machine::{Machine, OptionsFile};
 use vcnc_pipeline::identify::{self, IdentifySummary};
 use vcnc_pipeline::traces;
+use vcnc_pipeline::{MAX_ACTUAL_LATENCY_S, Machine, OptionsFile};
 
 use crate::cli::IdentifyArgs;
-use crate::output::ensure_dir;
-use crate::table::{print_warnings, table};
-use crate::writers::{
+use crate::print_warnings;
+use crate::{Ctx, bad_input};
+use vcnc_output::files::ensure_dir;
+use vcnc_output::identification::{
     MACHINE_MODELS, fmt_poles, identification_table, identify_machine_report,
     identify_trace_report, model_table, write_identification,
 };
-use crate::{Ctx, bad_input};
+use vcnc_output::text::table;
 
 pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     match (&args.machine, &args.trace) {
@@ -37,12 +38,11 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         }
         _ if args
             .actual_latency_s
-            .is_some_and(|t| vcnc_pipeline::latency::check(&[t], 1).is_err()) =>
+            .is_some_and(|t| !(0.0..=MAX_ACTUAL_LATENCY_S).contains(&t)) =>
         {
             Err(bad_input(format!(
-                "--actual-latency-s {}: must be finite, ≥ 0 and ≤ {} s",
+                "--actual-latency-s {}: must be finite, ≥ 0 and ≤ {MAX_ACTUAL_LATENCY_S} s",
                 args.actual_latency_s.unwrap_or_default(),
-                vcnc_pipeline::latency::MAX_LATENCY_S
             )))
         }
         (Some(m), None) => identify_machine(m, args, ctx),
@@ -55,7 +55,7 @@ pub fn identify(args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
 fn state_latency(ids: &mut [identify::AxisIdentification], args: &IdentifyArgs) {
     if let Some(t) = args.actual_latency_s {
         for r in ids {
-            r.actual_latency_s = t;
+            r.result.model.actual_latency_s = t;
         }
     }
 }

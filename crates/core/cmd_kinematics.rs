@@ -6,13 +6,12 @@
 use std::path::Path;
 
 use anyhow::Result;
-use vcnc_kinematics::Branch;
-use vcnc_machine::Machine;
-use vcnc_pipeline::kinematics::{AXES_COLUMNS, POSE_COLUMNS, forward_file, inverse_file};
+use vcnc_pipeline::Machine;
+use vcnc_pipeline::kinematics::{AXES_COLUMNS, Branch, POSE_COLUMNS, forward_file, inverse_file};
 
 use crate::bad_input;
 use crate::cli::Direction;
-use crate::output::{format_num, write_atomic};
+use vcnc_output::files::{format_num, write_atomic};
 
 pub fn kinematics(
     machine_path: &Path,

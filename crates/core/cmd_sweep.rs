@@ -9,27 +9,22 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use vcnc_machine::{MachineDocument, ModelSet};
 use vcnc_pipeline::run::read_program;
 use vcnc_pipeline::sweep::{self, Sweep, SweepOutcome};
+use vcnc_pipeline::{MachineDocument, MachineModels};
 
 use crate::Ctx;
 use crate::cli::SweepArgs;
-use crate::figures::{self, program_name};
-use crate::output::{ensure_dir, write_atomic, write_json};
-use crate::report::RunReport;
+use vcnc_output::figures::{self, program_name};
+use vcnc_output::files::{ensure_dir, write_atomic, write_json};
+use vcnc_output::report::RunReport;
 
 pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
     let doc = MachineDocument::load(&args.machine)?;
     let program = read_program(&args.program)?;
     let program_file = args.program.display().to_string();
     let models = match &args.model {
-        Some(p) => {
-            let base = doc.check()?;
-            let set = ModelSet::load(p)?;
-            let models = set.for_machine(&base, &p.display().to_string())?;
-            Some((models, set.actual_latency_for_machine(&base)))
-        }
+        Some(p) => Some(MachineModels::load(p, &doc.check()?)?),
         None => None,
     };
     let plan = Sweep::new(

@@ -16,11 +16,11 @@ pub fn trace(what: &TraceCommand, _ctx: &Ctx) -> Result<()> {
                 )));
             }
             let (opts, _) = read.options()?;
-            let info = vcnc_trace::read_path(file, &opts)
+            let info = vcnc_pipeline::traces::read_path(file, &opts)
                 .map_err(vcnc_pipeline::Error::from)?
                 .info();
             if *json {
-                println!("{}", serde_json::to_string_pretty(&info)?);
+                print!("{}", vcnc_output::files::json_text(&info)?);
             } else {
                 print!("{info}");
             }

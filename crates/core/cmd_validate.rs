@@ -1,16 +1,16 @@
 //! `vcnc validate`: an identified model scored on a measured trace (docs/identification.md).
 
 use anyhow::Result;
-use vcnc_machine::ModelSet;
+use vcnc_pipeline::ModelSet;
 use vcnc_pipeline::traces;
 use vcnc_pipeline::validate::{ValidateSummary, validate_measured};
 
 use crate::Ctx;
 use crate::cli::ValidateArgs;
-use crate::output::{ensure_dir, write_json};
-use crate::report::RunReport;
-use crate::sink::{TableOptions, write_table};
-use crate::table::table;
+use vcnc_output::files::{ensure_dir, write_json};
+use vcnc_output::report::RunReport;
+use vcnc_output::table::{TableOptions, write_table};
+use vcnc_output::text::table;
 
 /// `vcnc validate --model MODEL --trace TRACE [--axis A] --out DIR`.
 pub fn validate(args: &ValidateArgs, ctx: &Ctx) -> Result<()> {
@@ -25,7 +25,10 @@ pub fn validate(args: &ValidateArgs, ctx: &Ctx) -> Result<()> {
     ensure_dir(&args.out)?;
     let mut report = RunReport::new(
         &args.out,
-        format!("vcnc validate: {}", crate::figures::program_name(&file)),
+        format!(
+            "vcnc validate: {}",
+            vcnc_output::figures::program_name(&file)
+        ),
     );
     report.input("trace", format!("{file} ({})", measured.paired.format));
     report.input("models", model_file.as_str());
@@ -41,7 +44,7 @@ pub fn validate(args: &ValidateArgs, ctx: &Ctx) -> Result<()> {
     let mut rows = Vec::new();
     for v in &scored {
         let (k, l) = (v.unit.micro_factor(), v.unit.micro_label());
-        let row = |name: String, f: &vcnc_identify::FitMetrics| {
+        let row = |name: String, f: &vcnc_pipeline::FitMetrics| {
             vec![
                 name,
                 f.samples.to_string(),
@@ -63,7 +66,7 @@ pub fn validate(args: &ValidateArgs, ctx: &Ctx) -> Result<()> {
                 f,
             ));
         }
-        crate::figures::validation_measured(&mut report, v)?;
+        vcnc_output::figures::validation_measured(&mut report, v)?;
         // The residual at every sample, for the user's own plots.
         let t: Vec<f64> = (0..v.trace.len()).map(|i| i as f64 * v.trace.ts).collect();
         let residual: Vec<f64> = v

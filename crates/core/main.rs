@@ -1,8 +1,7 @@
-//! `vcnc`: the command-line front end (docs/cli.md). Library crates do the work (the runs are
-//! `vcnc-pipeline`'s); this binary parses arguments, prints tables and progress, writes files
-//! atomically, and says which figures of its results to draw and what goes in each folder's
-//! `report.html` (drawn and built by `vcnc-report`). Command files (`cmd_*`) do not import each
-//! other: what several share is in `writers`, `figures`, `report`, `output` and `table`.
+//! `vcnc`: the command-line front end (docs/cli.md). Library crates do the work: the runs are
+//! `vcnc-pipeline`'s, the files they leave `vcnc-output`'s. This binary parses arguments,
+//! chooses each run's sinks (tables, figures, report, summary), prints tables and progress.
+//! Command files (`cmd_*`) do not import each other.
 //!
 //! Exit codes: 0 ok, 1 runtime failure, 2 bad input (every message names the file, and the line
 //! and column where there is one).
@@ -21,12 +20,6 @@ mod cmd_simulate;
 mod cmd_sweep;
 mod cmd_trace;
 mod cmd_validate;
-mod figures;
-mod output;
-mod report;
-mod sink;
-mod table;
-mod writers;
 
 use std::process::ExitCode;
 
@@ -49,6 +42,24 @@ impl std::error::Error for BadInput {}
 /// Shorthand: a bad-input error with this message.
 pub fn bad_input(msg: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(BadInput(msg.into()))
+}
+
+/// Prints warnings to stderr.
+pub fn print_warnings(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("{w}");
+    }
+}
+
+/// Programs larger than this (bytes of G-code) get bounded-memory outputs (docs/performance.md):
+/// 8 MiB is about 200 000 blocks, a few million samples of short five-axis segments.
+pub const STREAM_ABOVE_BYTES: u64 = 8 << 20;
+
+/// Whether a run of `program` keeps its figures in bounded memory (min/max envelopes) rather
+/// than every sample: on request (`--stream`) or for a program over [`STREAM_ABOVE_BYTES`].
+/// The run itself is the same either way, and so are its tables and statistics.
+pub fn bounded_outputs(program: &std::path::Path, stream: bool) -> bool {
+    stream || std::fs::metadata(program).is_ok_and(|m| m.len() > STREAM_ABOVE_BYTES)
 }
 
 /// Global settings every command sees.
@@ -152,9 +163,9 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             model.as_deref(),
             &out,
             if include_rapids {
-                vcnc_pipeline::run::Measured::All
+                vcnc_pipeline::Measured::All
             } else {
-                vcnc_pipeline::run::Measured::Feed
+                vcnc_pipeline::Measured::Feed
             },
             &table.options(),
             stream,
@@ -212,10 +223,12 @@ fn exit_code(e: &anyhow::Error) -> u8 {
             Some(true)
         } else if let Some(p) = cause.downcast_ref::<vcnc_pipeline::Error>() {
             Some(p.is_bad_input())
+        } else if let Some(o) = cause.downcast_ref::<vcnc_output::Error>() {
+            Some(o.is_bad_input())
         } else {
             cause
-                .downcast_ref::<vcnc_machine::Error>()
-                .map(vcnc_machine::Error::is_bad_input)
+                .downcast_ref::<vcnc_pipeline::MachineError>()
+                .map(vcnc_pipeline::MachineError::is_bad_input)
         };
         if let Some(bad) = bad {
             return if bad { 2 } else { 1 };

@@ -53,6 +53,10 @@ use crate::model::{
 /// Largest dead time accepted, s.
 pub const MAX_DELAY_S: f64 = 10.0;
 
+/// Largest actual-value latency a model accepts, s: far above any control's (a few servo
+/// cycles), small enough that a value in the wrong unit (ms written as s) is refused.
+pub const MAX_ACTUAL_LATENCY_S: f64 = 0.1;
+
 /// A nominal-position filter of unit static gain, applied to the reference before the loop.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
@@ -164,6 +168,12 @@ pub struct DriveModel {
     pub reference_filter: Option<ReferenceFilter>,
     /// Extra real pole $p_e/2\pi$ of the whole loop, Hz, if any.
     pub extra_pole_hz: Option<f64>,
+    /// The control's actual-value latency, s (0: none): the time by which the logged actual
+    /// position — what the model predicts — trails the physical axis. Stated from the control's
+    /// configuration, never identified (docs/drive-model.md#actual-value-latency); a
+    /// prediction of the physical axis advances the model's output by it. It does not enter
+    /// the model's own dynamics ([`DriveModel::simulate`] gives the logged position).
+    pub actual_latency_s: f64,
 }
 
 impl From<ClosedLoopModel> for DriveModel {
@@ -173,6 +183,7 @@ impl From<ClosedLoopModel> for DriveModel {
             delay_s: 0.0,
             reference_filter: None,
             extra_pole_hz: None,
+            actual_latency_s: 0.0,
         }
     }
 }
@@ -194,6 +205,8 @@ struct RawDriveModel {
     reference_filter: Option<ReferenceFilter>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     extra_pole_hz: Option<f64>,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    actual_latency_s: f64,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -216,6 +229,7 @@ impl TryFrom<RawDriveModel> for DriveModel {
             delay_s: r.delay_s,
             reference_filter: r.reference_filter,
             extra_pole_hz: r.extra_pole_hz,
+            actual_latency_s: r.actual_latency_s,
         };
         m.validate()?;
         Ok(m)
@@ -236,6 +250,7 @@ impl From<DriveModel> for RawDriveModel {
             delay_s: m.delay_s,
             reference_filter: m.reference_filter,
             extra_pole_hz: m.extra_pole_hz,
+            actual_latency_s: m.actual_latency_s,
         }
     }
 }
@@ -331,6 +346,13 @@ impl DriveModel {
                 name: "extra_pole_hz",
                 value: pe,
                 expected: "positive and finite",
+            });
+        }
+        if !(0.0..=MAX_ACTUAL_LATENCY_S).contains(&self.actual_latency_s) {
+            return Err(Error::BadParameter {
+                name: "actual_latency_s",
+                value: self.actual_latency_s,
+                expected: "an actual-value latency between 0 and 0.1 s (a few servo cycles; a value in ms written as s is refused)",
             });
         }
         Ok(())

@@ -63,7 +63,8 @@ pub mod stream;
 pub use batch::{BATCH_LANES, batch_groups, simulate_batch, simulate_batch_into};
 pub use design::{design_pid, design_ppi, design_smc};
 pub use drive_model::{
-    DriveModel, MAX_DELAY_S, ModelInput, ModelRun, Realisation, ReferenceFilter,
+    DriveModel, MAX_ACTUAL_LATENCY_S, MAX_DELAY_S, ModelInput, ModelRun, Realisation,
+    ReferenceFilter,
 };
 pub use effects::{
     Compliance, CurrentLoop, CurrentLoopOrder, Effects, Feedback, FeedbackSource, Friction,

@@ -31,6 +31,7 @@ pub mod interp;
 pub mod interpolate;
 pub mod syntax;
 pub mod tables;
+pub mod write;
 
 pub use diag::{Diagnostic, DiagnosticKind, Severity, Span};
 pub use generate::{

@@ -25,7 +25,7 @@ pub use file::{
 };
 pub use locate::{LineCol, line_col, locate_key};
 pub use machine::{AcAxes, Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};
-pub use models::{AxisModel, MAX_ACTUAL_LATENCY_S, ModelSet};
+pub use models::{AxisModel, MachineModels, ModelSet};
 pub use options_file::OptionsFile;
 
 /// The embedded default machine (NMV5000, the paper's Table 3 drives) and its URDF, so that
@@ -105,6 +105,16 @@ pub enum Error {
         /// What does not fit.
         message: String,
     },
+    /// vcnc made a set of models whose count is not the machine's axes' (vcnc's own failure).
+    #[error("internal error: {models} models for the {axes} axes of machine \"{machine}\"")]
+    ModelCount {
+        /// The machine's name.
+        machine: String,
+        /// Its axes.
+        axes: usize,
+        /// The models made.
+        models: usize,
+    },
     /// A document could not be serialised (not the user's input).
     #[error("cannot write {what}: {message}")]
     Write {
@@ -118,7 +128,7 @@ pub enum Error {
 impl Error {
     /// True when the input (a file) is at fault: exit code 2.
     pub fn is_bad_input(&self) -> bool {
-        !matches!(self, Error::Write { .. })
+        !matches!(self, Error::Write { .. } | Error::ModelCount { .. })
     }
 }
 

@@ -14,7 +14,8 @@ use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
 use vcnc_gcode::{AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits};
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
-    Axes, AxisLimits as Travels, Branch, KinematicChain, TableTiltingAc, Travel,
+    Axes, AxisLimits as Travels, Branch, IkOptions, KinematicChain, Pose, TableTiltingAc, Track,
+    Travel,
 };
 
 use crate::file::{AxisFile, IdentificationFile, KinematicsFile, MachineFile, ProgramFile};
@@ -112,6 +113,80 @@ pub struct Kinematics {
     pub branch: Branch,
     /// Which machine axes are X Y Z A C.
     pub axes: AcAxes,
+}
+
+impl Kinematics {
+    /// The machine axes (in the kinematics' order) whose positions the kinematics reads:
+    /// X Y Z A C (indices into [`Machine::axes`]).
+    pub fn machine_axes(&self) -> [usize; 5] {
+        let r = self.axes;
+        [r.x, r.y, r.z, r.a, r.c]
+    }
+
+    /// The tool pose (workpiece frame: tip in mm, unit tool axis) at sample `k` of axis
+    /// positions given per machine axis (mm, deg), by the closed-form forward kinematics.
+    pub fn pose_at(&self, positions: &[&[f64]], k: usize) -> Pose {
+        self.model.forward(&self.axes.at(positions, k))
+    }
+
+    /// Tool-centre-point samples to machine-axis references, in place. Per machine axis,
+    /// `pos`, `vel` and `acc` hold the samples of one piece (mm, deg, per s, per s²); where
+    /// `tcp[k]` is true the linear axes hold the tool tip in the workpiece frame and become the
+    /// machine axes that put it there, with the analytic derivatives of the chain rule. Every
+    /// sample is transformed on its own, so pieces of any length give the whole run's values.
+    pub fn inverse_tcp(
+        &self,
+        pos: &mut [Vec<f64>],
+        vel: &mut [Vec<f64>],
+        acc: &mut [Vec<f64>],
+        tcp: &[bool],
+    ) {
+        let r = self.axes;
+        let track = |i: usize| Track {
+            pos: &pos[i],
+            vel: &vel[i],
+            acc: &acc[i],
+        };
+        let [x, y, z] = self.model.inverse_tcp_track(
+            [track(r.x), track(r.y), track(r.z)],
+            track(r.a),
+            track(r.c),
+            tcp,
+        );
+        for (i, t) in [(r.x, x), (r.y, y), (r.z, z)] {
+            pos[i] = t.pos;
+            vel[i] = t.vel;
+            acc[i] = t.acc;
+        }
+    }
+
+    /// The tool pose of one set of axis values given in the kinematics' own order
+    /// ([`Kinematics::machine_axes`]: X Y Z mm, A C deg).
+    pub fn pose_of(&self, values: &[f64; 5]) -> Pose {
+        let [x, y, z, a, c] = *values;
+        self.model
+            .forward(&Axes::new(x, y, z, a.to_radians(), c.to_radians()))
+    }
+
+    /// Inverse kinematics of a sequence of poses on `branch` (the machine file's when
+    /// `None`), the rotary axes unwrapped continuously from pose to pose: per pose the axis
+    /// values in the kinematics' order (X Y Z mm, A C deg).
+    pub fn inverse_poses(
+        &self,
+        poses: &[Pose],
+        branch: Option<Branch>,
+    ) -> Result<Vec<[f64; 5]>, vcnc_kinematics::Error> {
+        let opts = IkOptions {
+            branch: Some(branch.unwrap_or(self.branch)),
+            ..IkOptions::default()
+        };
+        let sol = self.model.inverse_sequence(poses, &opts)?;
+        Ok(sol
+            .axes
+            .iter()
+            .map(|a| [a.x, a.y, a.z, a.a.to_degrees(), a.c.to_degrees()])
+            .collect())
+    }
 }
 
 /// The identification settings, checked.

@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use vcnc_drive::{ClosedLoopModel, DriveModel, ReferenceFilter};
+use vcnc_drive::{ClosedLoopModel, DriveModel, MAX_ACTUAL_LATENCY_S, ReferenceFilter};
 
 use crate::file::Unit;
 use crate::locate::{error_offset, line_col, locate_key};
@@ -63,10 +63,6 @@ pub struct AxisModel {
     pub actual_latency_s: f64,
 }
 
-/// Largest actual-value latency a model file accepts, s: far above any control's (a few servo
-/// cycles), small enough that a value in the wrong unit (ms written as s) is refused.
-pub const MAX_ACTUAL_LATENCY_S: f64 = 0.1;
-
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -85,13 +81,15 @@ impl AxisModel {
         }
     }
 
-    /// The model: the core with its dead time, reference filter and extra pole.
+    /// The model: the core with its dead time, reference filter, extra pole and stated
+    /// actual-value latency.
     pub fn model(&self) -> DriveModel {
         DriveModel {
             core: self.core(),
             delay_s: self.delay_s,
             reference_filter: self.reference_filter,
             extra_pole_hz: self.extra_pole_hz,
+            actual_latency_s: self.actual_latency_s,
         }
     }
 
@@ -110,7 +108,7 @@ impl AxisModel {
             delay_s: m.delay_s,
             reference_filter: m.reference_filter,
             extra_pole_hz: m.extra_pole_hz,
-            actual_latency_s: 0.0,
+            actual_latency_s: m.actual_latency_s,
         }
     }
 }
@@ -183,14 +181,40 @@ impl ModelSet {
         Ok(set)
     }
 
-    /// The model of each machine axis, in the machine's order; errors if one is missing or has
-    /// the wrong unit.
-    pub fn for_machine(&self, machine: &Machine, file: &str) -> Result<Vec<DriveModel>, Error> {
-        machine
+    /// TOML text of this model set.
+    pub fn to_toml_string(&self) -> Result<String, Error> {
+        toml::to_string_pretty(self).map_err(|e| Error::Write {
+            what: "the model file".into(),
+            message: e.to_string(),
+        })
+    }
+}
+
+/// A machine's models, checked against the machine once when built: one [`DriveModel`] per
+/// machine axis, in the machine's order (each with its stated actual-value latency), and where
+/// they come from. Everything downstream indexes it by the machine's axes and never checks it
+/// again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineModels {
+    models: Vec<DriveModel>,
+    source: String,
+}
+
+impl MachineModels {
+    /// The models of the model file at `path` for `machine`: every machine axis must have one,
+    /// in the machine axis' unit.
+    pub fn load(path: &Path, machine: &Machine) -> Result<MachineModels, Error> {
+        let file = path.display().to_string();
+        MachineModels::of_set(&ModelSet::load(path)?, machine, &file)
+    }
+
+    /// The models of a model file (`file` names it in messages) for `machine`.
+    pub fn of_set(set: &ModelSet, machine: &Machine, file: &str) -> Result<MachineModels, Error> {
+        let models = machine
             .axes
             .iter()
             .map(|a| {
-                let m = self
+                let m = set
                     .axes
                     .get(a.name.as_str())
                     .ok_or_else(|| Error::ModelMismatch {
@@ -211,29 +235,81 @@ impl ModelSet {
                 }
                 Ok(m.model())
             })
-            .collect()
-    }
-
-    /// The stated actual-value latency of each machine axis, s, in the machine's order
-    /// (`actual_latency_s`; 0 for an axis the file has no model of, which
-    /// [`ModelSet::for_machine`] refuses).
-    pub fn actual_latency_for_machine(&self, machine: &Machine) -> Vec<f64> {
-        machine
-            .axes
-            .iter()
-            .map(|a| {
-                self.axes
-                    .get(a.name.as_str())
-                    .map_or(0.0, |m| m.actual_latency_s)
-            })
-            .collect()
-    }
-
-    /// TOML text of this model set.
-    pub fn to_toml_string(&self) -> Result<String, Error> {
-        toml::to_string_pretty(self).map_err(|e| Error::Write {
-            what: "the model file".into(),
-            message: e.to_string(),
+            .collect::<Result<Vec<_>, Error>>()?;
+        Ok(MachineModels {
+            models,
+            source: file.to_string(),
         })
+    }
+
+    /// Models made by vcnc itself (identified on the fly, the paper's method, a sweep's
+    /// designs), one per machine axis in the machine's order; `source` says where they come
+    /// from. A count that is not the machine's is vcnc's own failure, not the user's input.
+    pub fn new(
+        machine: &Machine,
+        models: Vec<DriveModel>,
+        source: impl Into<String>,
+    ) -> Result<MachineModels, Error> {
+        if models.len() != machine.axes.len() {
+            return Err(Error::ModelCount {
+                machine: machine.name.clone(),
+                axes: machine.axes.len(),
+                models: models.len(),
+            });
+        }
+        for m in &models {
+            m.validate().map_err(|e| Error::ModelMismatch {
+                file: machine.source.clone(),
+                message: e.to_string(),
+            })?;
+        }
+        Ok(MachineModels {
+            models,
+            source: source.into(),
+        })
+    }
+
+    /// The same models with each axis' actual-value latency replaced by `latency_s` (s, per
+    /// machine axis, in order).
+    pub fn with_latencies(&self, latency_s: impl IntoIterator<Item = f64>) -> MachineModels {
+        let mut m = self.clone();
+        for (model, l) in m.models.iter_mut().zip(latency_s) {
+            model.actual_latency_s = l;
+        }
+        m
+    }
+
+    /// The models, one per machine axis in the machine's order.
+    pub fn models(&self) -> &[DriveModel] {
+        &self.models
+    }
+
+    /// The model of machine axis `i` (index into [`Machine::axes`]).
+    pub fn get(&self, i: usize) -> &DriveModel {
+        &self.models[i]
+    }
+
+    /// Where the models come from: a model file's path, or how vcnc made them.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// The stated actual-value latency of each machine axis, s, in the machine's order.
+    pub fn latencies(&self) -> impl Iterator<Item = f64> + '_ {
+        self.models.iter().map(|m| m.actual_latency_s)
+    }
+
+    /// The model file of these models (`machine` and `description` informative).
+    pub fn to_set(&self, machine: &Machine, description: Option<String>) -> ModelSet {
+        ModelSet {
+            machine: machine.name.clone(),
+            description,
+            axes: machine
+                .axes
+                .iter()
+                .zip(&self.models)
+                .map(|(a, m)| (a.name.to_string(), AxisModel::new(a.unit, m)))
+                .collect(),
+        }
     }
 }

@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use vcnc_drive::{ClosedLoopModel, DriveModel};
-use vcnc_machine::{Machine, embedded};
+use vcnc_machine::{Machine, MachineModels, embedded};
 use vcnc_pipeline::compensate::{CompensateOptions, SampledModel, StableInverse, compensate_run};
 use vcnc_pipeline::run;
 
@@ -21,6 +21,9 @@ fn compensate(c: &mut Criterion) {
     };
     let models: Vec<ClosedLoopModel> = machine.axes.iter().map(|a| a.true_model()).collect();
     let drive_models: Vec<DriveModel> = models.iter().map(|m| DriveModel::from(*m)).collect();
+    let Ok(drive_models) = MachineModels::new(&machine, drive_models, "true drives") else {
+        return;
+    };
     let opts = CompensateOptions::default();
     let mut group = c.benchmark_group("compensate_spiral");
     group.sample_size(10);
@@ -33,9 +36,9 @@ fn compensate(c: &mut Criterion) {
         })
     });
     group.bench_function("compensate_run", |b| {
-        b.iter(|| compensate_run(&machine, black_box(&spiral), &drive_models, &[], &opts))
+        b.iter(|| compensate_run(&machine, black_box(&spiral), &drive_models, &opts))
     });
-    if let Ok(comp) = compensate_run(&machine, &spiral, &drive_models, &[], &opts) {
+    if let Ok(comp) = compensate_run(&machine, &spiral, &drive_models, &opts) {
         group.bench_function("program_text", |b| b.iter(|| comp.program(&[])));
     }
     group.finish();

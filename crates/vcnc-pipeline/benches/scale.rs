@@ -2,11 +2,11 @@
 //! of 1 000 000 samples at 1 ms (20 000 short segments, TCP on by `M428`, inverse-time feeds
 //! `G93`; [`programs::long_tcp_program`]) prepared (parse, interpret, interpolate, inverse
 //! kinematics, travel checks) and predicted (true drives and models, forward kinematics, the
-//! reference path, both contour errors; `prepare_and_predict` as `vcnc predict` runs it, the
-//! reference rates dropped as each axis is simulated); and the G-code parser alone on about
-//! 100 MB of the same kind of text.
+//! reference path, both contour errors); and the G-code parser alone on about 100 MB of the
+//! same kind of text.
 //!
-//! The same program is also predicted streamed (`predict_streamed`, docs/performance.md).
+//! The same program is also predicted streamed (`predict_streamed`, as `vcnc predict` runs it
+//! without its table, docs/performance.md).
 //!
 //! `cargo bench -p vcnc-pipeline --bench scale`
 
@@ -15,8 +15,11 @@ use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use vcnc_drive::DriveModel;
-use vcnc_machine::Machine;
-use vcnc_pipeline::{predict, programs, run};
+use vcnc_machine::{Machine, MachineModels};
+use vcnc_pipeline::predict::{self, PredictOptions};
+use vcnc_pipeline::sink::Discard;
+use vcnc_pipeline::source::{self, Program};
+use vcnc_pipeline::{Source, programs, run};
 
 fn long_program(c: &mut Criterion) {
     let Ok(machine) = Machine::embedded_nmv5000() else {
@@ -30,6 +33,10 @@ fn long_program(c: &mut Criterion) {
         .iter()
         .map(|a| DriveModel::from(a.true_model()))
         .collect();
+    let Ok(models) = MachineModels::new(&machine, models, "true drives") else {
+        return;
+    };
+    let opts = PredictOptions::default();
     let mut group = c.benchmark_group("long_tcp_1M_samples");
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(30));
@@ -39,13 +46,30 @@ fn long_program(c: &mut Criterion) {
     let Ok(prepared) = run::prepare(&machine, &src, "long.ngc", false) else {
         return;
     };
+    // The prediction of a prepared program (true drives and models, forward kinematics, both
+    // contour searches, the statistics), its pieces kept by no sink.
     group.bench_function("predict", |b| {
-        b.iter(|| predict::predict(&machine, black_box(&prepared), &models))
+        b.iter(|| {
+            predict::predict(
+                &machine,
+                Source::Prepared(black_box(&prepared)),
+                &[&models],
+                &opts,
+                &mut Discard,
+            )
+        })
     });
     group.bench_function("prepare_and_predict", |b| {
         b.iter(|| {
-            run::prepare(&machine, black_box(&src), "long.ngc", false)
-                .and_then(|mut r| predict::predict_releasing_rates(&machine, &mut r, &models, &[]))
+            run::prepare(&machine, black_box(&src), "long.ngc", false).and_then(|r| {
+                predict::predict(
+                    &machine,
+                    Source::Prepared(&r),
+                    &[&models],
+                    &opts,
+                    &mut Discard,
+                )
+            })
         })
     });
     // The streamed reference (`vcnc interpolate`): both passes over the file, every piece of
@@ -53,43 +77,30 @@ fn long_program(c: &mut Criterion) {
     if let Ok(dir) = tempfile::tempdir() {
         let path = dir.path().join("long.ngc");
         if std::fs::write(&path, &src).is_ok() {
+            let program = || Program::File(path.clone());
             group.bench_function("interpolate_streamed", |b| {
                 b.iter(|| {
-                    let s = vcnc_pipeline::stream::plan_file(
-                        &machine,
-                        &path,
-                        false,
-                        &vcnc_gcode::StreamOptions::default(),
-                    );
-                    if let Ok(s) = s {
-                        let _ = s.run(&machine, &path, &mut |c| {
-                            black_box(c.len());
-                            Ok(())
-                        });
+                    if let Ok(s) = source::plan(&machine, program(), false) {
+                        let _ = vcnc_pipeline::interpolate::interpolate(
+                            &machine,
+                            Source::Streamed(&s),
+                            &mut Discard,
+                        );
                     }
                 })
             });
-            // The streamed prediction (`vcnc predict --stream`, without the table writer):
-            // the reference, the true drives and models, both contour searches, the
-            // statistics, a piece of 16 384 samples at a time.
+            // The streamed prediction (`vcnc predict` without the table writer): the
+            // reference, the true drives and models, both contour searches, the statistics,
+            // a piece of 16 384 samples at a time.
             group.bench_function("predict_streamed", |b| {
                 b.iter(|| {
-                    let opts = vcnc_gcode::StreamOptions {
-                        chunk_samples: 1 << 14,
-                        ..vcnc_gcode::StreamOptions::default()
-                    };
-                    if let Ok(s) = vcnc_pipeline::stream::plan_file(&machine, &path, false, &opts) {
-                        let _ = vcnc_pipeline::stream_predict::predict_streamed(
+                    if let Ok(s) = source::plan(&machine, program(), false) {
+                        let _ = predict::predict(
                             &machine,
-                            &s,
-                            &path,
-                            &models,
-                            &[],
-                            run::Measured::Feed,
-                            &mut |p| {
-                                black_box(p.len());
-                                Ok(())
-                            },
+                            Source::Streamed(&s),
+                            &[&models],
+                            &opts,
+                            &mut Discard,
                         );
                     }
                 })

@@ -103,6 +103,14 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// An axis reference cannot be compensated with its model.
+    #[error("axis {axis}: {source}")]
+    Compensate {
+        /// The axis.
+        axis: AxisName,
+        /// The compensation's error.
+        source: vcnc_compensate::Error,
+    },
     /// A compensated or re-planned reference would exceed an axis limit
     /// (docs/compensation.md#limits).
     #[error(
@@ -123,13 +131,270 @@ pub enum Error {
         /// What the user can do.
         advice: String,
     },
-    /// An option or argument that does not fit the inputs (an axis the machine lacks, a bad
-    /// `--set` or `--shard`).
-    #[error("{0}")]
-    Usage(String),
-    /// A failure of vcnc itself (a broken internal promise), never the user's input.
-    #[error("internal error: {0}")]
-    Internal(String),
+    /// A command-line argument of the wrong form.
+    #[error("{option} {value}: expected {expected}")]
+    Argument {
+        /// The option (`--set`, `--shard`).
+        option: &'static str,
+        /// The value given.
+        value: String,
+        /// What it must be.
+        expected: String,
+    },
+    /// `--axis` names an axis the machine lacks.
+    #[error("--axis {axis}: machine \"{machine}\" ({file}) has no axis {axis}; it has {has}")]
+    NoSuchAxis {
+        /// The axis named.
+        axis: AxisName,
+        /// The machine's name.
+        machine: String,
+        /// Its file.
+        file: String,
+        /// The axes it has.
+        has: String,
+    },
+    /// A sweep larger than vcnc runs in one go.
+    #[error("the sweep has {total} configurations; split it (at most {max})")]
+    TooManyConfigurations {
+        /// Configurations of the product.
+        total: usize,
+        /// The most one sweep runs.
+        max: usize,
+    },
+    /// A shard's `sweep.csv` that cannot be merged.
+    #[error("{file}: {problem}")]
+    Shard {
+        /// The file.
+        file: String,
+        /// What is wrong.
+        problem: &'static str,
+    },
+    /// A configuration in two shards.
+    #[error("configuration {index} appears in more than one shard")]
+    DuplicateConfiguration {
+        /// Its index.
+        index: usize,
+    },
+    /// `sweep-merge` without shard folders.
+    #[error("no shard folders given")]
+    NoShards,
+    /// A program generator's parameter out of range.
+    #[error("{program}: {what} must be positive and finite, not {value}")]
+    Generator {
+        /// The generator.
+        program: &'static str,
+        /// The parameter.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A generated program could not be written to its output.
+    #[error("{program}: cannot write the text")]
+    GeneratorOutput {
+        /// The generator.
+        program: &'static str,
+    },
+    /// A feed-planning option out of range.
+    #[error("feed planning: {what} must be {expected}, got {value}")]
+    FeedPlanOption {
+        /// The option.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+        /// Its range.
+        expected: &'static str,
+    },
+    /// A program without feed moves to plan.
+    #[error("{file}: the program has no G94 feed moves whose feed could be planned")]
+    NothingToPlan {
+        /// The program.
+        file: String,
+    },
+    /// No feed scale meets the tolerance.
+    #[error(
+        "feed planning: even at {min_factor} times the programmed feeds the predicted contour \
+         error is {tip_um:.3} µm and {orientation_mrad:.4} mrad, {excess:.2} times the tolerance"
+    )]
+    ToleranceUnreachable {
+        /// The smallest feed factor tried.
+        min_factor: f64,
+        /// The predicted tool-tip contour error there, µm.
+        tip_um: f64,
+        /// The predicted orientation error there, mrad.
+        orientation_mrad: f64,
+        /// Its ratio to the tolerance.
+        excess: f64,
+    },
+    /// A program too large for the memory available.
+    #[error(
+        "{file}: the program is {bytes} bytes; preparing it needs about {:.1} GB of memory (about \
+         {} bytes per byte of G-code: the parser and the interpreter hold the whole program, \
+         then its samples) and {:.1} GB are available; split it",
+        *need_bytes as f64 / 1e9,
+        crate::run::PROGRAM_MEMORY_PER_BYTE,
+        *available_bytes as f64 / 1e9
+    )]
+    ProgramTooLarge {
+        /// The program.
+        file: String,
+        /// Its size, bytes.
+        bytes: u64,
+        /// The memory preparing it needs, bytes.
+        need_bytes: u64,
+        /// The memory available, bytes.
+        available_bytes: u64,
+    },
+    /// A program with more blocks than the parser takes.
+    #[error(
+        "{file}: the program has {lines} non-blank lines, more than the {max} blocks vcnc \
+         parses; split it"
+    )]
+    TooManyBlocks {
+        /// The program.
+        file: String,
+        /// Its non-blank lines.
+        lines: usize,
+        /// The parser's block limit.
+        max: usize,
+    },
+    /// A table lacks a column it needs.
+    #[error("{file}: missing column '{column}' (the header has: {header}){hint}")]
+    MissingColumn {
+        /// The file.
+        file: String,
+        /// The column.
+        column: String,
+        /// The columns it has.
+        header: String,
+        /// What to do.
+        hint: String,
+    },
+    /// An axis named for validation is not in the trace.
+    #[error("{file}: no axis {axis} in the trace (it has: {has})")]
+    AxisNotInTrace {
+        /// The trace.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// The trace's axes.
+        has: String,
+    },
+    /// A model file without a model of an axis named.
+    #[error("{file}: no model for axis {axis} (it has: {has})")]
+    NoModelFor {
+        /// The model file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// The axes it has models of.
+        has: String,
+    },
+    /// No axis of a trace has a model.
+    #[error(
+        "no axis of {file} ({trace_axes}) has a model in {model_file} ({model_axes}); name the \
+         trace's axis with --axis, or its columns with --xr-col/--x-col and --axis"
+    )]
+    NothingToValidate {
+        /// The trace.
+        file: String,
+        /// Its axes.
+        trace_axes: String,
+        /// The model file.
+        model_file: String,
+        /// Its axes.
+        model_axes: String,
+    },
+    /// A model in another unit than the trace's axis.
+    #[error("{file}: the model of axis {axis} is in {model}, the trace's axis in {trace}")]
+    UnitMismatch {
+        /// The model file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// The model's unit.
+        model: vcnc_axis::Unit,
+        /// The trace's unit.
+        trace: vcnc_axis::Unit,
+    },
+    /// A model's free run diverges on a trace.
+    #[error(
+        "{subject}: the model's free run diverges on this trace (is the model stable, and the \
+         trace's sample period {ts_s} s right?)"
+    )]
+    FreeRunDiverges {
+        /// The trace and axis.
+        subject: String,
+        /// The trace's sample period, s.
+        ts_s: f64,
+    },
+    /// A velocity headroom outside (0, 1].
+    #[error("the velocity headroom must lie in (0, 1], got {headroom}")]
+    Headroom {
+        /// The headroom given.
+        headroom: f64,
+    },
+    /// A program without samples to compensate.
+    #[error("{file}: the program has no samples")]
+    EmptyProgram {
+        /// The program.
+        file: String,
+    },
+    /// A model whose inverse settles too slowly to compensate with.
+    #[error(
+        "axis {axis}: the model's inverse needs {lead_s:.3} s of lead and {tail_s:.3} s of tail \
+         to settle, more than {max_s} s (a zero of the sampled model lies close to the unit circle)"
+    )]
+    SlowInverse {
+        /// The axis.
+        axis: AxisName,
+        /// Lead needed, s.
+        lead_s: f64,
+        /// Tail needed, s.
+        tail_s: f64,
+        /// The most allowed, s.
+        max_s: f64,
+    },
+    /// A compensated program read back runs another number of samples than its set-points
+    /// (vcnc's own failure).
+    #[error(
+        "internal error: the compensated program runs {program} samples, the set-points have \
+         {set_points}"
+    )]
+    SampleCount {
+        /// Samples of the program read back.
+        program: usize,
+        /// Set-points written.
+        set_points: usize,
+    },
+    /// The interpolator returned no track for an identification program (vcnc's own failure).
+    #[error("internal error: {program}: the interpolator returned no track")]
+    NoTrack {
+        /// The program.
+        program: String,
+    },
+    /// A compensated program read back does not give the set-points it was written from
+    /// (vcnc's own failure).
+    #[error(
+        "internal error: {program} does not reproduce the set-points of axis {axis} (off by {off:e})"
+    )]
+    NotReproduced {
+        /// The compensated program.
+        program: String,
+        /// The first axis off.
+        axis: AxisName,
+        /// Its largest position difference, axis units.
+        off: f64,
+    },
+    /// A run ended before every sample was finished (vcnc's own failure).
+    #[error("internal error: the {run} finished {finished} of {samples} samples")]
+    Unfinished {
+        /// Which run.
+        run: &'static str,
+        /// Samples finished.
+        finished: usize,
+        /// Samples of the program.
+        samples: usize,
+    },
     /// Every configuration of a sweep failed.
     #[error("all {configurations} configurations of the sweep failed; first: {first}")]
     SweepFailed {
@@ -152,14 +417,40 @@ impl Error {
             Error::Drive { source, .. } => source.is_bad_input(),
             Error::Identify { source, .. } => source.is_bad_input(),
             Error::Contour(e) => e.is_bad_input(),
+            Error::Compensate { source, .. } => source.is_bad_input(),
             Error::Io { .. }
             | Error::Program { .. }
             | Error::Travel { .. }
             | Error::Table { .. }
             | Error::Trace(_)
             | Error::Limit { .. }
-            | Error::Usage(_) => true,
-            Error::SweepFailed { .. } | Error::Internal(_) => false,
+            | Error::Argument { .. }
+            | Error::NoSuchAxis { .. }
+            | Error::TooManyConfigurations { .. }
+            | Error::Shard { .. }
+            | Error::DuplicateConfiguration { .. }
+            | Error::NoShards
+            | Error::Generator { .. }
+            | Error::FeedPlanOption { .. }
+            | Error::NothingToPlan { .. }
+            | Error::ToleranceUnreachable { .. }
+            | Error::ProgramTooLarge { .. }
+            | Error::TooManyBlocks { .. }
+            | Error::MissingColumn { .. }
+            | Error::AxisNotInTrace { .. }
+            | Error::NoModelFor { .. }
+            | Error::NothingToValidate { .. }
+            | Error::UnitMismatch { .. }
+            | Error::FreeRunDiverges { .. }
+            | Error::Headroom { .. }
+            | Error::EmptyProgram { .. }
+            | Error::SlowInverse { .. } => true,
+            Error::SweepFailed { .. }
+            | Error::GeneratorOutput { .. }
+            | Error::SampleCount { .. }
+            | Error::NoTrack { .. }
+            | Error::Unfinished { .. }
+            | Error::NotReproduced { .. } => false,
         }
     }
 
@@ -238,7 +529,14 @@ mod tests {
             source: vcnc_drive::Error::EmptySignal,
         };
         assert!(!signal.is_bad_input());
-        assert!(!Error::Internal("x".into()).is_bad_input());
+        assert!(
+            !Error::Unfinished {
+                run: "prediction",
+                finished: 1,
+                samples: 2
+            }
+            .is_bad_input()
+        );
         let m: Error = vcnc_machine::Error::NoKinematics {
             file: "m.toml".into(),
         }

@@ -39,11 +39,11 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 use vcnc_drive::DriveModel;
-use vcnc_gcode::{Feed, MoveKind, Program};
-use vcnc_machine::Machine;
+use vcnc_gcode::{Feed, MoveKind};
+use vcnc_machine::{Machine, MachineModels};
 
 use crate::Error;
-use crate::compensate::{ContourStats, feed_samples, with_models};
+use crate::compensate::{ContourStats, Judged, feed_samples, with_models};
 use crate::run::{Run, prepare};
 
 /// Settings of [`plan_feeds`]. Plain data; [`FeedPlanOptions::new`] gives the documented
@@ -113,31 +113,36 @@ impl FeedPlanOptions {
     }
 
     fn check(&self) -> Result<(), Error> {
-        let bad = |what: &str, v: f64| {
-            Err(Error::Usage(format!(
-                "feed planning: {what} must be positive and finite, got {v}"
-            )))
+        let bad = |what: &'static str, value: f64| {
+            Err(Error::FeedPlanOption {
+                what,
+                value,
+                expected: "positive and finite",
+            })
         };
         if !(self.tolerance_mm.is_finite() && self.tolerance_mm > 0.0) {
             return bad("the tolerance", self.tolerance_mm);
         }
         if !(self.target_fraction > 0.0 && self.target_fraction <= 1.0) {
-            return Err(Error::Usage(format!(
-                "feed planning: the target fraction must lie in (0, 1], got {}",
-                self.target_fraction
-            )));
+            return Err(Error::FeedPlanOption {
+                what: "the target fraction",
+                value: self.target_fraction,
+                expected: "in (0, 1]",
+            });
         }
         if !(self.min_factor > 0.0 && self.min_factor < 1.0) {
-            return Err(Error::Usage(format!(
-                "feed planning: the smallest feed factor must lie in (0, 1), got {}",
-                self.min_factor
-            )));
+            return Err(Error::FeedPlanOption {
+                what: "the smallest feed factor",
+                value: self.min_factor,
+                expected: "in (0, 1)",
+            });
         }
         if !(self.max_step_ratio >= 1.0 && self.max_step_ratio.is_finite()) {
-            return Err(Error::Usage(format!(
-                "feed planning: the largest factor ratio of neighbouring lines must be at least 1, got {}",
-                self.max_step_ratio
-            )));
+            return Err(Error::FeedPlanOption {
+                what: "the largest factor ratio of neighbouring lines",
+                value: self.max_step_ratio,
+                expected: "at least 1 and finite",
+            });
         }
         if let Some(o) = self.orientation_tolerance_rad
             && !(o.is_finite() && o > 0.0)
@@ -234,120 +239,10 @@ fn feed_lines(run: &Run) -> BTreeMap<u32, (f64, bool)> {
     out
 }
 
-/// Per block of the program, in order: the length unit in force at the block's end (25.4 after
-/// `G20`, 1 after `G21`), tracked in text order.
-fn unit_scales(program: &Program) -> BTreeMap<u32, f64> {
-    let mut scale = 1.0;
-    program
-        .blocks
-        .iter()
-        .map(|b| {
-            for w in &b.words {
-                if w.letter == 'G' && w.expr.is_none() {
-                    if w.value == 20.0 {
-                        scale = 25.4;
-                    } else if w.value == 21.0 {
-                        scale = 1.0;
-                    }
-                }
-            }
-            (b.line, scale)
-        })
-        .collect()
-}
-
-/// A feed value for an F word: rounded down to 10⁻⁴, at least 10⁻⁴, without trailing zeros.
-fn f_word(v: f64) -> (f64, String) {
-    let r = ((v * 1e4).floor() / 1e4).max(1e-4);
-    let s = format!("{r:.4}");
-    let s = s.trim_end_matches('0').trim_end_matches('.').to_string();
-    (r, s)
-}
-
-/// The source text with an explicit F word on every feed line: the programmed feed (in the
-/// line's units per minute) times the line's factor. Returns the text and the F values
-/// written.
-fn rewrite(
-    src: &str,
-    program: &Program,
-    lines: &BTreeMap<u32, (f64, bool)>,
-    factors: &BTreeMap<u32, f64>,
-) -> (String, BTreeMap<u32, f64>) {
-    let scales = unit_scales(program);
-    let mut edits: Vec<(usize, usize, String)> = Vec::new();
-    let mut written = BTreeMap::new();
-    for b in &program.blocks {
-        let Some(&line) = lines.get(&b.line) else {
-            continue;
-        };
-        let own = b.words.iter().find(|w| w.letter == 'F');
-        let programmed = programmed_value(b, line, &scales);
-        let factor = factors.get(&b.line).copied().unwrap_or(1.0);
-        let (value, text) = f_word(programmed * factor);
-        written.insert(b.line, value);
-        match own {
-            Some(w) => edits.push((w.span.start, w.span.end, format!("F{text}"))),
-            None => {
-                let end = b
-                    .words
-                    .iter()
-                    .map(|w| w.span.end)
-                    .max()
-                    .unwrap_or(b.span.end);
-                edits.push((end, end, format!(" F{text}")));
-            }
-        }
-    }
-    edits.sort_by_key(|e| e.0);
-    let mut out = String::with_capacity(src.len() + edits.len() * 12);
-    let mut at = 0;
-    for (start, end, text) in edits {
-        if start < at || end > src.len() {
-            continue;
-        }
-        out.push_str(&src[at..start]);
-        out.push_str(&text);
-        at = end;
-    }
-    out.push_str(&src[at..]);
-    (out, written)
-}
-
-/// The programmed feeds of the feed lines, as an F word would write them (line's units per
-/// minute).
-fn programmed_feeds(program: &Program, lines: &BTreeMap<u32, (f64, bool)>) -> BTreeMap<u32, f64> {
-    let scales = unit_scales(program);
-    program
-        .blocks
-        .iter()
-        .filter_map(|b| {
-            let &line = lines.get(&b.line)?;
-            Some((b.line, programmed_value(b, line, &scales)))
-        })
-        .collect()
-}
-
-/// The feed in force on block `b` as its F word would write it: its own plain F word, else the
-/// move's feed (mm/min or deg/min) in the length unit in force at the line.
-fn programmed_value(
-    b: &vcnc_gcode::Block,
-    (feed, pure_rotary): (f64, bool),
-    scales: &BTreeMap<u32, f64>,
-) -> f64 {
-    match b.words.iter().find(|w| w.letter == 'F') {
-        Some(w) if w.expr.is_none() && w.value.is_finite() => w.value,
-        _ => {
-            let scale = scales.get(&b.line).copied().unwrap_or(1.0);
-            if pure_rotary { feed } else { feed / scale }
-        }
-    }
-}
-
 /// The evaluation context: machine, models, original run and program.
 struct Planner<'a> {
     machine: &'a Machine,
-    models: &'a [DriveModel],
-    actual_latency_s: &'a [f64],
+    models: &'a MachineModels,
     src: &'a str,
     file: &'a str,
     lenient: bool,
@@ -358,20 +253,14 @@ struct Planner<'a> {
 impl Planner<'_> {
     /// The program with these factors, prepared and predicted.
     fn evaluate(&self, factors: &BTreeMap<u32, f64>) -> Result<PlannedProgram, Error> {
-        let (text, _) = rewrite(
+        let (text, _) = vcnc_gcode::write::with_feed_factors(
             self.src,
             &self.original.loaded.program,
             &self.lines,
             factors,
         );
         let run = prepare(self.machine, &text, self.file, self.lenient)?;
-        let predicted = with_models(
-            self.machine,
-            self.original,
-            &run,
-            self.models,
-            self.actual_latency_s,
-        )?;
+        let predicted = with_models(self.machine, self.original, &run, self.models)?;
         let feed = feed_samples(self.original, &predicted);
         Ok(PlannedProgram {
             text,
@@ -416,39 +305,30 @@ fn charged(p: &PlannedProgram, lag: usize, opts: &FeedPlanOptions) -> BTreeMap<u
 
 /// Plans per-line feeds for `src` (the program at `file`) on `machine` with `models` (one per
 /// machine axis), and the uniform baseline (module documentation). The contour errors are the
-/// physical axes': each model's positions advanced by its axis' stated actual-value latency
-/// (`actual_latency_s`, s, per machine axis; empty: none; [`crate::latency`]).
+/// physical axes': each model's positions advanced by its stated actual-value latency
+/// ([`crate::latency`]).
 pub fn plan_feeds(
     machine: &Machine,
     src: &str,
     file: &str,
-    models: &[DriveModel],
-    actual_latency_s: &[f64],
+    models: &MachineModels,
     opts: &FeedPlanOptions,
     lenient: bool,
 ) -> Result<FeedPlan, Error> {
     opts.check()?;
     let original = prepare(machine, src, file, lenient)?;
-    if models.len() != original.axes.len() {
-        return Err(Error::Usage(format!(
-            "{} models for {} axes",
-            models.len(),
-            original.axes.len()
-        )));
-    }
     let lines = feed_lines(&original);
     if lines.is_empty() {
-        return Err(Error::Usage(format!(
-            "{file}: the program has no G94 feed moves whose feed could be planned"
-        )));
+        return Err(Error::NothingToPlan {
+            file: file.to_string(),
+        });
     }
-    let original_predicted = with_models(machine, &original, &original, models, actual_latency_s)?;
-    let lag_s = opts.lag_s.unwrap_or_else(|| lag_window(models));
+    let original_predicted = with_models(machine, &original, &original, models)?;
+    let lag_s = opts.lag_s.unwrap_or_else(|| lag_window(models.models()));
     let lag = (lag_s / original.ts).round() as usize;
     let planner = Planner {
         machine,
         models,
-        actual_latency_s,
         src,
         file,
         lenient,
@@ -514,8 +394,13 @@ pub fn plan_feeds(
             (scaled, p)
         }
     };
-    let programmed = programmed_feeds(&original.loaded.program, &planner.lines);
-    let (_, written) = rewrite(src, &original.loaded.program, &planner.lines, &factors);
+    let programmed = vcnc_gcode::write::programmed_feeds(&original.loaded.program, &planner.lines);
+    let (_, written) = vcnc_gcode::write::with_feed_factors(
+        src,
+        &original.loaded.program,
+        &planner.lines,
+        &factors,
+    );
     let charged_final = charged(&plan, lag, opts);
     let lines = programmed
         .iter()
@@ -578,13 +463,12 @@ fn bisect(
         let step = (0.95 / opts.excess(&p)).clamp(0.05, 0.5);
         let next = (u * step).max(opts.min_factor);
         if next == u {
-            return Err(Error::Usage(format!(
-                "feed planning: even at {} times the programmed feeds the predicted contour error is {:.3} µm and {:.4} mrad, {:.2} times the tolerance",
-                opts.min_factor,
-                p.predicted.tip_max_mm * 1e3,
-                p.predicted.orientation_max_rad * 1e3,
-                opts.excess(&p)
-            )));
+            return Err(Error::ToleranceUnreachable {
+                min_factor: opts.min_factor,
+                tip_um: p.predicted.tip_max_mm * 1e3,
+                orientation_mrad: p.predicted.orientation_max_rad * 1e3,
+                excess: opts.excess(&p),
+            });
         }
         hi = u;
         u = next;
@@ -670,34 +554,72 @@ pub struct FeedPlanSummary {
     pub history: Vec<PlanStep>,
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// A feed plan judged on the true machine (`vcnc feed-plan`): the original program, the
+/// per-line plan and the uniform scale, each run through the true drives and measured against
+/// the ORIGINAL program's path.
+#[derive(Debug, Clone)]
+pub struct JudgedPlan {
+    /// The plan.
+    pub plan: FeedPlan,
+    /// The original program on the true machine.
+    pub original: Judged,
+    /// The per-line feeds on the true machine.
+    pub planned: Judged,
+    /// The uniform feed scale on the true machine.
+    pub uniform: Judged,
+    /// `summary.json` (`planned_program`: where the plan is written).
+    pub summary: FeedPlanSummary,
+}
 
-    #[test]
-    fn f_words_round_down() {
-        assert_eq!(f_word(4500.0).1, "4500");
-        assert_eq!(f_word(123.456789).1, "123.4567");
-        assert_eq!(f_word(1e-9).1, "0.0001");
-        assert!(f_word(0.3).0 <= 0.3);
-    }
-
-    #[test]
-    fn every_feed_line_gets_an_explicit_f_word() {
-        // Truth: RS274 modal feeds — a line without F inherits the previous line's; after the
-        // rewrite each feed line carries its own value (programmed × factor) in its own units.
-        let src = "G21 G90 G94 G64\nG0 X0\nG1 X1 F600\nX2\nG20 X0.1 F10 (inch)\nG0 X0\n";
-        let (program, _) = vcnc_gcode::parse(src);
-        let mut lines = BTreeMap::new();
-        lines.insert(3, (600.0, false));
-        lines.insert(4, (600.0, false));
-        lines.insert(5, (254.0, false));
-        let factors: BTreeMap<u32, f64> = [(3, 0.5), (4, 0.25), (5, 0.5)].into_iter().collect();
-        let (text, written) = rewrite(src, &program, &lines, &factors);
-        assert_eq!(
-            text,
-            "G21 G90 G94 G64\nG0 X0\nG1 X1 F300\nX2 F150\nG20 X0.1 F5 (inch)\nG0 X0\n"
-        );
-        assert_eq!(written[&4], 150.0);
-    }
+/// [`plan_feeds`] for the program at `program`, then each program judged on the true machine
+/// ([`JudgedPlan`]); `planned_program` names where the plan will be written.
+pub fn plan_and_judge(
+    machine: &Machine,
+    program: &std::path::Path,
+    models: &MachineModels,
+    opts: &FeedPlanOptions,
+    planned_program: &str,
+    lenient: bool,
+) -> Result<JudgedPlan, Error> {
+    let src = crate::run::read_program(program)?;
+    let file = program.display().to_string();
+    let plan = plan_feeds(machine, &src, &file, models, opts, lenient)?;
+    let judge = |run: &Run| crate::compensate::on_true_machine(machine, &plan.original, run);
+    let (original, planned, uniform) = (
+        judge(&plan.original)?,
+        judge(&plan.plan.run)?,
+        judge(&plan.uniform.run)?,
+    );
+    let figures = |p: &vcnc_contour::ContourReport, j: &Judged| -> Result<PlanFigures, Error> {
+        Ok(PlanFigures {
+            cycle_time_s: j.cycle_time_s,
+            predicted: ContourStats::over_feed(&plan.original, p),
+            true_machine: ContourStats::over_feed(&plan.original, j.contour(machine)?),
+        })
+    };
+    let summary = FeedPlanSummary {
+        machine: machine.name.clone(),
+        program: file,
+        models: models.source().to_string(),
+        planned_program: planned_program.to_string(),
+        options: *opts,
+        lag_s: plan.lag_s,
+        tolerance_um: opts.tolerance_mm * 1e3,
+        original: figures(&plan.original_predicted, &original)?,
+        planned: figures(&plan.plan.predicted, &planned)?,
+        uniform: figures(&plan.uniform.predicted, &uniform)?,
+        uniform_factor: plan.uniform_factor,
+        saving_vs_uniform: 1.0 - planned.cycle_time_s / uniform.cycle_time_s,
+        lines: plan.lines.len(),
+        lines_slowed: plan.lines.iter().filter(|l| l.factor < 1.0).count(),
+        min_factor: plan.lines.iter().map(|l| l.factor).fold(1.0, f64::min),
+        history: plan.history.clone(),
+    };
+    Ok(JudgedPlan {
+        plan,
+        original,
+        planned,
+        uniform,
+        summary,
+    })
 }

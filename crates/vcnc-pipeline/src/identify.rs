@@ -16,7 +16,7 @@ use vcnc_gcode::IdentificationOptions;
 use vcnc_identify::{
     FitMetrics, Identification, IdentifyOptions, Regressors, Trace, fit_metrics_with,
 };
-use vcnc_machine::{Axis, AxisModel, Machine, ModelSet, OptionsFile};
+use vcnc_machine::{Axis, AxisModel, Machine, MachineModels, ModelSet, OptionsFile};
 
 use crate::Error;
 use crate::run::AxisSignals;
@@ -51,17 +51,15 @@ pub fn select_axes<'m>(machine: &'m Machine, names: &[AxisName]) -> Result<Vec<&
     }
     let mut out: Vec<&Axis> = Vec::new();
     for &n in names {
-        let a = machine.axis(n).ok_or_else(|| {
-            Error::Usage(format!(
-                "--axis {n}: machine \"{}\" ({}) has no axis {n}; it has {}",
-                machine.name,
-                machine.source,
-                machine
-                    .axis_names()
-                    .iter()
-                    .map(|a| a.as_str())
-                    .collect::<String>()
-            ))
+        let a = machine.axis(n).ok_or_else(|| Error::NoSuchAxis {
+            axis: n,
+            machine: machine.name.clone(),
+            file: machine.source.clone(),
+            has: machine
+                .axis_names()
+                .iter()
+                .map(|a| a.as_str())
+                .collect::<String>(),
         })?;
         if !out.iter().any(|b| b.name == n) {
             out.push(a);
@@ -130,9 +128,12 @@ pub fn excitation_run(machine: &Machine, a: &Axis, seed: u64) -> Result<Excitati
     let loaded =
         vcnc_gcode::load(&program, &interp, &limits, &iopts).map_err(|e| Error::gcode(&name, e))?;
     // The interpolator outputs exactly the axes it is asked for.
-    let track =
-        loaded.trajectory.axes.first().ok_or_else(|| {
-            Error::Internal(format!("{name}: the interpolator returned no track"))
+    let track = loaded
+        .trajectory
+        .axes
+        .first()
+        .ok_or_else(|| Error::NoTrack {
+            program: name.to_string(),
         })?;
     let reference = AxisSignals {
         name: a.name,
@@ -192,6 +193,12 @@ pub struct AxisIdentification {
     /// The options the identifier was given (defaults included).
     pub options: IdentifyOptions,
     /// Everything the identifier produced (refined, paper PSO, LS baseline, history, fits).
+    /// The chosen model (`result.model`) carries the stated actual-value latency of the axis'
+    /// control: the time by which the logged actual position (what the models predict) trails
+    /// the physical axis. Not identified — no record of nominal and logged positions shows it —
+    /// but stated: on a simulated machine by its configuration ([`Axis::actual_latency_s`]),
+    /// for a trace by the caller (0 until then; `vcnc identify --actual-latency-s`).
+    /// `model.toml` writes it (docs/drive-model.md#actual-value-latency).
     pub result: Identification,
     /// The trace the `validation` fits are computed on: the validation run of a simulated
     /// machine, the trace itself for a measurement.
@@ -200,13 +207,6 @@ pub struct AxisIdentification {
     pub validation: FitMetrics,
     /// Free-run fit of the paper-method (PSO) model on `validation_trace`.
     pub validation_paper: FitMetrics,
-    /// The stated actual-value latency of the axis' control, s: the time by which the logged
-    /// actual position (what the models predict) trails the physical axis. Not identified —
-    /// no record of nominal and logged positions shows it — but stated: on a simulated machine
-    /// by its configuration ([`Axis::actual_latency_s`]), for a trace by the caller (0 until
-    /// then; `vcnc identify --actual-latency-s`). `model.toml` writes it
-    /// (docs/drive-model.md#actual-value-latency).
-    pub actual_latency_s: f64,
 }
 
 impl AxisIdentification {
@@ -243,8 +243,9 @@ pub fn identify_axis(
     let trace = est.identification_trace()?;
     let vtrace = val.identification_trace()?;
     // The structure is chosen by the validation run's error.
-    let result = vcnc_identify::identify_with_validation(&trace, &vtrace, &opts)
+    let mut result = vcnc_identify::identify_with_validation(&trace, &vtrace, &opts)
         .map_err(|e| Error::identify(&subject, e))?;
+    result.model.actual_latency_s = a.actual_latency_s();
     // One regressor pass over the validation run serves the 7-parameter models.
     let regs = Regressors::build(&vtrace, &opts).map_err(|e| Error::identify(&subject, e))?;
     let validation = if result.model.is_core_only() {
@@ -268,7 +269,6 @@ pub fn identify_axis(
         validation_trace: vtrace,
         validation,
         validation_paper,
-        actual_latency_s: a.actual_latency_s(),
     })
 }
 
@@ -316,7 +316,6 @@ pub fn identify_trace(
         validation_paper: result.fit_estimation_paper.clone(),
         result,
         validation_trace: trace,
-        actual_latency_s: 0.0,
     })
 }
 
@@ -328,15 +327,50 @@ pub fn model_set(machine: &str, description: &str, ids: &[AxisIdentification]) -
         description: Some(description.to_string()),
         axes: ids
             .iter()
-            .map(|r| {
-                let m = AxisModel {
-                    actual_latency_s: r.actual_latency_s,
-                    ..AxisModel::new(r.unit, &r.result.model)
-                };
-                (r.axis.to_string(), m)
-            })
+            .map(|r| (r.axis.to_string(), AxisModel::new(r.unit, &r.result.model)))
             .collect(),
     }
+}
+
+/// The chosen models of identifications of every axis of `machine` (in its order), as the
+/// machine's models; `source` says where they come from ("identified on the fly").
+pub fn machine_models(
+    machine: &Machine,
+    ids: &[AxisIdentification],
+    source: &str,
+) -> Result<MachineModels, Error> {
+    Ok(MachineModels::new(
+        machine,
+        ids.iter().map(|r| r.result.model).collect(),
+        source,
+    )?)
+}
+
+/// The models a prediction runs: those of the model file at `path` (checked against
+/// `machine`), or without one every axis identified on the fly from the machine's own
+/// excitation runs.
+pub fn models_for(
+    machine: &Machine,
+    path: Option<&std::path::Path>,
+) -> Result<MachineModels, Error> {
+    match path {
+        Some(p) => Ok(MachineModels::load(p, machine)?),
+        None => {
+            let axes = select_axes(machine, &[])?;
+            let ids = identify_axes(machine, &axes, None)?;
+            machine_models(machine, &ids, "identified on the fly")
+        }
+    }
+}
+
+/// The paper's method's models (the equation-error PSO alone) of identifications of every
+/// axis of `machine`, without actual-value latency.
+pub fn paper_models(machine: &Machine, ids: &[AxisIdentification]) -> Result<MachineModels, Error> {
+    Ok(MachineModels::new(
+        machine,
+        ids.iter().map(|r| r.result.paper_pso.into()).collect(),
+        "the paper's method (equation-error PSO)",
+    )?)
 }
 
 /// PSO figures of a summary.

@@ -2,8 +2,10 @@
 
 use std::path::Path;
 
+use vcnc_kinematics::Pose;
 use vcnc_kinematics::nalgebra::Vector3;
-use vcnc_kinematics::{Axes, Branch, IkOptions, Pose};
+
+pub use vcnc_kinematics::Branch;
 use vcnc_machine::Machine;
 
 use crate::Error;
@@ -22,14 +24,7 @@ pub fn forward_file(machine: &Machine, input: &Path) -> Result<Vec<[f64; 6]>, Er
     let c = read_columns(input, &AXES_COLUMNS, "")?;
     Ok((0..c[0].len())
         .map(|k| {
-            let axes = Axes::new(
-                c[0][k],
-                c[1][k],
-                c[2][k],
-                c[3][k].to_radians(),
-                c[4][k].to_radians(),
-            );
-            let p = kin.model.forward(&axes);
+            let p = kin.pose_of(&[c[0][k], c[1][k], c[2][k], c[3][k], c[4][k]]);
             [p.p.x, p.p.y, p.p.z, p.o.x, p.o.y, p.o.z]
         })
         .collect())
@@ -53,20 +48,9 @@ pub fn inverse_file(
             )
         })
         .collect();
-    let opts = IkOptions {
-        branch: Some(branch.unwrap_or(kin.branch)),
-        ..IkOptions::default()
-    };
-    let sol = kin
-        .model
-        .inverse_sequence(&poses, &opts)
+    kin.inverse_poses(&poses, branch)
         .map_err(|source| Error::Kinematics {
             context: input.display().to_string(),
             source,
-        })?;
-    Ok(sol
-        .axes
-        .iter()
-        .map(|a| [a.x, a.y, a.z, a.a.to_degrees(), a.c.to_degrees()])
-        .collect())
+        })
 }

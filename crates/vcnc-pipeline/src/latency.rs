@@ -36,8 +36,6 @@
 //! place). At $T_s = 1$ ms a jump of 50 mm/s² (a feed drive's Coulomb friction) costs at most
 //! 1.8 nm.
 
-use crate::Error;
-
 /// `x` (samples at period `ts`, s) advanced by `shift_s` (s; negative: delayed), by the cubic
 /// Lagrange interpolation of the module documentation (the start held, the end extrapolated by
 /// at most one sample):
@@ -196,50 +194,6 @@ pub fn interpolation_error_bound(shift_s: f64, ts: f64, m4: f64) -> f64 {
     ((u + 1.0) * u * (u - 1.0) * (u - 2.0)).abs() / 24.0 * ts.powi(4) * m4
 }
 
-/// Largest actual-value latency accepted, s: the model file's
-/// ([`vcnc_machine::MAX_ACTUAL_LATENCY_S`]; far above any control's few servo cycles, small
-/// enough that a value in the wrong unit is refused).
-pub const MAX_LATENCY_S: f64 = vcnc_machine::MAX_ACTUAL_LATENCY_S;
-
-/// Checks a per-axis latency list against `axes` machine axes: empty (none), or one finite
-/// value in `0 ..= MAX_LATENCY_S` per axis.
-pub fn check(actual_latency_s: &[f64], axes: usize) -> Result<(), Error> {
-    if !actual_latency_s.is_empty() && actual_latency_s.len() != axes {
-        return Err(Error::Usage(format!(
-            "{} actual-value latencies for {axes} axes",
-            actual_latency_s.len()
-        )));
-    }
-    if let Some(t) = actual_latency_s
-        .iter()
-        .find(|t| !(0.0..=MAX_LATENCY_S).contains(*t))
-    {
-        return Err(Error::Usage(format!(
-            "actual-value latency {t} s: must be finite, ≥ 0 and ≤ {MAX_LATENCY_S} s"
-        )));
-    }
-    Ok(())
-}
-
-/// The physical positions of axes whose predicted logged positions are `logged` (per machine
-/// axis, samples at `ts`): each advanced by its axis' stated latency (`actual_latency_s`, s,
-/// per machine axis; empty: none, the positions returned as they are).
-pub fn physical_positions(
-    logged: Vec<Vec<f64>>,
-    actual_latency_s: &[f64],
-    ts: f64,
-) -> Result<Vec<Vec<f64>>, Error> {
-    check(actual_latency_s, logged.len())?;
-    if actual_latency_s.iter().all(|t| *t == 0.0) {
-        return Ok(logged);
-    }
-    Ok(logged
-        .into_iter()
-        .zip(actual_latency_s)
-        .map(|(x, t)| if *t == 0.0 { x } else { shifted(&x, *t, ts) })
-        .collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -335,18 +289,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn latencies_are_checked_and_zero_is_the_identity() {
-        let x = vec![vec![1.0, 2.0, 3.0], vec![0.0, 1.0, 0.0]];
-        assert_eq!(physical_positions(x.clone(), &[], 1e-3).unwrap(), x);
-        assert_eq!(physical_positions(x.clone(), &[0.0, 0.0], 1e-3).unwrap(), x);
-        assert!(physical_positions(x.clone(), &[1e-4], 1e-3).is_err());
-        for bad in [-1e-4, f64::NAN, 0.5] {
-            assert!(check(&[bad, 0.0], 2).is_err(), "{bad}");
-        }
-        let y = physical_positions(x, &[1e-3, 0.0], 1e-3).unwrap();
-        assert_eq!(y, vec![vec![2.0, 3.0, 3.0], vec![0.0, 1.0, 0.0]]);
     }
 }

@@ -1,153 +1,477 @@
-//! Tool-tip and orientation contour errors of a run with the true drives and with identified
-//! models (docs/contour.md).
+//! Tool-tip and orientation contour errors of a program with the true drives and with sets of
+//! identified models (docs/contour.md, docs/performance.md "Streamed prediction").
+//!
+//! [`predict`] takes the reference a piece at a time from its [`Source`] through the true
+//! drives and each model set (each model's positions advanced by its stated actual-value
+//! latency, [`crate::latency`]), the forward kinematics and the contour searches
+//! ([`vcnc_contour::ContourStream`], docs/contour.md#streamed-search), and hands each piece of
+//! finished samples ([`PredictPiece`]) to a [`Sink`], accumulating the statistics of
+//! `summary.json` on the way. Memory does not grow with the program: what is held is the
+//! samples between the newest reference sample and the oldest one not finished (the latency
+//! look-ahead and the searches' look-ahead, about a piece) and the ten worst lines so far.
+//! [`PredictionRecord`] is the sink that keeps every sample, for full-resolution figures.
+//!
+//! The statistics are sums in sample order (the same bits whatever the pieces), and the worst
+//! blocks a bounded list that is exactly the whole run's ranking ([`WorstLines`]).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
+use rayon::prelude::*;
 use serde::Serialize;
-use vcnc_contour::{ContourPath, ContourReport, ContourSearch, SearchWindow, contour_errors};
-use vcnc_drive::{DriveModel, DriveTrace};
+use vcnc_contour::{ContourStream, SearchWindow, StreamLimits};
+use vcnc_drive::Channels;
+use vcnc_gcode::MoveClass;
 use vcnc_kinematics::Pose;
-use vcnc_machine::Machine;
+use vcnc_machine::{Kinematics, Machine, MachineModels};
 
-use crate::run::{Measured, Run, forward_poses};
-use crate::simulate::{simulate_model, simulate_models};
-use crate::stats::{max_abs, rms, scaled_diff_max_rms};
-use crate::{Error, latency};
+use crate::Error;
+use crate::drives::{ModelRuns, TrueDrives};
+use crate::run::Measured;
+use crate::sink::Sink;
+use crate::source::{ReferenceChunk, ReferenceStats, Source};
+use crate::stats::MaxRms;
 
-/// Contour errors of actual axis positions (per machine axis, mm / deg) against the run's
-/// reference poses.
-pub fn contour(
-    machine: &Machine,
-    run: &Run,
-    actual: &[&[f64]],
-) -> Result<(Vec<Pose>, ContourReport), Error> {
-    let reference = run.reference_poses(machine)?;
-    let poses = forward_poses(machine, actual)?;
-    let report = contour_errors(&reference, &poses)?;
-    Ok((poses, report))
+/// One actual pose sequence of a piece (the true machine's, or a model set's).
+#[derive(Debug, Clone, Default)]
+pub struct ActualPiece {
+    /// Per machine axis: the axis position (the physical axis: a model's advanced by its
+    /// stated latency), mm or deg.
+    pub positions: Vec<Vec<f64>>,
+    /// Tool poses (workpiece frame, mm, unit tool axis).
+    pub poses: Vec<Pose>,
+    /// Tool-tip contour error, mm.
+    pub tip_mm: Vec<f64>,
+    /// Orientation contour error, rad.
+    pub orientation_rad: Vec<f64>,
 }
 
-/// Tool-tip and orientation contour errors with the true and the predicted drives.
+impl ActualPiece {
+    fn clear(&mut self) {
+        self.positions.iter_mut().for_each(Vec::clear);
+        self.poses.clear();
+        self.tip_mm.clear();
+        self.orientation_rad.clear();
+    }
+}
+
+/// Finished samples of a prediction, `first..first + len()`: everything a row of
+/// `contour.csv` holds.
+#[derive(Debug, Clone, Default)]
+pub struct PredictPiece {
+    /// Index of the first sample.
+    pub first: usize,
+    /// Per sample: the source line of the block running (0 where none is).
+    pub lines: Vec<u32>,
+    /// Per sample: the kind of move running.
+    pub classes: Vec<Option<MoveClass>>,
+    /// Per machine axis: the reference position, mm or deg.
+    pub reference: Vec<Vec<f64>>,
+    /// Reference tool poses.
+    pub reference_poses: Vec<Pose>,
+    /// The true machine.
+    pub truth: ActualPiece,
+    /// Each model set, in the order given.
+    pub models: Vec<ActualPiece>,
+}
+
+impl PredictPiece {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// `true` without samples.
+    pub fn is_empty(&self) -> bool {
+        self.lines.is_empty()
+    }
+
+    fn clear(&mut self) {
+        self.lines.clear();
+        self.classes.clear();
+        self.reference.iter_mut().for_each(Vec::clear);
+        self.reference_poses.clear();
+        self.truth.clear();
+        self.models.iter_mut().for_each(ActualPiece::clear);
+    }
+}
+
+/// What a prediction measures besides the contour errors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PredictOptions {
+    /// Which samples the contour statistics cover.
+    pub measured: Measured,
+    /// Also the true drives' tracking figures ([`PredictOutcome::tracking`]).
+    pub tracking: bool,
+}
+
+/// What a prediction measured.
 #[derive(Debug, Clone)]
-pub struct Prediction {
-    /// True drives per axis: their true positions (`true_position`, `ts`, `saturated_ticks`);
-    /// the other channels are left empty (docs/performance.md).
-    pub true_traces: Vec<DriveTrace>,
-    /// Identified models: positions per axis.
-    pub predicted: Vec<Vec<f64>>,
-    /// Contour errors with the true drives (without foot points: `foot` is empty).
-    pub true_contour: ContourReport,
-    /// Contour errors with the identified models (without foot points).
-    pub predicted_contour: ContourReport,
+pub struct PredictOutcome {
+    /// The true machine's contour statistics (max, RMS) over the measured samples, tool tip in
+    /// µm and orientation in mrad (those of [`PredictOutcome::figures`], also without models).
+    pub truth: (Figure, Figure),
+    /// With [`PredictOptions::tracking`], per machine axis: max |x_r − x| and RMS of x_r − x of
+    /// the true drive's encoder reading over every sample, µm or mdeg; else empty.
+    pub tracking: Vec<(f64, f64)>,
+    /// Per model set: the contour part of `summary.json`.
+    pub summaries: Vec<ContourSummary>,
+    /// Per model set: the same statistics as the tables print them.
+    pub figures: Vec<ContourFigures>,
+    /// What handing on the reference measured (rates, which axes moved).
+    pub reference: ReferenceStats,
+    /// Per machine axis: servo ticks at which the true drive's command saturated.
+    pub saturated_ticks: Vec<u64>,
+    /// Every warning of the run, in order (the program's, then the references' limits).
+    pub warnings: Vec<String>,
 }
 
-impl Prediction {
-    /// The true drives' positions per machine axis (axis units).
-    pub fn true_positions(&self) -> Vec<&[f64]> {
-        self.true_traces
-            .iter()
-            .map(|t| t.true_position.as_slice())
-            .collect()
-    }
+/// Runs the reference of `source` through the true drives and through each model set of
+/// `models`, evaluates every contour error, and hands each piece of finished samples to `sink`
+/// in order (module documentation).
+pub fn predict<S: Sink<PredictPiece>>(
+    machine: &Machine,
+    source: Source<'_>,
+    models: &[&MachineModels],
+    opts: &PredictOptions,
+    sink: &mut S,
+) -> Result<PredictOutcome, S::Error> {
+    let axes = machine.axes.len();
+    let which = opts.measured;
+    let kin = machine.require_kinematics().map_err(Error::from)?;
+    let ts = source.ts();
+    let channels = if opts.tracking {
+        Channels::All
+    } else {
+        Channels::TruePosition
+    };
+    let mut drives = TrueDrives::new(machine, ts, channels)?;
+    let mut tracking = vec![MaxRms::default(); if opts.tracking { axes } else { 0 }];
+    let mut model_runs = ModelRuns::new(machine, models, ts, true)?;
+    let mut pending = Pending::new(axes, 1 + models.len())?;
+    let mut stats = Statistics::new(models.len());
+    let mut piece = PredictPiece::default();
 
-    /// The models' positions per machine axis (axis units).
-    pub fn predicted_positions(&self) -> Vec<&[f64]> {
-        self.predicted.iter().map(Vec::as_slice).collect()
-    }
+    let mut on_chunk = |c: &ReferenceChunk| -> Result<(), S::Error> {
+        let n = c.len();
+        // The true drives and the models, every axis in parallel (each stream in order).
+        let (a, b) = rayon::join(|| drives.feed(machine, c), || model_runs.feed(machine, c));
+        a?;
+        b?;
+        for (i, t) in tracking.iter_mut().enumerate() {
+            let k = machine.axes[i].unit.micro_factor();
+            for (r, x) in c.pos[i].iter().zip(&drives.traces[i].position) {
+                t.add((r - x) * k);
+            }
+        }
+        pending.lines.extend(&c.line);
+        pending.classes.extend(&c.class);
+        for i in 0..axes {
+            pending.reference[i].extend(&c.pos[i]);
+            pending.actual[0].positions[i].extend(&drives.traces[i].true_position);
+            for (set, out) in pending.actual[1..].iter_mut().zip(&model_runs.out) {
+                set.positions[i].extend(&out[i]);
+            }
+        }
+        // The reference poses, to every search.
+        let pos = c.positions();
+        let poses: Vec<Pose> = (0..n).map(|k| kin.pose_at(&pos, k)).collect();
+        for a in &mut pending.actual {
+            a.search
+                .push_reference(poses.iter().copied())
+                .map_err(Error::from)?;
+        }
+        pending.reference_poses.extend(poses);
+        pending.advance(kin)?;
+        pending.hand_on(&mut piece, &mut stats, which, sink)
+    };
+    let reference = source.for_each(machine, &mut on_chunk)?;
 
-    /// Per-sample |predicted − true| tool-tip contour error, mm.
-    pub fn tip_discrepancy(&self) -> Vec<f64> {
-        self.true_contour
-            .tip_mm
-            .iter()
-            .zip(&self.predicted_contour.tip_mm)
-            .map(|(a, b)| (a - b).abs())
-            .collect()
+    // The end: the drives' saturation counts, the models' last shifted samples, the searches'
+    // last feet.
+    let saturated_ticks = drives.finish(machine)?;
+    let last = model_runs.finish(machine)?;
+    for (set, out) in pending.actual[1..].iter_mut().zip(&last) {
+        for (p, y) in set.positions.iter_mut().zip(out) {
+            p.extend(y);
+        }
     }
-
-    /// Per-sample |predicted − true| orientation contour error, rad.
-    pub fn orientation_discrepancy(&self) -> Vec<f64> {
-        self.true_contour
-            .orientation_rad
-            .iter()
-            .zip(&self.predicted_contour.orientation_rad)
-            .map(|(a, b)| (a - b).abs())
-            .collect()
+    for a in &mut pending.actual {
+        a.search.end_reference();
     }
+    pending.advance(kin)?;
+    pending.hand_on(&mut piece, &mut stats, which, sink)?;
+    for a in &mut pending.actual {
+        let search = std::mem::replace(&mut a.search, new_search()?);
+        let errors = &mut a.errors;
+        search
+            .finish(|_, tip, or, _| errors.push_back((tip, or)))
+            .map_err(Error::from)?;
+    }
+    pending.hand_on(&mut piece, &mut stats, which, sink)?;
+    if pending.base != source.len() {
+        return Err(Error::Unfinished {
+            run: "prediction",
+            finished: pending.base,
+            samples: source.len(),
+        }
+        .into());
+    }
+    let (truth, summaries, figures) = stats.finish(which);
+    let mut warnings = source.warnings().to_vec();
+    warnings.extend(reference.warnings.iter().cloned());
+    Ok(PredictOutcome {
+        truth,
+        tracking: tracking.iter().map(MaxRms::max_rms).collect(),
+        summaries,
+        figures,
+        reference,
+        saturated_ticks,
+        warnings,
+    })
+}
 
-    /// Per-axis tracking errors of the true drives (their true, not encoder, positions) and of
-    /// the models.
-    pub fn tracking(&self, machine: &Machine, run: &Run) -> Vec<crate::AxisTracking> {
-        let actual: Vec<&[f64]> = self
-            .true_traces
-            .iter()
-            .map(|t| t.true_position.as_slice())
+fn new_search() -> Result<ContourStream, Error> {
+    Ok(ContourStream::new(
+        &SearchWindow::default(),
+        StreamLimits::default(),
+    )?)
+}
+
+/// One actual pose sequence waiting to be finished, with its contour search.
+struct PendingActual {
+    positions: Vec<VecDeque<f64>>,
+    poses: VecDeque<Pose>,
+    /// (tip mm, orientation rad) per finished sample.
+    errors: VecDeque<(f64, f64)>,
+    search: ContourStream,
+    /// Actual samples pushed to the search.
+    pushed: usize,
+}
+
+impl PendingActual {
+    /// Pushes the actual samples `self.pushed..end` (from sample `base` on) to the search,
+    /// keeping their poses, and collects the finished errors.
+    fn advance(&mut self, kin: &Kinematics, base: usize, end: usize) -> Result<(), Error> {
+        let cols: Vec<&[f64]> = self
+            .positions
+            .iter_mut()
+            .map(|p| &*p.make_contiguous())
             .collect();
-        crate::simulate::tracking_of(machine, run, &actual, Some(&self.predicted))
+        for k in self.pushed..end {
+            let q = kin.pose_at(&cols, k - base);
+            self.search.push_actual(&q)?;
+            self.poses.push_back(q);
+        }
+        self.pushed = end;
+        let errors = &mut self.errors;
+        self.search
+            .drain(|_, tip, or, _| errors.push_back((tip, or)))?;
+        Ok(())
     }
 
-    /// [`Prediction::tracking`] computed in place: each axis' true and predicted positions
-    /// become its tracking errors, so that a long run needs no memory for them beyond the
-    /// prediction's own (docs/performance.md). Bit-identical to [`Prediction::tracking`].
-    /// The contour reports are dropped.
-    pub fn into_tracking(self, machine: &Machine, run: &Run) -> Vec<crate::AxisTracking> {
-        machine
-            .axes
+    /// Moves its first `n` samples into `piece`.
+    fn take(&mut self, n: usize, piece: &mut ActualPiece) {
+        piece.positions.resize_with(self.positions.len(), Vec::new);
+        for (d, s) in piece.positions.iter_mut().zip(&mut self.positions) {
+            d.extend(s.drain(..n));
+        }
+        piece.poses.extend(self.poses.drain(..n));
+        for (t, o) in self.errors.drain(..n) {
+            piece.tip_mm.push(t);
+            piece.orientation_rad.push(o);
+        }
+    }
+}
+
+/// Samples waiting to be finished, from sample `base` on.
+struct Pending {
+    base: usize,
+    lines: VecDeque<u32>,
+    classes: VecDeque<Option<MoveClass>>,
+    reference: Vec<VecDeque<f64>>,
+    reference_poses: VecDeque<Pose>,
+    /// The true machine first, then each model set.
+    actual: Vec<PendingActual>,
+}
+
+impl Pending {
+    fn new(axes: usize, actual: usize) -> Result<Pending, Error> {
+        Ok(Pending {
+            base: 0,
+            lines: VecDeque::new(),
+            classes: VecDeque::new(),
+            reference: vec![VecDeque::new(); axes],
+            reference_poses: VecDeque::new(),
+            actual: (0..actual)
+                .map(|_| {
+                    Ok(PendingActual {
+                        positions: vec![VecDeque::new(); axes],
+                        poses: VecDeque::new(),
+                        errors: VecDeque::new(),
+                        search: new_search()?,
+                        pushed: 0,
+                    })
+                })
+                .collect::<Result<Vec<_>, Error>>()?,
+        })
+    }
+
+    /// Pushes the samples known of every actual sequence (the models' may trail by the latency
+    /// look-ahead) to its search, every search in parallel.
+    fn advance(&mut self, kin: &Kinematics) -> Result<(), Error> {
+        let known = self
+            .actual
             .iter()
-            .zip(&run.axes)
-            .zip(self.true_traces.into_iter().zip(self.predicted))
-            .map(|((axis, a), (t, model))| {
-                let k = a.unit.micro_factor();
-                let mut error = t.true_position;
-                let vs = scaled_diff_max_rms(&model, &error, k);
-                let to_error = |x: &mut Vec<f64>| {
-                    for (x, r) in x.iter_mut().zip(&a.pos) {
-                        *x = (r - *x) * k;
-                    }
-                };
-                to_error(&mut error);
-                let mut model_error = model;
-                to_error(&mut model_error);
-                crate::AxisTracking::new(axis, a, error, Some((model_error, vs)))
-            })
-            .collect()
+            .flat_map(|a| a.positions.iter().map(VecDeque::len))
+            .min()
+            .unwrap_or(0);
+        let (base, end) = (self.base, self.base + known);
+        self.actual
+            .par_iter_mut()
+            .try_for_each(|a| a.advance(kin, base, end))
     }
 
-    /// The six contour statistics over the samples `mask` selects (every sample when it is
-    /// all true), tool tip in µm and orientation in mrad.
-    pub fn figures(&self, mask: &[bool]) -> ContourFigures {
-        let (t, q) = (&self.true_contour, &self.predicted_contour);
-        let (d_tip, d_or) = (self.tip_discrepancy(), self.orientation_discrepancy());
-        let pick = |v: &[f64]| -> Vec<f64> {
-            v.iter()
-                .zip(mask)
-                .filter_map(|(x, m)| m.then_some(*x))
-                .collect()
-        };
-        let pair = |tip: &[f64], or: &[f64], f: fn(&[f64]) -> f64| Figure {
-            tip_um: f(&pick(tip)) * 1e3,
-            orientation_mrad: f(&pick(or)) * 1e3,
-        };
-        ContourFigures {
-            true_max: pair(&t.tip_mm, &t.orientation_rad, max_abs),
-            true_rms: pair(&t.tip_mm, &t.orientation_rad, rms),
-            predicted_max: pair(&q.tip_mm, &q.orientation_rad, max_abs),
-            predicted_rms: pair(&q.tip_mm, &q.orientation_rad, rms),
-            discrepancy_max: pair(&d_tip, &d_or, max_abs),
-            discrepancy_rms: pair(&d_tip, &d_or, rms),
+    /// Hands the samples finished in every sequence (both contour errors known) to the
+    /// statistics and to `sink`.
+    fn hand_on<S: Sink<PredictPiece>>(
+        &mut self,
+        piece: &mut PredictPiece,
+        stats: &mut Statistics,
+        which: Measured,
+        sink: &mut S,
+    ) -> Result<(), S::Error> {
+        let n = self
+            .actual
+            .iter()
+            .map(|a| a.errors.len())
+            .min()
+            .unwrap_or(0);
+        if n == 0 {
+            return Ok(());
+        }
+        piece.clear();
+        piece.first = self.base;
+        piece.lines.extend(self.lines.drain(..n));
+        piece.classes.extend(self.classes.drain(..n));
+        piece.reference.resize_with(self.reference.len(), Vec::new);
+        for (d, s) in piece.reference.iter_mut().zip(&mut self.reference) {
+            d.extend(s.drain(..n));
+        }
+        piece
+            .reference_poses
+            .extend(self.reference_poses.drain(..n));
+        let (truth, models) = self.actual.split_first_mut().expect("the true machine");
+        truth.take(n, &mut piece.truth);
+        piece.models.resize_with(models.len(), ActualPiece::default);
+        for (a, p) in models.iter_mut().zip(&mut piece.models) {
+            a.take(n, p);
+        }
+        self.base += n;
+        stats.add(piece, which);
+        sink.piece(piece)
+    }
+}
+
+/// The statistics of `summary.json`, accumulated sample by sample: per model set the six
+/// contour figures, and the worst lines of the true machine.
+struct Statistics {
+    /// True tip, true orientation.
+    truth: [MaxRms; 2],
+    /// Per model set: true tip, true orientation, predicted tip, predicted orientation,
+    /// |Δ tip|, |Δ orientation|.
+    sets: Vec<[MaxRms; 6]>,
+    samples: usize,
+    worst: WorstLines,
+}
+
+impl Statistics {
+    fn new(sets: usize) -> Statistics {
+        Statistics {
+            truth: [MaxRms::default(); 2],
+            sets: vec![[MaxRms::default(); 6]; sets],
+            samples: 0,
+            worst: WorstLines::default(),
         }
     }
 
-    /// The `n` blocks (source lines) with the largest true tool-tip contour error among the
-    /// samples `mask` selects, worst first.
-    pub fn worst_blocks(&self, run: &Run, mask: &[bool], n: usize) -> Vec<WorstBlock> {
-        worst_blocks(
-            &run.lines,
-            &self.true_contour.tip_mm,
-            &self.true_contour.orientation_rad,
-            mask,
-            n,
-        )
+    fn add(&mut self, p: &PredictPiece, which: Measured) {
+        self.samples += p.len();
+        for k in 0..p.len() {
+            if which == Measured::Feed && p.classes[k] != Some(MoveClass::Feed) {
+                continue;
+            }
+            let (tt, to) = (p.truth.tip_mm[k], p.truth.orientation_rad[k]);
+            self.truth[0].add(tt);
+            self.truth[1].add(to);
+            for (acc, m) in self.sets.iter_mut().zip(&p.models) {
+                let (pt, po) = (m.tip_mm[k], m.orientation_rad[k]);
+                for (a, x) in acc
+                    .iter_mut()
+                    .zip([tt, to, pt, po, (tt - pt).abs(), (to - po).abs()])
+                {
+                    a.add(x);
+                }
+            }
+            if p.lines[k] != 0 {
+                self.worst.add(p.lines[k], tt, to);
+            }
+        }
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn finish(
+        self,
+        which: Measured,
+    ) -> ((Figure, Figure), Vec<ContourSummary>, Vec<ContourFigures>) {
+        let worst = ranked_blocks(self.worst.finish(), WORST_BLOCKS);
+        let samples = self.samples;
+        let [(tmax, trms), (omax, orms)] = self.truth.map(|a| a.max_rms());
+        let truth = (
+            Figure {
+                tip_um: tmax * 1e3,
+                orientation_mrad: omax * 1e3,
+            },
+            Figure {
+                tip_um: trms * 1e3,
+                orientation_mrad: orms * 1e3,
+            },
+        );
+        let (summaries, figures) = self
+            .sets
+            .iter()
+            .map(|acc| {
+                let pair = |tip: usize, or: usize, rms: bool| {
+                    let (t, o) = (acc[tip].max_rms(), acc[or].max_rms());
+                    let pick = |x: (f64, f64)| if rms { x.1 } else { x.0 };
+                    Figure {
+                        tip_um: pick(t) * 1e3,
+                        orientation_mrad: pick(o) * 1e3,
+                    }
+                };
+                let figures = ContourFigures {
+                    true_max: pair(0, 1, false),
+                    true_rms: pair(0, 1, true),
+                    predicted_max: pair(2, 3, false),
+                    predicted_rms: pair(2, 3, true),
+                    discrepancy_max: pair(4, 5, false),
+                    discrepancy_rms: pair(4, 5, true),
+                };
+                let rows = figures.rows();
+                let summary = ContourSummary {
+                    contour_um: rows.iter().map(|(_, k, f)| (*k, f.tip_um)).collect(),
+                    orientation_mrad: rows
+                        .iter()
+                        .map(|(_, k, f)| (*k, f.orientation_mrad))
+                        .collect(),
+                    samples,
+                    measured: which.label(),
+                    measured_samples: acc[0].count(),
+                    worst_blocks: worst.clone(),
+                };
+                (summary, figures)
+            })
+            .unzip();
+        (truth, summaries, figures)
     }
 }
 
@@ -264,28 +588,6 @@ pub struct ContourSummary {
 /// Blocks listed in a summary's `worst_blocks`.
 pub const WORST_BLOCKS: usize = 10;
 
-impl ContourSummary {
-    /// The summary of a prediction over the samples `which` selects.
-    pub fn of(p: &Prediction, run: &Run, which: Measured) -> ContourSummary {
-        let mask = run.measured(which);
-        let rows = p.figures(&mask).rows();
-        ContourSummary {
-            contour_um: rows.iter().map(|(_, k, f)| (*k, f.tip_um)).collect(),
-            orientation_mrad: rows
-                .iter()
-                .map(|(_, k, f)| (*k, f.orientation_mrad))
-                .collect(),
-            samples: p.true_contour.tip_mm.len(),
-            measured: match which {
-                Measured::Feed => "feed",
-                Measured::All => "all",
-            },
-            measured_samples: mask.iter().filter(|m| **m).count(),
-            worst_blocks: p.worst_blocks(run, &mask, WORST_BLOCKS),
-        }
-    }
-}
-
 /// `summary.json` of `vcnc predict`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PredictSummary {
@@ -307,329 +609,181 @@ pub struct PredictSummary {
 }
 
 impl PredictSummary {
-    /// The summary of a prediction of `program` on `machine` with models from `models`,
-    /// advanced by the per-axis `actual_latency_s` (in the machine's axis order).
+    /// The summary of a prediction of `program` on `machine` with `models`.
     pub fn new(
         machine: &Machine,
         program: &str,
         contour: ContourSummary,
-        models: String,
-        actual_latency_s: &[f64],
+        models: &MachineModels,
         warnings: Vec<String>,
     ) -> PredictSummary {
         PredictSummary {
             contour,
             machine: machine.name.clone(),
             program: program.to_string(),
-            models,
+            models: models.source().to_string(),
             actual_latency_s: machine
                 .axes
                 .iter()
-                .zip(actual_latency_s)
-                .map(|(a, l)| (a.name.to_string(), *l))
+                .zip(models.latencies())
+                .map(|(a, l)| (a.name.to_string(), l))
                 .collect(),
             warnings,
         }
     }
 }
 
-/// Runs `run` through the true drives and through `models`, and evaluates both contour errors.
-pub fn predict(machine: &Machine, run: &Run, models: &[DriveModel]) -> Result<Prediction, Error> {
-    let mut all = predict_many(machine, run, &[models])?;
-    Ok(all.remove(0))
+/// The [`WORST_BLOCKS`] source lines with the largest true tool-tip contour error, in memory
+/// that does not grow with the program (a 1 GB program has millions of lines): each run of
+/// consecutive measured samples of one line is offered as a whole to a list of the best
+/// [`WORST_BLOCKS`] lines so far, ranked as [`worst_blocks`] ranks them (larger error first,
+/// then the smaller line). The list and every line's largest tool-tip error in it are exactly
+/// the whole run's: a line outside the list at some time had a smaller error than all of it,
+/// and the list's last error only grows. So is each listed line's orientation error, unless the
+/// line ran more than once (O-word loops and calls) and left the list between its runs: its
+/// orientation maximum then covers the runs since it came back (docs/performance.md).
+#[derive(Debug, Default)]
+pub struct WorstLines {
+    /// The run being read: line, largest tool-tip and orientation errors.
+    run: Option<(u32, f64, f64)>,
+    /// The best lines so far: line → (tool tip, orientation).
+    best: BTreeMap<u32, (f64, f64)>,
 }
 
-/// [`contour`] as a prediction computes it: each actual pose is computed by the forward
-/// kinematics, searched for and dropped (a long run never holds them), and no foot points
-/// are kept (only the compensation, through [`contour`], needs them). Bit-identical to
-/// [`contour`]'s errors: the same poses in the same order through the same search.
-fn prediction_contour(
-    machine: &Machine,
-    path: &ContourPath,
-    actual: &[&[f64]],
-) -> Result<ContourReport, Error> {
-    let kin = machine.require_kinematics()?;
-    let n = actual.first().map_or(0, |p| p.len());
-    let mut search = ContourSearch::new(path, &SearchWindow::default(), false, n)?;
-    for k in 0..n {
-        search.push(&kin.model.forward(&kin.axes.at(actual, k)))?;
-    }
-    Ok(search.finish()?)
-}
-
-/// Tool poses (mm, unit tool axis; workpiece frame) of axis positions given per machine axis
-/// (mm, deg) at the samples `rows`, by the closed-form forward kinematics: a prediction keeps
-/// axis positions, and its poses are computed a chunk at a time where they are written.
-pub fn poses_at(
-    machine: &Machine,
-    axis_pos: &[&[f64]],
-    rows: std::ops::Range<usize>,
-) -> Result<Vec<Pose>, Error> {
-    let kin = machine.require_kinematics()?;
-    Ok(rows
-        .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
-        .collect())
-}
-
-/// [`predict`] for several model sets (for example the refined and the paper-PSO models) on
-/// one run: the true drives, the costly half, are simulated and evaluated once and shared.
-/// The models' positions are taken as the physical axes' (no actual-value latency:
-/// [`predict_many_with_latency`]).
-pub fn predict_many(
-    machine: &Machine,
-    run: &Run,
-    model_sets: &[&[DriveModel]],
-) -> Result<Vec<Prediction>, Error> {
-    let sets: Vec<(&[DriveModel], &[f64])> = model_sets.iter().map(|m| (*m, &[][..])).collect();
-    predict_many_with_latency(machine, run, &sets)
-}
-
-/// [`predict_many`] with each model set's stated actual-value latency (s, per machine axis;
-/// empty: none): a model predicts the logged actual position, and the physical axis is that
-/// prediction advanced by its latency ([`crate::latency`], docs/drive-model.md#actual-value-latency).
-/// A set may appear twice with different latencies (with and without it stated).
-pub fn predict_many_with_latency(
-    machine: &Machine,
-    run: &Run,
-    model_sets: &[(&[DriveModel], &[f64])],
-) -> Result<Vec<Prediction>, Error> {
-    for (_, l) in model_sets {
-        latency::check(l, run.axes.len())?;
-    }
-    let models: Vec<&[DriveModel]> = model_sets.iter().map(|(m, _)| *m).collect();
-    let mut sims = simulate_all(machine, run, &models)?;
-    advance_by_latency(&mut sims, model_sets, run.ts)?;
-    contours(machine, run, sims, model_sets.len())
-}
-
-/// Each model set's positions (per axis, in `sims`) advanced by its stated latency.
-fn advance_by_latency(
-    sims: &mut [AxisSims],
-    model_sets: &[(&[DriveModel], &[f64])],
-    ts: f64,
-) -> Result<(), Error> {
-    for (set, (_, l)) in model_sets.iter().enumerate() {
-        if l.iter().all(|t| *t == 0.0) {
-            continue;
-        }
-        let logged: Vec<Vec<f64>> = sims
-            .iter_mut()
-            .map(|(_, m)| std::mem::take(&mut m[set]))
-            .collect();
-        let physical = latency::physical_positions(logged, l, ts)?;
-        for ((_, m), x) in sims.iter_mut().zip(physical) {
-            m[set] = x;
-        }
-    }
-    Ok(())
-}
-
-/// [`predict`] for a run that is not needed whole afterwards: the reference velocities and
-/// accelerations are dropped once the drives and models have been simulated
-/// (`run.axes[i].vel` and `.acc` are left empty; the positions stay), so that a long run never
-/// holds them next to the contour search's path and the contour errors
-/// (docs/performance.md). With `actual_latency_s` (s, per machine axis; empty: none) the
-/// models' positions are advanced by it, as [`predict_many_with_latency`] does; without, the
-/// prediction is bit-identical to [`predict`]'s.
-pub fn predict_releasing_rates(
-    machine: &Machine,
-    run: &mut Run,
-    models: &[DriveModel],
-    actual_latency_s: &[f64],
-) -> Result<Prediction, Error> {
-    latency::check(actual_latency_s, run.axes.len())?;
-    let mut sims = simulate_all(machine, run, &[models])?;
-    advance_by_latency(&mut sims, &[(models, actual_latency_s)], run.ts)?;
-    for a in &mut run.axes {
-        a.vel = Vec::new();
-        a.acc = Vec::new();
-    }
-    let mut all = contours(machine, run, sims, 1)?;
-    Ok(all.remove(0))
-}
-
-/// One axis simulated: the true drive's trace as a prediction keeps it, and the axis'
-/// positions with each model set.
-type AxisSims = (DriveTrace, Vec<Vec<f64>>);
-
-/// Every axis through its true drive and through each model set, one task each (the true
-/// drives, at the servo rate, are the costly ones), collected in axis order: per axis, the
-/// true drive's trace as a prediction keeps it (its true position alone: the encoder reading,
-/// velocity, control, motor position and torque are never logged; no output of a prediction
-/// needs them, and on a long run they would be most of its memory, docs/performance.md) and
-/// axis `i` of each model set's positions.
-fn simulate_all(
-    machine: &Machine,
-    run: &Run,
-    model_sets: &[&[DriveModel]],
-) -> Result<Vec<AxisSims>, Error> {
-    use rayon::prelude::*;
-    if let Some(m) = model_sets.iter().find(|m| m.len() != run.axes.len()) {
-        return Err(Error::Usage(format!(
-            "{} models for {} axes",
-            m.len(),
-            run.axes.len()
-        )));
-    }
-    let (axes, ts) = (run.axes.len().min(machine.axes.len()), run.ts);
-    // The true drives that share a loop structure run several at a time in SIMD lanes
-    // (vcnc_drive::batch: each trace bit for bit the drive's alone); a drive in no batch runs
-    // alone, keeping its true position only.
-    let jobs = crate::simulate::true_drive_jobs(machine, run);
-    let groups = vcnc_drive::batch_groups(&jobs, ts);
-    let truth_of = |t: (Vec<f64>, u64)| DriveTrace {
-        true_position: t.0,
-        saturated_ticks: t.1,
-        ts,
-        ..DriveTrace::default()
-    };
-    // Task t: true-drive group t (t < g), else axis u % axes of model set u / axes (u = t - g).
-    let g = groups.len();
-    let mut out = (0..g + axes * model_sets.len())
-        .into_par_iter()
-        .map(|t| match t.checked_sub(g) {
-            None => {
-                let group = &groups[t];
-                let results = if let [i] = group[..] {
-                    let (drive, r) = jobs[i];
-                    vec![drive.simulate_true_position(r, ts).map(truth_of)]
-                } else {
-                    let sub: Vec<_> = group.iter().map(|i| jobs[*i]).collect();
-                    vcnc_drive::simulate_batch(&sub, ts)
-                        .into_iter()
-                        .map(|r| r.map(|t| truth_of((t.true_position, t.saturated_ticks))))
-                        .collect()
-                };
-                group
-                    .iter()
-                    .zip(results)
-                    .map(|(i, r)| {
-                        r.map(|trace| (*i, trace)).map_err(|source| Error::Drive {
-                            axis: machine.axes[*i].name,
-                            source,
-                        })
-                    })
-                    .collect::<Result<Vec<(usize, DriveTrace)>, Error>>()
+impl WorstLines {
+    /// The next measured sample: its line (not 0) and its errors (mm, rad).
+    pub fn add(&mut self, line: u32, tip: f64, orientation: f64) {
+        match &mut self.run {
+            Some((l, t, o)) if *l == line => {
+                *t = t.max(tip);
+                *o = o.max(orientation);
             }
-            Some(u) => {
-                let (i, set) = (u % axes, u / axes);
-                simulate_model(&model_sets[set][i], &run.axes[i], ts).map(|x| {
-                    vec![(
-                        i,
-                        DriveTrace {
-                            true_position: x,
-                            ts,
-                            ..DriveTrace::default()
-                        },
-                    )]
-                })
+            run => {
+                if let Some(r) = run.replace((line, tip, orientation)) {
+                    self.offer(r);
+                }
             }
-        })
-        .collect::<Result<Vec<Vec<(usize, DriveTrace)>>, Error>>()?
-        .into_iter();
-    let mut truth: Vec<Option<DriveTrace>> = (0..axes).map(|_| None).collect();
-    for (i, trace) in out.by_ref().take(g).flatten() {
-        truth[i] = Some(trace);
-    }
-    let truth: Vec<DriveTrace> = truth.into_iter().map(Option::unwrap_or_default).collect();
-    let out = out.flatten().map(|(_, trace)| trace);
-    let mut models: Vec<Vec<Vec<f64>>> = (0..axes).map(|_| Vec::new()).collect();
-    for (t, m) in out.enumerate() {
-        models[t % axes].push(m.true_position);
-    }
-    Ok(truth.into_iter().zip(models).collect())
-}
-
-/// The contour errors of the simulated axes (per axis: the true trace and each model set's
-/// positions): the true machine's search and each model set's, in parallel, along one
-/// reference path built once and shared.
-fn contours(
-    machine: &Machine,
-    run: &Run,
-    sims: Vec<AxisSims>,
-    sets: usize,
-) -> Result<Vec<Prediction>, Error> {
-    use rayon::prelude::*;
-    let mut true_traces = Vec::with_capacity(sims.len());
-    let mut predicted: Vec<Vec<Vec<f64>>> = (0..sets).map(|_| Vec::new()).collect();
-    for (t, models) in sims {
-        true_traces.push(t);
-        for (set, x) in predicted.iter_mut().zip(models) {
-            set.push(x);
         }
     }
-    let path = run.reference_path(machine)?;
-    let mut positions: Vec<Vec<&[f64]>> = vec![
-        true_traces
+
+    fn offer(&mut self, (line, tip, orientation): (u32, f64, f64)) {
+        if let Some(e) = self.best.get_mut(&line) {
+            e.0 = e.0.max(tip);
+            e.1 = e.1.max(orientation);
+            return;
+        }
+        if self.best.len() < WORST_BLOCKS {
+            self.best.insert(line, (tip, orientation));
+            return;
+        }
+        // The last of the list: the smallest error, of equal ones the largest line.
+        let Some((&last, &(t_last, _))) = self
+            .best
             .iter()
-            .map(|t| t.true_position.as_slice())
-            .collect(),
-    ];
-    positions.extend(
-        predicted
-            .iter()
-            .map(|set| set.iter().map(Vec::as_slice).collect()),
-    );
-    let mut reports = positions
-        .par_iter()
-        .map(|pos| prediction_contour(machine, &path, pos))
-        .collect::<Result<Vec<_>, Error>>()?
-        .into_iter();
-    drop(positions);
-    drop(path);
-    let mut true_contour = reports.next().expect("the true machine's report");
-    let n = predicted.len();
-    predicted
-        .into_iter()
-        .zip(reports)
-        .enumerate()
-        .map(|(i, (predicted, predicted_contour))| {
-            // The last prediction takes the truth, the others a copy: one model set, no copy.
-            let (true_traces, true_contour) = if i + 1 == n {
-                (
-                    std::mem::take(&mut true_traces),
-                    std::mem::take(&mut true_contour),
-                )
-            } else {
-                (true_traces.clone(), true_contour.clone())
-            };
-            Ok(Prediction {
-                true_traces,
-                predicted,
-                true_contour,
-                predicted_contour,
-            })
-        })
-        .collect()
+            .min_by(|a, b| (a.1.0 * 1e3).total_cmp(&(b.1.0 * 1e3)).then(b.0.cmp(a.0)))
+        else {
+            return;
+        };
+        // Ranked in µm, as the summary's figures (two errors in mm may round to one in µm).
+        if (tip * 1e3)
+            .total_cmp(&(t_last * 1e3))
+            .then(last.cmp(&line))
+            .is_gt()
+        {
+            self.best.remove(&last);
+            self.best.insert(line, (tip, orientation));
+        }
+    }
+
+    /// The best lines: line → (largest tool-tip error mm, orientation error rad).
+    pub fn finish(mut self) -> BTreeMap<u32, (f64, f64)> {
+        if let Some(r) = self.run.take() {
+            self.offer(r);
+        }
+        self.best
+    }
 }
 
-/// Models run on a program: axis positions, tool poses and contour errors.
-#[derive(Debug, Clone)]
-pub struct ModelRun {
-    /// Axis positions per machine axis.
+/// Every sample of a prediction, for full-resolution figures: the sink that keeps everything
+/// (poses excepted: they are the forward kinematics of the positions, recomputed where drawn).
+#[derive(Debug, Clone, Default)]
+pub struct PredictionRecord {
+    /// Per sample: the source line of the block running.
+    pub lines: Vec<u32>,
+    /// Per sample: the kind of move running.
+    pub classes: Vec<Option<MoveClass>>,
+    /// Per machine axis: the reference positions.
+    pub reference: Vec<Vec<f64>>,
+    /// The true machine.
+    pub truth: ActualRecord,
+    /// Each model set.
+    pub models: Vec<ActualRecord>,
+}
+
+/// Every sample of one actual sequence.
+#[derive(Debug, Clone, Default)]
+pub struct ActualRecord {
+    /// Per machine axis: the positions.
     pub positions: Vec<Vec<f64>>,
-    /// Tool poses.
-    pub poses: Vec<Pose>,
-    /// Contour errors against the run's reference.
-    pub contour: ContourReport,
+    /// Tool-tip contour error, mm.
+    pub tip_mm: Vec<f64>,
+    /// Orientation contour error, rad.
+    pub orientation_rad: Vec<f64>,
 }
 
-/// The models' axis positions, poses and contour errors on `run`: the physical axes, each
-/// model's positions advanced by its axis' stated actual-value latency (`actual_latency_s`, s,
-/// per machine axis; empty: none; [`crate::latency`]).
-pub fn model_contour(
-    machine: &Machine,
-    run: &Run,
-    models: &[DriveModel],
-    actual_latency_s: &[f64],
-) -> Result<ModelRun, Error> {
-    let positions =
-        latency::physical_positions(simulate_models(models, run)?, actual_latency_s, run.ts)?;
-    let pos: Vec<&[f64]> = positions.iter().map(Vec::as_slice).collect();
-    let (poses, contour) = contour(machine, run, &pos)?;
-    Ok(ModelRun {
-        positions,
-        poses,
-        contour,
-    })
+impl ActualRecord {
+    fn extend(&mut self, p: &ActualPiece) {
+        self.positions.resize_with(p.positions.len(), Vec::new);
+        for (d, s) in self.positions.iter_mut().zip(&p.positions) {
+            d.extend_from_slice(s);
+        }
+        self.tip_mm.extend_from_slice(&p.tip_mm);
+        self.orientation_rad.extend_from_slice(&p.orientation_rad);
+    }
+
+    /// The positions per machine axis.
+    pub fn positions(&self) -> Vec<&[f64]> {
+        self.positions.iter().map(Vec::as_slice).collect()
+    }
+}
+
+impl PredictionRecord {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// `true` without samples.
+    pub fn is_empty(&self) -> bool {
+        self.lines.is_empty()
+    }
+
+    /// Per sample: whether the statistics count it.
+    pub fn measured(&self, which: Measured) -> Vec<bool> {
+        which.mask(&self.classes)
+    }
+
+    /// The reference positions per machine axis.
+    pub fn reference_positions(&self) -> Vec<&[f64]> {
+        self.reference.iter().map(Vec::as_slice).collect()
+    }
+}
+
+impl Sink<PredictPiece> for PredictionRecord {
+    type Error = Error;
+    fn piece(&mut self, p: &PredictPiece) -> Result<(), Error> {
+        self.lines.extend_from_slice(&p.lines);
+        self.classes.extend_from_slice(&p.classes);
+        self.reference.resize_with(p.reference.len(), Vec::new);
+        for (d, s) in self.reference.iter_mut().zip(&p.reference) {
+            d.extend_from_slice(s);
+        }
+        self.truth.extend(&p.truth);
+        self.models
+            .resize_with(p.models.len(), ActualRecord::default);
+        for (d, s) in self.models.iter_mut().zip(&p.models) {
+            d.extend(s);
+        }
+        Ok(())
+    }
 }

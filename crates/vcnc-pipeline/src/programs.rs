@@ -1,10 +1,33 @@
-//! Programs vcnc generates: the 5-axis spiral as a tool-centre-point program.
+//! Programs vcnc generates: the identification excitation, the 5-axis spiral as a
+//! tool-centre-point program, a long program for measurements.
 
-use vcnc_gcode::{SpiralOptions, TcpProgramOptions};
+use vcnc_axis::AxisName;
+use vcnc_gcode::{IdentificationOptions, SpiralOptions, TcpProgramOptions};
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{Branch, TableTiltingAc};
 
 use crate::Error;
+
+/// The paper's identification excitation of one axis (`vcnc gen identification`): `moves`
+/// random moves within ±`range` (mm or deg), feeds up to `max_feed` units/s, from `seed`.
+pub fn identification_program(
+    axis: AxisName,
+    moves: usize,
+    range: f64,
+    max_feed: f64,
+    seed: u64,
+) -> Result<String, Error> {
+    let opts = IdentificationOptions {
+        moves,
+        range,
+        max_feed,
+        min_feed: (max_feed / 10.0).min(IdentificationOptions::default().min_feed),
+        seed,
+        ..IdentificationOptions::default()
+    };
+    vcnc_gcode::identification(axis, &opts)
+        .map_err(|e| Error::gcode("<identification generator>", e))
+}
 
 /// The docs/contour.md spiral as a TCP program: tip points on the dome, tool axis = dome
 /// normal, turned into A and C by the inverse kinematics on branch −1 with C unwrapped
@@ -70,10 +93,10 @@ pub fn write_long_tcp_program(
     segment_s: f64,
     tcp_on_mcode: u32,
 ) -> Result<(), Error> {
-    let bad = |what: &str, v: f64| {
-        Error::Usage(format!(
-            "long program: {what} must be positive and finite, not {v}"
-        ))
+    let bad = |what: &'static str, value: f64| Error::Generator {
+        program: "long program",
+        what,
+        value,
     };
     if !(segment_mm.is_finite() && segment_mm > 0.0) {
         return Err(bad("the segment length (mm)", segment_mm));
@@ -81,7 +104,9 @@ pub fn write_long_tcp_program(
     if !(segment_s.is_finite() && segment_s > 0.0) {
         return Err(bad("the segment duration (s)", segment_s));
     }
-    let io = |_| Error::Usage("long program: cannot write the text".to_string());
+    let io = |_| Error::GeneratorOutput {
+        program: "long program",
+    };
     let tip = |theta: f64| {
         let r = 30.0 + 5.0 * (7.0 * theta).sin();
         [

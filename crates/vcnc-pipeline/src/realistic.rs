@@ -30,14 +30,15 @@
 use rayon::prelude::*;
 use serde::Serialize;
 use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::{DriveModel, DriveParams, Feedback};
+use vcnc_drive::{DriveParams, Feedback};
 use vcnc_identify::ModelStructure;
 use vcnc_machine::Machine;
 
 use crate::Error;
 use crate::identify::{self, AxisIdentification};
-use crate::predict::{self, ContourFigures, Prediction};
-use crate::run::{Measured, Run};
+use crate::predict::{self, ContourFigures, PredictOutcome, PredictPiece};
+use crate::sink::{Discard, Sink};
+use crate::source::Source;
 use crate::summary::{FitSummary, ModelSummary, PoleErrors};
 
 /// The target for vcnc's prediction of a realistic machine: largest tool-tip
@@ -159,40 +160,47 @@ pub fn machine_with(
 pub struct Evaluation {
     /// Per axis, in machine order.
     pub ids: Vec<AxisIdentification>,
-    /// vcnc's chosen models (`result.model`) on the program, their positions taken as the
-    /// physical axes' (no actual-value latency).
-    pub model: Prediction,
-    /// vcnc's chosen models with each axis' stated actual-value latency
-    /// ([`Evaluation::actual_latency_s`]): the physical axes, the models' positions advanced
-    /// by it.
-    pub model_stated: Prediction,
-    /// The paper's method (`result.paper_pso`) on the program.
-    pub paper: Prediction,
+    /// The prediction of the program with three model sets, in this order ([`set`]): vcnc's
+    /// chosen models (`result.model`) with their positions taken as the physical axes' (no
+    /// actual-value latency); the same models with each axis' stated actual-value latency
+    /// ([`Evaluation::actual_latency_s`]): the physical axes, the models' positions advanced by
+    /// it; the paper's method (`result.paper_pso`).
+    pub outcome: PredictOutcome,
     /// The actual-value latency stated per axis (machine order), s: the machine's control
     /// configuration ([`vcnc_machine::Axis::actual_latency_s`]), not identified.
     pub actual_latency_s: Vec<f64>,
 }
 
-/// Identifies every axis of `machine` and predicts `run` with vcnc's models (without and with
-/// the stated actual-value latency) and the paper's method.
-pub fn evaluate(machine: &Machine, run: &Run) -> Result<Evaluation, Error> {
+/// Which model set of [`Evaluation::outcome`] is which.
+pub mod set {
+    /// vcnc's chosen models, no latency.
+    pub const MODEL: usize = 0;
+    /// vcnc's chosen models with the stated latency.
+    pub const MODEL_STATED: usize = 1;
+    /// The paper's method.
+    pub const PAPER: usize = 2;
+}
+
+/// Identifies every axis of `machine` and predicts the program of `source` with vcnc's models
+/// (without and with the stated actual-value latency) and the paper's method, the prediction's
+/// pieces handed to `sink`.
+pub fn evaluate<S: Sink<PredictPiece>>(
+    machine: &Machine,
+    source: Source<'_>,
+    sink: &mut S,
+) -> Result<Evaluation, S::Error> {
     let axes = identify::select_axes(machine, &[])?;
     let ids = identify::identify_axes(machine, &axes, None)?;
-    let best: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
-    let paper: Vec<DriveModel> = ids.iter().map(|r| r.result.paper_pso.into()).collect();
-    let latency: Vec<f64> = ids.iter().map(|r| r.actual_latency_s).collect();
-    let sets: [(&[DriveModel], &[f64]); 3] = [(&best, &[]), (&best, &latency), (&paper, &[])];
-    let [model, model_stated, paper]: [Prediction; 3] =
-        predict::predict_many_with_latency(machine, run, &sets)?
-            .try_into()
-            .map_err(|_| {
-                Error::Internal("predict_many returns one prediction per model set".into())
-            })?;
+    let stated = identify::machine_models(machine, &ids, "identified")?;
+    let latency: Vec<f64> = stated.latencies().collect();
+    let best = stated.with_latencies(latency.iter().map(|_| 0.0));
+    let paper = identify::paper_models(machine, &ids)?;
+    let sets = [&best, &stated, &paper];
+    let opts = predict::PredictOptions::default();
+    let outcome = predict::predict(machine, source, &sets, &opts, sink)?;
     Ok(Evaluation {
         ids,
-        model,
-        model_stated,
-        paper,
+        outcome,
         actual_latency_s: latency,
     })
 }
@@ -314,26 +322,26 @@ pub struct BudgetRow {
 }
 
 impl BudgetRow {
-    fn of(effect: &'static str, e: &Evaluation, mask: &[bool]) -> BudgetRow {
-        let f = e.model.figures(mask);
+    fn of(effect: &'static str, e: &Evaluation) -> BudgetRow {
+        let f = &e.outcome.figures;
         BudgetRow {
             effect,
-            true_max_um: f.true_max.tip_um,
-            model: Discrepancy::of(&f),
-            model_stated_latency: Discrepancy::of(&e.model_stated.figures(mask)),
-            paper_pso: Discrepancy::of(&e.paper.figures(mask)),
+            true_max_um: f[set::MODEL].true_max.tip_um,
+            model: Discrepancy::of(&f[set::MODEL]),
+            model_stated_latency: Discrepancy::of(&f[set::MODEL_STATED]),
+            paper_pso: Discrepancy::of(&f[set::PAPER]),
             structures: e.ids.iter().map(|r| (r.axis, r.result.structure)).collect(),
         }
     }
 }
 
-/// The effect budget of `machine` on `run` (module documentation): the ideal drives, then each
-/// [`EffectGroup`] alone. Configurations run in parallel, rows in that fixed order.
-pub fn effect_budget(machine: &Machine, run: &Run) -> Result<Vec<BudgetRow>, Error> {
+/// The effect budget of `machine` on the program of `source` (module documentation): the ideal
+/// drives, then each [`EffectGroup`] alone. Configurations run in parallel, rows in that fixed
+/// order.
+pub fn effect_budget(machine: &Machine, source: Source<'_>) -> Result<Vec<BudgetRow>, Error> {
     let configs: Vec<Option<EffectGroup>> = std::iter::once(None)
         .chain(EffectGroup::ALL.into_iter().map(Some))
         .collect();
-    let mask = run.measured(Measured::Feed);
     configs
         .par_iter()
         .map(|g| {
@@ -341,8 +349,8 @@ pub fn effect_budget(machine: &Machine, run: &Run) -> Result<Vec<BudgetRow>, Err
                 None => machine_with(machine, ideal)?,
                 Some(g) => machine_with(machine, |p| g.keep_only(p))?,
             };
-            let e = evaluate(&m, run)?;
-            Ok(BudgetRow::of(g.map_or("ideal", |g| g.name()), &e, &mask))
+            let e = evaluate(&m, source, &mut Discard)?;
+            Ok(BudgetRow::of(g.map_or("ideal", |g| g.name()), &e))
         })
         .collect()
 }

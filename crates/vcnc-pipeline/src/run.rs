@@ -7,7 +7,7 @@ use std::path::Path;
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::Reference;
 use vcnc_gcode::{Diagnostic, Loaded, MoveClass, Severity};
-use vcnc_kinematics::{Pose, Track};
+use vcnc_kinematics::Pose;
 use vcnc_machine::Machine;
 
 use crate::Error;
@@ -31,14 +31,6 @@ impl AxisSignals {
     /// As a drive/model reference.
     pub fn reference(&self) -> Reference<'_> {
         Reference {
-            pos: &self.pos,
-            vel: &self.vel,
-            acc: &self.acc,
-        }
-    }
-
-    fn track(&self) -> Track<'_> {
-        Track {
             pos: &self.pos,
             vel: &self.vel,
             acc: &self.acc,
@@ -79,17 +71,31 @@ pub enum Measured {
     All,
 }
 
-impl Run {
-    /// Per sample: whether the contour statistics count it.
-    pub fn measured(&self, which: Measured) -> Vec<bool> {
-        match which {
-            Measured::All => vec![true; self.len()],
-            Measured::Feed => self
-                .classes
+impl Measured {
+    /// How a summary names it: `feed` or `all`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Measured::Feed => "feed",
+            Measured::All => "all",
+        }
+    }
+
+    /// Per sample of the move classes `classes`: whether the statistics count it.
+    pub fn mask(self, classes: &[Option<MoveClass>]) -> Vec<bool> {
+        match self {
+            Measured::All => vec![true; classes.len()],
+            Measured::Feed => classes
                 .iter()
                 .map(|c| *c == Some(MoveClass::Feed))
                 .collect(),
         }
+    }
+}
+
+impl Run {
+    /// Per sample: whether the contour statistics count it.
+    pub fn measured(&self, which: Measured) -> Vec<bool> {
+        which.mask(&self.classes)
     }
     /// Number of samples.
     pub fn len(&self) -> usize {
@@ -212,15 +218,12 @@ pub fn read_program(path: &Path) -> Result<String, Error> {
     if let Some(available) = available_memory()
         && need > available
     {
-        return Err(Error::Usage(format!(
-            "{}: the program is {size} bytes; preparing it needs about {:.1} GB of memory \
-             (about {PROGRAM_MEMORY_PER_BYTE} bytes per byte of G-code: the parser and the \
-             interpreter hold the whole program, then its samples) and {:.1} GB are available; \
-             split it",
-            path.display(),
-            need as f64 / 1e9,
-            available as f64 / 1e9,
-        )));
+        return Err(Error::ProgramTooLarge {
+            file: path.display().to_string(),
+            bytes: size,
+            need_bytes: need,
+            available_bytes: available,
+        });
     }
     // The parser stops at its block limit; a longer program is refused before it is read.
     // A non-blank line takes at least two bytes but the last, so only a file of more than
@@ -234,11 +237,11 @@ pub fn read_program(path: &Path) -> Result<String, Error> {
         0
     };
     if lines > max_blocks {
-        return Err(Error::Usage(format!(
-            "{}: the program has {lines} non-blank lines, more than the {max_blocks} blocks \
-             vcnc parses; split it",
-            path.display(),
-        )));
+        return Err(Error::TooManyBlocks {
+            file: path.display().to_string(),
+            lines,
+            max: max_blocks,
+        });
     }
     let bytes = std::fs::read(path).map_err(cannot)?;
     // Valid UTF-8 is taken as it is (no copy); otherwise the lossy copy.
@@ -281,17 +284,17 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
     let any_tcp = traj.tcp.iter().any(|t| *t);
     if any_tcp {
         let kin = machine.require_kinematics()?;
-        let r = kin.axes;
-        let [x, y, z] = kin.model.inverse_tcp_track(
-            [axes[r.x].track(), axes[r.y].track(), axes[r.z].track()],
-            axes[r.a].track(),
-            axes[r.c].track(),
-            &traj.tcp,
+        let mut take = |f: fn(&mut AxisSignals) -> &mut Vec<f64>| -> Vec<Vec<f64>> {
+            axes.iter_mut().map(|a| std::mem::take(f(a))).collect()
+        };
+        let (mut pos, mut vel, mut acc) = (
+            take(|a| &mut a.pos),
+            take(|a| &mut a.vel),
+            take(|a| &mut a.acc),
         );
-        for (i, t) in [(r.x, x), (r.y, y), (r.z, z)] {
-            axes[i].pos = t.pos;
-            axes[i].vel = t.vel;
-            axes[i].acc = t.acc;
+        kin.inverse_tcp(&mut pos, &mut vel, &mut acc, &traj.tcp);
+        for (a, ((p, v), ac)) in axes.iter_mut().zip(pos.into_iter().zip(vel).zip(acc)) {
+            (a.pos, a.vel, a.acc) = (p, v, ac);
         }
     }
     for (a, s) in machine.axes.iter().zip(&axes) {
@@ -468,76 +471,6 @@ pub fn forward_poses(machine: &Machine, axis_pos: &[&[f64]]) -> Result<Vec<Pose>
     Ok((0..n)
         .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
         .collect())
-}
-
-/// Peak reference rates of one axis.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct AxisRates {
-    /// `mm` or `deg`.
-    pub unit: Unit,
-    /// Largest |velocity|, units/s.
-    pub max_vel: f64,
-    /// Largest |acceleration|, units/s².
-    pub max_acc: f64,
-}
-
-/// `summary.json` of `vcnc interpolate`.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct InterpolateSummary {
-    /// Machine name.
-    pub machine: String,
-    /// Program path.
-    pub program: String,
-    /// Duration, s.
-    pub duration_s: f64,
-    /// Time spent in feed moves (G1 G2 G3, cycles' feed parts), s.
-    pub feed_duration_s: f64,
-    /// Number of samples.
-    pub samples: usize,
-    /// Sample period, s.
-    pub ts_s: f64,
-    /// Whether the program uses tool-centre-point mode.
-    pub tcp: bool,
-    /// Per axis.
-    pub axes: std::collections::BTreeMap<String, AxisRates>,
-    /// Warnings of the run.
-    pub warnings: Vec<String>,
-}
-
-impl InterpolateSummary {
-    /// The summary of a run.
-    pub fn of(machine: &Machine, run: &Run) -> InterpolateSummary {
-        use crate::stats::max_abs;
-        InterpolateSummary {
-            machine: machine.name.clone(),
-            program: run.file.clone(),
-            duration_s: run.duration_s(),
-            feed_duration_s: run
-                .classes
-                .iter()
-                .filter(|c| **c == Some(MoveClass::Feed))
-                .count() as f64
-                * run.ts,
-            samples: run.len(),
-            ts_s: run.ts,
-            tcp: run.has_tcp(),
-            axes: run
-                .axes
-                .iter()
-                .map(|a| {
-                    (
-                        a.name.to_string(),
-                        AxisRates {
-                            unit: a.unit,
-                            max_vel: max_abs(&a.vel),
-                            max_acc: max_abs(&a.acc),
-                        },
-                    )
-                })
-                .collect(),
-            warnings: run.warnings.clone(),
-        }
-    }
 }
 
 #[cfg(test)]

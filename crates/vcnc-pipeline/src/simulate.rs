@@ -1,116 +1,191 @@
-//! Axis references through the true drives and through identified models.
+//! A program's reference through the true drives and, optionally, through identified models
+//! (docs/performance.md, "Streamed simulation"): [`simulate`] takes the reference a piece at a
+//! time from its [`Source`] and hands each piece ([`SimulatePiece`]: every channel of the true
+//! drives, the models' logged positions) to a [`Sink`], accumulating the tracking figures of
+//! `summary.json` on the way. [`SimulationRecord`] is the sink that keeps what the
+//! full-resolution tracking figure needs.
 
-use rayon::prelude::*;
 use serde::Serialize;
 use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::{ClosedLoopModel, DriveModel, DriveTrace, SimOptions};
-use vcnc_machine::Machine;
+use vcnc_drive::{Channels, ClosedLoopModel, DriveTrace};
+use vcnc_machine::{Machine, MachineModels};
 
-use crate::Error;
-use crate::run::AxisSignals;
+use crate::drives::{ModelRuns, TrueDrives};
 use crate::run::Run;
-use crate::stats::{max_abs, rms, scaled_diff, scaled_diff_max_rms};
+use crate::sink::Sink;
+use crate::source::{ReferenceChunk, ReferenceStats, Source};
+use crate::stats::{MaxRms, max_abs, rms};
 use crate::summary::ModelSummary;
 
-/// Runs every axis reference through its true drive (results in axis order): the drives that
-/// share a loop structure several at a time in SIMD lanes ([`vcnc_drive::batch`]: each trace
-/// bit for bit the drive's alone), the groups in parallel.
-pub fn simulate_true(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, Error> {
-    let jobs = true_drive_jobs(machine, run);
-    let groups = vcnc_drive::batch_groups(&jobs, run.ts);
-    let done: Vec<Vec<Result<DriveTrace, vcnc_drive::Error>>> = groups
-        .par_iter()
-        .map(|g| {
-            let sub: Vec<_> = g.iter().map(|i| jobs[*i]).collect();
-            vcnc_drive::simulate_batch(&sub, run.ts)
-        })
-        .collect();
-    let mut out: Vec<Option<Result<DriveTrace, vcnc_drive::Error>>> =
-        jobs.iter().map(|_| None).collect();
-    for (g, results) in groups.iter().zip(done) {
-        for (i, r) in g.iter().zip(results) {
-            out[*i] = Some(r);
-        }
-    }
-    out.into_iter()
-        .zip(&machine.axes)
-        .map(|(r, axis)| {
-            r.unwrap_or(Err(vcnc_drive::Error::EmptySignal))
-                .map_err(|source| Error::Drive {
-                    axis: axis.name,
-                    source,
-                })
-        })
-        .collect()
-}
-
-/// Each machine axis' true drive with its axis reference of `run` (as many as both have).
-pub(crate) fn true_drive_jobs<'a>(
-    machine: &'a Machine,
-    run: &'a Run,
-) -> Vec<(&'a vcnc_drive::Drive, vcnc_drive::Reference<'a>)> {
-    machine
-        .axes
-        .iter()
-        .zip(&run.axes)
-        .map(|(axis, s)| (&axis.drive, s.reference()))
-        .collect()
-}
-
-/// Runs every axis reference through its model (one per machine axis, in order). A model
-/// without dead time, reference filter or extra pole runs as the 7-parameter
-/// [`ClosedLoopModel::simulate`].
-pub fn simulate_models(models: &[DriveModel], run: &Run) -> Result<Vec<Vec<f64>>, Error> {
-    if models.len() != run.axes.len() {
-        return Err(Error::Usage(format!(
-            "{} models for {} axes",
-            models.len(),
-            run.axes.len()
-        )));
-    }
-    models
-        .par_iter()
-        .zip(run.axes.par_iter())
-        .map(|(m, s)| simulate_model(m, s, run.ts))
-        .collect()
-}
-
-/// One axis reference (period `ts`, s) through its model: the positions, axis units.
-pub fn simulate_model(
-    m: &DriveModel,
-    s: &crate::run::AxisSignals,
-    ts: f64,
-) -> Result<Vec<f64>, Error> {
-    let opts = SimOptions::default();
-    if m.is_core_only() {
-        m.core.simulate(s.reference(), ts, &opts)
-    } else {
-        m.simulate(s.reference(), ts, &opts)
-    }
-    .map_err(|source| Error::Drive {
-        axis: s.name,
-        source,
-    })
-}
-
-/// `vcnc simulate`: the true drives' traces and, optionally, the models' positions.
-#[derive(Debug, Clone)]
-pub struct Simulation {
-    /// True drives: encoder traces per axis.
+/// A piece of a simulation, samples `first..first + len()`.
+#[derive(Debug, Clone, Default)]
+pub struct SimulatePiece {
+    /// Index of the first sample.
+    pub first: usize,
+    /// Per machine axis: the reference position, mm or deg.
+    pub reference: Vec<Vec<f64>>,
+    /// Per machine axis: the true drive's trace of these samples (every channel).
     pub traces: Vec<DriveTrace>,
-    /// Models' positions per axis, when models were given.
+    /// Per machine axis: the model's (logged) position, when models are simulated.
     pub predicted: Option<Vec<Vec<f64>>>,
 }
 
-/// Simulates the true drives, and the models when given.
-pub fn simulate(
+impl SimulatePiece {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.reference.first().map_or(0, Vec::len)
+    }
+
+    /// `true` without samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// What a simulation measured.
+#[derive(Debug, Clone)]
+pub struct SimulateOutcome {
+    /// Per machine axis: the tracking figures.
+    pub tracking: Vec<AxisFigures>,
+    /// Per machine axis: servo ticks at which the true drive's command saturated.
+    pub saturated_ticks: Vec<u64>,
+    /// What handing on the reference measured (rates, which axes moved).
+    pub reference: ReferenceStats,
+    /// Every warning of the run, in order.
+    pub warnings: Vec<String>,
+}
+
+/// Runs the reference of `source` through the true drives (every channel) and, with `models`,
+/// through the models (their logged positions: no actual-value latency), handing each piece to
+/// `sink` in order. The tracking figures compare the encoder readings (what a control sees)
+/// with the reference, and the models with the encoder readings, in µm or mdeg, summed in
+/// sample order.
+pub fn simulate<S: Sink<SimulatePiece>>(
     machine: &Machine,
+    source: Source<'_>,
+    models: Option<&MachineModels>,
+    sink: &mut S,
+) -> Result<SimulateOutcome, S::Error> {
+    let axes = machine.axes.len();
+    let ts = source.ts();
+    let mut drives = TrueDrives::new(machine, ts, Channels::All)?;
+    let sets: Vec<&MachineModels> = models.into_iter().collect();
+    let mut model_runs = ModelRuns::new(machine, &sets, ts, false)?;
+    let mut piece = SimulatePiece {
+        reference: vec![Vec::new(); axes],
+        predicted: models.map(|_| vec![Vec::new(); axes]),
+        ..SimulatePiece::default()
+    };
+    let mut tracking = vec![MaxRms::default(); axes];
+    let mut model_vs_true = vec![MaxRms::default(); axes];
+    let mut on_chunk = |c: &ReferenceChunk| -> Result<(), S::Error> {
+        let (a, b) = rayon::join(|| drives.feed(machine, c), || model_runs.feed(machine, c));
+        a?;
+        b?;
+        piece.first = c.first;
+        for (r, p) in piece.reference.iter_mut().zip(&c.pos) {
+            r.clear();
+            r.extend_from_slice(p);
+        }
+        std::mem::swap(&mut piece.traces, &mut drives.traces);
+        if let (Some(p), Some(out)) = (piece.predicted.as_mut(), model_runs.out.first_mut()) {
+            std::mem::swap(p, out);
+        }
+        for (i, a) in machine.axes.iter().enumerate() {
+            let k = a.unit.micro_factor();
+            let x = &piece.traces[i].position;
+            for (r, x) in piece.reference[i].iter().zip(x) {
+                tracking[i].add((r - x) * k);
+            }
+            if let Some(p) = piece.predicted.as_ref() {
+                for (m, x) in p[i].iter().zip(x) {
+                    model_vs_true[i].add((m - x) * k);
+                }
+            }
+        }
+        sink.piece(&piece)?;
+        std::mem::swap(&mut piece.traces, &mut drives.traces);
+        if let (Some(p), Some(out)) = (piece.predicted.as_mut(), model_runs.out.first_mut()) {
+            std::mem::swap(p, out);
+        }
+        Ok(())
+    };
+    let reference = source.for_each(machine, &mut on_chunk)?;
+    let saturated_ticks = drives.finish(machine)?;
+    model_runs.finish(machine)?;
+    let tracking = (0..axes)
+        .map(|i| AxisFigures {
+            tracking: tracking[i].max_rms(),
+            model_vs_true: models.map(|_| model_vs_true[i].max_rms()),
+        })
+        .collect();
+    let mut warnings = source.warnings().to_vec();
+    warnings.extend(reference.warnings.iter().cloned());
+    Ok(SimulateOutcome {
+        tracking,
+        saturated_ticks,
+        reference,
+        warnings,
+    })
+}
+
+/// The true drives' traces (every channel) of a prepared run, every sample: the simulate run
+/// with the sink that keeps everything.
+pub fn true_traces(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, crate::Error> {
+    let mut keep = TraceRecord(vec![DriveTrace::default(); machine.axes.len()]);
+    let outcome = simulate(machine, Source::Prepared(run), None, &mut keep)?;
+    for (t, s) in keep.0.iter_mut().zip(outcome.saturated_ticks) {
+        t.ts = run.ts;
+        t.saturated_ticks = s;
+    }
+    Ok(keep.0)
+}
+
+/// Keeps every channel of every piece.
+struct TraceRecord(Vec<DriveTrace>);
+
+impl Sink<SimulatePiece> for TraceRecord {
+    type Error = crate::Error;
+    fn piece(&mut self, p: &SimulatePiece) -> Result<(), crate::Error> {
+        for (t, piece) in self.0.iter_mut().zip(&p.traces) {
+            for (all, part) in [
+                (&mut t.position, &piece.position),
+                (&mut t.true_position, &piece.true_position),
+                (&mut t.velocity, &piece.velocity),
+                (&mut t.control, &piece.control),
+                (&mut t.motor_position, &piece.motor_position),
+                (&mut t.motor_torque, &piece.motor_torque),
+            ] {
+                all.extend_from_slice(part);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The positions of a prepared run's axes through `models` (one per machine axis): the logged
+/// positions the models predict, or with `physical` each advanced by its model's stated
+/// actual-value latency ([`crate::latency`]). The models' part of the simulate and predict
+/// runs, every sample kept.
+pub fn model_positions(
+    machine: &Machine,
+    models: &MachineModels,
     run: &Run,
-    models: Option<&[DriveModel]>,
-) -> Result<Simulation, Error> {
-    let traces = simulate_true(machine, run)?;
-    let predicted = models.map(|m| simulate_models(m, run)).transpose()?;
-    Ok(Simulation { traces, predicted })
+    physical: bool,
+) -> Result<Vec<Vec<f64>>, crate::Error> {
+    let mut runs = ModelRuns::new(machine, &[models], run.ts, physical)?;
+    let mut out: Vec<Vec<f64>> = vec![Vec::with_capacity(run.len()); machine.axes.len()];
+    Source::Prepared(run).for_each(machine, &mut |c: &ReferenceChunk| {
+        runs.feed(machine, c)?;
+        for (o, y) in out.iter_mut().zip(&runs.out[0]) {
+            o.extend_from_slice(y);
+        }
+        Ok::<(), crate::Error>(())
+    })?;
+    for (o, y) in out.iter_mut().zip(&runs.finish(machine)?[0]) {
+        o.extend_from_slice(y);
+    }
+    Ok(out)
 }
 
 /// Tracking figures of one axis of a simulation, in µm (linear axes) or millidegrees.
@@ -139,19 +214,18 @@ pub struct AxisTracking {
 }
 
 impl AxisTracking {
-    /// The figures of machine axis `axis` (run signals `a`) from its tracking error and, with
+    /// The figures of machine axis `axis` from its tracking error and, with
     /// a model, the model's tracking error and (max, RMS) of the model's departure from the
     /// true drive, all in µm or mdeg.
     pub fn new(
         axis: &vcnc_machine::Axis,
-        a: &AxisSignals,
         error: Vec<f64>,
         model: Option<(Vec<f64>, (f64, f64))>,
     ) -> AxisTracking {
         let (model_error, vs) = model.unzip();
         AxisTracking {
-            axis: a.name,
-            unit: a.unit,
+            axis: axis.name,
+            unit: axis.unit,
             controller: axis.drive.controller().kind(),
             true_model: axis.true_model(),
             tracking_max: max_abs(&error),
@@ -164,40 +238,72 @@ impl AxisTracking {
     }
 }
 
-/// Per-axis tracking figures of a simulation (the encoder positions, as a control sees them).
-pub fn tracking(machine: &Machine, run: &Run, sim: &Simulation) -> Vec<AxisTracking> {
-    let actual: Vec<&[f64]> = sim.traces.iter().map(|t| t.position.as_slice()).collect();
-    tracking_of(machine, run, &actual, sim.predicted.as_deref())
+/// What the full-resolution tracking figure of a simulation needs, every sample: the sink
+/// that keeps the tracking errors of the true drives (encoder readings) and of the models, in
+/// µm or mdeg, and the reference positions.
+#[derive(Debug, Clone, Default)]
+pub struct SimulationRecord {
+    /// Per machine axis: the reference positions.
+    pub reference: Vec<Vec<f64>>,
+    /// Per machine axis: the tracking error $x_r - x$ of the true drive (encoder), µm or mdeg.
+    pub error: Vec<Vec<f64>>,
+    /// Per machine axis: the model's tracking error, when models are simulated.
+    pub model_error: Option<Vec<Vec<f64>>>,
+    /// Per machine axis: µm or mdeg per axis unit.
+    scale: Vec<f64>,
 }
 
-/// Per-axis tracking figures of `actual` axis positions (one series per machine axis) and,
-/// optionally, of model positions, against the run's references.
-pub fn tracking_of(
-    machine: &Machine,
-    run: &Run,
-    actual: &[&[f64]],
-    models: Option<&[Vec<f64>]>,
-) -> Vec<AxisTracking> {
-    machine
-        .axes
-        .iter()
-        .zip(run.axes.iter().zip(actual))
-        .enumerate()
-        .map(|(i, (axis, (a, x)))| {
-            let k = a.unit.micro_factor();
-            AxisTracking::new(
-                axis,
-                a,
-                scaled_diff(&a.pos, x, k),
-                models.map(|p| {
-                    (
-                        scaled_diff(&a.pos, &p[i], k),
-                        scaled_diff_max_rms(&p[i], x, k),
-                    )
-                }),
-            )
-        })
-        .collect()
+impl SimulationRecord {
+    /// A record of `machine`'s axes.
+    pub fn new(machine: &Machine) -> SimulationRecord {
+        let n = machine.axes.len();
+        SimulationRecord {
+            reference: vec![Vec::new(); n],
+            error: vec![Vec::new(); n],
+            model_error: None,
+            scale: machine.axes.iter().map(|a| a.unit.micro_factor()).collect(),
+        }
+    }
+
+    /// The tracking figures of each axis (the arrays moved into them).
+    pub fn into_tracking(self, machine: &Machine, outcome: &SimulateOutcome) -> Vec<AxisTracking> {
+        let mut models = self.model_error.map(|m| m.into_iter());
+        machine
+            .axes
+            .iter()
+            .zip(self.error)
+            .zip(&outcome.tracking)
+            .map(|((axis, error), f)| {
+                let model = models
+                    .as_mut()
+                    .and_then(Iterator::next)
+                    .zip(f.model_vs_true);
+                AxisTracking::new(axis, error, model)
+            })
+            .collect()
+    }
+}
+
+impl Sink<SimulatePiece> for SimulationRecord {
+    type Error = crate::Error;
+    fn piece(&mut self, p: &SimulatePiece) -> Result<(), crate::Error> {
+        for (i, k) in self.scale.iter().enumerate() {
+            let r = &p.reference[i];
+            self.reference[i].extend_from_slice(r);
+            self.error[i].extend(
+                r.iter()
+                    .zip(&p.traces[i].position)
+                    .map(|(r, x)| (r - x) * k),
+            );
+            if let Some(pred) = &p.predicted {
+                let m = self
+                    .model_error
+                    .get_or_insert_with(|| vec![Vec::new(); self.scale.len()]);
+                m[i].extend(r.iter().zip(&pred[i]).map(|(r, x)| (r - x) * k));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// `summary.json` of `vcnc simulate` (keys sorted when written).
@@ -256,28 +362,6 @@ impl Serialize for SimulateAxisSummary {
     }
 }
 
-/// The summary of a simulation.
-pub fn simulate_summary(
-    machine: &Machine,
-    run: &Run,
-    tracking: &[AxisTracking],
-    models: Option<(&str, &[DriveModel])>,
-) -> SimulateSummary {
-    let figures: Vec<AxisFigures> = tracking
-        .iter()
-        .map(|t| AxisFigures {
-            tracking: (t.tracking_max, t.tracking_rms),
-            model_vs_true: t.model_vs_true_max.zip(t.model_vs_true_rms),
-        })
-        .collect();
-    simulate_summary_of(
-        machine,
-        (&run.file, run.len(), run.duration_s()),
-        &figures,
-        models,
-    )
-}
-
 /// The tracking figures of one axis, µm or mdeg: max and RMS of the tracking error, and of the
 /// model's departure from the true drive when a model was simulated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -288,13 +372,13 @@ pub struct AxisFigures {
     pub model_vs_true: Option<(f64, f64)>,
 }
 
-/// [`simulate_summary`] from the figures of each machine axis (`figures`, in machine order) of
+/// `summary.json` of `vcnc simulate` from the figures of each machine axis (`figures`, in machine order) of
 /// the program `(path, samples, duration s)`.
 pub fn simulate_summary_of(
     machine: &Machine,
     (program, samples, duration_s): (&str, usize, f64),
     figures: &[AxisFigures],
-    models: Option<(&str, &[DriveModel])>,
+    models: Option<&MachineModels>,
 ) -> SimulateSummary {
     let axes = machine
         .axes
@@ -308,7 +392,7 @@ pub fn simulate_summary_of(
                     unit: axis.unit,
                     tracking: f.tracking,
                     true_model: ModelSummary::of(&axis.true_model()),
-                    model: models.map(|(_, m)| ModelSummary::of_drive(&m[i])),
+                    model: models.map(|m| ModelSummary::of_drive(m.get(i))),
                     model_vs_true: f.model_vs_true,
                     controller: axis.drive.controller().kind(),
                 },
@@ -318,7 +402,7 @@ pub fn simulate_summary_of(
     SimulateSummary {
         machine: machine.name.clone(),
         program: program.to_string(),
-        models: models.map(|(f, _)| f.to_string()),
+        models: models.map(|m| m.source().to_string()),
         samples,
         duration_s,
         axes,

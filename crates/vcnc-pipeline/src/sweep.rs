@@ -12,14 +12,12 @@ use std::collections::BTreeMap;
 
 use rayon::prelude::*;
 use serde::Serialize;
-use vcnc_contour::ContourReport;
-use vcnc_drive::DriveModel;
-use vcnc_machine::{Machine, MachineDocument};
+use vcnc_machine::{Machine, MachineDocument, MachineModels};
 
-use crate::predict::{contour, model_contour};
+use crate::predict::{PredictOptions, predict};
 use crate::run::{Measured, Run, prepare};
-use crate::simulate::simulate_true;
-use crate::stats::{max_abs, rms, scaled_diff};
+use crate::sink::Discard;
+use crate::source::Source;
 use crate::{Error, format_num};
 
 /// One swept key and its values.
@@ -33,44 +31,42 @@ pub struct SweepKey {
 
 /// Parses `KEY=V1,V2,...` or `KEY=start:stop:count` (count ≥ 2 values evenly spaced, both ends
 /// included; count = 1 gives `start`).
-pub fn parse_set(arg: &str) -> Result<SweepKey, String> {
+pub fn parse_set(arg: &str) -> Result<SweepKey, Error> {
+    let bad = |expected: String| Error::Argument {
+        option: "--set",
+        value: arg.to_string(),
+        expected,
+    };
     let (key, values) = arg
         .split_once('=')
-        .ok_or_else(|| format!("--set {arg}: expected KEY=V1,V2,... or KEY=start:stop:count"))?;
+        .ok_or_else(|| bad("KEY=V1,V2,... or KEY=start:stop:count".into()))?;
     let key = key.trim();
     if key.is_empty() || key.split('.').any(str::is_empty) {
-        return Err(format!(
-            "--set {arg}: the key must be a dotted path such as axes.X.controller.kv"
+        return Err(bad(
+            "a dotted machine-file path as the key, such as axes.X.controller.kv".into(),
         ));
     }
-    let num = |s: &str| -> Result<f64, String> {
-        let v: f64 = s
-            .trim()
-            .parse()
-            .map_err(|_| format!("--set {arg}: '{}' is not a number", s.trim()))?;
-        if v.is_finite() {
-            Ok(v)
-        } else {
-            Err(format!("--set {arg}: '{}' is not finite", s.trim()))
+    let num = |s: &str| -> Result<f64, Error> {
+        match s.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(bad(format!("a finite number instead of '{}'", s.trim()))),
         }
     };
     let values = if values.contains(':') {
         let parts: Vec<&str> = values.split(':').collect();
         if parts.len() != 3 {
-            return Err(format!("--set {arg}: a range is start:stop:count"));
+            return Err(bad("a range as start:stop:count".into()));
         }
         let (a, b) = (num(parts[0])?, num(parts[1])?);
-        let count: usize = parts[2].trim().parse().map_err(|_| {
-            format!(
-                "--set {arg}: count '{}' is not a whole number",
-                parts[2].trim()
-            )
-        })?;
-        if count == 0 || count > 1_000_000 {
-            return Err(format!(
-                "--set {arg}: count must be 1 ..= 1000000, got {count}"
-            ));
-        }
+        let count = match parts[2].trim().parse::<usize>() {
+            Ok(c) if (1..=1_000_000).contains(&c) => c,
+            _ => {
+                return Err(bad(format!(
+                    "a count of 1 ..= 1000000 values instead of '{}'",
+                    parts[2].trim()
+                )));
+            }
+        };
         if count == 1 {
             vec![a]
         } else {
@@ -88,7 +84,7 @@ pub fn parse_set(arg: &str) -> Result<SweepKey, String> {
         values.split(',').map(num).collect::<Result<Vec<_>, _>>()?
     };
     if values.is_empty() {
-        return Err(format!("--set {arg}: no values"));
+        return Err(bad("at least one value".into()));
     }
     Ok(SweepKey {
         key: key.to_string(),
@@ -114,20 +110,17 @@ pub fn configuration(keys: &[SweepKey], mut index: usize) -> Vec<f64> {
 }
 
 /// Parses `i/n` (1-based shard i of n).
-pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
-    let (i, n) = s
-        .split_once('/')
-        .ok_or_else(|| format!("--shard {s}: expected i/n, e.g. 2/8"))?;
-    let i: usize = i
-        .trim()
-        .parse()
-        .map_err(|_| format!("--shard {s}: '{i}' is not a whole number"))?;
-    let n: usize = n
-        .trim()
-        .parse()
-        .map_err(|_| format!("--shard {s}: '{n}' is not a whole number"))?;
+pub fn parse_shard(s: &str) -> Result<(usize, usize), Error> {
+    let bad = || Error::Argument {
+        option: "--shard",
+        value: s.to_string(),
+        expected: "i/n with whole numbers 1 <= i <= n, e.g. 2/8".into(),
+    };
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let whole = |v: &str| v.trim().parse::<usize>().map_err(|_| bad());
+    let (i, n) = (whole(i)?, whole(n)?);
     if n == 0 || i == 0 || i > n {
-        return Err(format!("--shard {s}: need 1 <= i <= n"));
+        return Err(bad());
     }
     Ok((i, n))
 }
@@ -205,18 +198,16 @@ pub struct Sweep<'a> {
     indices: Vec<usize>,
     base_run: Run,
     reuse: bool,
-    /// The identified models (one per machine axis) and each axis' stated actual-value
-    /// latency, s (empty: none).
-    models: Option<(Vec<DriveModel>, Vec<f64>)>,
-    base_predicted: Option<ContourReport>,
+    /// The identified models, with their stated actual-value latencies.
+    models: Option<MachineModels>,
     lenient: bool,
 }
 
 impl<'a> Sweep<'a> {
     /// Plans a sweep of `program` (its text and name) on the machine `doc` over `keys`
     /// (`--set` arguments), restricted to `shard` (`i/n`), with optional identified `models`
-    /// (one per machine axis) and their axes' stated actual-value latency (s, per machine axis;
-    /// empty: none; [`crate::latency`]). The base machine and run must be valid.
+    /// (their positions advanced by their stated actual-value latencies, [`crate::latency`]).
+    /// The base machine and run must be valid.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         doc: &'a MachineDocument,
@@ -224,27 +215,24 @@ impl<'a> Sweep<'a> {
         program_name: &'a str,
         sets: &[String],
         shard: Option<&str>,
-        models: Option<(Vec<DriveModel>, Vec<f64>)>,
+        models: Option<MachineModels>,
         lenient: bool,
     ) -> Result<Sweep<'a>, Error> {
         let base = doc.check()?;
         let keys: Vec<SweepKey> = sets
             .iter()
-            .map(|s| parse_set(s).map_err(Error::Usage))
+            .map(|s| parse_set(s))
             .collect::<Result<_, _>>()?;
-        let shard = shard.map(parse_shard).transpose().map_err(Error::Usage)?;
+        let shard = shard.map(parse_shard).transpose()?;
         let total = product_len(&keys);
         if total > MAX_CONFIGURATIONS {
-            return Err(Error::Usage(format!(
-                "the sweep has {total} configurations; split it (at most {MAX_CONFIGURATIONS})"
-            )));
+            return Err(Error::TooManyConfigurations {
+                total,
+                max: MAX_CONFIGURATIONS,
+            });
         }
         let base_run = prepare(&base, program, program_name, lenient)?;
         let reuse = !keys.iter().any(|k| changes_reference(&k.key));
-        let base_predicted = match (&models, reuse) {
-            (Some((m, l)), true) => Some(model_contour(&base, &base_run, m, l)?.contour),
-            _ => None,
-        };
         Ok(Sweep {
             doc,
             base,
@@ -257,7 +245,6 @@ impl<'a> Sweep<'a> {
             base_run,
             reuse,
             models,
-            base_predicted,
             lenient,
         })
     }
@@ -374,57 +361,28 @@ impl<'a> Sweep<'a> {
             owned = prepare(&machine, self.program, self.program_name, self.lenient)?;
             &owned
         };
-        let traces = simulate_true(&machine, run)?;
-        let tracking = run
-            .axes
-            .iter()
-            .zip(&traces)
-            .map(|(a, tr)| {
-                let e = scaled_diff(&a.pos, &tr.position, a.unit.micro_factor());
-                (max_abs(&e), rms(&e))
-            })
-            .collect();
-        let pos: Vec<&[f64]> = traces.iter().map(|t| t.true_position.as_slice()).collect();
-        let (_, c) = contour(&machine, run, &pos)?;
-        // The statistics cover the feed moves (what is cut), as `vcnc predict`'s do.
-        let mask = run.measured(Measured::Feed);
-        let masked = |v: &[f64], f: fn(&[f64]) -> f64| {
-            f(&v.iter()
-                .zip(&mask)
-                .filter_map(|(x, m)| m.then_some(*x))
-                .collect::<Vec<f64>>())
+        // The statistics cover the feed moves (what is cut), as `vcnc predict`'s do; the
+        // tracking errors every sample.
+        let sets: Vec<&MachineModels> = self.models.iter().collect();
+        let opts = PredictOptions {
+            measured: Measured::Feed,
+            tracking: true,
         };
-        let predicted = match &self.models {
-            None => None,
-            Some((models, latency)) => {
-                let owned_pc;
-                let pc = match &self.base_predicted {
-                    Some(pc) => pc,
-                    None => {
-                        owned_pc = model_contour(&machine, run, models, latency)?.contour;
-                        &owned_pc
-                    }
-                };
-                let disc: Vec<f64> = c
-                    .tip_mm
-                    .iter()
-                    .zip(&pc.tip_mm)
-                    .map(|(a, b)| (a - b).abs())
-                    .collect();
-                Some((
-                    masked(&pc.tip_mm, max_abs) * 1e3,
-                    masked(&pc.tip_mm, rms) * 1e3,
-                    masked(&disc, max_abs) * 1e3,
-                ))
-            }
-        };
+        let out = predict(&machine, Source::Prepared(run), &sets, &opts, &mut Discard)?;
+        let (max, rms) = out.truth;
         Ok(ConfigResult {
-            tracking,
-            contour_max_um: masked(&c.tip_mm, max_abs) * 1e3,
-            contour_rms_um: masked(&c.tip_mm, rms) * 1e3,
-            orientation_max_mrad: masked(&c.orientation_rad, max_abs) * 1e3,
-            orientation_rms_mrad: masked(&c.orientation_rad, rms) * 1e3,
-            predicted,
+            tracking: out.tracking,
+            contour_max_um: max.tip_um,
+            contour_rms_um: rms.tip_um,
+            orientation_max_mrad: max.orientation_mrad,
+            orientation_rms_mrad: rms.orientation_mrad,
+            predicted: out.figures.first().map(|f| {
+                (
+                    f.predicted_max.tip_um,
+                    f.predicted_rms.tip_um,
+                    f.discrepancy_max.tip_um,
+                )
+            }),
         })
     }
 
@@ -634,15 +592,17 @@ pub fn merge(tables: &[(String, String)]) -> Result<Merged, Error> {
     let mut rows: Vec<(usize, &str)> = Vec::new();
     for (path, text) in tables {
         let mut lines = text.lines();
-        let h = lines
-            .next()
-            .ok_or_else(|| Error::Usage(format!("{path}: empty file")))?;
+        let h = lines.next().ok_or_else(|| Error::Shard {
+            file: path.clone(),
+            problem: "the file is empty",
+        })?;
         match header {
             None => header = Some(h),
             Some(prev) if prev != h => {
-                return Err(Error::Usage(format!(
-                    "{path}: its columns differ from the first shard's"
-                )));
+                return Err(Error::Shard {
+                    file: path.clone(),
+                    problem: "its columns differ from the first shard's",
+                });
             }
             _ => {}
         }
@@ -664,12 +624,9 @@ pub fn merge(tables: &[(String, String)]) -> Result<Merged, Error> {
     }
     rows.sort_by_key(|r| r.0);
     if let Some(w) = rows.windows(2).find(|w| w[0].0 == w[1].0) {
-        return Err(Error::Usage(format!(
-            "configuration {} appears in more than one shard",
-            w[0].0
-        )));
+        return Err(Error::DuplicateConfiguration { index: w[0].0 });
     }
-    let header = header.ok_or_else(|| Error::Usage("no shard folders given".into()))?;
+    let header = header.ok_or(Error::NoShards)?;
     let cols: Vec<&str> = header.split(',').collect();
     // The swept keys are the columns between `index` and the first per-axis column.
     let nkeys = cols

@@ -35,11 +35,11 @@ pub fn read_columns(path: &Path, names: &[&str], hint: &str) -> Result<Vec<Vec<f
                 .iter()
                 .position(|h| h == *name)
                 .or_else(|| header.iter().position(|h| h.eq_ignore_ascii_case(name)))
-                .ok_or_else(|| {
-                    Error::Usage(format!(
-                        "{file}: missing column '{name}' (the header has: {}){hint}",
-                        header.iter().collect::<Vec<_>>().join(", ")
-                    ))
+                .ok_or_else(|| Error::MissingColumn {
+                    file: file.to_string(),
+                    column: name.to_string(),
+                    header: header.iter().collect::<Vec<_>>().join(", "),
+                    hint: hint.to_string(),
                 })
         })
         .collect::<Result<_, _>>()?;

@@ -6,10 +6,15 @@ use std::path::Path;
 
 use rayon::prelude::*;
 use vcnc_machine::OptionsFile;
-use vcnc_trace::{PairOptions, Paired, ReadOptions};
+use vcnc_trace::Paired;
 
 use crate::Error;
 use crate::identify::{AxisIdentification, identify_trace};
+
+// The reading and pairing options the command line builds.
+pub use vcnc_trace::{
+    AxisMap, ChannelRef, Format, GapPolicy, PairOptions, ReadOptions, TraceUnit, read_path,
+};
 
 /// A trace file read and paired.
 #[derive(Debug, Clone)]

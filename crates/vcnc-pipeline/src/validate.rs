@@ -77,50 +77,48 @@ pub fn validate_measured(
     };
     for a in axes {
         if !m.paired.axes.iter().any(|t| t.axis == *a) {
-            return Err(Error::Usage(format!(
-                "{file}: no axis {a} in the trace (it has: {})",
-                trace_axes()
-            )));
+            return Err(Error::AxisNotInTrace {
+                file: file.to_string(),
+                axis: *a,
+                has: trace_axes(),
+            });
         }
         if in_models(*a).is_none() {
-            return Err(Error::Usage(format!(
-                "{model_file}: no model for axis {a} (it has: {})",
-                model_axes()
-            )));
+            return Err(Error::NoModelFor {
+                file: model_file.to_string(),
+                axis: *a,
+                has: model_axes(),
+            });
         }
     }
-    let chosen: Vec<&vcnc_trace::AxisTrace> = m
+    // Each chosen axis with its model (an axis named is in both: checked above).
+    let chosen: Vec<(&vcnc_trace::AxisTrace, &vcnc_machine::AxisModel)> = m
         .paired
         .axes
         .iter()
-        .filter(|t| {
-            if axes.is_empty() {
-                in_models(t.axis).is_some()
-            } else {
-                axes.contains(&t.axis)
-            }
-        })
+        .filter(|t| axes.is_empty() || axes.contains(&t.axis))
+        .filter_map(|t| Some((t, in_models(t.axis)?)))
         .collect();
     if chosen.is_empty() {
-        return Err(Error::Usage(format!(
-            "no axis of {file} ({}) has a model in {model_file} ({}); name the trace's axis with --axis, or its columns with --xr-col/--x-col and --axis",
-            trace_axes(),
-            model_axes()
-        )));
+        return Err(Error::NothingToValidate {
+            file: file.to_string(),
+            trace_axes: trace_axes(),
+            model_file: model_file.to_string(),
+            model_axes: model_axes(),
+        });
     }
     let opts = IdentifyOptions::default();
     chosen
         .par_iter()
-        .map(|t| {
+        .map(|(t, am)| {
             let subject = format!("{file} axis {}", t.axis);
-            let am = in_models(t.axis).ok_or_else(|| {
-                Error::Internal(format!("axis {} lost its model", t.axis))
-            })?;
             if am.unit != t.unit {
-                return Err(Error::Usage(format!(
-                    "{model_file}: the model of axis {} is in {}, the trace's axis in {}",
-                    t.axis, am.unit, t.unit
-                )));
+                return Err(Error::UnitMismatch {
+                    file: model_file.to_string(),
+                    axis: t.axis,
+                    model: am.unit,
+                    trace: t.unit,
+                });
             }
             let model = am.model();
             let trace = Trace::new(t.ts_s, t.nominal.clone(), t.actual.clone())
@@ -141,10 +139,10 @@ pub fn validate_measured(
                 None => None,
             };
             if !fit.freerun_rms.is_finite() {
-                return Err(Error::Usage(format!(
-                    "{subject}: the model's free run diverges on this trace (is the model stable, and the trace's sample period {} s right?)",
-                    t.ts_s
-                )));
+                return Err(Error::FreeRunDiverges {
+                    subject,
+                    ts_s: t.ts_s,
+                });
             }
             Ok(AxisValidation {
                 axis: t.axis,

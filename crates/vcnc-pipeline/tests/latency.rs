@@ -7,12 +7,13 @@
 //! position loop used, N cycles old; the physical axis runs ahead of the log by
 //! N / servo_rate_hz.
 
-use vcnc_drive::{DriveModel, Feedback};
-use vcnc_machine::{Machine, embedded};
+use vcnc_drive::Feedback;
+use vcnc_machine::{Machine, MachineModels, embedded};
 use vcnc_pipeline::latency::shifted;
+use vcnc_pipeline::predict::{self, PredictOptions};
 use vcnc_pipeline::realistic::ideal;
-use vcnc_pipeline::run::{self, Measured, Run};
-use vcnc_pipeline::{identify, predict, simulate};
+use vcnc_pipeline::run::{self, Run};
+use vcnc_pipeline::{PredictionRecord, Source, identify, simulate};
 
 /// Dead time, servo cycles: 0.15 ms at 20 kHz, 0.15 of the 1 ms sample period (a fractional
 /// shift, the general case).
@@ -53,7 +54,7 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
 #[test]
 fn the_logged_position_advanced_by_the_dead_time_is_the_physical_axis() {
     let (m, run) = dead_time_machine();
-    let traces = simulate::simulate_true(&m, &run).expect("true drives");
+    let traces = simulate::true_traces(&m, &run).expect("true drives");
     for (axis, t) in m.axes.iter().zip(&traces) {
         let tau = axis.actual_latency_s();
         assert_eq!(tau, f64::from(N) / 20_000.0, "axis {}", axis.name);
@@ -82,25 +83,30 @@ fn a_prediction_with_the_stated_latency_matches_the_physical_axes() {
     let (m, run) = dead_time_machine();
     let axes = identify::select_axes(&m, &[]).expect("axes");
     let ids = identify::identify_axes(&m, &axes, None).expect("identification");
-    let models: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
-    let latency: Vec<f64> = ids.iter().map(|r| r.actual_latency_s).collect();
+    let with_latency = identify::machine_models(&m, &ids, "identified").expect("models");
+    let latency: Vec<f64> = with_latency.latencies().collect();
     assert!(latency.iter().all(|t| *t == f64::from(N) / 20_000.0));
-    let [without, with]: [predict::Prediction; 2] =
-        predict::predict_many_with_latency(&m, &run, &[(&models, &[]), (&models, &latency)])
-            .expect("predictions")
-            .try_into()
-            .expect("two predictions");
-    let mask = run.measured(Measured::Feed);
-    let (fw, fo) = (with.figures(&mask), without.figures(&mask));
+    let without_latency = with_latency.with_latencies(latency.iter().map(|_| 0.0));
+    let mut r = PredictionRecord::default();
+    let p = predict::predict(
+        &m,
+        Source::Prepared(&run),
+        &[&without_latency, &with_latency],
+        &PredictOptions::default(),
+        &mut r,
+    )
+    .expect("predictions");
+    let (fo, fw) = (p.figures[0], p.figures[1]);
+    let (without, with) = (&r.models[0], &r.models[1]);
     // Per axis, the models' positions against the physical ones (measured with / without the
     // latency: X 0.070 / 26.3 µm, Y 0.058 / 23.1, Z 0.067 / 30.4, A 0.063 / 5.8 mdeg,
     // C 0.154 / 44.8 mdeg). With it, a few encoder counts (0.1 µm, 0.1 mdeg) — the identified
     // model's own error on a loop whose dead time its structure lacks; without it, v·τ.
     for (i, axis) in m.axes.iter().enumerate() {
         let k = axis.unit.micro_factor();
-        let truth = &with.true_traces[i].true_position;
-        let w = max_diff(&with.predicted[i], truth) * k;
-        let o = max_diff(&without.predicted[i], truth) * k;
+        let truth = &r.truth.positions[i];
+        let w = max_diff(&with.positions[i], truth) * k;
+        let o = max_diff(&without.positions[i], truth) * k;
         assert!(
             w <= 0.3,
             "axis {}: with the latency {w} µm or mdeg",
@@ -141,16 +147,15 @@ fn compensation_with_the_stated_latency_leads_the_physical_axes() {
     let (m, run) = dead_time_machine_of([0, 2, 6, 4, 1]);
     let axes = identify::select_axes(&m, &[]).expect("axes");
     let ids = identify::identify_axes(&m, &axes, None).expect("identification");
-    let models: Vec<DriveModel> = ids.iter().map(|r| r.result.model).collect();
-    let latency: Vec<f64> = ids.iter().map(|r| r.actual_latency_s).collect();
+    let models = identify::machine_models(&m, &ids, "identified").expect("models");
+    let latency: Vec<f64> = models.latencies().collect();
     // The spiral's opening rapid runs C at its velocity limit: planned with a 0.9 headroom so
     // that the set-points can lead it (as `vcnc compensate` replans).
     let slower = compensate::with_velocity_headroom(&m, 0.9).expect("headroom");
     let planned = run::prepare(&slower, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("plan");
     let opts = CompensateOptions::default();
-    let judge = |l: &[f64]| {
-        let comp =
-            compensate::compensate_run(&m, &planned, &models, l, &opts).expect("compensation");
+    let judge = |models: &MachineModels| {
+        let comp = compensate::compensate_run(&m, &planned, models, &opts).expect("compensation");
         comp.check_limits(&planned, 0.9).expect("within the limits");
         let rerun =
             run::prepare(&m, &comp.program(&[]), "compensated.ngc", false).expect("re-read");
@@ -162,8 +167,8 @@ fn compensation_with_the_stated_latency_leads_the_physical_axes() {
             ContourStats::over_feed(&run, j.contour(&m).expect("kinematics")),
         )
     };
-    let (t0, without) = judge(&[]);
-    let (t1, with) = judge(&latency);
+    let (t0, without) = judge(&models.with_latencies(latency.iter().map(|_| 0.0)));
+    let (t1, with) = judge(&models);
     // One more sample of tail for the largest latency (6 cycles, 0.3 ms).
     assert_eq!(t1, t0 + 1);
     // Measured: without the latency 8.48 µm / 0.066 mrad (the axes' different latencies bend

@@ -34,10 +34,3 @@ pub fn table(header: &[&str], rows: &[Vec<String>]) -> String {
     }
     out
 }
-
-/// Prints warnings to stderr.
-pub fn print_warnings(warnings: &[String]) {
-    for w in warnings {
-        eprintln!("{w}");
-    }
-}

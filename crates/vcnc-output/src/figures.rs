@@ -8,23 +8,23 @@
 //! colour and one name across all reports. Errors are drawn in µm (linear axes), mdeg (rotary
 //! axes) and mrad (orientation), every axis names its quantity.
 
-use anyhow::Result;
-use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::DriveModel;
-use vcnc_machine::Machine;
 use vcnc_pipeline::frf::{BodeData, standard_freqs};
-use vcnc_pipeline::predict::poses_at;
-use vcnc_pipeline::stats::scaled_diff;
+use vcnc_pipeline::stats::{scaled_diff, scaled_diff_max_rms};
 use vcnc_pipeline::sweep::SweepOutcome;
-use vcnc_pipeline::{AxisIdentification, AxisTracking, IdentificationSource, Prediction, Run};
+use vcnc_pipeline::{
+    AxisIdentification, AxisName, AxisTracking, DriveModel, Frf, IdentificationSource, Machine,
+    PredictPiece, PredictionRecord, ReferenceChunk, SimulatePiece, Sink, Unit,
+};
+pub use vcnc_report::Role;
 use vcnc_report::style::units;
 use vcnc_report::vtp::{PointScalars, Vectors, VtpEncoding, VtpPath, write_vtp};
 use vcnc_report::{
     self as vr, Axis, AxisErrors, BodeCurve, BodeGroup, ColouredPath, Comparison, HeatMap, Mark,
-    PathErrors, PathViewOptions, Quantity, Role, Series,
+    PathErrors, PathViewOptions, Quantity, Series,
 };
 
-use crate::output::write_csv;
+use crate::Result;
+use crate::files::write_csv;
 use crate::report::RunReport;
 
 /// Legend label of the true machine (the simulated plant, the truth of a virtual experiment).
@@ -85,7 +85,7 @@ pub struct MeasuredFrf<'a> {
     /// Role of the curve.
     pub role: Role,
     /// The response (its lines need not be the models' frequencies).
-    pub frf: &'a vcnc_drive::Frf,
+    pub frf: &'a Frf,
 }
 
 /// Writes `<prefix>.csv` (tracking and disturbance Bode data of each model) into the report's
@@ -377,37 +377,27 @@ pub fn validation_measured(
     )
 }
 
-/// A model whose errors are drawn against the true machine's.
-pub struct ModelErrors<'a> {
-    /// Legend label.
-    pub label: &'a str,
-    /// Role.
-    pub role: Role,
-    /// Its prediction (sharing the true drives of the first one), consumed by the figures:
-    /// its errors are scaled and its positions turned into tracking errors in place.
-    pub prediction: Prediction,
-}
-
 /// Tracking errors x_r − x of the axes the program moves: the truth (`tracking[i].error`) and
-/// each model (`model_error` of each list).
+/// each model (`model_error` of each list); `reference` holds each axis' reference positions
+/// (sample period `ts`).
 pub fn tracking(
     report: &mut RunReport,
     file: &str,
-    run: &Run,
+    (program, ts, reference): (&str, f64, &[Vec<f64>]),
     truth: (&str, Role),
     models: &[(&str, Role, &[AxisTracking])],
     caption: &str,
 ) -> Result<()> {
-    let t = run.times();
     let Some(&(_, _, first)) = models.first() else {
         return Ok(());
     };
+    let t = times(reference.first().map_or(0, Vec::len), ts);
     let axes: Vec<AxisErrors> = first
         .iter()
         .enumerate()
         .map(|(i, a)| AxisErrors {
             axis: a.axis,
-            reference: &run.axes[i].pos,
+            reference: &reference[i],
             truth: Series::line(truth.0, truth.1, &t, &a.error),
             models: models
                 .iter()
@@ -424,7 +414,7 @@ pub fn tracking(
         vr::tracking_errors(
             &format!(
                 "{}: tracking errors x_r − x per axis",
-                program_name(&run.file)
+                program_name(program)
             ),
             &axes,
         ),
@@ -433,13 +423,18 @@ pub fn tracking(
     )
 }
 
-/// Tracking errors of a simulation: the true drives (encoder) and, when simulated, the model.
-pub fn simulation_tracking(report: &mut RunReport, run: &Run, tr: &[AxisTracking]) -> Result<()> {
+/// `tracking.svg` of a simulation, every sample: the true drives (encoder) and, when
+/// simulated, the model (`reference`: each axis' reference positions).
+pub fn simulation_tracking(
+    report: &mut RunReport,
+    (program, ts, reference): (&str, f64, &[Vec<f64>]),
+    tr: &[AxisTracking],
+) -> Result<()> {
     let has_model = tr.iter().any(|a| a.model_error.is_some());
     tracking(
         report,
         "tracking.svg",
-        run,
+        (program, ts, reference),
         (TRUE_MACHINE, Role::TrueMachine),
         &[(VCNC_MODEL, Role::Model, tr)],
         if has_model {
@@ -455,9 +450,9 @@ pub fn simulation_tracking(report: &mut RunReport, run: &Run, tr: &[AxisTracking
 /// streamed run's min/max envelope).
 pub struct ReferenceAxis<'a> {
     /// The axis.
-    pub name: vcnc_gcode::AxisName,
+    pub name: AxisName,
     /// mm or deg.
-    pub unit: vcnc_machine::Unit,
+    pub unit: Unit,
     /// The program moves it (else it is listed, not drawn).
     pub moved: bool,
     /// Times, s.
@@ -504,15 +499,15 @@ pub fn reference_axes(
 /// Points as `[x, y, z]` per sample.
 type Points = Vec<[f64; 3]>;
 
-/// Tool tips (mm) of the path of `pos` (axis positions per machine axis), computed 65 536
-/// samples at a time.
+/// Tool tips (mm) of the path of `pos` (axis positions per machine axis).
 fn tips(machine: &Machine, pos: &[&[f64]], n: usize) -> Result<Points> {
-    let mut tip = Vec::with_capacity(n);
-    for start in (0..n).step_by(1 << 16) {
-        let poses = poses_at(machine, pos, start..(start + (1 << 16)).min(n))?;
-        tip.extend(poses.iter().map(|q| [q.p.x, q.p.y, q.p.z]));
-    }
-    Ok(tip)
+    let kin = machine.require_kinematics()?;
+    Ok((0..n)
+        .map(|k| {
+            let q = kin.pose_at(pos, k);
+            [q.p.x, q.p.y, q.p.z]
+        })
+        .collect())
 }
 
 /// `v` scaled by `k` in place (mm → µm, rad → mrad), taken out of its owner.
@@ -520,6 +515,15 @@ fn scaled_in_place(v: &mut Vec<f64>, k: f64) -> Vec<f64> {
     let mut v = std::mem::take(v);
     v.iter_mut().for_each(|x| *x *= k);
     v
+}
+
+/// A model set of a prediction as the figures label it.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelLabel<'a> {
+    /// Legend label.
+    pub label: &'a str,
+    /// Role.
+    pub role: Role,
 }
 
 /// The figures and the 3-D export of a prediction, models first to last as given (the first
@@ -533,40 +537,41 @@ fn scaled_in_place(v: &mut Vec<f64>, k: f64) -> Vec<f64> {
 /// - `toolpath.vtp`: the path with both errors, the tool axis and the block lines (ParaView).
 ///
 /// `measured` selects the samples whose blocks may be marked as worst (feed moves unless
-/// `--include-rapids`). The predictions are consumed: each series is computed in the memory
-/// of the one it comes from, and the poses a chunk at a time, so that a long run's figures
-/// cost little beyond its prediction (docs/performance.md).
+/// `--include-rapids`); `labels` names the record's model sets, in order. The record is
+/// consumed: each series is computed in the memory of the one it comes from, so that a long
+/// run's figures cost little beyond its prediction (docs/performance.md).
 pub fn prediction(
     report: &mut RunReport,
     machine: &Machine,
-    run: &Run,
+    (program, ts): (&str, f64),
+    mut record: PredictionRecord,
     measured: &[bool],
-    mut models: Vec<ModelErrors>,
+    labels: &[ModelLabel<'_>],
 ) -> Result<()> {
-    let Some(first) = models.first_mut() else {
+    if record.models.is_empty() {
         return Ok(());
-    };
-    let name = program_name(&run.file);
-    let n = run.len();
+    }
+    let name = program_name(program);
+    let n = record.len();
     // The true machine's errors in µm and mrad, and its tool tips by the forward kinematics
-    // a chunk at a time (a prediction keeps axis positions, not poses).
-    let tip_t = scaled_in_place(&mut first.prediction.true_contour.tip_mm, 1e3);
-    let or_t = scaled_in_place(&mut first.prediction.true_contour.orientation_rad, 1e3);
-    let true_tip = tips(machine, &first.prediction.true_positions(), n)?;
-    let (tip_m, or_m): (Vec<Vec<f64>>, Vec<Vec<f64>>) = models
+    // (a prediction keeps axis positions, not poses).
+    let tip_t = scaled_in_place(&mut record.truth.tip_mm, 1e3);
+    let or_t = scaled_in_place(&mut record.truth.orientation_rad, 1e3);
+    let true_tip = tips(machine, &record.truth.positions(), n)?;
+    let (tip_m, or_m): (Vec<Vec<f64>>, Vec<Vec<f64>>) = record
+        .models
         .iter_mut()
         .map(|m| {
-            let c = &mut m.prediction.predicted_contour;
             (
-                scaled_in_place(&mut c.tip_mm, 1e3),
-                scaled_in_place(&mut c.orientation_rad, 1e3),
+                scaled_in_place(&mut m.tip_mm, 1e3),
+                scaled_in_place(&mut m.orientation_rad, 1e3),
             )
         })
         .unzip();
     {
         // The worst blocks are marked among the measured samples only (feed moves unless
         // --include-rapids), as summary.json's worst_blocks; line 0 is left unmarked.
-        let lines: Vec<u32> = run
+        let lines: Vec<u32> = record
             .lines
             .iter()
             .zip(measured)
@@ -602,18 +607,23 @@ pub fn prediction(
 
         // The arc length of the reference tool-tip path, its poses computed one at a time.
         let kin = machine.require_kinematics()?;
-        let ref_pos = run.reference_positions();
+        let ref_pos = record.reference_positions();
         let s = vr::arc_length_mm_of((0..n).map(|k| {
-            let q = kin.model.forward(&kin.axes.at(&ref_pos, k));
+            let q = kin.pose_at(&ref_pos, k);
             [q.p.x, q.p.y, q.p.z]
         }));
-        fn series<'a>(models: &[ModelErrors], s: &'a [f64], v: &'a [Vec<f64>]) -> Vec<Series<'a>> {
+        fn series<'a>(
+            models: &[ModelLabel<'a>],
+            s: &'a [f64],
+            v: &'a [Vec<f64>],
+        ) -> Vec<Series<'a>> {
             models
                 .iter()
                 .zip(v)
                 .map(|(m, y)| Series::line(m.label, m.role, s, y))
                 .collect()
         }
+        let models = labels;
         let labels: Vec<&str> = models.iter().map(|m| m.label).collect();
         report.figure(
             "contour_error.svg",
@@ -646,17 +656,17 @@ pub fn prediction(
         // them. Written before the tracking figure (the file list keeps its order), which
         // takes the axis positions' memory; the tool axes are computed per point as written.
         let kin = machine.require_kinematics()?;
-        let true_pos = models[0].prediction.true_positions();
+        let true_pos = record.truth.positions();
         let tool_axis = |k: usize| {
-            let q = kin.model.forward(&kin.axes.at(&true_pos, k));
+            let q = kin.pose_at(&true_pos, k);
             [q.o.x, q.o.y, q.o.z]
         };
         let axes = Vectors::Computed {
             len: n,
             at: &tool_axis,
         };
-        let mut vtp = VtpPath::contour_with(&true_tip, &tip_t, &or_t, axes, Some(&run.lines));
-        let tags: Vec<String> = models
+        let mut vtp = VtpPath::contour_with(&true_tip, &tip_t, &or_t, axes, Some(&record.lines));
+        let tags: Vec<String> = labels
             .iter()
             .map(|m| m.label.replace('\'', "").replace(' ', "_"))
             .collect();
@@ -674,21 +684,17 @@ pub fn prediction(
     }
     drop((true_tip, tip_t, or_t, tip_m, or_m));
 
-    // Tracking errors: each prediction's axis positions become its errors in place.
-    let labels: Vec<(&str, Role)> = models.iter().map(|m| (m.label, m.role)).collect();
-    let tracks: Vec<Vec<AxisTracking>> = models
-        .into_iter()
-        .map(|m| m.prediction.into_tracking(machine, run))
-        .collect();
+    // Tracking errors: each model set's axis positions become its errors in place.
+    let tracks = prediction_tracking(machine, &mut record);
     let model_tracking: Vec<(&str, Role, &[AxisTracking])> = labels
         .iter()
         .zip(&tracks)
-        .map(|((label, role), t)| (*label, *role, t.as_slice()))
+        .map(|(m, t)| (m.label, m.role, t.as_slice()))
         .collect();
     tracking(
         report,
         "tracking_errors.svg",
-        run,
+        (program, ts, &record.reference),
         (TRUE_MACHINE, Role::TrueMachine),
         &model_tracking,
         "Tracking error x_r − x of each axis the program moves (axes it leaves still are left \
@@ -701,6 +707,43 @@ pub fn prediction(
          point, and each model's errors",
     );
     Ok(())
+}
+
+/// The tracking errors of a prediction, per model set and machine axis, in µm or mdeg: the true
+/// drives' (the same in every set) and the set's, each axis' figures with the set's departure
+/// from the true drive. The model sets' positions become their errors in place.
+fn prediction_tracking(machine: &Machine, record: &mut PredictionRecord) -> Vec<Vec<AxisTracking>> {
+    let true_error: Vec<Vec<f64>> = machine
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            scaled_diff(
+                &record.reference[i],
+                &record.truth.positions[i],
+                a.unit.micro_factor(),
+            )
+        })
+        .collect();
+    let mut out = Vec::new();
+    for set in &mut record.models {
+        let axes = machine
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(i, axis)| {
+                let k = axis.unit.micro_factor();
+                let mut model = std::mem::take(&mut set.positions[i]);
+                let vs = scaled_diff_max_rms(&model, &record.truth.positions[i], k);
+                for (x, r) in model.iter_mut().zip(&record.reference[i]) {
+                    *x = (r - *x) * k;
+                }
+                AxisTracking::new(axis, true_error[i].clone(), Some((model, vs)))
+            })
+            .collect();
+        out.push(axes);
+    }
+    out
 }
 
 /// What a swept machine-file key is, as an axis quantity: the key and, where its name alone
@@ -831,27 +874,240 @@ pub fn sweep(report: &mut RunReport, keys: &[String], outcome: &SweepOutcome) ->
     }
 }
 
-/// The envelopes of a streamed prediction's errors (min and max per time bucket, so no spike is
-/// lost), as polylines `(t, value)`: tool tip µm and orientation mrad, of the true machine, of
-/// the models and of |models − true machine|.
-pub struct StreamedErrors {
-    /// True machine, tool tip, µm.
-    pub true_tip: (Vec<f64>, Vec<f64>),
-    /// Models, tool tip, µm.
-    pub predicted_tip: (Vec<f64>, Vec<f64>),
-    /// |models − true machine|, tool tip, µm.
-    pub discrepancy_tip: (Vec<f64>, Vec<f64>),
-    /// True machine, orientation, mrad.
-    pub true_orientation: (Vec<f64>, Vec<f64>),
-    /// Models, orientation, mrad.
-    pub predicted_orientation: (Vec<f64>, Vec<f64>),
-    /// |models − true machine|, orientation, mrad.
-    pub discrepancy_orientation: (Vec<f64>, Vec<f64>),
+/// Min/max envelope of a signal over fixed time buckets: what a plot of a long signal needs, a
+/// spike never lost (each bucket keeps its extremes).
+#[derive(Debug, Clone)]
+pub struct Envelope {
+    bucket: usize,
+    min: Vec<f64>,
+    max: Vec<f64>,
+}
+
+/// Time buckets of a streamed run's figures: about one per pixel column.
+pub const ENVELOPE_COLUMNS: usize = 2000;
+
+impl Envelope {
+    /// An envelope of `samples` samples in about `columns` buckets.
+    pub fn new(samples: usize, columns: usize) -> Self {
+        let bucket = samples.div_ceil(columns.max(1)).max(1);
+        let n = samples.div_ceil(bucket);
+        Envelope {
+            bucket,
+            min: vec![f64::INFINITY; n],
+            max: vec![f64::NEG_INFINITY; n],
+        }
+    }
+
+    /// Add samples `first..first + values.len()`.
+    pub fn add(&mut self, first: usize, values: impl IntoIterator<Item = f64>) {
+        for (k, v) in values.into_iter().enumerate() {
+            let b = (first + k) / self.bucket;
+            if b < self.min.len() {
+                self.min[b] = self.min[b].min(v);
+                self.max[b] = self.max[b].max(v);
+            }
+        }
+    }
+
+    /// The envelope as a polyline: per bucket its minimum then its maximum, at the bucket's
+    /// first sample time (`ts` per sample).
+    pub fn polyline(&self, ts: f64) -> (Vec<f64>, Vec<f64>) {
+        let mut t = Vec::with_capacity(2 * self.min.len());
+        let mut v = Vec::with_capacity(2 * self.min.len());
+        for (b, (lo, hi)) in self.min.iter().zip(&self.max).enumerate() {
+            if lo.is_finite() {
+                let tb = (b * self.bucket) as f64 * ts;
+                t.extend([tb, tb]);
+                v.extend([*lo, *hi]);
+            }
+        }
+        (t, v)
+    }
+}
+
+/// The reference figure of a streamed run, piece by piece: each axis' velocity envelope.
+pub struct ReferenceEnvelopes {
+    velocity: Vec<Envelope>,
+}
+
+impl ReferenceEnvelopes {
+    /// Envelopes of `axes` axes over `samples` samples.
+    pub fn new(axes: usize, samples: usize) -> ReferenceEnvelopes {
+        ReferenceEnvelopes {
+            velocity: (0..axes)
+                .map(|_| Envelope::new(samples, ENVELOPE_COLUMNS))
+                .collect(),
+        }
+    }
+
+    /// Draws `reference.svg` into `report`: `moved` says which axes the program moves.
+    pub fn finish(
+        self,
+        report: &mut RunReport,
+        machine: &Machine,
+        (program, ts): (&str, f64),
+        moved: &[bool],
+    ) -> Result<()> {
+        let lines: Vec<(Vec<f64>, Vec<f64>)> =
+            self.velocity.iter().map(|e| e.polyline(ts)).collect();
+        let axes: Vec<ReferenceAxis<'_>> = machine
+            .axes
+            .iter()
+            .zip(&lines)
+            .zip(moved)
+            .map(|((a, (t, v)), moved)| ReferenceAxis {
+                name: a.name,
+                unit: a.unit,
+                moved: *moved,
+                t,
+                vel: v,
+            })
+            .collect();
+        reference_axes(report, program, &axes)
+    }
+}
+
+impl Sink<ReferenceChunk> for ReferenceEnvelopes {
+    type Error = crate::Error;
+    fn piece(&mut self, c: &ReferenceChunk) -> Result<()> {
+        for (e, v) in self.velocity.iter_mut().zip(&c.vel) {
+            e.add(c.first, v.iter().copied());
+        }
+        Ok(())
+    }
+}
+
+/// The contour-error figure of a streamed prediction, piece by piece: min/max envelopes of the
+/// true machine's and the first model set's errors and of their difference, tool tip in µm and
+/// orientation in mrad.
+pub struct ContourEnvelopes {
+    /// True tip, model tip, |Δ tip|, true orientation, model orientation, |Δ orientation|.
+    env: [Envelope; 6],
+}
+
+impl ContourEnvelopes {
+    /// Envelopes over `samples` samples.
+    pub fn new(samples: usize) -> ContourEnvelopes {
+        ContourEnvelopes {
+            env: std::array::from_fn(|_| Envelope::new(samples, ENVELOPE_COLUMNS)),
+        }
+    }
+
+    /// Draws `contour_error.svg` into `report`.
+    pub fn finish(self, report: &mut RunReport, (program, ts): (&str, f64)) -> Result<()> {
+        let [tt, pt, dt, to, po, dor] = self.env.map(|e| e.polyline(ts));
+        prediction_streamed(report, program, [tt, pt, dt, to, po, dor])
+    }
+}
+
+impl Sink<PredictPiece> for ContourEnvelopes {
+    type Error = crate::Error;
+    fn piece(&mut self, p: &PredictPiece) -> Result<()> {
+        let Some(m) = p.models.first() else {
+            return Ok(());
+        };
+        let [tt, pt, dt, to, po, dor] = &mut self.env;
+        let t = &p.truth;
+        let k = 1e3;
+        tt.add(p.first, t.tip_mm.iter().map(|x| x * k));
+        pt.add(p.first, m.tip_mm.iter().map(|x| x * k));
+        dt.add(
+            p.first,
+            t.tip_mm
+                .iter()
+                .zip(&m.tip_mm)
+                .map(|(x, y)| (y - x).abs() * k),
+        );
+        to.add(p.first, t.orientation_rad.iter().map(|x| x * k));
+        po.add(p.first, m.orientation_rad.iter().map(|x| x * k));
+        dor.add(
+            p.first,
+            t.orientation_rad
+                .iter()
+                .zip(&m.orientation_rad)
+                .map(|(x, y)| (y - x).abs() * k),
+        );
+        Ok(())
+    }
+}
+
+/// The tracking figure of a streamed simulation, piece by piece: per axis the min/max envelope
+/// of the true drive's tracking error (encoder reading) and of the model's, µm or mdeg.
+pub struct TrackingEnvelopes {
+    truth: Vec<Envelope>,
+    model: Vec<Envelope>,
+    scale: Vec<f64>,
+    models: bool,
+}
+
+impl TrackingEnvelopes {
+    /// Envelopes of `machine`'s axes over `samples` samples, with the models' when `models`.
+    pub fn new(machine: &Machine, samples: usize, models: bool) -> TrackingEnvelopes {
+        let axes = machine.axes.len();
+        let env = || {
+            (0..axes)
+                .map(|_| Envelope::new(samples, ENVELOPE_COLUMNS))
+                .collect()
+        };
+        TrackingEnvelopes {
+            truth: env(),
+            model: env(),
+            scale: machine.axes.iter().map(|a| a.unit.micro_factor()).collect(),
+            models,
+        }
+    }
+
+    /// Draws `tracking.svg` into `report`: `moved` says which axes the program moves.
+    pub fn finish(
+        self,
+        report: &mut RunReport,
+        machine: &Machine,
+        (program, ts): (&str, f64),
+        moved: &[bool],
+    ) -> Result<()> {
+        let truth: Vec<(Vec<f64>, Vec<f64>)> = self.truth.iter().map(|e| e.polyline(ts)).collect();
+        let model: Vec<(Vec<f64>, Vec<f64>)> = self.model.iter().map(|e| e.polyline(ts)).collect();
+        let axes: Vec<StreamedAxis<'_>> = machine
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(i, a)| StreamedAxis {
+                name: a.name,
+                unit: a.unit,
+                moved: moved[i],
+                truth: (&truth[i].0, &truth[i].1),
+                model: self
+                    .models
+                    .then(|| (model[i].0.as_slice(), model[i].1.as_slice())),
+            })
+            .collect();
+        simulation_tracking_streamed(report, program, &axes)
+    }
+}
+
+impl Sink<SimulatePiece> for TrackingEnvelopes {
+    type Error = crate::Error;
+    fn piece(&mut self, p: &SimulatePiece) -> Result<()> {
+        for (i, k) in self.scale.iter().enumerate() {
+            let r = &p.reference[i];
+            let x = &p.traces[i].position;
+            self.truth[i].add(p.first, r.iter().zip(x).map(|(r, x)| (r - x) * k));
+            if let Some(pred) = &p.predicted {
+                self.model[i].add(p.first, r.iter().zip(&pred[i]).map(|(r, x)| (r - x) * k));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// `contour_error.svg` of a streamed prediction: the errors against time, each drawn from its
-/// min/max envelope per pixel column (every extreme kept).
-pub fn prediction_streamed(report: &mut RunReport, file: &str, e: &StreamedErrors) -> Result<()> {
+/// min/max envelope per pixel column (every extreme kept), as polylines `(t, value)`: true
+/// machine, model and |model − true machine|, tool tip (µm) then orientation (mrad).
+fn prediction_streamed(
+    report: &mut RunReport,
+    file: &str,
+    [tt, pt, dt, to, po, dor]: [(Vec<f64>, Vec<f64>); 6],
+) -> Result<()> {
     fn line<'a>(label: &'static str, role: Role, s: &'a (Vec<f64>, Vec<f64>)) -> Series<'a> {
         Series::line(label, role, &s.0, &s.1)
     }
@@ -859,24 +1115,24 @@ pub fn prediction_streamed(report: &mut RunReport, file: &str, e: &StreamedError
         vr::Panel::new(
             Axis::linear("tool-tip contour error", units::UM),
             vec![
-                line(TRUE_MACHINE, Role::TrueMachine, &e.true_tip),
-                line(VCNC_MODEL, Role::Model, &e.predicted_tip),
+                line(TRUE_MACHINE, Role::TrueMachine, &tt),
+                line(VCNC_MODEL, Role::Model, &pt),
             ],
         ),
         vr::Panel::new(
             Axis::linear("|model − true machine|, tool tip", units::UM),
-            vec![line(VCNC_MODEL, Role::Model, &e.discrepancy_tip)],
+            vec![line(VCNC_MODEL, Role::Model, &dt)],
         ),
         vr::Panel::new(
             Axis::linear("orientation contour error", "mrad"),
             vec![
-                line(TRUE_MACHINE, Role::TrueMachine, &e.true_orientation),
-                line(VCNC_MODEL, Role::Model, &e.predicted_orientation),
+                line(TRUE_MACHINE, Role::TrueMachine, &to),
+                line(VCNC_MODEL, Role::Model, &po),
             ],
         ),
         vr::Panel::new(
             Axis::linear("|model − true machine|, orientation", "mrad"),
-            vec![line(VCNC_MODEL, Role::Model, &e.discrepancy_orientation)],
+            vec![line(VCNC_MODEL, Role::Model, &dor)],
         ),
     ];
     let fig = vr::LineFigure::new(
@@ -898,11 +1154,11 @@ pub fn prediction_streamed(report: &mut RunReport, file: &str, e: &StreamedError
 
 /// One axis of a streamed simulation's tracking figure: min/max envelopes over time of its
 /// tracking error (and the model's), µm or mdeg.
-pub struct StreamedAxis<'a> {
+struct StreamedAxis<'a> {
     /// The axis.
-    pub name: vcnc_gcode::AxisName,
+    pub name: AxisName,
     /// mm or deg.
-    pub unit: vcnc_machine::Unit,
+    pub unit: Unit,
     /// The program moves it (else it is listed, not drawn).
     pub moved: bool,
     /// The true drive's tracking error envelope `(t, value)`.
@@ -913,7 +1169,7 @@ pub struct StreamedAxis<'a> {
 
 /// `tracking.svg` of a streamed simulation: per moved axis the tracking error x_r − x of the
 /// true drive (encoder reading) and of the model, each from its min/max envelope over time.
-pub fn simulation_tracking_streamed(
+fn simulation_tracking_streamed(
     report: &mut RunReport,
     file: &str,
     axes: &[StreamedAxis<'_>],
@@ -959,7 +1215,7 @@ pub fn simulation_tracking_streamed(
 
 /// A figure's note naming the axes the program leaves still (not drawn); empty when it moves
 /// them all.
-fn still_note(still: impl Iterator<Item = vcnc_gcode::AxisName>) -> String {
+fn still_note(still: impl Iterator<Item = AxisName>) -> String {
     let names: Vec<&str> = still.map(|a| a.as_str()).collect();
     if names.is_empty() {
         String::new()

@@ -14,15 +14,16 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
 use arrow_array::{ArrayRef, Float64Array, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
 use parquet::arrow::ArrowWriter;
 use parquet::basic::Compression;
 use parquet::file::properties::WriterProperties;
 
-use crate::bad_input;
-use crate::output::{fail_point, format_num};
+use vcnc_pipeline::{AxisName, Machine, PredictPiece, ReferenceChunk, SimulatePiece, Sink, Source};
+
+use crate::files::{format_num, persist, temp_file};
+use crate::{Error, Result};
 
 /// Tables with at most this many rows are CSV under `--format auto`.
 pub const AUTO_CSV_ROWS: usize = 200_000;
@@ -31,7 +32,7 @@ pub const AUTO_CSV_ROWS: usize = 200_000;
 pub const ROW_GROUP_ROWS: usize = 65_536;
 
 /// `--format`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Format {
     /// CSV up to 200 000 rows, Parquet beyond.
     #[default]
@@ -159,12 +160,11 @@ impl TableWriter {
     pub fn write(&mut self, columns: &[&[f64]]) -> Result<()> {
         let n = columns.first().map_or(0, |c| c.len());
         if columns.len() != self.header.len() || columns.iter().any(|c| c.len() != n) {
-            anyhow::bail!(
-                "{}: internal error: {} columns of unequal length for a {}-column table",
-                self.stem,
-                columns.len(),
-                self.header.len()
-            );
+            return Err(Error::Columns {
+                table: self.stem.clone(),
+                columns: columns.len(),
+                width: self.header.len(),
+            });
         }
         // Rows kept by the decimation: global index ≡ 0 (mod N).
         let first = (self.decimate - self.rows_in % self.decimate) % self.decimate;
@@ -241,7 +241,7 @@ impl TableWriter {
     fn emit(&mut self, mut cols: Vec<Vec<f64>>) -> Result<()> {
         let n = cols.first().map_or(0, Vec::len);
         match &mut self.state {
-            State::Csv(w, _) => {
+            State::Csv(w, path) => {
                 let mut line = String::with_capacity(16 * cols.len());
                 for k in 0..n {
                     line.clear();
@@ -252,26 +252,29 @@ impl TableWriter {
                         line.push_str(&format_num(c[k]));
                     }
                     line.push('\n');
-                    w.write_all(line.as_bytes())?;
+                    w.write_all(line.as_bytes())
+                        .map_err(|e| Error::io(format!("cannot write {}", path.display()), e))?;
                 }
             }
-            State::Parquet(w, schema, _) if n <= ROW_GROUP_ROWS => {
+            State::Parquet(w, schema, path) if n <= ROW_GROUP_ROWS => {
                 let arrays: Vec<ArrayRef> = cols
                     .drain(..)
                     .map(|c| Arc::new(Float64Array::from(c)) as ArrayRef)
                     .collect();
-                let batch = RecordBatch::try_new(schema.clone(), arrays)?;
-                w.write(&batch)?;
+                let batch =
+                    RecordBatch::try_new(schema.clone(), arrays).map_err(|e| encode(path, e))?;
+                w.write(&batch).map_err(|e| encode(path, e))?;
             }
-            State::Parquet(w, schema, _) => {
+            State::Parquet(w, schema, path) => {
                 for start in (0..n).step_by(ROW_GROUP_ROWS) {
                     let end = (start + ROW_GROUP_ROWS).min(n);
                     let arrays: Vec<ArrayRef> = cols
                         .iter()
                         .map(|c| Arc::new(Float64Array::from(c[start..end].to_vec())) as ArrayRef)
                         .collect();
-                    let batch = RecordBatch::try_new(schema.clone(), arrays)?;
-                    w.write(&batch)?;
+                    let batch = RecordBatch::try_new(schema.clone(), arrays)
+                        .map_err(|e| encode(path, e))?;
+                    w.write(&batch).map_err(|e| encode(path, e))?;
                 }
             }
             State::Pending(_) | State::Done => {}
@@ -281,17 +284,8 @@ impl TableWriter {
 
     fn temp(&self) -> Result<tempfile::NamedTempFile> {
         std::fs::create_dir_all(&self.dir)
-            .with_context(|| format!("cannot create folder {}", self.dir.display()))?;
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(".vcnc-").suffix(".tmp");
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o644));
-        }
-        builder
-            .tempfile_in(&self.dir)
-            .with_context(|| format!("cannot create a temporary file in {}", self.dir.display()))
+            .map_err(|e| Error::io(format!("cannot create folder {}", self.dir.display()), e))?;
+        temp_file(&self.dir)
     }
 
     fn names(&self) -> Vec<&str> {
@@ -301,7 +295,7 @@ impl TableWriter {
     fn open_csv(&self) -> Result<State> {
         let path = self.dir.join(format!("{}.csv", self.stem));
         let mut w = BufWriter::with_capacity(1 << 20, self.temp()?);
-        writeln!(w, "{}", self.names().join(","))?;
+        writeln!(w, "{}", self.names().join(",")).map_err(|e| self.write_error(&path, e))?;
         Ok(State::Csv(w, path))
     }
 
@@ -318,8 +312,13 @@ impl TableWriter {
             .set_dictionary_enabled(false)
             .set_max_row_group_row_count(Some(ROW_GROUP_ROWS))
             .build();
-        let w = ArrowWriter::try_new(self.temp()?, schema.clone(), Some(props))?;
+        let w = ArrowWriter::try_new(self.temp()?, schema.clone(), Some(props))
+            .map_err(|e| encode(&path, e))?;
         Ok(State::Parquet(Box::new(w), schema, path))
+    }
+
+    fn write_error(&self, path: &Path, e: std::io::Error) -> Error {
+        Error::io(format!("cannot write {}", path.display()), e)
     }
 
     /// Finishes the file and renames it into place; returns its path.
@@ -334,17 +333,19 @@ impl TableWriter {
             self.emit(buf)?;
         }
         let (tmp, path) = match std::mem::replace(&mut self.state, State::Done) {
-            State::Csv(w, path) => (w.into_inner().map_err(|e| e.into_error())?, path),
-            State::Parquet(w, _, path) => (w.into_inner()?, path),
+            State::Csv(w, path) => {
+                let tmp = w
+                    .into_inner()
+                    .map_err(|e| self.write_error(&path, e.into_error()))?;
+                (tmp, path)
+            }
+            State::Parquet(w, _, path) => (w.into_inner().map_err(|e| encode(&path, e))?, path),
             State::Pending(_) | State::Done => unreachable!("opened above"),
         };
         tmp.as_file()
             .sync_all()
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        fail_point(&path)?;
-        tmp.persist(&path)
-            .map_err(|e| e.error)
-            .with_context(|| format!("cannot move the new {} into place", path.display()))?;
+            .map_err(|e| self.write_error(&path, e))?;
+        persist(tmp, &path)?;
         Ok(path)
     }
 
@@ -371,10 +372,11 @@ fn select(header: &[String], patterns: Option<&[String]>, stem: &str) -> Result<
     };
     for p in patterns {
         if !header.iter().any(|h| matches(p, h)) {
-            return Err(bad_input(format!(
-                "--columns {p}: the {stem} table has no such column; it has {}",
-                header.join(" ")
-            )));
+            return Err(Error::UnknownColumn {
+                pattern: p.clone(),
+                table: stem.to_string(),
+                available: header.join(" "),
+            });
         }
     }
     Ok((0..header.len())
@@ -431,37 +433,245 @@ pub fn write_table_rows(
     w.finish()
 }
 
-/// Writes a piece of a streamed run's rows from inside the stream's callback. A failure is kept
-/// in `failed` and stops the stream; [`streamed_result`] then reports it.
-pub fn write_streamed(
-    writer: &mut TableWriter,
-    cols: &[&[f64]],
-    failed: &mut Option<anyhow::Error>,
-) -> std::result::Result<(), vcnc_pipeline::Error> {
-    writer.write(cols).map_err(|e| {
-        *failed = Some(e);
-        vcnc_pipeline::Error::Usage("the table could not be written".into())
-    })
-}
-
-/// The result of a streamed run whose table was written by [`write_streamed`]: the table's
-/// failure if it stopped the run, else the run's own result.
-pub fn streamed_result<T>(
-    result: std::result::Result<T, vcnc_pipeline::Error>,
-    failed: Option<anyhow::Error>,
-) -> Result<T> {
-    match failed {
-        Some(e) => Err(e),
-        None => Ok(result?),
-    }
-}
-
 /// Parses `--columns a,b,c*`.
 pub fn parse_columns(s: &str) -> Vec<String> {
     s.split(',')
         .map(|c| c.trim().to_string())
         .filter(|c| !c.is_empty())
         .collect()
+}
+
+/// Columns of `reference.csv`: `t`, the tool tip `px py pz` for TCP programs, then per axis
+/// position, velocity and acceleration.
+pub fn reference_header(tcp: bool, axes: &[AxisName]) -> Vec<String> {
+    let mut header = vec!["t".to_string()];
+    if tcp {
+        header.extend(["px", "py", "pz"].map(String::from));
+    }
+    for a in axes {
+        header.push(a.to_string());
+        header.push(format!("{a}_vel"));
+        header.push(format!("{a}_acc"));
+    }
+    header
+}
+
+/// The `reference` table of `vcnc interpolate`, written piece by piece.
+pub struct ReferenceTable<'m> {
+    writer: TableWriter,
+    machine: &'m Machine,
+    ts: f64,
+    tcp: bool,
+    t: Vec<f64>,
+}
+
+impl<'m> ReferenceTable<'m> {
+    /// The table `DIR/reference.csv` (or `.parquet`) of the program `source` on `machine`.
+    pub fn create(
+        out: &Path,
+        machine: &'m Machine,
+        source: &Source<'_>,
+        opts: &TableOptions,
+    ) -> Result<ReferenceTable<'m>> {
+        let names: Vec<AxisName> = machine.axes.iter().map(|a| a.name).collect();
+        let tcp = source.has_tcp();
+        let header = reference_header(tcp, &names);
+        Ok(ReferenceTable {
+            writer: TableWriter::create_sized(out, "reference", header, opts, Some(source.len()))?,
+            machine,
+            ts: source.ts(),
+            tcp,
+            t: Vec::new(),
+        })
+    }
+
+    /// Finishes the file; returns its path.
+    pub fn finish(self) -> Result<PathBuf> {
+        self.writer.finish()
+    }
+}
+
+impl Sink<ReferenceChunk> for ReferenceTable<'_> {
+    type Error = Error;
+    fn piece(&mut self, c: &ReferenceChunk) -> Result<()> {
+        self.t.clear();
+        self.t
+            .extend((c.first..c.first + c.len()).map(|k| k as f64 * self.ts));
+        let tip = if self.tcp {
+            Some(vcnc_pipeline::interpolate::tool_tips(self.machine, c)?)
+        } else {
+            None
+        };
+        let mut cols: Vec<&[f64]> = vec![&self.t];
+        if let Some(tip) = &tip {
+            cols.extend(tip.iter().map(Vec::as_slice));
+        }
+        for i in 0..c.pos.len() {
+            cols.extend([c.pos[i].as_slice(), &c.vel[i], &c.acc[i]]);
+        }
+        self.writer.write(&cols)
+    }
+}
+
+/// The columns of `trace.csv`: `t`, then per axis `<A>_ref`, `<A>_act` and, with models,
+/// `<A>_model`.
+pub fn trace_header(axes: &[AxisName], models: bool) -> Vec<String> {
+    let mut header = vec!["t".to_string()];
+    for a in axes {
+        header.push(format!("{a}_ref"));
+        header.push(format!("{a}_act"));
+        if models {
+            header.push(format!("{a}_model"));
+        }
+    }
+    header
+}
+
+/// The `trace` table of `vcnc simulate`, written piece by piece.
+pub struct TraceTable {
+    writer: TableWriter,
+    ts: f64,
+    t: Vec<f64>,
+}
+
+impl TraceTable {
+    /// The table `DIR/trace.csv` (or `.parquet`) of the program `source` on `machine`, with a
+    /// column per axis for the models when `models`.
+    pub fn create(
+        out: &Path,
+        machine: &Machine,
+        source: &Source<'_>,
+        models: bool,
+        opts: &TableOptions,
+    ) -> Result<TraceTable> {
+        let names: Vec<AxisName> = machine.axes.iter().map(|a| a.name).collect();
+        let header = trace_header(&names, models);
+        Ok(TraceTable {
+            writer: TableWriter::create_sized(out, "trace", header, opts, Some(source.len()))?,
+            ts: source.ts(),
+            t: Vec::new(),
+        })
+    }
+
+    /// Finishes the file; returns its path.
+    pub fn finish(self) -> Result<PathBuf> {
+        self.writer.finish()
+    }
+}
+
+impl Sink<SimulatePiece> for TraceTable {
+    type Error = Error;
+    fn piece(&mut self, p: &SimulatePiece) -> Result<()> {
+        self.t.clear();
+        self.t
+            .extend((p.first..p.first + p.len()).map(|k| k as f64 * self.ts));
+        let mut cols: Vec<&[f64]> = vec![&self.t];
+        for i in 0..p.reference.len() {
+            cols.push(&p.reference[i]);
+            cols.push(&p.traces[i].position);
+            if let Some(pred) = &p.predicted {
+                cols.push(&pred[i]);
+            }
+        }
+        self.writer.write(&cols)
+    }
+}
+
+/// Columns of `contour.csv` (axes `axes`, in machine order): `t`, `line`, per axis its
+/// reference, true and predicted positions, the reference, true and predicted poses, and the
+/// four errors (µm, mrad).
+pub fn contour_header(axes: &[AxisName]) -> Vec<String> {
+    let mut header = vec!["t".to_string(), "line".to_string()];
+    for a in axes {
+        header.push(format!("{a}_ref"));
+        header.push(format!("{a}_true"));
+        header.push(format!("{a}_pred"));
+    }
+    let pose = ["px", "py", "pz", "ox", "oy", "oz"];
+    for prefix in ["ref", "true", "pred"] {
+        for nm in pose {
+            header.push(format!("{prefix}_{nm}"));
+        }
+    }
+    header.extend(
+        [
+            "true_contour_um",
+            "pred_contour_um",
+            "true_orientation_mrad",
+            "pred_orientation_mrad",
+        ]
+        .map(String::from),
+    );
+    header
+}
+
+/// The `contour` table of `vcnc predict` (the first model set), written piece by piece.
+pub struct ContourTable {
+    writer: TableWriter,
+    ts: f64,
+    cols: Vec<Vec<f64>>,
+}
+
+impl ContourTable {
+    /// The table `DIR/contour.csv` (or `.parquet`) of the program `source` on `machine`.
+    pub fn create(
+        out: &Path,
+        machine: &Machine,
+        source: &Source<'_>,
+        opts: &TableOptions,
+    ) -> Result<ContourTable> {
+        let names: Vec<AxisName> = machine.axes.iter().map(|a| a.name).collect();
+        let header = contour_header(&names);
+        let width = header.len();
+        Ok(ContourTable {
+            writer: TableWriter::create_sized(out, "contour", header, opts, Some(source.len()))?,
+            ts: source.ts(),
+            cols: vec![Vec::new(); width],
+        })
+    }
+
+    /// Finishes the file; returns its path.
+    pub fn finish(self) -> Result<PathBuf> {
+        self.writer.finish()
+    }
+}
+
+impl Sink<PredictPiece> for ContourTable {
+    type Error = Error;
+    fn piece(&mut self, p: &PredictPiece) -> Result<()> {
+        let Some(model) = p.models.first() else {
+            return Ok(());
+        };
+        self.cols.iter_mut().for_each(Vec::clear);
+        let mut c = self.cols.iter_mut();
+        let mut next = || c.next().expect("one buffer per header column");
+        next().extend((p.first..p.first + p.len()).map(|k| k as f64 * self.ts));
+        next().extend(p.lines.iter().map(|l| f64::from(*l)));
+        for i in 0..p.reference.len() {
+            for s in [&p.reference[i], &p.truth.positions[i], &model.positions[i]] {
+                next().extend_from_slice(s);
+            }
+        }
+        for poses in [&p.reference_poses, &p.truth.poses, &model.poses] {
+            for i in 0..6 {
+                next().extend(
+                    poses
+                        .iter()
+                        .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
+                );
+            }
+        }
+        for e in [
+            &p.truth.tip_mm,
+            &model.tip_mm,
+            &p.truth.orientation_rad,
+            &model.orientation_rad,
+        ] {
+            next().extend(e.iter().map(|x| x * 1000.0));
+        }
+        let refs: Vec<&[f64]> = self.cols.iter().map(Vec::as_slice).collect();
+        self.writer.write(&refs)
+    }
 }
 
 #[cfg(test)]
@@ -650,6 +860,14 @@ mod tests {
         .err()
         .unwrap();
         assert!(e.to_string().contains("--columns Q"), "{e}");
-        assert!(e.downcast_ref::<crate::BadInput>().is_some());
+        assert!(e.is_bad_input());
+    }
+}
+
+/// A Parquet or Arrow encoding failure of the table at `path`.
+fn encode(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Encode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
     }
 }

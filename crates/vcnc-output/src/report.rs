@@ -5,11 +5,13 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
 use vcnc_report::report::report_html;
-use vcnc_report::{FigureEntry, FileEntry, Input, MANIFEST_FILE, Manifest, REPORT_FILE, Table};
+use vcnc_report::{FigureEntry, FileEntry, Input, MANIFEST_FILE, Manifest, Table};
 
-use crate::output::write_atomic;
+pub use vcnc_report::REPORT_FILE;
+
+use crate::files::write_atomic;
+use crate::{Error, Result};
 
 /// The summary every computing command writes; the report shows it as tables.
 const SUMMARY_FILE: &str = "summary.json";
@@ -81,7 +83,10 @@ impl RunReport {
                     .push(format!("{file} not drawn: {e}"));
                 Ok(())
             }
-            Err(e) => Err(anyhow::Error::new(e).context(format!("cannot draw {file}"))),
+            Err(source) => Err(Error::Draw {
+                file: file.to_string(),
+                source,
+            }),
         }
     }
 
@@ -121,9 +126,13 @@ impl RunReport {
         if self.dir.join(SUMMARY_FILE).is_file() {
             self.manifest.summary = Some(SUMMARY_FILE.to_string());
         }
-        let mut text = serde_json::to_string_pretty(&self.manifest)?;
+        let path = self.dir.join(MANIFEST_FILE);
+        let mut text = serde_json::to_string_pretty(&self.manifest).map_err(|e| Error::Encode {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
         text.push('\n');
-        write_atomic(&self.dir.join(MANIFEST_FILE), text.as_bytes())?;
+        write_atomic(&path, text.as_bytes())?;
         write_report(&self.dir, &self.manifest)?;
         Ok(())
     }
@@ -131,12 +140,27 @@ impl RunReport {
 
 /// Builds `DIR/report.html` from the folder's manifest, summary and figures; returns its path.
 /// Errors reading them come back as vcnc-report's errors (they name the file); writing the page
-/// is this binary's atomic write.
+/// is an atomic write.
 fn write_report(dir: &Path, manifest: &Manifest) -> Result<PathBuf> {
     let html = report_html(dir, manifest)?;
     let path = dir.join(REPORT_FILE);
     write_atomic(&path, html.as_bytes())?;
     Ok(path)
+}
+
+/// `vcnc report DIR`: rebuilds `report.html` from the folder's own files (manifest, summary,
+/// figures), e.g. after editing a caption in `manifest.json` or copying the folder elsewhere.
+/// A folder without a readable, valid manifest, or whose manifest names a summary or figure
+/// it does not hold, is bad input ([`Error::Folder`]); failing to write the page is a runtime
+/// failure. Returns the manifest and the page's path.
+pub fn rebuild(dir: &Path) -> Result<(Manifest, PathBuf)> {
+    let manifest = Manifest::read(dir).map_err(Error::Folder)?;
+    // Read everything the page needs first, so that a missing figure is reported as the bad
+    // input it is and not as a failed write.
+    let html = report_html(dir, &manifest).map_err(Error::Folder)?;
+    let path = dir.join(REPORT_FILE);
+    write_atomic(&path, html.as_bytes())?;
+    Ok((manifest, path))
 }
 
 /// The vcnc version shown in reports.

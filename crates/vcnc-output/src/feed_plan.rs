@@ -1,0 +1,153 @@
+//! The outputs of `vcnc feed-plan`: the slowed blocks, the figure along the path, the
+//! terminal's table (docs/compensation.md#feed-planning).
+
+use std::path::Path;
+
+use vcnc_pipeline::compensate;
+use vcnc_pipeline::feed_plan::{self, FeedPlan, FeedPlanSummary, PlanFigures};
+use vcnc_pipeline::{ContourReport, Machine, Run};
+use vcnc_report::{Axis, LineFigure, Panel, Series, line_figure};
+
+use crate::Result;
+use crate::figures::{self, Role};
+use crate::files::write_csv;
+use crate::report::RunReport;
+use crate::text::table;
+
+/// `blocks.csv`: every line the plan slowed — line, programmed and planned F (the program's
+/// units per minute), factor, predicted largest contour error charged to the line (µm).
+pub fn write_blocks(out: &Path, plan: &FeedPlan) -> Result<()> {
+    let slowed: Vec<_> = plan.lines.iter().filter(|l| l.factor < 1.0).collect();
+    let col = |f: fn(&feed_plan::PlannedLine) -> f64| -> Vec<f64> {
+        slowed.iter().map(|l| f(l)).collect()
+    };
+    let cols = [
+        col(|l| f64::from(l.line)),
+        col(|l| l.programmed_f),
+        col(|l| l.planned_f),
+        col(|l| l.factor),
+        col(|l| l.predicted_max_um),
+    ];
+    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+    write_csv(
+        &out.join("blocks.csv"),
+        &[
+            "line",
+            "programmed_f",
+            "planned_f",
+            "factor",
+            "predicted_max_um",
+        ]
+        .map(String::from),
+        &refs,
+    )
+}
+
+/// Tool-tip speed (mm/s) of a run's reference at each sample, and the arc length (mm) of its
+/// reference tip path there.
+fn speed_along(machine: &Machine, run: &Run) -> (Vec<f64>, Vec<f64>) {
+    let poses = run.reference_poses(machine).unwrap_or_default();
+    let mut s = Vec::with_capacity(poses.len());
+    let mut v = Vec::with_capacity(poses.len());
+    let mut acc = 0.0;
+    for (k, p) in poses.iter().enumerate() {
+        let step = poses.get(k + 1).map_or(0.0, |q| (q.p - p.p).norm());
+        s.push(acc);
+        v.push(step / run.ts);
+        acc += step;
+    }
+    (s, v)
+}
+
+/// `feed_plan.svg`: contour errors on the true machine (log) and tool-tip speeds along the
+/// original path, for the original, the per-line plan and the uniform scale.
+pub fn write_figure(
+    report: &mut RunReport,
+    machine: &Machine,
+    plan: &FeedPlan,
+    judged: [&ContourReport; 3],
+    tolerance_um: f64,
+) -> Result<()> {
+    let runs: [(&str, Role, &Run); 3] = [
+        ("original program", Role::Reference, &plan.original),
+        ("per-line feeds", Role::TrueMachine, &plan.plan.run),
+        ("uniform feed scale", Role::Other(2), &plan.uniform.run),
+    ];
+    let pos: Vec<Vec<f64>> = judged
+        .iter()
+        .map(|j| compensate::path_position_mm(machine, &plan.original, j))
+        .collect();
+    let err: Vec<Vec<f64>> = judged
+        .iter()
+        .map(|j| j.tip_mm.iter().map(|e| (e * 1e3).max(1e-3)).collect())
+        .collect();
+    let speeds: Vec<(Vec<f64>, Vec<f64>)> =
+        runs.iter().map(|r| speed_along(machine, r.2)).collect();
+    let tol = vec![tolerance_um; 2];
+    let ends = [0.0, pos[0].last().copied().unwrap_or(1.0)];
+    let mut e_series: Vec<Series> = runs
+        .iter()
+        .zip(pos.iter().zip(&err))
+        .map(|((label, role, _), (x, y))| Series::line(*label, *role, x, y))
+        .collect();
+    e_series.push(Series::line("tolerance", Role::Other(1), &ends, &tol));
+    let v_series: Vec<Series> = runs
+        .iter()
+        .zip(&speeds)
+        .map(|((label, role, _), (x, y))| Series::line(*label, *role, x, y))
+        .collect();
+    let fig = line_figure(&LineFigure::new(
+        "feed planning: contour errors on the true machine and tool-tip speeds",
+        Axis::linear("position along the programmed tool-tip path", "mm"),
+        vec![
+            Panel::new(Axis::log("tool-tip contour error", "µm"), e_series),
+            Panel::new(Axis::log("tool-tip speed", "mm/s"), v_series),
+        ],
+    ));
+    report.figure(
+        "feed_plan.svg",
+        fig,
+        "Tool-tip contour errors of the true machine along the programmed path (the original, \
+         the per-line feeds and the uniform feed scale, all against the original path) with the \
+         tolerance; below, the tool-tip speed of each.",
+        figures::section::CONTOUR,
+    )
+}
+
+/// The terminal table of a feed plan and its one-line verdict.
+pub fn tables(s: &FeedPlanSummary) -> String {
+    let row = |name: &str, f: &PlanFigures| {
+        vec![
+            name.to_string(),
+            format!("{:.3}", f.cycle_time_s),
+            format!("{:.3}", f.predicted.contour_max_um),
+            format!("{:.3}", f.true_machine.contour_max_um),
+            format!("{:.4}", f.true_machine.orientation_max_mrad),
+        ]
+    };
+    let rows = vec![
+        row("original", &s.original),
+        row("per-line feeds", &s.planned),
+        row(&format!("uniform x{:.4}", s.uniform_factor), &s.uniform),
+    ];
+    let mut out = table(
+        &[
+            "program",
+            "cycle [s]",
+            "predicted max [um]",
+            "true max [um]",
+            "true orientation max [mrad]",
+        ],
+        &rows,
+    );
+    out.push_str(&format!(
+        "tolerance {:.3} um: per-line feeds {:.1} % shorter than the uniform scale; {} of {} lines slowed (smallest factor {:.4})",
+        s.tolerance_um,
+        100.0 * s.saving_vs_uniform,
+        s.lines_slowed,
+        s.lines,
+        s.min_factor
+    ));
+    out.push('\n');
+    out
+}
