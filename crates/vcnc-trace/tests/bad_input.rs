@@ -319,14 +319,24 @@ fn cases() -> Vec<Case> {
             &["t.txt:21:", "2 of 3 fields"],
         ),
         case(
-            "tncscope: COUNT differs from the data",
+            "tncscope: data stop before COUNT (a cut export)",
             "t.txt",
             tnc(&[("COUNT=3", "COUNT=4")]),
+            |e| matches!(e, E::Truncated { line: 21, .. }),
+            &[
+                "t.txt:21:",
+                "the data stop after 3 of the 4 samples curve 'X s soll' declares (COUNT, line 9)",
+            ],
+        ),
+        case(
+            "tncscope: COUNT smaller than the data",
+            "t.txt",
+            tnc(&[("COUNT=3", "COUNT=2")]),
             |e| {
                 matches!(
                     e,
                     E::CountMismatch {
-                        declared: 4,
+                        declared: 2,
                         found: 3,
                         ..
                     }
@@ -334,7 +344,7 @@ fn cases() -> Vec<Case> {
             },
             &[
                 "t.txt:9:",
-                "'X s soll' holds 3 samples where 4 are expected",
+                "'X s soll' holds 3 samples where 2 are expected",
             ],
         ),
         case(
@@ -342,7 +352,10 @@ fn cases() -> Vec<Case> {
             "t.txt",
             tnc(&[("CYCLETIME=600\n%[DATA]", "%[DATA]")]),
             |e| matches!(e, E::Header { .. }),
-            &["t.txt:11:", "'X s ist' has no CYCLETIME"],
+            &[
+                "t.txt:11:",
+                "'X s ist' has no SAMPLING (recording interval) and no CYCLETIME",
+            ],
         ),
         case(
             "tncscope: row longer than the curves",
@@ -438,7 +451,10 @@ fn cases() -> Vec<Case> {
             "s.xml",
             sinu(&[("f2=\"0.15\"", "f3=\"0.15\"")]),
             |e| matches!(e, E::Header { .. }),
-            &["s.xml:9:", "'f3' refers to no declared dataSignal"],
+            &[
+                "s.xml:9:",
+                "record attribute 'f3' is neither 'time' nor a declared dataSignal (declared: f1, f2)",
+            ],
         ),
         case(
             "sinumerik: record without time",
