@@ -61,7 +61,19 @@ fn corpus() -> Vec<(&'static str, ReadOptions, PairOptions)> {
             PairOptions::default(),
         ),
         ("halsampler/xz-tagged.txt", one_ms.clone(), longest.clone()),
-        ("halsampler/plain.txt", one_ms, plain_pair),
+        ("halsampler/plain.txt", one_ms.clone(), plain_pair),
+        (
+            "halsampler/pid-loop.txt",
+            one_ms,
+            PairOptions {
+                map: vec![vcnc_trace::AxisMap {
+                    axis: AxisName::X,
+                    nominal: vcnc_trace::ChannelRef::Name("pin.0".into()),
+                    actual: vcnc_trace::ChannelRef::Name("pin.1".into()),
+                }],
+                ..PairOptions::default()
+            },
+        ),
         (
             "tncscope/xyzc.txt",
             ReadOptions::default(),

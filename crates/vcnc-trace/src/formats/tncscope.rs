@@ -237,7 +237,7 @@ struct Decl {
 /// A `SAMPLING` or `CYCLETIME` value, µs → s.
 fn micros(file: &str, key: &str, name: &str, (v, l): (&str, usize)) -> Result<(f64, usize), Error> {
     match text::parse_f64(v.as_bytes(), true) {
-        Ok(us) if us > 0.0 => Ok((us * 1e-6, l)),
+        Ok(us) if us > 0.0 => Ok((us / 1e6, l)),
         _ => Err(header(
             file,
             l,
