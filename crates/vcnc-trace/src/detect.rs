@@ -25,10 +25,11 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
             }
             if memchr::memmem::find(head, b"<dataSignal").is_some()
                 || memchr::memmem::find(head, b"<traceData").is_some()
+                || memchr::memmem::find(head, b"<traceSession").is_some()
             {
                 Ok(())
             } else {
-                Err("XML without <traceData> or <dataSignal>".to_string())
+                Err("XML without <traceSession>, <traceData> or <dataSignal>".to_string())
             }
         }
         Format::TncScope => {
@@ -149,7 +150,7 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
 ///
 /// | # | format | signature |
 /// |---|--------|-----------|
-/// | 1 | Sinumerik servo trace | first non-blank character `<`, and `<dataSignal` or `<traceData` in the examined part |
+/// | 1 | Sinumerik servo trace | first non-blank character `<`, and `<traceSession`, `<traceData` or `<dataSignal` in the examined part |
 /// | 2 | TNCscope | first non-blank line starts with `%TNCscope` (any case) |
 /// | 3 | halscope table (2.9+) | first line `# Sampling period is N ns` |
 /// | 4 | halscope pairs (before 2.9) | first line `Sampling period is N ns` |

@@ -29,11 +29,33 @@ fn secs(v: &f64) -> String {
         .map_or_else(|_| v.to_string(), |r| r.to_string())
 }
 
+fn system_name(system: u8) -> &'static str {
+    match system {
+        1 => "the motor encoder",
+        2 => "the direct measuring system",
+        _ => "a measuring system",
+    }
+}
+
 fn list(names: &[String]) -> String {
     if names.is_empty() {
         "none".to_string()
     } else {
         names.join(", ")
+    }
+}
+
+/// What a refusal of an axis without an axis letter suggests.
+fn axis_hint(number: &Option<u32>) -> String {
+    match number {
+        Some(n) => format!(
+            "it is axis number {n} of the file, which no axis map names: pass --axis-map {n}=A \
+             (A its machine axis letter), or --axis A alone for a file of one axis"
+        ),
+        None => "its name holds no axis letter (X Y Z A B C) or joint number: pass --axis A \
+                 --xr-col NOMINAL --x-col ACTUAL (names or 0-based columns from `vcnc trace \
+                 info`), or --axis A alone for a file of one axis"
+            .to_string(),
     }
 }
 
@@ -166,7 +188,7 @@ pub enum Error {
     },
     /// Samples were lost where the pairing needs contiguous ones (gap policy `Refuse`).
     #[error(
-        "{file}:{line}: channel '{channel}': {} here; identification across lost samples is refused (choose the longest gap-free stretch instead, or record again)",
+        "{file}:{line}: channel '{channel}': {} here; identification across lost samples is refused (use the longest gap-free stretch with --gaps longest, or record again)",
         describe_lost(.lost)
     )]
     Gap {
@@ -181,7 +203,7 @@ pub enum Error {
     },
     /// A position channel's unit is none vcnc knows.
     #[error(
-        "{file}:{line}: channel '{channel}': unknown unit '{unit}' (known: nm µm mm cm m inch deg mdeg rad, and their /s and /min rates)"
+        "{file}:{line}: channel '{channel}': unknown unit '{unit}' (known: nm µm mm cm m inch deg mdeg rad, and their /s and /min rates); say which it is with --units U"
     )]
     UnknownUnit {
         /// The file.
@@ -212,7 +234,7 @@ pub enum Error {
     },
     /// The caller's units contradict the file's.
     #[error(
-        "{file}:{line}: channel '{channel}' is in {file_unit} according to the file, but the units given are {given_unit}"
+        "{file}:{line}: channel '{channel}' is in {file_unit} according to the file, but the units given are {given_unit}: drop --units (it is for files that state no unit)"
     )]
     UnitConflict {
         /// The file.
@@ -227,7 +249,10 @@ pub enum Error {
         given_unit: String,
     },
     /// An axis lacks a nominal or an actual position channel.
-    #[error("{file}: no {quantity} channel for axis {axis}; channels: {}", list(.channels))]
+    #[error(
+        "{file}: no {quantity} channel for axis {axis}; channels: {}; name both with --axis {axis} --xr-col NOMINAL --x-col ACTUAL",
+        list(.channels)
+    )]
     MissingChannel {
         /// The file.
         file: String,
@@ -240,7 +265,7 @@ pub enum Error {
     },
     /// The file has no pair of nominal and actual position channels of one axis.
     #[error(
-        "{file}: no axis has both a nominal and an actual position channel; channels: {}; name them explicitly",
+        "{file}: no axis has both a nominal and an actual position channel; channels: {}; name them explicitly: --axis A --xr-col NOMINAL --x-col ACTUAL (names or 0-based columns from `vcnc trace info`), with --units U where the file states no unit (mm and deg are assumed)",
         list(.channels)
     )]
     NoPositions {
@@ -251,7 +276,8 @@ pub enum Error {
     },
     /// A position channel whose name matches no axis, and no axis was found.
     #[error(
-        "{file}:{line}: channel '{channel}' ({quantity}) matches no axis: its name holds no axis letter (X Y Z A B C) or joint number; assign it to an axis explicitly"
+        "{file}:{line}: channel '{channel}' ({quantity}) matches no axis: {}",
+        axis_hint(.axis_number)
     )]
     NoAxis {
         /// The file.
@@ -262,9 +288,14 @@ pub enum Error {
         channel: String,
         /// Its quantity.
         quantity: Quantity,
+        /// The axis number the file gives it, if any (a Sinumerik NCK axis number).
+        axis_number: Option<u32>,
     },
     /// Several channels qualify for one role.
-    #[error("{file}: axis {axis} has several {quantity} channels: {}; assign one explicitly", list(.channels))]
+    #[error(
+        "{file}: axis {axis} has several {quantity} channels: {}; choose with --axis {axis} --xr-col NOMINAL --x-col ACTUAL",
+        list(.channels)
+    )]
     Ambiguous {
         /// The file.
         file: String,
@@ -287,7 +318,7 @@ pub enum Error {
     },
     /// A channel has no sample period and none was given.
     #[error(
-        "{file}: channel '{channel}' has no sample period (the file states none): give the period"
+        "{file}: channel '{channel}' has no sample period (the file states none): give the period with --ts SECONDS (halsampler: the sampler thread's period times its decimation), or name a time column with --t-col NAME"
     )]
     MissingPeriod {
         /// The file.
@@ -297,7 +328,7 @@ pub enum Error {
     },
     /// The period given contradicts the file's.
     #[error(
-        "{file}:{line}: channel '{channel}': the file's sample period is {} s, the period given is {} s",
+        "{file}:{line}: channel '{channel}': the file's sample period is {} s, the period given is {} s; drop --ts (it is for files without a time base)",
         secs(.file_s),
         secs(.given_s)
     )]
@@ -335,6 +366,73 @@ pub enum Error {
         /// The parser's message.
         message: String,
     },
+    /// A setpoint of one measuring system, and no actual position of that system.
+    #[error(
+        "{file}:{line}: axis {axis}: the setpoint '{setpoint}' is for measuring system {system} ({}), but the file has no actual position of measuring system {system} (actual positions: {}); a setpoint paired with another system's actual would take the lost motion between the systems for drive dynamics: record the actual position of measuring system {system}, or name the channels with --axis {axis} --xr-col NOMINAL --x-col ACTUAL",
+        system_name(*.system),
+        list(.actuals)
+    )]
+    NoActualOfSystem {
+        /// The file.
+        file: String,
+        /// The line of the setpoint's declaration.
+        line: usize,
+        /// The axis.
+        axis: AxisName,
+        /// The setpoint channel.
+        setpoint: String,
+        /// Its measuring system (1 motor encoder, 2 direct).
+        system: u8,
+        /// The axis' actual-position channels, with their systems.
+        actuals: Vec<String>,
+    },
+    /// Lost motion asked of an axis recorded with one measuring system.
+    #[error(
+        "{file}: axis {axis}: lost motion needs the actual positions of both measuring systems (motor encoder and direct scale); the trace has one"
+    )]
+    NoOtherSystem {
+        /// The file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+    },
+    /// Lost motion asked of a trace whose setpoint never reverses.
+    #[error(
+        "{file}: axis {axis}: the setpoint reverses {reversals} time(s); lost motion is measured at reversals and needs at least one, each after a move of more than {} (axis unit)",
+        secs(.hysteresis)
+    )]
+    NoReversal {
+        /// The file.
+        file: String,
+        /// The axis.
+        axis: AxisName,
+        /// Reversals found.
+        reversals: usize,
+        /// The smallest move that counts, axis unit.
+        hysteresis: f64,
+    },
+    /// A command-line option's value is invalid.
+    #[error("--{option} {value}: {what}")]
+    Argument {
+        /// The option, without its dashes (`axis-map`).
+        option: &'static str,
+        /// The value as given.
+        value: String,
+        /// What was expected.
+        what: String,
+    },
+    /// A time column named for a format that has a time base of its own.
+    #[error(
+        "{file}: --t-col {column}: {format} files carry their own time base; --t-col is for delimited text, halsampler and halscope files"
+    )]
+    TimeColumnNotApplicable {
+        /// The file.
+        file: String,
+        /// The column as given.
+        column: String,
+        /// The file's format.
+        format: Format,
+    },
     /// An option is invalid (a non-positive period, a wrong number of channel names, …).
     #[error("{file}: {what}")]
     BadOption {
@@ -362,6 +460,7 @@ impl Error {
             | Error::WrongUnit { line, .. }
             | Error::UnitConflict { line, .. }
             | Error::NoAxis { line, .. }
+            | Error::NoActualOfSystem { line, .. }
             | Error::PeriodConflict { line, .. }
             | Error::Xml { line, .. } => Some(*line),
             _ => None,

@@ -260,6 +260,31 @@ pub(crate) fn quantity_of(name: &str, axis_suffix: &str) -> Quantity {
     }
 }
 
+/// The measuring system a name says a position belongs to: `measuring system 2`,
+/// `Messsystem 2` / `Meßsystem 2`, `MS2`, `2ndEnc` (2: the direct scale; 1: the motor encoder).
+pub(crate) fn measuring_system_of(name: &str) -> Option<u8> {
+    let ws = words(name);
+    let system = |w: &str| match w {
+        "1" | "1st" => Some(1),
+        "2" | "2nd" => Some(2),
+        _ => None,
+    };
+    for (i, w) in ws.iter().enumerate() {
+        let next = ws.get(i + 1).map(String::as_str);
+        let found = match w.as_str() {
+            "system" if i > 0 && ws[i - 1] == "measuring" => next.and_then(system),
+            "messsystem" | "meßsystem" | "ms" => next.and_then(system),
+            "ms1" | "1stenc" | "enc1" => Some(1),
+            "ms2" | "2ndenc" | "enc2" => Some(2),
+            _ => None,
+        };
+        if found.is_some() {
+            return found;
+        }
+    }
+    None
+}
+
 /// The quantity a TNCscope `CHANNELTYPE` states (`s soll`, `s ist`, `v soll`, `v ist`, `I soll`,
 /// `I ist`, …); `None` when the type is not one of these.
 pub(crate) fn tnc_channel_type(t: &str) -> Option<Quantity> {
@@ -379,6 +404,18 @@ mod tests {
         assert_eq!(q("t"), Other);
         assert_eq!(q("sName"), Other);
         assert_eq!(q("iCount"), Other);
+    }
+
+    #[test]
+    fn measuring_systems_from_names() {
+        assert_eq!(
+            measuring_system_of("Position actual value measuring system 2"),
+            Some(2)
+        );
+        assert_eq!(measuring_system_of("Lageistwert Meßsystem 1"), Some(1));
+        assert_eq!(measuring_system_of("Lageistwert Messsystem 2 X1"), Some(2));
+        assert_eq!(measuring_system_of("Position setpoint X1"), None);
+        assert_eq!(measuring_system_of("speed ms 1"), Some(1));
     }
 
     #[test]

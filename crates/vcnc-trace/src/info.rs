@@ -5,7 +5,9 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 use vcnc_axis::AxisName;
 
-use crate::model::{Format, Quantity, Trace};
+use crate::lost_motion::{LostMotion, lost_motion};
+use crate::model::{Channel, Format, Quantity, Trace};
+use crate::pair::{GapPolicy, PairOptions, pair};
 
 /// One channel, described.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -20,12 +22,18 @@ pub struct ChannelInfo {
     pub axis: Option<AxisName>,
     /// How the axis was found (empty when unknown).
     pub axis_source: String,
+    /// The axis number the file gives it (Sinumerik NCK axis), when it does.
+    pub axis_number: Option<u32>,
     /// What it measures.
     pub quantity: Quantity,
+    /// Its measuring system (1 motor encoder, 2 direct), when the file says.
+    pub measuring_system: Option<u8>,
     /// Unit symbol as stated by the file; empty when none.
     pub unit: String,
-    /// Sample period, s, when known.
+    /// Sample period (recording interval), s, when known.
     pub period_s: Option<f64>,
+    /// The signal's own control cycle, s, when the file states it apart (TNCscope `CYCLETIME`).
+    pub cycle_s: Option<f64>,
     /// First sample time, s.
     pub t0_s: f64,
     /// Number of samples.
@@ -49,11 +57,65 @@ pub struct TraceInfo {
     pub metadata: Vec<(String, String)>,
     /// The channels.
     pub channels: Vec<ChannelInfo>,
+    /// Lost motion between the two measuring systems of each axis recorded with both.
+    pub lost_motion: Vec<LostMotion>,
+    /// Why a lost motion was not measured, per axis (or axis number) with two systems.
+    pub notes: Vec<String>,
 }
 
 impl Trace {
-    /// The description of every channel.
+    /// The lost motion of every axis recorded with two measuring systems ([`lost_motion`], on
+    /// the longest gap-free stretch, units as [`crate::pair`] assumes them), and for each such
+    /// axis or axis number where it cannot be measured, why.
+    pub fn lost_motions(&self) -> (Vec<LostMotion>, Vec<String>) {
+        let (mut found, mut notes) = (Vec::new(), Vec::new());
+        let two_systems = |chs: Vec<&Channel>| {
+            let mut m: Vec<u8> = chs.iter().filter_map(|c| c.measuring_system).collect();
+            m.sort_unstable();
+            m.dedup();
+            m.len() >= 2
+        };
+        let actuals = || {
+            self.channels
+                .iter()
+                .filter(|c| c.quantity == Quantity::ActualPosition)
+        };
+        for axis in AxisName::ALL {
+            if !two_systems(actuals().filter(|c| c.axis == Some(axis)).collect()) {
+                continue;
+            }
+            let opts = PairOptions {
+                axes: vec![axis],
+                gaps: GapPolicy::LongestSegment,
+                ..PairOptions::default()
+            };
+            match pair(self, &opts).and_then(|p| lost_motion(&p.axes[0])) {
+                Ok(l) => found.push(l),
+                Err(e) => notes.push(format!("lost motion of axis {axis} not measured: {e}")),
+            }
+        }
+        let mut numbers: Vec<u32> = actuals()
+            .filter(|c| c.axis.is_none())
+            .filter_map(|c| c.axis_number)
+            .collect();
+        numbers.sort_unstable();
+        numbers.dedup();
+        for n in numbers {
+            let chs = actuals()
+                .filter(|c| c.axis.is_none() && c.axis_number == Some(n))
+                .collect();
+            if two_systems(chs) {
+                notes.push(format!(
+                    "axis number {n} has two measuring systems; for its lost motion name its axis with --axis-map {n}=A"
+                ));
+            }
+        }
+        (found, notes)
+    }
+
+    /// The description of every channel, and the lost motion between measuring systems.
     pub fn info(&self) -> TraceInfo {
+        let (lost_motion, notes) = self.lost_motions();
         TraceInfo {
             file: self.file.clone(),
             format: self.format,
@@ -71,9 +133,12 @@ impl Trace {
                         .as_ref()
                         .map(ToString::to_string)
                         .unwrap_or_default(),
+                    axis_number: c.axis_number,
                     quantity: c.quantity,
+                    measuring_system: c.measuring_system,
                     unit: c.unit.as_ref().map(ToString::to_string).unwrap_or_default(),
                     period_s: c.period_s,
+                    cycle_s: c.cycle_s,
                     t0_s: c.t0_s,
                     count: c.samples.len(),
                     gaps: c.gaps.len(),
@@ -81,6 +146,8 @@ impl Trace {
                     line: c.line,
                 })
                 .collect(),
+            lost_motion,
+            notes,
         }
     }
 }
@@ -114,13 +181,22 @@ impl fmt::Display for TraceInfo {
                     c.column.to_string(),
                     c.name.clone(),
                     c.axis.map_or("-".to_string(), |a| a.to_string()),
-                    c.quantity.to_string(),
+                    match c.measuring_system {
+                        Some(m) => format!("{} (system {m})", c.quantity),
+                        None => c.quantity.to_string(),
+                    },
                     if c.unit.is_empty() {
                         "-".to_string()
                     } else {
                         c.unit.clone()
                     },
-                    c.period_s.map_or("?".to_string(), format_period),
+                    match (c.period_s, c.cycle_s) {
+                        (None, _) => "?".to_string(),
+                        (Some(p), Some(cy)) if (cy - p).abs() > 1e-9 * p => {
+                            format!("{} (cycle {})", format_period(p), format_period(cy))
+                        }
+                        (Some(p), _) => format_period(p),
+                    },
                     c.count.to_string(),
                     match (c.gaps, c.lost) {
                         (0, _) => "0".to_string(),
@@ -169,6 +245,18 @@ impl fmt::Display for TraceInfo {
         for r in &rows {
             let cells: Vec<&str> = r.iter().map(String::as_str).collect();
             line(f, &cells)?;
+        }
+        if !self.lost_motion.is_empty() {
+            writeln!(
+                f,
+                "lost motion between the measuring systems at reversals of the setpoint:"
+            )?;
+            for l in &self.lost_motion {
+                writeln!(f, "  {l}")?;
+            }
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
         }
         Ok(())
     }

@@ -33,7 +33,11 @@
 //!    readers keep them, so `trace info` can list them; [`pair()`] refuses to identify across
 //!    them unless told to use the longest gap-free stretch ([`GapPolicy`]).
 //! 5. [`pair()`]: per axis the nominal and actual position channels, in mm or deg, on one time
-//!    grid, with their [`Provenance`].
+//!    grid, with their [`Provenance`]; a setpoint of a named measuring system with the actual
+//!    position of that system, the other system kept beside it, and [`lost_motion()`] between
+//!    the two at the setpoint's reversals.
+//! 6. [`TraceArgs`]: the command line's trace options as typed, checked into [`ReadOptions`]
+//!    and [`PairOptions`] with errors that name the option ([`AxisNumberMap`]: `--axis-map`).
 //!
 //! ```
 //! use vcnc_trace::{pair, read_bytes, Format, PairOptions, ReadOptions};
@@ -58,7 +62,9 @@ mod error;
 pub mod formats;
 pub mod infer;
 mod info;
+mod lost_motion;
 mod model;
+mod options;
 mod pair;
 mod text;
 mod timebase;
@@ -71,7 +77,9 @@ pub use detect::{EXAMINED_BYTES, detect, detect_format};
 pub use error::{Attempt, Error};
 pub use formats::sinumerik::NO_VALUE_ABOVE;
 pub use info::{ChannelInfo, TraceInfo, format_period};
+pub use lost_motion::{LostMotion, REVERSAL_HYSTERESIS, Reversal, lost_motion};
 pub use model::{AxisSource, Channel, ChannelRef, Format, Gap, Quantity, ReadOptions, Trace};
+pub use options::{AxisNumberMap, TraceArgs};
 pub use pair::{
     AxisMap, AxisTrace, ChannelUse, GapPolicy, PairOptions, Paired, Provenance, Segment, Skipped,
     UnitSource, pair,
@@ -103,6 +111,18 @@ pub fn read_bytes(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace,
         Some(f) => f,
         None => detect_format(file, bytes)?,
     };
+    if let Some(c) = &opts.time_column
+        && !matches!(format, Format::Delimited | Format::Halsampler)
+    {
+        return Err(Error::TimeColumnNotApplicable {
+            file: file.to_string(),
+            column: match c {
+                ChannelRef::Name(n) => n.clone(),
+                ChannelRef::Column(i) => i.to_string(),
+            },
+            format,
+        });
+    }
     match format {
         Format::SinumerikTrace => formats::sinumerik::read(file, bytes, opts),
         Format::TncScope => formats::tncscope::read(file, bytes, opts),

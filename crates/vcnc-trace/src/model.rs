@@ -6,6 +6,7 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 use vcnc_axis::AxisName;
 
+use crate::options::AxisNumberMap;
 use crate::units::TraceUnit;
 
 /// The file formats vcnc reads, in the order [`crate::detect`] tries them.
@@ -147,7 +148,16 @@ pub enum AxisSource {
         /// Its value.
         value: String,
     },
-    /// Assigned by the caller ([`crate::AxisMap`]).
+    /// An axis number of the file (the servo's NCK axis number `N` of a Sinumerik path
+    /// `…[u1, N]`) through the caller's axis map ([`ReadOptions::axis_map`]).
+    Number {
+        /// The axis number N.
+        number: u32,
+        /// The axis map used, as written (`1=X,2=Y`).
+        map: String,
+    },
+    /// Assigned by the caller ([`crate::AxisMap`], or the one `--axis` of a file whose position
+    /// channels belong to one unnamed axis).
     Caller,
 }
 
@@ -157,6 +167,9 @@ impl fmt::Display for AxisSource {
             AxisSource::Token { field, token } => write!(f, "{field} word '{token}'"),
             AxisSource::Joint { joint, map } => write!(f, "joint {joint} (joint map {map})"),
             AxisSource::Declared { key, value } => write!(f, "{key}={value}"),
+            AxisSource::Number { number, map } => {
+                write!(f, "axis number {number} (axis map {map})")
+            }
             AxisSource::Caller => f.write_str("caller"),
         }
     }
@@ -192,14 +205,27 @@ pub struct Channel {
     pub axis: Option<AxisName>,
     /// How [`Channel::axis`] was found.
     pub axis_source: Option<AxisSource>,
+    /// The axis number the file gives, when it numbers axes rather than naming them (the NCK
+    /// axis number `N` of a Sinumerik path `/Nck/!SD/nckServoData…[u1, N]`); mapped to
+    /// [`Channel::axis`] through [`ReadOptions::axis_map`].
+    pub axis_number: Option<u32>,
     /// What the channel measures.
     pub quantity: Quantity,
+    /// The measuring system a position belongs to, when the file says: 1 the motor encoder,
+    /// 2 the direct measuring system (scale). A Sinumerik setpoint `CmdPos2ndEnc` is the
+    /// setpoint for system 2 and is paired with the actual position `ActPos2ndEnc`
+    /// ([`crate::pair`]).
+    pub measuring_system: Option<u8>,
     /// The unit the file states; `None` when it states none (halscope, halsampler, Sinumerik,
     /// headers without units): the caller's units then decide ([`crate::PairOptions`]).
     pub unit: Option<TraceUnit>,
-    /// Sample period $T$, s; `None` when the file carries none and the caller gave none
-    /// (halsampler, delimited text without a time column).
+    /// Sample period $T$, s — the recording interval; `None` when the file carries none and the
+    /// caller gave none (halsampler, delimited text without a time column).
     pub period_s: Option<f64>,
+    /// The control cycle the signal is computed at, s, where the file states it apart from the
+    /// recording interval (TNCscope `CYCLETIME`: 100 µs for a current, 3 ms for a position);
+    /// informative only, samples are at [`Channel::period_s`].
+    pub cycle_s: Option<f64>,
     /// Time of the first sample $t_0$, s (0 when the file has no time column).
     pub t0_s: f64,
     /// The samples, in [`Channel::unit`].
@@ -222,9 +248,12 @@ impl Channel {
             description: String::new(),
             axis: None,
             axis_source: None,
+            axis_number: None,
             quantity: Quantity::Other,
+            measuring_system: None,
             unit: None,
             period_s: None,
+            cycle_s: None,
             t0_s: 0.0,
             samples: Vec::new(),
             gaps: Vec::new(),
@@ -307,13 +336,19 @@ pub struct ReadOptions {
     /// (trivkins' default coordinates); a table-tilting A/C machine with five joints is
     /// `X Y Z A C`.
     pub joints: Vec<AxisName>,
+    /// Axis numbers to axes, for files that number their axes (Sinumerik NCK axis numbers
+    /// `[u1, N]`); empty: numbered channels get no axis (`--axis-map 1=X,2=Y`).
+    pub axis_map: AxisNumberMap,
     /// Channel names for files without names (halsampler columns, headerless delimited text),
     /// in column order (a halsampler sample-number column not counted).
     pub channel_names: Vec<String>,
-    /// Delimited text: the time column (default: a column named `t`, `time`, `zeit` or
-    /// `timestamp`, with or without a unit).
+    /// The time column, for files whose time is a column like any other: delimited text
+    /// (default: a column named `t`, `time`, `zeit` or `timestamp`, with or without a unit) and
+    /// halsampler output (a sampled time signal, in s; default none). Formats with a time base
+    /// of their own (halscope, TNCscope, Sinumerik, TwinCAT) refuse it
+    /// (`Error::TimeColumnNotApplicable`).
     pub time_column: Option<ChannelRef>,
-    /// Delimited text: unit of the time column when its header states none (default s).
+    /// Unit of the time column when the file states none (default s).
     pub time_unit: Option<TraceUnit>,
 }
 
@@ -323,6 +358,7 @@ impl Default for ReadOptions {
             format: None,
             period_s: None,
             joints: AxisName::ALL.to_vec(),
+            axis_map: AxisNumberMap::default(),
             channel_names: Vec::new(),
             time_column: None,
             time_unit: None,

@@ -130,6 +130,9 @@ pub struct Provenance {
     pub nominal: ChannelUse,
     /// The actual position channel.
     pub actual: ChannelUse,
+    /// The actual position of the axis' other measuring system, when the file has one (a
+    /// Sinumerik trace with `ActPos1stEnc` and `ActPos2ndEnc`): [`AxisTrace::other_actual`].
+    pub other_actual: Option<ChannelUse>,
     /// Whether the channels were interpolated onto a common grid (different time bases).
     pub resampled: bool,
     /// The stretch used, when samples were lost and [`GapPolicy::LongestSegment`] chose one.
@@ -149,8 +152,12 @@ pub struct AxisTrace {
     pub t0_s: f64,
     /// Nominal (reference) position $x_r$, axis unit.
     pub nominal: Vec<f64>,
-    /// Actual (measured) position $x$, axis unit.
+    /// Actual (measured) position $x$, axis unit: the measuring system the setpoint refers to.
     pub actual: Vec<f64>,
+    /// The actual position of the other measuring system, on the same grid, axis unit (the
+    /// motor encoder when the setpoint is the direct scale's); `None` when the file has one
+    /// system. Not identified: [`crate::lost_motion`] measures the lost motion between the two.
+    pub other_actual: Option<Vec<f64>>,
     /// Channels, units, alignment.
     pub provenance: Provenance,
 }
@@ -222,11 +229,7 @@ fn resolve<'t>(trace: &'t Trace, r: &ChannelRef) -> Result<&'t Channel, Error> {
 
 /// The channel of `axis` and `quantity`: `Ok(None)` when there is none.
 fn candidate(trace: &Trace, axis: AxisName, quantity: Quantity) -> Result<Option<&Channel>, Error> {
-    let all: Vec<&Channel> = trace
-        .channels
-        .iter()
-        .filter(|c| c.axis == Some(axis) && c.quantity == quantity)
-        .collect();
+    let all: Vec<&Channel> = of_axis(trace, axis, quantity).collect();
     if all.len() <= 1 {
         return Ok(all.first().copied());
     }
@@ -246,6 +249,108 @@ fn candidate(trace: &Trace, axis: AxisName, quantity: Quantity) -> Result<Option
     })
 }
 
+fn of_axis(trace: &Trace, axis: AxisName, quantity: Quantity) -> impl Iterator<Item = &Channel> {
+    trace
+        .channels
+        .iter()
+        .filter(move |c| c.axis == Some(axis) && c.quantity == quantity)
+}
+
+fn with_system(c: &Channel) -> String {
+    match c.measuring_system {
+        Some(m) => format!("'{}' (measuring system {m})", c.name),
+        None => format!("'{}'", c.name),
+    }
+}
+
+/// The actual position for the setpoint `nominal`: of its measuring system when it names one,
+/// else the only (or `motor`) candidate; and the actual position of the other measuring system.
+fn actuals<'t>(
+    trace: &'t Trace,
+    axis: AxisName,
+    nominal: &Channel,
+) -> Result<(Option<&'t Channel>, Option<&'t Channel>), Error> {
+    let Some(m) = nominal.measuring_system else {
+        let actual = candidate(trace, axis, Quantity::ActualPosition)?;
+        return Ok((actual, actual.and_then(|a| other_system(trace, axis, a))));
+    };
+    let mut same =
+        of_axis(trace, axis, Quantity::ActualPosition).filter(|c| c.measuring_system == Some(m));
+    match (same.next(), same.next()) {
+        (Some(a), None) => Ok((Some(a), other_system(trace, axis, a))),
+        (None, _) => {
+            let actuals: Vec<String> = of_axis(trace, axis, Quantity::ActualPosition)
+                .map(with_system)
+                .collect();
+            if actuals.is_empty() {
+                return Ok((None, None));
+            }
+            Err(Error::NoActualOfSystem {
+                file: trace.file.clone(),
+                line: nominal.line,
+                axis,
+                setpoint: nominal.name.clone(),
+                system: m,
+                actuals,
+            })
+        }
+        (Some(_), Some(_)) => Err(Error::Ambiguous {
+            file: trace.file.clone(),
+            axis,
+            quantity: Quantity::ActualPosition,
+            channels: of_axis(trace, axis, Quantity::ActualPosition)
+                .filter(|c| c.measuring_system == Some(m))
+                .map(|c| c.name.clone())
+                .collect(),
+        }),
+    }
+}
+
+/// The one actual position of `axis` from another measuring system than `actual`'s.
+fn other_system<'t>(trace: &'t Trace, axis: AxisName, actual: &Channel) -> Option<&'t Channel> {
+    let m = actual.measuring_system?;
+    let mut others = of_axis(trace, axis, Quantity::ActualPosition)
+        .filter(|c| c.measuring_system.is_some_and(|o| o != m));
+    match (others.next(), others.next()) {
+        (Some(o), None) => Some(o),
+        _ => None,
+    }
+}
+
+/// With exactly one axis asked for and no channel of it, a file whose position channels have no
+/// axis and share one axis number (or none) is that axis: a Sinumerik trace of one servo
+/// without `--axis-map`, a text file with `pos_cmd`/`pos_fb` columns.
+fn adopt_unnamed<'t>(trace: &'t Trace, opts: &PairOptions) -> std::borrow::Cow<'t, Trace> {
+    use std::borrow::Cow;
+    let [axis] = opts.axes[..] else {
+        return Cow::Borrowed(trace);
+    };
+    let positions = || trace.channels.iter().filter(|c| c.quantity.is_position());
+    let unnamed: Vec<usize> = trace
+        .channels
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.quantity.is_position() && c.axis.is_none())
+        .map(|(i, _)| i)
+        .collect();
+    let numbers_agree = unnamed
+        .windows(2)
+        .all(|w| trace.channels[w[0]].axis_number == trace.channels[w[1]].axis_number);
+    if unnamed.is_empty()
+        || !numbers_agree
+        || opts.map.iter().any(|m| m.axis == axis)
+        || positions().any(|c| c.axis == Some(axis))
+    {
+        return Cow::Borrowed(trace);
+    }
+    let mut t = trace.clone();
+    for i in unnamed {
+        t.channels[i].axis = Some(axis);
+        t.channels[i].axis_source = Some(AxisSource::Caller);
+    }
+    Cow::Owned(t)
+}
+
 /// Pairs the nominal and actual position channels of each axis: per axis, on one time grid, in
 /// axis units, what identification takes (docs/identification.md: the reference $x_r$ and the measured $x$,
 /// sampled at $T_s$).
@@ -254,7 +359,13 @@ fn candidate(trace: &Trace, axis: AxisName, quantity: Quantity) -> Result<Option
 ///    [`AxisMap`] given for it, else the channels whose inferred axis is it and whose quantity is
 ///    [`Quantity::NominalPosition`] / [`Quantity::ActualPosition`]. Of several candidates the one
 ///    with the word `motor` is taken (LinuxCNC `joint.N.motor-pos-cmd` over `joint.N.pos-cmd`: the
-///    servo loop's own signals); otherwise several are an error.
+///    servo loop's own signals); otherwise several are an error. A setpoint of a named measuring
+///    system ([`Channel::measuring_system`]: Sinumerik `CmdPos2ndEnc`, the direct scale's) is
+///    paired with the actual position of that system (`ActPos2ndEnc`) — the loop closed on it —
+///    and refused when the file has none ([`Error::NoActualOfSystem`]); the actual position of
+///    the other system, when there is one, is kept as [`AxisTrace::other_actual`]. With one
+///    `--axis` asked for and no channel of it, position channels without an axis that share one
+///    axis number (or have none) are taken as that axis.
 /// 2. **Convert.** Values are multiplied by the factor of the file's unit to the axis unit, mm
 ///    (X Y Z) or deg (A B C); see [`TraceUnit`]. Where the file states no unit, the caller's unit for
 ///    the axis kind decides ([`PairOptions::linear_unit`], [`PairOptions::rotary_unit`]), else mm
@@ -272,6 +383,8 @@ fn candidate(trace: &Trace, axis: AxisName, quantity: Quantity) -> Result<Option
 ///    longest gap-free stretch both channels share is used, and [`Provenance::segment`] says
 ///    which part of how many.
 pub fn pair(trace: &Trace, opts: &PairOptions) -> Result<Paired, Error> {
+    let adopted = adopt_unnamed(trace, opts);
+    let trace: &Trace = &adopted;
     let explicit = !opts.axes.is_empty() || !opts.map.is_empty();
     let mut wanted: Vec<AxisName> = if explicit {
         opts.axes
@@ -293,13 +406,19 @@ pub fn pair(trace: &Trace, opts: &PairOptions) -> Result<Paired, Error> {
     let mut axes = Vec::new();
     let mut skipped = Vec::new();
     for axis in wanted {
-        let (nominal, actual) = match opts.map.iter().find(|m| m.axis == axis) {
-            Some(m) => (resolve(trace, &m.nominal)?, resolve(trace, &m.actual)?),
+        let (nominal, actual, other) = match opts.map.iter().find(|m| m.axis == axis) {
+            Some(m) => {
+                let a = resolve(trace, &m.actual)?;
+                (resolve(trace, &m.nominal)?, a, other_system(trace, axis, a))
+            }
             None => {
                 let n = candidate(trace, axis, Quantity::NominalPosition)?;
-                let a = candidate(trace, axis, Quantity::ActualPosition)?;
+                let (a, other) = match n {
+                    Some(n) => actuals(trace, axis, n)?,
+                    None => (candidate(trace, axis, Quantity::ActualPosition)?, None),
+                };
                 match (n, a) {
-                    (Some(n), Some(a)) => (n, a),
+                    (Some(n), Some(a)) => (n, a, other),
                     (n, _) => {
                         let quantity = if n.is_none() {
                             Quantity::NominalPosition
@@ -324,7 +443,13 @@ pub fn pair(trace: &Trace, opts: &PairOptions) -> Result<Paired, Error> {
             }
         };
         let caller_map = opts.map.iter().any(|m| m.axis == axis);
-        axes.push(pair_axis(trace, opts, axis, nominal, actual, caller_map)?);
+        axes.push(pair_axis(
+            trace,
+            opts,
+            axis,
+            (nominal, actual, other),
+            caller_map,
+        )?);
     }
     if axes.is_empty() {
         if let Some(c) = trace
@@ -337,6 +462,7 @@ pub fn pair(trace: &Trace, opts: &PairOptions) -> Result<Paired, Error> {
                 line: c.line,
                 channel: c.name.clone(),
                 quantity: c.quantity,
+                axis_number: c.axis_number,
             });
         }
         if let Some(s) = skipped.first() {
@@ -388,6 +514,10 @@ fn unit_of(
         )
     };
     let (unit, source) = match (&ch.unit, given) {
+        // A unit the file states but vcnc does not know: the caller says which it is.
+        (Some(TraceUnit::Other(_)), Some(g)) if !matches!(g, TraceUnit::Other(_)) => {
+            (g.clone(), UnitSource::Caller)
+        }
         (Some(TraceUnit::Other(u)), _) => {
             return Err(Error::UnknownUnit {
                 file: trace.file.clone(),
@@ -642,25 +772,46 @@ fn side<'c>(
     })
 }
 
+/// Whether two channels are on one time base (same period, first time, gaps and length).
+fn one_base(n: &Side<'_>, a: &Side<'_>) -> bool {
+    (n.period - a.period).abs() <= 1e-9 * n.period
+        && (n.ch.t0_s - a.ch.t0_s).abs() <= 1e-6 * n.period
+        && n.ch.gaps == a.ch.gaps
+        && n.ch.samples.len() == a.ch.samples.len()
+}
+
 fn pair_axis(
     trace: &Trace,
     opts: &PairOptions,
     axis: AxisName,
-    nom: &Channel,
-    act: &Channel,
+    (nom, act, other): (&Channel, &Channel, Option<&Channel>),
     caller_map: bool,
 ) -> Result<AxisTrace, Error> {
     let (nu, nsrc, nk) = unit_of(trace, opts, axis, nom)?;
     let (au, asrc, ak) = unit_of(trace, opts, axis, act)?;
     let (n, a) = (side(trace, opts, nom, nk)?, side(trace, opts, act, ak)?);
-    let one_base = (n.period - a.period).abs() <= 1e-9 * n.period
-        && (nom.t0_s - act.t0_s).abs() <= 1e-6 * n.period
-        && nom.gaps == act.gaps
-        && nom.samples.len() == act.samples.len();
-    let aligned = if one_base {
+    let aligned = if one_base(&n, &a) {
         same_base(&n, &a)
     } else {
         resample(trace, axis, &n, &a)?
+    };
+    // The other measuring system, on the grid of the pair (by the same two routes).
+    let other = match other {
+        Some(o) => {
+            let (ou, osrc, ok) = unit_of(trace, opts, axis, o)?;
+            let os = side(trace, opts, o, ok)?;
+            let samples = if one_base(&n, &os) && !aligned.resampled {
+                same_base(&n, &os).actual
+            } else {
+                resample(trace, axis, &n, &os)
+                    .ok()
+                    .filter(|r| r.t0_s == aligned.t0_s && r.ts_s == aligned.ts_s)
+                    .map(|r| r.actual)
+                    .unwrap_or_default()
+            };
+            (samples.len() == aligned.actual.len()).then_some((samples, os, ou, osrc))
+        }
+        None => None,
     };
     let use_of = |s: &Side<'_>, unit: TraceUnit, unit_source| ChannelUse {
         name: s.ch.name.clone(),
@@ -678,6 +829,9 @@ fn pair_axis(
         t0_s: s.ch.t0_s,
         samples: s.ch.samples.len(),
     };
+    let other_use = other
+        .as_ref()
+        .map(|(_, os, ou, osrc)| use_of(os, ou.clone(), *osrc));
     Ok(AxisTrace {
         axis,
         unit: axis.unit(),
@@ -685,11 +839,13 @@ fn pair_axis(
         t0_s: aligned.t0_s,
         nominal: aligned.nominal,
         actual: aligned.actual,
+        other_actual: other.map(|(v, ..)| v),
         provenance: Provenance {
             file: trace.file.clone(),
             format: trace.format,
             nominal: use_of(&n, nu, nsrc),
             actual: use_of(&a, au, asrc),
+            other_actual: other_use,
             resampled: aligned.resampled,
             segment: aligned.segment,
         },

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 /// A unit stated by a trace file (or by the caller for a file that states none), and its
 /// conversion to vcnc's axis units.
@@ -46,7 +46,10 @@ use serde::{Deserialize, Serialize};
 /// dropped before matching; `(None)`, `-` and an empty string mean "no unit". Anything else is kept
 /// as [`TraceUnit::Other`]: such a channel can be listed, but a position channel in it cannot be
 /// paired (`Error::UnknownUnit`).
-#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
+///
+/// In files (`summary.json`, `trace info --json`) a unit is its symbol, `"mm"`, `"µm"`, `"deg"`
+/// — the same text [`fmt::Display`] prints — and reads back through [`TraceUnit::parse`].
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum TraceUnit {
     /// Nanometre.
     Nm,
@@ -274,6 +277,20 @@ impl fmt::Display for TraceUnit {
     }
 }
 
+/// The symbol, as printed: a summary shows `"mm"` for the unit, never the variant name `"Mm"`.
+impl Serialize for TraceUnit {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.symbol())
+    }
+}
+
+impl<'de> Deserialize<'de> for TraceUnit {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        TraceUnit::parse(&s).ok_or_else(|| serde::de::Error::custom(format!("'{s}' is no unit")))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -316,6 +333,17 @@ mod tests {
         assert_eq!(
             TraceUnit::parse("furlong"),
             Some(TraceUnit::Other("furlong".into()))
+        );
+    }
+
+    /// Issue 29: `summary.json` recorded a channel's unit as `"Mm"` (the variant name) beside the
+    /// axis unit `"mm"`.
+    #[test]
+    fn summary_unit_is_mm_not_capitalised_mm() {
+        let units = vec![TraceUnit::Mm, TraceUnit::Um, TraceUnit::Other("V".into())];
+        assert_eq!(
+            serde_json::to_string(&units).unwrap(),
+            "[\"mm\",\"µm\",\"V\"]"
         );
     }
 
@@ -366,6 +394,10 @@ mod tests {
             TraceUnit::Ns,
         ] {
             assert_eq!(TraceUnit::parse(u.symbol()), Some(u.clone()), "{u}");
+            // Summaries write the symbol, and read it back.
+            let json = serde_json::to_string(&u).unwrap();
+            assert_eq!(json, format!("\"{}\"", u.symbol()));
+            assert_eq!(serde_json::from_str::<TraceUnit>(&json).unwrap(), u);
         }
     }
 }

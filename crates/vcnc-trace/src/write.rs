@@ -1,5 +1,5 @@
 //! Writers of every format the readers take (halscope tables and pairs, halsampler, delimited
-//! text, TNCscope, Sinumerik servo traces, TwinCAT Scope CSV), in the layouts the readers of
+//! text, TNCscope in both layouts, Sinumerik servo traces in both layouts, TwinCAT Scope CSV), in the layouts the readers of
 //! [`crate::formats`] document, for round trips and for making test traces. Numbers are written
 //! in Rust's shortest exact form (not the `%.14f` or `%f` of the LinuxCNC tools), so a written
 //! trace reads back bit for bit.
@@ -195,6 +195,62 @@ pub fn tncscope(w: &mut impl Write, control: &str, curves: &[TncCurve<'_>]) -> i
     Ok(())
 }
 
+/// A TNCscope export as an iTNC 530 writes it (the layout of [`crate::formats::tncscope`]):
+/// `%`-prefixed keys, `% ` separator lines after the first line, at the end of `%[GLOBAL]` and
+/// after every curve, CRLF line ends. Every curve is recorded at `sampling_us` (its `SAMPLING`
+/// and the global one) and must have one value per row; a curve's [`TncCurve::cycle_us`] is
+/// written as its `CYCLETIME`, the control cycle, and does not change the rows.
+pub fn tncscope_itnc530(
+    w: &mut impl Write,
+    sampling_us: u64,
+    curves: &[TncCurve<'_>],
+) -> io::Result<()> {
+    let columns: Vec<&[f64]> = curves.iter().map(|c| c.samples).collect();
+    check_lengths(&columns)?;
+    if sampling_us == 0 {
+        return Err(invalid("the recording interval must be positive"));
+    }
+    let nl = "\r\n";
+    write!(
+        w,
+        "%TNCscopeNT data file{nl}% {nl}%[GLOBAL]{nl}%VERSION=3{nl}"
+    )?;
+    write!(w, "%CONTROL=iTNC 530{nl}%SAMPLING={sampling_us}{nl}% {nl}")?;
+    for (i, c) in curves.iter().enumerate() {
+        write!(w, "%[CURVE{}]{nl}%NAME={}{nl}", i + 1, c.name)?;
+        write!(
+            w,
+            "%CHANNELTYPE={}{nl}%AXISTYPE={}{nl}",
+            c.channel_type, c.axis_type
+        )?;
+        write!(
+            w,
+            "%DIMENSION={}{nl}%COUNT={}{nl}",
+            c.dimension,
+            c.samples.len()
+        )?;
+        write!(
+            w,
+            "%SAMPLING={sampling_us}{nl}%CYCLETIME={}{nl}% {nl}",
+            c.cycle_us
+        )?;
+    }
+    write!(w, "%[DATA]{nl}")?;
+    let mut line = String::new();
+    for r in 0..rows(&columns) {
+        line.clear();
+        line.push_str(&(r as u64 * sampling_us).to_string());
+        line.push(';');
+        for c in &columns {
+            line.push(' ');
+            line.push_str(&num(c[r], false));
+            line.push(';');
+        }
+        write!(w, "{line}{nl}")?;
+    }
+    Ok(())
+}
+
 fn invalid(what: &str) -> io::Error {
     io::Error::new(io::ErrorKind::InvalidInput, what.to_string())
 }
@@ -268,6 +324,91 @@ pub fn sinumerik(
     writeln!(w, "    </dataFrame>")?;
     writeln!(w, "  </traceData>")?;
     writeln!(w, "</traceFile>")
+}
+
+/// One signal of a Sinumerik Operate V20 servo trace.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SinumerikServoSignal<'a> {
+    /// The servo-data signal, without prefix and axis: `nckServoDataCmdPos2ndEnc64`.
+    pub signal: &'a str,
+    /// The NCK axis number `N` of `[u1, N]`.
+    pub axis_number: u32,
+    /// `description` (`Position setpoint (64 bit)`).
+    pub description: &'a str,
+    /// `unitsType` (`posn`, `velo`, `torque`, …).
+    pub units_type: &'a str,
+    /// One value per record time (finite, at most [`crate::NO_VALUE_ABOVE`]).
+    pub samples: &'a [f64],
+}
+
+/// A Sinumerik Operate servo trace as `traceSession version="01.00.03.02"` with
+/// `traceCaptureSetup_V20` (the layout of [`crate::formats::sinumerik`]): the signals declared in
+/// `signalSettings` (`key="sN"`), repeated in the data frame as `dataSignal key="sN" id="fN"
+/// interval=… datapointCount=…`, then one `rec` per sample at `interval_s`, listing only the
+/// values that changed since the previous record (all of them in the first).
+pub fn sinumerik_v20(
+    w: &mut impl Write,
+    interval_s: f64,
+    signals: &[SinumerikServoSignal<'_>],
+) -> io::Result<()> {
+    use quick_xml::escape::escape;
+    let columns: Vec<&[f64]> = signals.iter().map(|s| s.samples).collect();
+    check_lengths(&columns)?;
+    if !(interval_s.is_finite() && interval_s > 0.0) {
+        return Err(invalid("the interval must be positive"));
+    }
+    if columns
+        .iter()
+        .flat_map(|c| c.iter())
+        .any(|v| !v.is_finite() || *v > crate::NO_VALUE_ABOVE)
+    {
+        return Err(invalid(
+            "values must be finite and below the \"no value\" marker",
+        ));
+    }
+    let n = rows(&columns);
+    writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#)?;
+    writeln!(w, r#"<traceSession version="01.00.03.02">"#)?;
+    writeln!(w, "  <traceCaptureSetup_V20>")?;
+    writeln!(w, "    <signalSettings>")?;
+    for (i, s) in signals.iter().enumerate() {
+        writeln!(
+            w,
+            r#"      <signal key="s{}" unitsType="{}" name="/Nck/!SD/{} [u1, {}]" description="{}"/>"#,
+            i + 1,
+            escape(s.units_type),
+            escape(s.signal),
+            s.axis_number,
+            escape(s.description)
+        )?;
+    }
+    writeln!(w, "    </signalSettings>")?;
+    writeln!(w, "  </traceCaptureSetup_V20>")?;
+    writeln!(w, r#"  <traceData dataFrames="1">"#)?;
+    writeln!(w, "    <dataFrame>")?;
+    writeln!(w, r#"      <frameHeader dropOuts="0"/>"#)?;
+    for (i, s) in signals.iter().enumerate() {
+        writeln!(
+            w,
+            r#"      <dataSignal key="s{0}" id="f{0}" unitsType="{1}" interval="{interval_s}" datapointCount="{n}"/>"#,
+            i + 1,
+            escape(s.units_type)
+        )?;
+    }
+    let mut line = String::new();
+    for k in 0..n {
+        line.clear();
+        line.push_str(&format!(r#"      <rec time="{}""#, k as f64 * interval_s));
+        for (i, c) in columns.iter().enumerate() {
+            if k == 0 || c[k].to_bits() != c[k - 1].to_bits() {
+                line.push_str(&format!(r#" f{}="{}""#, i + 1, c[k]));
+            }
+        }
+        writeln!(w, "{line}/>")?;
+    }
+    writeln!(w, "    </dataFrame>")?;
+    writeln!(w, "  </traceData>")?;
+    writeln!(w, "</traceSession>")
 }
 
 /// One channel of a TwinCAT Scope export.

@@ -16,6 +16,8 @@ struct Case {
     read: ReadOptions,
     /// `None`: reading fails; `Some`: reading succeeds and pairing with these options fails.
     pair: Option<PairOptions>,
+    /// Pairing succeeds, and the lost motion of its first axis fails.
+    lost_motion: bool,
     kind: fn(&Error) -> bool,
     expect: &'static [&'static str],
 }
@@ -33,6 +35,7 @@ fn case(
         content: content.into(),
         read: ReadOptions::default(),
         pair: None,
+        lost_motion: false,
         kind,
         expect,
     }
@@ -41,6 +44,11 @@ fn case(
 impl Case {
     fn paired(mut self, opts: PairOptions) -> Case {
         self.pair = Some(opts);
+        self
+    }
+    fn lost_motion(mut self) -> Case {
+        self.pair = Some(PairOptions::default());
+        self.lost_motion = true;
         self
     }
     fn read_with(mut self, opts: ReadOptions) -> Case {
@@ -78,6 +86,44 @@ fn sinu(replace: &[(&str, &str)]) -> String {
    <rec time=\"0.000\" f1=\"0\" f2=\"0\"/>\n\
    <rec time=\"0.002\" f1=\"0.1\" f2=\"0.05\"/>\n\
    <rec time=\"0.004\" f1=\"0.2\" f2=\"0.15\"/>\n  </dataFrame>\n </traceData>\n</traceFile>\n"
+        .to_string();
+    for (a, b) in replace {
+        assert!(s.contains(a), "{a}");
+        s = s.replacen(a, b, 1);
+    }
+    s
+}
+
+/// A TNCscope export as an iTNC 530 writes it: `% ` separators, %-prefixed keys, SAMPLING and
+/// CYCLETIME, CRLF.
+fn tnc530(replace: &[(&str, &str)]) -> String {
+    let mut s = "%TNCscopeNT data file\r\n% \r\n%[GLOBAL]\r\n%CONTROL=iTNC 530\r\n%SAMPLING=3000\r\n% \r\n\
+         %[CURVE1]\r\n%NAME=s soll/Y\r\n%AXISTYPE=Y\r\n%DIMENSION=mm\r\n%COUNT=3\r\n%SAMPLING=3000\r\n%CYCLETIME=3000\r\n% \r\n\
+         %[CURVE2]\r\n%NAME=s ist/Y\r\n%AXISTYPE=Y\r\n%DIMENSION=mm\r\n%COUNT=3\r\n%SAMPLING=3000\r\n%CYCLETIME=3000\r\n% \r\n\
+         %[DATA]\r\n0; 0.0; 0.0;\r\n3000; 0.1; 0.05;\r\n6000; 0.2; 0.15;\r\n"
+        .to_string();
+    for (a, b) in replace {
+        assert!(s.contains(a), "{a}");
+        s = s.replacen(a, b, 1);
+    }
+    s
+}
+
+/// A Sinumerik V20 trace of NCK axis 1: setpoint for the direct system, both actual positions.
+fn v20(replace: &[(&str, &str)]) -> String {
+    let mut s = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<traceSession version=\"01.00.03.02\">\n\
+  <traceCaptureSetup_V20>\n   <signalSettings>\n\
+   <signal key=\"s1\" unitsType=\"posn\" name=\"/Nck/!SD/nckServoDataCmdPos2ndEnc64 [u1, 1]\" description=\"Position setpoint (64 bit)\"/>\n\
+   <signal key=\"s2\" unitsType=\"posn\" name=\"/Nck/!SD/nckServoDataActPos1stEnc64 [u1, 1]\" description=\"Position actual value measuring system 1 (64 bit)\"/>\n\
+   <signal key=\"s3\" unitsType=\"posn\" name=\"/Nck/!SD/nckServoDataActPos2ndEnc64 [u1, 1]\" description=\"Position actual value measuring system 2 (64 bit)\"/>\n\
+   </signalSettings>\n  </traceCaptureSetup_V20>\n  <traceData dataFrames=\"1\">\n   <dataFrame>\n\
+   <dataSignal key=\"s1\" id=\"f1\" interval=\"0.002000\" datapointCount=\"3\"/>\n\
+   <dataSignal key=\"s2\" id=\"f2\" interval=\"0.002000\" datapointCount=\"3\"/>\n\
+   <dataSignal key=\"s3\" id=\"f3\" interval=\"0.002000\" datapointCount=\"3\"/>\n\
+   <rec time=\"0.000000\" f1=\"-300\" f2=\"-1100\" f3=\"-300.0025\"/>\n\
+   <rec time=\"0.002000\" f1=\"-299.99\" f3=\"-299.9975\" f2=\"-1099.99\"/>\n\
+   <rec time=\"0.004000\" f2=\"-1099.98\" f1=\"-299.98\"/>\n\
+   </dataFrame>\n  </traceData>\n</traceSession>\n"
         .to_string();
     for (a, b) in replace {
         assert!(s.contains(a), "{a}");
@@ -319,14 +365,24 @@ fn cases() -> Vec<Case> {
             &["t.txt:21:", "2 of 3 fields"],
         ),
         case(
-            "tncscope: COUNT differs from the data",
+            "tncscope: data stop before COUNT (a cut export)",
             "t.txt",
             tnc(&[("COUNT=3", "COUNT=4")]),
+            |e| matches!(e, E::Truncated { line: 21, .. }),
+            &[
+                "t.txt:21:",
+                "the data stop after 3 of the 4 samples curve 'X s soll' declares (COUNT, line 9)",
+            ],
+        ),
+        case(
+            "tncscope: COUNT smaller than the data",
+            "t.txt",
+            tnc(&[("COUNT=3", "COUNT=2")]),
             |e| {
                 matches!(
                     e,
                     E::CountMismatch {
-                        declared: 4,
+                        declared: 2,
                         found: 3,
                         ..
                     }
@@ -334,7 +390,7 @@ fn cases() -> Vec<Case> {
             },
             &[
                 "t.txt:9:",
-                "'X s soll' holds 3 samples where 4 are expected",
+                "'X s soll' holds 3 samples where 2 are expected",
             ],
         ),
         case(
@@ -342,7 +398,10 @@ fn cases() -> Vec<Case> {
             "t.txt",
             tnc(&[("CYCLETIME=600\n%[DATA]", "%[DATA]")]),
             |e| matches!(e, E::Header { .. }),
-            &["t.txt:11:", "'X s ist' has no CYCLETIME"],
+            &[
+                "t.txt:11:",
+                "'X s ist' has no SAMPLING (recording interval) and no CYCLETIME",
+            ],
         ),
         case(
             "tncscope: row longer than the curves",
@@ -412,6 +471,137 @@ fn cases() -> Vec<Case> {
             &["t.txt", "no actual position channel for axis X"],
         )
         .paired(d()),
+        case(
+            "tncscope (iTNC 530): the file ends inside a curve block",
+            "t.txt",
+            {
+                let full = tnc530(&[]);
+                full[..full.find("%COUNT=3\r\n%SAMPLING=3000\r\n%CYCLETIME=3000\r\n% \r\n%[DATA]").unwrap()].to_string()
+            },
+            |e| matches!(e, E::Truncated { line: 18, .. }),
+            &[
+                "t.txt:18:",
+                "it stops inside %[CURVE2] (line 15), before %[DATA]",
+            ],
+        ),
+        case(
+            "tncscope (iTNC 530): the data stop in the middle of a curve",
+            "t.txt",
+            tnc530(&[("6000; 0.2; 0.15;\r\n", "")]),
+            |e| matches!(e, E::Truncated { line: 25, .. }),
+            &[
+                "t.txt:25:",
+                "the data stop after 2 of the 3 samples curve 's soll/Y' declares",
+            ],
+        ),
+        case(
+            "tncscope (iTNC 530): a row cut inside a field",
+            "t.txt",
+            tnc530(&[("6000; 0.2; 0.15;\r\n", "6000; 0.2")]),
+            |e| matches!(e, E::Truncated { line: 26, .. }),
+            &["t.txt:26:", "2 of 3 fields"],
+        ),
+        case(
+            "tncscope (iTNC 530): a line that is not a key",
+            "t.txt",
+            tnc530(&[("%CONTROL=iTNC 530", "%CONTROL iTNC 530")]),
+            |e| matches!(e, E::Header { line: 4, .. }),
+            &["t.txt:4:", "expected KEY=VALUE, a %[SECTION] line or a '%' separator"],
+        ),
+        case(
+            "tncscope: --t-col names a column of a format with its own time base",
+            "t.txt",
+            tnc530(&[]),
+            |e| matches!(e, E::TimeColumnNotApplicable { .. }),
+            &["t.txt: --t-col t:", "carry their own time base"],
+        )
+        .read_with(ReadOptions {
+            time_column: Some(ChannelRef::Name("t".into())),
+            ..ReadOptions::default()
+        }),
+        case(
+            "sinumerik V20: a record attribute no signal declares",
+            "s.xml",
+            v20(&[("f2=\"-1099.98\"", "f4=\"-1099.98\"")]),
+            |e| matches!(e, E::Header { line: 17, .. }),
+            &[
+                "s.xml:17:",
+                "record attribute 'f4' is neither 'time' nor a declared dataSignal (declared: f1, f2, f3)",
+            ],
+        ),
+        case(
+            "sinumerik V20: a setpoint with no actual of its measuring system",
+            "s.xml",
+            v20(&[
+                ("nckServoDataActPos2ndEnc64", "nckServoDataActVel2ndEnc64"),
+                ("Position actual value measuring system 2", "Velocity actual value measuring system 2"),
+            ]),
+            |e| matches!(e, E::NoActualOfSystem { system: 2, line: 12, .. }),
+            &[
+                "s.xml:12: axis X: the setpoint 'Position setpoint' is for measuring system 2 (the direct measuring system)",
+                "actual positions: 'Position actual value measuring system 1' (measuring system 1)",
+                "--xr-col NOMINAL --x-col ACTUAL",
+            ],
+        )
+        .read_with(ReadOptions {
+            axis_map: vcnc_trace::AxisNumberMap::parse("1=X").unwrap(),
+            ..ReadOptions::default()
+        })
+        .paired(d()),
+        case(
+            "sinumerik V20: fewer records than datapointCount (a cut file)",
+            "s.xml",
+            v20(&[("<rec time=\"0.004000\" f2=\"-1099.98\" f1=\"-299.98\"/>\n", "")]),
+            |e| matches!(e, E::Truncated { .. }),
+            &["s.xml:16:", "signal 'Position setpoint' declares 3 datapoints (line 12), the records hold 2"],
+        ),
+        case(
+            "sinumerik V20: axis numbers without an axis map",
+            "s.xml",
+            v20(&[]),
+            |e| matches!(e, E::NoAxis { axis_number: Some(1), .. }),
+            &["s.xml:12:", "axis number 1 of the file", "--axis-map 1=A"],
+        )
+        .paired(d()),
+        case(
+            "sinumerik V20: lost motion of a setpoint that never reverses",
+            "s.xml",
+            v20(&[]),
+            |e| matches!(e, E::NoReversal { reversals: 0, .. }),
+            &["s.xml: axis X: the setpoint reverses 0 time(s)"],
+        )
+        .read_with(ReadOptions {
+            axis_map: vcnc_trace::AxisNumberMap::parse("1=X").unwrap(),
+            ..ReadOptions::default()
+        })
+        .lost_motion(),
+        case(
+            "halsampler: no period, the message names --ts",
+            "s.txt",
+            "0.1 0.1 \n0.2 0.2 \n",
+            |e| matches!(e, E::MissingPeriod { .. }),
+            &["s.txt: channel 'pin.0' has no sample period", "--ts SECONDS"],
+        )
+        .paired(PairOptions {
+            map: vec![AxisMap {
+                axis: AxisName::X,
+                nominal: ChannelRef::Column(0),
+                actual: ChannelRef::Column(1),
+            }],
+            ..PairOptions::default()
+        }),
+        case(
+            "delimited (EMPS): no axis in the names, the message names the options",
+            "DATA_EMPS.csv",
+            "t,qg,qm,vir\n0,0.0001,0.00001,2.5\n0.001,0.0002,0.00002,2.4\n",
+            |e| matches!(e, E::NoPositions { .. }),
+            &[
+                "no axis has both a nominal and an actual position channel",
+                "--axis A --xr-col NOMINAL --x-col ACTUAL",
+                "--units U",
+            ],
+        )
+        .paired(d()),
         // ---- Sinumerik
         case(
             "sinumerik: file ends inside the frame",
@@ -438,7 +628,10 @@ fn cases() -> Vec<Case> {
             "s.xml",
             sinu(&[("f2=\"0.15\"", "f3=\"0.15\"")]),
             |e| matches!(e, E::Header { .. }),
-            &["s.xml:9:", "'f3' refers to no declared dataSignal"],
+            &[
+                "s.xml:9:",
+                "record attribute 'f3' is neither 'time' nor a declared dataSignal (declared: f1, f2)",
+            ],
         ),
         case(
             "sinumerik: record without time",
@@ -759,7 +952,18 @@ fn every_bad_input_gives_its_typed_error_with_file_and_line() {
                 continue;
             }
             (Some(opts), Ok(t)) => match pair(&t, opts) {
-                Err(e) => e,
+                Err(e) if !c.lost_motion => e,
+                Ok(p) if c.lost_motion => match vcnc_trace::lost_motion(&p.axes[0]) {
+                    Err(e) => e,
+                    Ok(_) => {
+                        failures.push(format!("{}: lost motion without error", c.name));
+                        continue;
+                    }
+                },
+                Err(e) => {
+                    failures.push(format!("{}: pairing failed: {e}", c.name));
+                    continue;
+                }
                 Ok(_) => {
                     failures.push(format!("{}: paired without error", c.name));
                     continue;

@@ -428,3 +428,182 @@ fn emps_benchmark_file_reads_through_the_delimited_reader() {
     assert_abs_diff_eq!(x.nominal[0], 0.10782208, epsilon = 1e-12);
     assert_eq!(x.nominal.len(), 24841);
 }
+
+fn axis_map(m: &str) -> ReadOptions {
+    ReadOptions {
+        axis_map: vcnc_trace::AxisNumberMap::parse(m).unwrap(),
+        ..ReadOptions::default()
+    }
+}
+
+#[test]
+fn itnc530_export_with_separators_reads_at_the_recording_interval() {
+    // Issue 29: refused at line 2 ('% '), and read at the current's 100 µs CYCLETIME it seemed
+    // to have lost 29 of every 30 samples. Truth: generate.py's Y move at the 3 ms SAMPLING.
+    let trace = read_path(&data("tncscope/itnc530-y.txt"), &ReadOptions::default()).unwrap();
+    assert_eq!(trace.format, Format::TncScope);
+    assert_eq!(trace.channels.len(), 5);
+    for c in &trace.channels {
+        assert_eq!(c.period_s, Some(3e-3), "{}", c.name);
+        assert_eq!(c.len(), 200, "{}", c.name);
+        assert!(c.gaps.is_empty(), "{}", c.name);
+    }
+    let current = &trace.channels[3];
+    assert_eq!(
+        (current.name.as_str(), current.quantity, current.cycle_s),
+        ("I ist/Y", Quantity::Current, Some(1e-4))
+    );
+    assert_eq!(trace.channels[2].quantity, Quantity::ActualVelocity);
+    assert_eq!(trace.channels[4].axis, None);
+    assert!(
+        trace
+            .metadata
+            .iter()
+            .any(|(k, v)| k == "RECORDEDBY" && v == "J. Müller")
+    );
+    let p = pair(&trace, &PairOptions::default()).unwrap();
+    assert_eq!(p.axes.len(), 1);
+    let y = &p.axes[0];
+    assert_eq!((y.axis, y.ts_s), (AxisName::Y, 3e-3));
+    assert_eq!(y.provenance.actual.unit, TraceUnit::Um);
+    let xr = nominal(AxisName::Y, 200, 3e-3);
+    // %.4f mm and %.1f µm: half the last digit, 5e-5 mm.
+    check(&y.nominal, &xr, 5e-5 + 1e-12, "Y nominal");
+    check(&y.actual, &actual(&xr, 3e-3), 5e-5 + 1e-12, "Y actual");
+}
+
+/// The play operator of generate.py: the table stands until the motor has crossed the gap.
+const BACKLASH_MM: f64 = 0.005;
+
+#[test]
+fn sinumerik_v20_pairs_the_setpoint_with_its_measuring_system_and_measures_the_backlash() {
+    let path = data("sinumerik/v20-x-two-systems.xml");
+    let trace = read_path(&path, &axis_map("1=X")).unwrap();
+    assert_eq!(trace.format, Format::SinumerikTrace);
+    assert_eq!(trace.channels.len(), 10);
+    for c in &trace.channels {
+        assert_eq!((c.len(), c.period_s), (600, Some(2e-3)), "{}", c.name);
+        assert_eq!(c.axis_number, Some(1), "{}", c.name);
+        assert_eq!(c.axis, Some(AxisName::X), "{}", c.name);
+    }
+    let p = pair(&trace, &PairOptions::default()).unwrap();
+    let x = &p.axes[0];
+    let pv = &x.provenance;
+    assert_eq!(pv.nominal.name, "Position setpoint");
+    assert_eq!(pv.actual.name, "Position actual value measuring system 2");
+    assert_eq!(
+        pv.other_actual.as_ref().map(|o| o.name.as_str()),
+        Some("Position actual value measuring system 1")
+    );
+    // Truth: the backlash generate.py drove the table through; the motor is critically damped,
+    // so the difference of the two systems settles exactly at ±b/2 around their 800 mm offset.
+    let lm = vcnc_trace::lost_motion(x).unwrap();
+    assert_eq!(lm.reversals.len(), 11);
+    for r in &lm.reversals {
+        assert_abs_diff_eq!(r.lost, BACKLASH_MM, epsilon = 2e-6);
+    }
+    assert_abs_diff_eq!(lm.median, BACKLASH_MM, epsilon = 2e-6);
+    let info = trace.info();
+    assert_eq!(info.lost_motion, [lm]);
+    assert!(
+        info.to_string()
+            .contains("X: 5.00 µm (median of 11 reversals")
+    );
+    // Without the axis map: no axis, and trace info and pairing say which option gives it.
+    let bare = read_path(&path, &ReadOptions::default()).unwrap();
+    let info = bare.info();
+    assert!(info.lost_motion.is_empty());
+    assert_eq!(
+        info.notes,
+        [
+            "axis number 1 has two measuring systems; for its lost motion name its axis with --axis-map 1=A"
+        ]
+    );
+    let e = pair(&bare, &PairOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("pass --axis-map 1=A"), "{e}");
+    // One --axis for a file of one servo is enough.
+    let one = PairOptions {
+        axes: vec![AxisName::Y],
+        ..PairOptions::default()
+    };
+    let y = &pair(&bare, &one).unwrap().axes[0];
+    assert_eq!(y.axis, AxisName::Y);
+    assert_eq!(y.actual, x.actual);
+    assert_eq!(y.other_actual, x.other_actual);
+}
+
+#[test]
+fn sinumerik_v20_latin1_two_axes_through_the_axis_map() {
+    let trace = read_path(
+        &data("sinumerik/v20-latin1-two-axes.xml"),
+        &axis_map("1=X,2=Y"),
+    )
+    .unwrap();
+    assert_eq!(trace.channels[0].name, "Lagesollwert Meßsystem 1 [u1, 1]");
+    let p = pair(&trace, &PairOptions::default()).unwrap();
+    assert_eq!(p.axes.len(), 2);
+    for a in &p.axes {
+        let xr = nominal(a.axis, 120, 4e-3);
+        check(&a.nominal, &xr, 5e-7 + 1e-12, "nominal");
+        check(&a.actual, &actual(&xr, 4e-3), 5e-7 + 1e-12, "actual");
+        assert!(a.other_actual.is_none());
+    }
+}
+
+#[test]
+fn real_halsampler_recording_of_a_linuxcnc_pid_loop() {
+    // A genuine halsampler recording (halsampler/record-pid-loop.sh): no names, no period.
+    let path = data("halsampler/pid-loop.txt");
+    let bare = read_path(&path, &ReadOptions::default()).unwrap();
+    assert_eq!(bare.format, Format::Halsampler);
+    let names: Vec<&str> = bare.channels.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["pin.0", "pin.1"]);
+    // Every refusal says which option to pass.
+    let e = pair(&bare, &PairOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("no axis has both") && e.contains("--xr-col NOMINAL --x-col ACTUAL"),
+        "{e}"
+    );
+    let map = PairOptions {
+        map: vec![AxisMap {
+            axis: AxisName::X,
+            nominal: ChannelRef::Name("pin.0".into()),
+            actual: ChannelRef::Name("pin.1".into()),
+        }],
+        ..PairOptions::default()
+    };
+    let e = pair(&bare, &map).unwrap_err().to_string();
+    assert!(
+        e.contains("'pin.0' has no sample period") && e.contains("--ts SECONDS"),
+        "{e}"
+    );
+    let trace = read_path(
+        &path,
+        &ReadOptions {
+            period_s: Some(1e-3),
+            ..ReadOptions::default()
+        },
+    )
+    .unwrap();
+    let x = &pair(&trace, &map).unwrap().axes[0];
+    assert_eq!((x.nominal.len(), x.ts_s), (1500, 1e-3));
+    // Truth: the loop's law (LinuxCNC integ.comp and pid.c, record-pid-loop.sh):
+    // fb[k] = fb[k-1] + T Pgain (cmd[k-1] - fb[k-1]), T = 1 ms, Pgain = 60; %f prints 1e-6.
+    for k in 1..x.actual.len() {
+        let want = x.actual[k - 1] + 1e-3 * 60.0 * (x.nominal[k - 1] - x.actual[k - 1]);
+        assert!(
+            (x.actual[k] - want).abs() <= 1.1e-6 * (1.0 + 2.0 * 0.06),
+            "sample {k}: {} vs {want}",
+            x.actual[k]
+        );
+    }
+    // The command is siggen's 2 Hz sine of amplitude 5: 5 sin(2π·2·(k+1)·T).
+    for (k, c) in x.nominal.iter().enumerate() {
+        let want = 5.0 * (2.0 * std::f64::consts::PI * 2.0 * (k + 1) as f64 * 1e-3).sin();
+        assert!((c - want).abs() <= 1e-5, "command {k}: {c} vs {want}");
+    }
+}

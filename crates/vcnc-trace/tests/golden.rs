@@ -17,6 +17,13 @@ fn data() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data")
 }
 
+fn axis_map(m: &str) -> ReadOptions {
+    ReadOptions {
+        axis_map: vcnc_trace::AxisNumberMap::parse(m).unwrap(),
+        ..ReadOptions::default()
+    }
+}
+
 /// Sample files and the options they are read with.
 fn corpus() -> Vec<(&'static str, ReadOptions, PairOptions)> {
     let xyzac = ReadOptions {
@@ -54,7 +61,19 @@ fn corpus() -> Vec<(&'static str, ReadOptions, PairOptions)> {
             PairOptions::default(),
         ),
         ("halsampler/xz-tagged.txt", one_ms.clone(), longest.clone()),
-        ("halsampler/plain.txt", one_ms, plain_pair),
+        ("halsampler/plain.txt", one_ms.clone(), plain_pair),
+        (
+            "halsampler/pid-loop.txt",
+            one_ms,
+            PairOptions {
+                map: vec![vcnc_trace::AxisMap {
+                    axis: AxisName::X,
+                    nominal: vcnc_trace::ChannelRef::Name("pin.0".into()),
+                    actual: vcnc_trace::ChannelRef::Name("pin.1".into()),
+                }],
+                ..PairOptions::default()
+            },
+        ),
         (
             "tncscope/xyzc.txt",
             ReadOptions::default(),
@@ -63,6 +82,21 @@ fn corpus() -> Vec<(&'static str, ReadOptions, PairOptions)> {
         (
             "sinumerik/x1-y1.xml",
             ReadOptions::default(),
+            PairOptions::default(),
+        ),
+        (
+            "tncscope/itnc530-y.txt",
+            ReadOptions::default(),
+            PairOptions::default(),
+        ),
+        (
+            "sinumerik/v20-x-two-systems.xml",
+            axis_map("1=X"),
+            PairOptions::default(),
+        ),
+        (
+            "sinumerik/v20-latin1-two-axes.xml",
+            axis_map("1=X,2=Y"),
             PairOptions::default(),
         ),
         (
@@ -163,6 +197,19 @@ fn render(rel: &str, read: &ReadOptions, pairing: &PairOptions) -> String {
                     pv.segment
                 )
                 .unwrap();
+                if let (Some(o), Some(u)) = (&a.other_actual, &pv.other_actual) {
+                    writeln!(
+                        out,
+                        "    other measuring system '{}' ({} {}): {} {} {}",
+                        u.name,
+                        u.unit,
+                        u.unit_source,
+                        g(o[0]),
+                        g(o[o.len() / 2]),
+                        g(o[o.len() - 1])
+                    )
+                    .unwrap();
+                }
                 let n = a.nominal.len();
                 writeln!(
                     out,

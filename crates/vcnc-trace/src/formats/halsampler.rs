@@ -14,14 +14,20 @@
 //! overrun's lost samples are counted, and a number that does not increase is an error; without
 //! them the gap's size is unknown.
 //!
+//! A column holding time (a sampled clock pin, in s or [`ReadOptions::time_unit`]) can be named
+//! with [`ReadOptions::time_column`] (`--t-col`): it is then the time base, checked uniform up
+//! to gaps, and gives the period and the lost samples.
+//!
 //! Gap policy: an `overrun` becomes a [`crate::Gap`] of every channel. The reader does not
 //! refuse the file (`vcnc trace info` lists the gaps); pairing refuses to identify across a gap
 //! unless asked to use the longest gap-free stretch ([`crate::GapPolicy`]).
 
 use crate::error::Error;
 use crate::formats;
-use crate::model::{Channel, Format, Gap, ReadOptions, Trace};
+use crate::model::{Channel, ChannelRef, Format, Gap, ReadOptions, Trace};
 use crate::text::{self, Lines};
+use crate::timebase;
+use crate::units::TraceUnit;
 
 fn is_overrun(t: &[u8]) -> bool {
     text::trim(t).eq_ignore_ascii_case(b"overrun")
@@ -133,6 +139,8 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     let mut pending_overrun: Option<usize> = None;
     let mut prev_tag: Option<i64> = None;
     let mut fields: Vec<&[u8]> = Vec::with_capacity(nf);
+    // Line of every sample row, kept only for a time column's messages.
+    let mut row_lines: Vec<usize> = Vec::new();
     for l in Lines::starting_at(bytes, first.offset, first.no) {
         let t = text::trim(l.text);
         if t.is_empty() || t[0] == b'#' {
@@ -161,6 +169,9 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
             });
         }
         let index = cols[0].len();
+        if opts.time_column.is_some() {
+            row_lines.push(l.no);
+        }
         if tag {
             let n = parse_int(fields[0]).ok_or_else(|| Error::NotANumber {
                 file: file.to_string(),
@@ -219,11 +230,50 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         }
     }
 
+    // A time column: the time base, its gaps replacing the overruns' (it counts the loss).
+    let time_col = match &opts.time_column {
+        None => None,
+        Some(r) => {
+            let found = match r {
+                ChannelRef::Name(n) => names.iter().position(|m| m == n),
+                ChannelRef::Column(c) => c.checked_sub(usize::from(tag)).filter(|&i| i < ncols),
+            };
+            Some(found.ok_or_else(|| Error::UnknownChannel {
+                file: file.to_string(),
+                reference: format!("{r} (time column)"),
+                channels: names.clone(),
+            })?)
+        }
+    };
+    let uniform = match time_col {
+        Some(tc) => {
+            let k = opts
+                .time_unit
+                .as_ref()
+                .and_then(TraceUnit::to_base)
+                .map_or(1.0, |(_, k)| k);
+            let times: Vec<f64> = cols[tc].iter().map(|t| t * k).collect();
+            let line_of = |row: usize| row_lines.get(row).copied().unwrap_or(names_line);
+            Some(
+                timebase::uniform(&times, None)
+                    .map_err(|f| formats::time_error(file, f, names_line, line_of))?,
+            )
+        }
+        None => None,
+    };
     let mut channels = Vec::with_capacity(ncols);
     for (c, (name, samples)) in names.into_iter().zip(cols).enumerate() {
+        if Some(c) == time_col {
+            continue;
+        }
         let mut ch = Channel::new(name, names_line, c + usize::from(tag));
         ch.samples = samples;
         ch.gaps = gaps.clone();
+        if let Some(u) = &uniform {
+            formats::apply_uniform(&mut ch, u, |row| {
+                row_lines.get(row).copied().unwrap_or(names_line)
+            });
+        }
         formats::apply_period_option(file, opts, &mut ch)?;
         let n = ch.name.clone();
         formats::infer_channel(&mut ch, &[("name", &n)], Some(&opts.joints));

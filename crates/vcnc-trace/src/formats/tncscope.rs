@@ -1,36 +1,55 @@
-//! Heidenhain TNCscope text export.
+//! Heidenhain TNCscope text export, as the iTNC 530 (NC software 606420) and the TNC 640 write it.
 //!
 //! ```text
 //! %TNCscopeNT data file
+//! %␠
 //! %[GLOBAL]
-//! CONTROL=TNC 640
+//! %VERSION=3
+//! %CONTROL=iTNC 530
+//! %SAMPLING=3000
+//! %␠
 //! %[CURVE1]
-//! NAME=X s soll
-//! CHANNELTYPE=s soll
-//! AXISTYPE=X
-//! DIMENSION=mm
-//! COUNT=2000
-//! CYCLETIME=600
+//! %NAME=s soll/Y
+//! %CHANNELTYPE=s soll
+//! %AXISTYPE=Y
+//! %DIMENSION=mm
+//! %COUNT=2000
+//! %SAMPLING=3000
+//! %CYCLETIME=3000
+//! %␠
 //! %[CURVE2]
 //! …
 //! %[DATA]
-//! 0; 0.0000; 0.0000;
-//! 600; 0.0012; 0.0000;
+//! 0; -299.9800; -299.9800;
+//! 3000; -299.9800; -299.9797;
 //! ```
 //!
-//! Keys are `KEY=VALUE` lines (a leading `%` is allowed), case-insensitive. Per curve: `NAME`,
-//! `CHANNELTYPE` (`s soll`/`s ist` nominal/actual position, `v soll`/`v ist` velocities,
-//! `I soll`/`I ist` current), `AXISTYPE`, `DIMENSION` (the unit: mm, µm, deg, mm/min, Ampere, …),
-//! `COUNT` (samples) and `CYCLETIME` (sample period, µs) — `COUNT` and `CYCLETIME` are required.
-//! Curve `n` is column `n` of the data rows, after the time `t` in µs.
+//! Header lines are `KEY=VALUE` (a leading `%` allowed, keys in any case); a line that is `%`
+//! alone or followed by white space (`%␠`, as real exports write after the first line, at the end
+//! of `%[GLOBAL]` and between curves) separates blocks and is skipped; so are blank lines, in the
+//! data too. Keys vcnc does not use (`DIAGTYPE`, `RECORDEDBY`, `BGCOLOR`, `COLOR`, `DRAWOFFS`,
+//! `DRAWMULT`, `LOGIC`, `BIT`, …) are kept: global ones as the trace's metadata, curve ones
+//! unused (`DRAWOFFS`/`DRAWMULT` are display settings, not a scaling of the values).
 //!
-//! Channels may have different cycle times. Rows come at the shortest one; a channel whose cycle
-//! is `k` times longer has its samples on every `k`-th row counted from the first row (its other
-//! cells may be empty or repeat a value; they are not read). A channel whose on-grid cells are
-//! empty from some row on ended there (channels may cover different durations). A cycle time
-//! that is not a whole multiple of the shortest, an empty cell followed by more samples of the
-//! channel, and a `COUNT` other than the samples found are errors. Pairing later aligns nominal
-//! and actual positions of different cycle times on one period.
+//! Per curve: `NAME` (`s soll/Y`: quantity and axis), `CHANNELTYPE` (`s soll`/`s ist`
+//! nominal/actual position, `v soll`/`v ist` velocities, `I soll`/`I ist` current), `AXISTYPE`,
+//! `DIMENSION` (the unit: mm, µm, deg, mm/min, Ampere, …), `COUNT` (samples, required),
+//! `SAMPLING` (the recording interval, µs) and `CYCLETIME` (the control cycle the signal is
+//! computed at, µs: 100 µs for the current `I ist`, 3000 µs for positions). **Samples are at the
+//! recording interval**: the curve's `SAMPLING`, else the global `SAMPLING`, else — in exports
+//! that state no recording interval — its `CYCLETIME`; one of them is required. A curve's
+//! `CYCLETIME` is kept as [`crate::Channel::cycle_s`]. (Read at a current's 100 µs cycle, a
+//! recording at 3 ms would seem to have lost 29 of every 30 samples.)
+//!
+//! Curve `n` is column `n` of the data rows, after the time `t` in µs. Channels may have
+//! different recording intervals. Rows come at the shortest one; a channel whose interval is `k`
+//! times longer has its samples on every `k`-th row counted from the first row (its other cells
+//! may be empty or repeat a value; they are not read). A channel whose on-grid cells are empty
+//! from some row on ended there (channels may cover different durations). An interval that is
+//! not a whole multiple of the shortest, an empty cell followed by more samples of the channel,
+//! and a `COUNT` other than the samples found are errors; a file that ends inside a curve block,
+//! or whose data stop before every curve has its `COUNT`, is truncated ([`Error::Truncated`]).
+//! Pairing later aligns nominal and actual positions of different intervals on one period.
 //!
 //! The axis is `AXISTYPE` when it names one (`X`, `X1`, `X axis`), else a word of `NAME`.
 
@@ -71,6 +90,8 @@ fn header(file: &str, line: usize, what: String) -> Error {
 /// start.
 struct Header {
     metadata: Vec<(String, String)>,
+    /// Line of each metadata entry.
+    metadata_lines: Vec<usize>,
     curves: Vec<Curve>,
     data: Start,
 }
@@ -99,12 +120,14 @@ fn read_header(file: &str, bytes: &[u8]) -> Result<Header, Error> {
     }
     let mut in_curve = false;
     let mut metadata = Vec::new();
+    let mut metadata_lines = Vec::new();
     let mut curves: Vec<Curve> = Vec::new();
     let mut last = 1;
     for l in lines {
         last = l.no;
         let t = text::decode(text::trim(l.text)).into_owned();
-        if t.is_empty() {
+        if t.is_empty() || t == "%" {
+            // Blank lines and the `% ` separators of real exports.
             continue;
         }
         if let Some(name) = t.strip_prefix("%[").and_then(|r| r.strip_suffix(']')) {
@@ -115,6 +138,7 @@ fn read_header(file: &str, bytes: &[u8]) -> Result<Header, Error> {
                 check_numbering(file, l.no, &curves)?;
                 return Ok(Header {
                     metadata,
+                    metadata_lines,
                     curves,
                     data: Start {
                         offset: l.next,
@@ -140,6 +164,7 @@ fn read_header(file: &str, bytes: &[u8]) -> Result<Header, Error> {
                 in_curve = true;
             } else if upper != "GLOBAL" {
                 metadata.push(("section".to_string(), name.to_string()));
+                metadata_lines.push(l.no);
             }
             continue;
         }
@@ -148,19 +173,28 @@ fn read_header(file: &str, bytes: &[u8]) -> Result<Header, Error> {
             return Err(header(
                 file,
                 l.no,
-                format!("expected KEY=VALUE, found '{t}'"),
+                format!("expected KEY=VALUE, a %[SECTION] line or a '%' separator, found '{t}'"),
             ));
         };
         let (k, v) = (k.trim().to_ascii_uppercase(), v.trim().to_string());
         match curves.last_mut() {
             Some(c) if in_curve => c.keys.push((k, v, l.no)),
-            _ => metadata.push((k, v)),
+            _ => {
+                metadata.push((k, v));
+                metadata_lines.push(l.no);
+            }
         }
     }
     Err(Error::Truncated {
         file: file.to_string(),
         line: last,
-        what: "no %[DATA] section".to_string(),
+        what: match curves.last() {
+            Some(c) if in_curve => format!(
+                "it stops inside %[CURVE{}] (line {}), before %[DATA]: no %[DATA] section (the export is incomplete; export again)",
+                c.number, c.line
+            ),
+            _ => "no %[DATA] section (the export is incomplete; export again)".to_string(),
+        },
     })
 }
 
@@ -193,11 +227,30 @@ struct Decl {
     name: String,
     count: usize,
     count_line: usize,
-    cycle_s: f64,
-    cycle_line: usize,
+    /// The recording interval, s, and the line that states it.
+    period_s: f64,
+    period_line: usize,
+    /// The control cycle (`CYCLETIME`), s, when stated.
+    cycle_s: Option<f64>,
 }
 
-fn declaration(file: &str, c: &Curve) -> Result<Decl, Error> {
+/// A `SAMPLING` or `CYCLETIME` value, µs → s.
+fn micros(file: &str, key: &str, name: &str, (v, l): (&str, usize)) -> Result<(f64, usize), Error> {
+    match text::parse_f64(v.as_bytes(), true) {
+        Ok(us) if us > 0.0 => Ok((us / 1e6, l)),
+        _ => Err(header(
+            file,
+            l,
+            format!("{key} '{v}' of curve '{name}' is not a positive number of µs"),
+        )),
+    }
+}
+
+fn declaration(
+    file: &str,
+    c: &Curve,
+    global_sampling: Option<(&str, usize)>,
+) -> Result<Decl, Error> {
     let name = c
         .get("NAME")
         .map(|(v, _)| v.to_string())
@@ -215,32 +268,36 @@ fn declaration(file: &str, c: &Curve) -> Result<Decl, Error> {
         ),
         None => return Err(header(file, c.line, format!("curve '{name}' has no COUNT"))),
     };
-    let (cycle_s, cycle_line) = match c.get("CYCLETIME") {
-        Some((v, l)) => match text::parse_f64(v.as_bytes(), true) {
-            Ok(us) if us > 0.0 => (us * 1e-6, l),
-            _ => {
-                return Err(header(
-                    file,
-                    l,
-                    format!("CYCLETIME '{v}' of curve '{name}' is not a positive number of µs"),
-                ));
-            }
-        },
-        None => {
-            return Err(header(
-                file,
-                c.line,
-                format!("curve '{name}' has no CYCLETIME"),
-            ));
-        }
+    let cycle = c
+        .get("CYCLETIME")
+        .map(|v| micros(file, "CYCLETIME", &name, v))
+        .transpose()?;
+    let sampling = match c.get("SAMPLING") {
+        Some(v) => Some(micros(file, "SAMPLING", &name, v)?),
+        None => global_sampling
+            .map(|v| micros(file, "SAMPLING", &name, v))
+            .transpose()?,
+    };
+    let Some((period_s, period_line)) = sampling.or(cycle) else {
+        return Err(header(
+            file,
+            c.line,
+            format!("curve '{name}' has no SAMPLING (recording interval) and no CYCLETIME"),
+        ));
     };
     Ok(Decl {
         name,
         count,
         count_line,
-        cycle_s,
-        cycle_line,
+        period_s,
+        period_line,
+        cycle_s: cycle.map(|(s, _)| s),
     })
+}
+
+/// The data lines: blank lines and `%` separators skipped.
+fn rows(bytes: &[u8], start: Start) -> impl Iterator<Item = text::Line<'_>> {
+    formats::data_lines(bytes, start, false).filter(|l| text::trim(l.text) != b"%")
 }
 
 /// The data rows: time (s) and one cell per curve, NaN where a cell is empty.
@@ -251,13 +308,11 @@ fn read_rows(
     decls: &[Decl],
 ) -> Result<(Vec<f64>, Vec<Vec<f64>>), Error> {
     let n = decls.len();
-    let decimal_comma = formats::data_lines(bytes, start, false)
-        .take(20)
-        .any(|l| l.text.contains(&b','));
+    let decimal_comma = rows(bytes, start).take(20).any(|l| l.text.contains(&b','));
     let mut times: Vec<f64> = Vec::new();
     let mut cells: Vec<Vec<f64>> = vec![Vec::new(); n];
     let mut fields: Vec<&[u8]> = Vec::with_capacity(n + 2);
-    for l in formats::data_lines(bytes, start, false) {
+    for l in rows(bytes, start) {
         fields.clear();
         fields.extend(text::split_delim(l.text, b';'));
         if fields.len() > n + 1 && fields.last().is_some_and(|f| text::trim(f).is_empty()) {
@@ -313,23 +368,24 @@ fn channel(
     line_of: &dyn Fn(usize) -> usize,
 ) -> Result<Channel, Error> {
     let (g, t0_s, base_s) = (grid.g, grid.t0_s, grid.base_s);
-    let ratio = d.cycle_s / base_s;
+    let ratio = d.period_s / base_s;
     let k = ratio.round();
     if (ratio - k).abs() > 1e-6 * ratio {
         return Err(header(
             file,
-            d.cycle_line,
+            d.period_line,
             format!(
-                "CYCLETIME of curve '{}' ({} µs) is not a whole multiple of the shortest cycle ({} µs)",
+                "the recording interval of curve '{}' ({} µs) is not a whole multiple of the shortest one ({} µs)",
                 d.name,
-                d.cycle_s * 1e6,
+                d.period_s * 1e6,
                 base_s * 1e6
             ),
         ));
     }
     let k = k as usize;
     let mut ch = Channel::new(d.name.clone(), c.line, column);
-    ch.period_s = Some(d.cycle_s);
+    ch.period_s = Some(d.period_s);
+    ch.cycle_s = d.cycle_s;
     ch.samples = Vec::with_capacity(d.count.min(cells.len()));
     let mut prev_g: Option<usize> = None;
     // Row of the first empty on-grid cell: the channel ended there (shorter recordings end
@@ -363,6 +419,19 @@ fn channel(
         }
         prev_g = Some(gr);
         ch.samples.push(v);
+    }
+    if ch.samples.len() < d.count && ended.is_none() {
+        return Err(Error::Truncated {
+            file: file.to_string(),
+            line: g.len().checked_sub(1).map_or(c.line, line_of),
+            what: format!(
+                "the data stop after {} of the {} samples curve '{}' declares (COUNT, line {}): the export is cut short",
+                ch.samples.len(),
+                d.count,
+                d.name,
+                d.count_line
+            ),
+        });
     }
     if ch.samples.len() != d.count {
         return Err(Error::CountMismatch {
@@ -403,19 +472,26 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     let decls = h
         .curves
         .iter()
-        .map(|c| declaration(file, c))
+        .map(|c| {
+            let global = h
+                .metadata
+                .iter()
+                .position(|(k, _)| k == "SAMPLING")
+                .map(|i| (h.metadata[i].1.as_str(), h.metadata_lines[i]));
+            declaration(file, c, global)
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let (times, cells) = read_rows(file, bytes, h.data, &decls)?;
     // Rows come at the shortest cycle; the time column must be uniform at it, up to gaps.
-    let line_of = |row: usize| formats::row_line(bytes, h.data, false, row);
+    let line_of = |row: usize| rows(bytes, h.data).nth(row).map_or(h.data.line, |l| l.no);
     let base_s = decls
         .iter()
-        .map(|d| d.cycle_s)
+        .map(|d| d.period_s)
         .fold(f64::INFINITY, f64::min);
     let base_line = decls
         .iter()
-        .find(|d| d.cycle_s == base_s)
-        .map_or(h.data.line, |d| d.cycle_line);
+        .find(|d| d.period_s == base_s)
+        .map_or(h.data.line, |d| d.period_line);
     let u = timebase::uniform(&times, Some(base_s))
         .map_err(|f| formats::time_error(file, f, base_line, line_of))?;
     // Global sample index of every row (rows lost in gaps counted).

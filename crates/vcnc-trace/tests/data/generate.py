@@ -196,6 +196,170 @@ def sinumerik():
     write("sinumerik/x1-y1.xml", "\n".join(out) + "\n")
 
 
+def tncscope_itnc530():
+    # TNCscope export as an iTNC 530 (NC software 606420 03 SP4) writes it: `% ` separator lines
+    # (after the first line, at the end of %[GLOBAL], between curves), %-prefixed keys, every
+    # curve recorded at the 3 ms SAMPLING interval while its CYCLETIME is the signal's own control
+    # cycle (100 us for the current), NAME "s soll/Y", numeric CHANNELTYPE codes, unknown keys,
+    # a PLC bit curve, the actual position in micrometres; Latin-1 (µ = 0xB5, ü), CRLF.
+    samp, n = 3000, 200
+    p = samp * 1e-6
+    yr, y = axis_signals("Y", n, p)
+    vel = [(y[min(k + 1, n - 1)] - y[k]) / p * 60 for k in range(n)]
+    cur = [0.5 * (yr[min(k + 1, n - 1)] - 2 * yr[k] + yr[max(k - 1, 0)]) / (p * p) / 1000 for k in range(n)]
+    bit = [1.0 if 20 <= k < 120 else 0.0 for k in range(n)]
+    # (NAME, CHANNELTYPE code, AXISTYPE, DIMENSION, CYCLETIME us, values, format)
+    curves = [
+        ("s soll/Y", "1", "Y", "mm", 3000, yr, "%.4f"),
+        ("s ist/Y", "2", "Y", "\u00b5m", 3000, [v * 1000 for v in y], "%.1f"),
+        ("v ist/Y", "4", "Y", "mm/min", 600, vel, "%.3f"),
+        ("I ist/Y", "8", "Y", "A", 100, cur, "%.4f"),
+        ("PLC M4711", "64", "", "", 3000, bit, "%.0f"),
+    ]
+    out = ["%TNCscopeNT data file", "% ", "%[GLOBAL]", "%VERSION=3", "%DIAGTYPE=TNCscope",
+           "%RECORDEDBY=J. M\u00fcller", "%URL=", "%CONTROL=iTNC 530", "%NCVERSION=606420 03 SP4",
+           "%PLCVERSION=BASIS--55-02-4", "%DSPVERSIONS=DSP 1: 0D4 / 07", "%TIME=12.03.2024 09:41:17",
+           "%TRIGGERTIME=12.03.2024 09:41:18", "%TRIGGERTIME_US=412000", "%DIFFTIMEUTC=3600",
+           "%BUFFER=4096", "%%SAMPLING=%d" % samp, "%TRIGGERMODE=0", "%BGCOLOR=16777215",
+           "%CURPOSH=0", "%CURPOSV1=0", "% "]
+    for i, (name, ct, at, dim, cyc, s, _) in enumerate(curves):
+        out += ["%%[CURVE%d]" % (i + 1), "%NAME=" + name, "%CHANNELTYPE=" + ct,
+                "%%CHANNELID=%d" % (100 + i), "%AXISTYPE=" + at, "%DIMENSION=" + dim,
+                "%%COUNT=%d" % len(s), "%%SAMPLING=%d" % samp, "%%CYCLETIME=%d" % cyc,
+                "%%COLOR=%d" % (255 << (4 * i)), "%TRIGGERCOND=0", "%DRAWOFFS=0.000000",
+                "%DRAWMULT=1.000000", "%%LOGIC=%d" % (1 if at == "" else 0),
+                "%%DISCRETE=%d" % (1 if at == "" else 0), "%METRIC=1", "%%COLUMN=%d" % i,
+                "%%BIT=%d" % (3 if at == "" else 0), "% "]
+    out.append("%[DATA]")
+    for k in range(n):
+        out.append(";".join(["%d" % (k * samp)] + [" " + f % s[k] for (*_, s, f) in curves]) + ";")
+    write("tncscope/itnc530-y.txt", "\r\n".join(out) + "\r\n", encoding="latin-1")
+
+
+def play(m, b, x0):
+    """Table position behind a backlash of width b driven by the motor position m (the play
+    operator): the table stands until the motor has crossed the gap."""
+    x, out = x0, []
+    for v in m:
+        x = min(max(x, v - b / 2), v + b / 2)
+        out.append(x)
+    return out
+
+
+# Lost motion of the Sinumerik V20 sample, mm (the play operator's width).
+BACKLASH_MM = 0.005
+
+
+def reversing_setpoint(n, p, base=-300.0, stroke=0.030, move_s=0.06, hold_s=0.04):
+    """Pulses of `stroke` up and down from `base`: a cycloidal move, a hold, the move back."""
+    out = []
+    for k in range(n):
+        t = k * p
+        half = move_s + hold_s
+        j, tau = int(t // half), t % half
+        u = min(tau / move_s, 1.0)
+        frac = u - math.sin(2 * math.pi * u) / (2 * math.pi)
+        out.append(base + stroke * (frac if j % 2 == 0 else 1.0 - frac))
+    return out
+
+
+def sinumerik_v20():
+    # Sinumerik Operate servo trace, traceSession 01.00.03.02 / traceCaptureSetup_V20, of NCK
+    # axis 1 with a direct scale: the setpoint is for measuring system 2 (CmdPos2ndEnc64); the
+    # motor (measuring system 1, its own zero 800 mm away) follows it (40 Hz, zeta = 1) and
+    # drives the table through a 5 um backlash (ActPos2ndEnc64); velocity, deviation, load,
+    # current, torque. Records leave out values unchanged since the last record that had them;
+    # attributes in no fixed order. UTF-8 with a byte-order mark, CRLF.
+    p, n = 2e-3, 600
+    xr = reversing_setpoint(n, p)
+    m = [v + xr[0] for v in follow([r - xr[0] for r in xr], p, zeta=1.0)]
+    x = play(m, BACKLASH_MM, m[0] - BACKLASH_MM / 2)
+    motor = [v - 800.0 for v in m]
+    d = lambda s: [(s[min(k + 1, n - 1)] - s[k]) / p for k in range(n)]
+    vr, vm, vx = d(xr), d(m), d(x)
+    acc = d(vm)
+    sig = [
+        ("s1", "nckServoDataCmdPos2ndEnc64", "Position setpoint (64 bit)", "posn", xr),
+        ("s2", "nckServoDataActPos1stEnc64", "Position actual value measuring system 1 (64 bit)", "posn", motor),
+        ("s3", "nckServoDataActPos2ndEnc64", "Position actual value measuring system 2 (64 bit)", "posn", x),
+        ("s4", "nckServoDataCmdSpeed64", "Speed setpoint (64 bit)", "velo", [v * 60 for v in vr]),
+        ("s5", "nckServoDataActVelMot64", "Actual speed motor (64 bit)", "velo", [v * 60 for v in vm]),
+        ("s6", "nckServoDataActVel2ndEnc64", "Actual velocity measuring system 2 (64 bit)", "velo", [v * 60 for v in vx]),
+        ("s7", "nckServoDataCtrlDev64", "Control deviation (64 bit)", "posn", [a - b for a, b in zip(xr, x)]),
+        ("s8", "nckServoDataDrvLoad64", "Load (64 bit)", "percent", [min(abs(a) / 50.0, 100.0) for a in acc]),
+        ("s9", "nckServoDataActCurr64", "Torque-generating current actual value i(q) (64 bit)", "current", [a / 400.0 for a in acc]),
+        ("s10", "nckServoDataCmdTorque64", "Torque/force setpoint (64 bit)", "torque", [a / 90.0 for a in acc]),
+    ]
+    nl = "\r\n"
+    out = ['<?xml version="1.0" encoding="UTF-8"?>',
+           '<traceSession version="01.00.03.02" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance">',
+           "  <traceCaptureSetup_V20>",
+           '    <sessionSettings sessionName="BK240_1" comment="reversal test X"/>',
+           "    <signalSettings>"]
+    for key, nck, desc, ut, _ in sig:
+        out.append('      <signal key="%s" unitsType="%s" name="/Nck/!SD/%s [u1, 1]" description="%s" active="true" color="#%06x"/>'
+                   % (key, ut, nck, desc, 4321 * int(key[1:])))
+    out += ["    </signalSettings>",
+            '    <triggerSettings mode="immediate" preTrigger="0"/>',
+            "  </traceCaptureSetup_V20>",
+            '  <traceData dataFrames="1">',
+            "    <dataFrame>",
+            '      <frameHeader startTime="2024-05-07T10:11:12.000" stopInc="%.3f" dropOuts="0"/>' % ((n - 1) * p)]
+    for key, _, _, ut, _ in sig:
+        out.append('      <dataSignal key="%s" id="f%s" unitsType="%s" domain="servo" dataType="double" interval="%.6f" datapointCount="%d"/>'
+                   % (key, key[1:], ut, p, n))
+    last = {}
+    for k in range(n):
+        attrs = []
+        for key, _, _, _, s in sig:
+            v = "%.6f" % s[k]
+            if last.get(key) == v:
+                continue
+            last[key] = v
+            attrs.append('f%s="%s"' % (key[1:], v))
+        # Attributes in no fixed order: as the control writes them, by its own bookkeeping.
+        attrs = attrs[k % max(len(attrs), 1):] + attrs[:k % max(len(attrs), 1)]
+        out.append("      <rec %s/>" % " ".join(['time="%.6f"' % (k * p)] + attrs))
+    out += ["    </dataFrame>", "  </traceData>", "</traceSession>"]
+    with open("sinumerik/v20-x-two-systems.xml", "wb") as f:
+        f.write(b"\xef\xbb\xbf" + (nl.join(out) + nl).encode("utf-8"))
+
+
+def sinumerik_v20_latin1():
+    # A V20 trace of NCK axes 1 and 2 with German descriptions, saved as ISO-8859-1 (ß = 0xDF):
+    # each axis a setpoint and an actual position of measuring system 1 (no direct scale), and
+    # the contour deviation. Axis numbers mapped by the caller (--axis-map 1=X,2=Y).
+    p, n = 4e-3, 120
+    xr, x = axis_signals("X", n, p)
+    yr, y = axis_signals("Y", n, p)
+    sig = []
+    for ax, r, a in ((1, xr, x), (2, yr, y)):
+        sig += [
+            ("s%d" % (3 * ax - 2), "nckServoDataCmdPos1stEnc64 [u1, %d]" % ax, "Lagesollwert Me\u00dfsystem 1 (64 bit)", r),
+            ("s%d" % (3 * ax - 1), "nckServoDataActPos1stEnc64 [u1, %d]" % ax, "Lageistwert Me\u00dfsystem 1 (64 bit)", a),
+            ("s%d" % (3 * ax), "nckServoDataContDev64 [u1, %d]" % ax, "Konturabweichung (64 bit)", [u - v for u, v in zip(r, a)]),
+        ]
+    out = ['<?xml version="1.0" encoding="ISO-8859-1"?>', '<traceSession version="01.00.03.02">',
+           "<traceCaptureSetup_V20>", "<signalSettings>"]
+    for key, nck, desc, _ in sig:
+        out.append('<signal key="%s" unitsType="posn" name="/Nck/!SD/%s" description="%s"/>' % (key, nck, desc))
+    out += ["</signalSettings>", "</traceCaptureSetup_V20>", '<traceData dataFrames="1">', "<dataFrame>",
+            '<frameHeader startTime="2024-05-08T08:00:00.000" dropOuts="0"/>']
+    for key, *_ in sig:
+        out.append('<dataSignal key="%s" id="f%s" unitsType="posn" interval="%.6f" datapointCount="%d"/>' % (key, key[1:], p, n))
+    last = {}
+    for k in range(n):
+        attrs = ['time="%.6f"' % (k * p)]
+        for key, _, _, s in sig:
+            v = "%.6f" % s[k]
+            if last.get(key) != v:
+                last[key] = v
+                attrs.append('f%s="%s"' % (key[1:], v))
+        out.append("<rec %s/>" % " ".join(attrs))
+    out += ["</dataFrame>", "</traceData>", "</traceSession>"]
+    write("sinumerik/v20-latin1-two-axes.xml", "\n".join(out) + "\n", encoding="latin-1")
+
+
 def twincat(path, sep, comma, shared):
     # TwinCAT 3 Scope export of two NC axes (PLC symbols of the axis references), in the layout
     # of the sample exports: default (one time column per channel) or with channels of one
@@ -263,7 +427,10 @@ if __name__ == "__main__":
     halsampler_tagged()
     halsampler_plain()
     tncscope()
+    tncscope_itnc530()
     sinumerik()
+    sinumerik_v20()
+    sinumerik_v20_latin1()
     twincat("twincat/nc-axes_semicolon.csv", ";", False, False)
     twincat("twincat/nc-axes_tab-decimal-comma_shared-time.csv", "\t", True, True)
     delimited()
