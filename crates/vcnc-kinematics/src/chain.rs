@@ -19,7 +19,7 @@ use crate::families::{HeadHead, HeadTable, TableTilting, Xyz};
 use crate::kinematics::Kinematics;
 use crate::model::TableTiltingAc;
 use crate::types::{
-    AxisLimits, AxisName, Axes, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt, Travel,
+    Axes, AxisLimits, AxisName, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt, Travel,
 };
 use crate::wrist::unwrap_within;
 
@@ -248,13 +248,15 @@ impl KinematicChain {
     /// The frame origin of the joint driving `axis` (a point of its axis) in the machine frame
     /// at the zero position, mm; `None` if no joint drives it.
     pub fn joint_point(&self, axis: AxisName) -> Option<Vector3<f64>> {
-        [&self.tool, &self.workpiece].into_iter().find_map(|joints| {
-            let mut t = Isometry3::identity();
-            joints.iter().find_map(|j| {
-                t *= j.origin;
-                (j.role == Some(axis)).then_some(t.translation.vector)
+        [&self.tool, &self.workpiece]
+            .into_iter()
+            .find_map(|joints| {
+                let mut t = Isometry3::identity();
+                joints.iter().find_map(|j| {
+                    t *= j.origin;
+                    (j.role == Some(axis)).then_some(t.translation.vector)
+                })
             })
-        })
     }
 
     /// The C-axis centre r of an A/C table (the C joint's frame origin at zero), mm.
@@ -325,10 +327,11 @@ impl KinematicChain {
 
     /// The closed-form family this chain matches, or why it matches none.
     pub fn closed_form(&self) -> Result<Kinematics> {
-        self.match_closed_form().map_err(|reason| Error::NoClosedForm {
-            file: self.source.clone(),
-            reason,
-        })
+        self.match_closed_form()
+            .map_err(|reason| Error::NoClosedForm {
+                file: self.source.clone(),
+                reason,
+            })
     }
 
     /// Joint values, velocities and accelerations → the tool tip's position, velocity and
@@ -473,7 +476,11 @@ impl KinematicChain {
         while e.norm() > IK_TOLERANCE && iterations < IK_MAX_ITERATIONS && lambda < 1e8 {
             iterations += 1;
             // Normal equations padded to 3×3 (a chain has at most three rotary joints).
-            let cols: Vec<Vector3<f64>> = state.rotary.iter().map(|(_, z)| z.cross(&state.o)).collect();
+            let cols: Vec<Vector3<f64>> = state
+                .rotary
+                .iter()
+                .map(|(_, z)| z.cross(&state.o))
+                .collect();
             let mut jtj = Matrix3::identity();
             let mut jte = Vector3::zeros();
             for (i, ci) in cols.iter().enumerate() {
@@ -511,15 +518,14 @@ impl KinematicChain {
             } else {
                 Travel::UNBOUNDED
             };
-            let (v, _) = unwrap_within(q[r.axis], seed[r.axis], travel).ok_or(
-                Error::OutOfTravel {
+            let (v, _) =
+                unwrap_within(q[r.axis], seed[r.axis], travel).ok_or(Error::OutOfTravel {
                     axis: r.axis,
                     value: q[r.axis],
                     lower: travel.lower,
                     upper: travel.upper,
                     sample,
-                },
-            )?;
+                })?;
             q[r.axis] = v;
         }
         Ok(q)
@@ -540,14 +546,7 @@ impl KinematicChain {
         ];
         let mut worst = (0.0f64, 0.0f64);
         for (x, y, z, a, b, c) in probes {
-            let q = Axes {
-                x,
-                y,
-                z,
-                a,
-                b,
-                c,
-            };
+            let q = Axes { x, y, z, a, b, c };
             let (g, f) = (self.forward(&q), kin.forward(&q));
             worst = (
                 worst.0.max((g.p - f.p).norm()),
@@ -576,32 +575,22 @@ impl KinematicChain {
                 (tilt_of(t), Some(t.turns), Some(c.turns))
             }
             other => {
-                let names: Vec<String> = other.iter().map(|r| format!("{} ({})", r.axis, r.turns)).collect();
+                let names: Vec<String> = other
+                    .iter()
+                    .map(|r| format!("{} ({})", r.axis, r.turns))
+                    .collect();
                 return Err(format!(
                     "its rotary axes {} match no closed-form family",
-                    if names.is_empty() { "(none)".into() } else { names.join(", ") }
+                    if names.is_empty() {
+                        "(none)".into()
+                    } else {
+                        names.join(", ")
+                    }
                 ));
             }
         };
         self.check_zero_position()?;
         self.check_directions()?;
-        // The slides sit on the tool side, before any rotary joint there.
-        let mut seen_rotary = false;
-        for j in &self.tool {
-            match j.kind {
-                k if k.is_rotary() => seen_rotary = true,
-                JointKind::Prismatic if seen_rotary => {
-                    return Err(format!("slide '{}' is carried by a rotary joint of the head", j.name));
-                }
-                _ => {}
-            }
-        }
-        if let Some(j) = self.workpiece.iter().find(|j| j.kind == JointKind::Prismatic) {
-            return Err(format!(
-                "slide '{}' moves the workpiece; the closed forms move the tool",
-                j.name
-            ));
-        }
         let point = |axis| self.joint_point(axis).unwrap_or_default();
         let order = |joints: &[ChainJoint], first: AxisName, then: AxisName| {
             let pos = |a| joints.iter().position(|j| j.role == Some(a));
@@ -612,7 +601,9 @@ impl KinematicChain {
             (None, ..) => Kinematics::Xyz(Xyz { limits }),
             (Some(t), Some(Carrier::Table), Some(Carrier::Table)) => {
                 if !order(&self.workpiece, t.axis(), AxisName::C) {
-                    return Err(format!("the table's C axis carries {t}; the tilt must carry C"));
+                    return Err(format!(
+                        "the table's C axis carries {t}; the tilt must carry C"
+                    ));
                 }
                 let r = point(AxisName::C);
                 Kinematics::TableTilting(TableTilting {
@@ -624,7 +615,9 @@ impl KinematicChain {
             }
             (Some(t), Some(Carrier::Head), Some(Carrier::Head)) => {
                 if !order(&self.tool, AxisName::C, t.axis()) {
-                    return Err(format!("the head's {t} axis carries C; C must carry the tilt"));
+                    return Err(format!(
+                        "the head's {t} axis carries C; C must carry the tilt"
+                    ));
                 }
                 Kinematics::HeadHead(HeadHead {
                     tilt: t,
@@ -642,7 +635,9 @@ impl KinematicChain {
                 })
             }
             (Some(t), ..) => {
-                return Err(format!("a tilting table {t} under a C head matches no closed-form family"));
+                return Err(format!(
+                    "a tilting table {t} under a C head matches no closed-form family"
+                ));
             }
         };
         Ok(kin)
@@ -664,17 +659,30 @@ impl KinematicChain {
         )
     }
 
-    /// Every moving joint points along the + direction of its axis in the machine frame at zero.
+    /// Every moving joint points along its axis in the machine frame at zero: rotary joints
+    /// and tool-side slides along +, workpiece-side slides along − (a table moving −X moves the
+    /// tool +X relative to the workpiece).
     fn check_directions(&self) -> std::result::Result<(), String> {
-        for joints in [&self.tool, &self.workpiece] {
+        for (joints, side) in [(&self.tool, 1.0), (&self.workpiece, -1.0)] {
             let mut t = Isometry3::identity();
             for j in joints.iter() {
                 t *= j.origin;
                 let Some(role) = j.role else { continue };
                 let dir = t.rotation * j.axis.into_inner();
-                let (name, expected) = unit_name(role);
+                let (plus, unit) = unit_name(role);
+                let slide_sign = if role.is_rotary() { 1.0 } else { side };
+                let expected = unit * slide_sign;
+                let name = if slide_sign > 0.0 {
+                    plus.to_string()
+                } else {
+                    plus.replace('+', "-")
+                };
                 if (dir - expected).norm() > CHAIN_TOLERANCE {
-                    let frame = if t.rotation.angle() == 0.0 { "" } else { " in the machine frame" };
+                    let frame = if t.rotation.angle() == 0.0 {
+                        ""
+                    } else {
+                        " in the machine frame"
+                    };
                     return Err(format!(
                         "joint '{}' axis is {}{frame}, expected {name} (axis {role})",
                         j.name,
@@ -798,7 +806,8 @@ impl Builder<'_> {
             ))
         })?;
         let wp_path = self.path_to(&tree, WORKPIECE_LINK)?.unwrap_or_default();
-        let workpiece_link = if wp_path.is_empty() && !tree.link_index.contains_key(WORKPIECE_LINK) {
+        let workpiece_link = if wp_path.is_empty() && !tree.link_index.contains_key(WORKPIECE_LINK)
+        {
             tree.base_link.clone()
         } else {
             WORKPIECE_LINK.to_string()
@@ -963,7 +972,11 @@ impl Builder<'_> {
         while let Some(link) = stack.pop() {
             reached += 1;
             for &ji in child_joints.get(link).map_or(&[][..], |v| v.as_slice()) {
-                if let Some(&c) = robot.joints.get(ji).and_then(|j| link_index.get(j.child.link.as_str())) {
+                if let Some(&c) = robot
+                    .joints
+                    .get(ji)
+                    .and_then(|j| link_index.get(j.child.link.as_str()))
+                {
                     stack.push(c);
                 }
             }
@@ -1114,7 +1127,12 @@ impl Builder<'_> {
     }
 
     /// The machine axis a moving joint drives (its name, else its direction `dir` at zero).
-    fn role(&self, joint: &urdf_rs::Joint, kind: JointKind, dir: &Vector3<f64>) -> Result<AxisName> {
+    fn role(
+        &self,
+        joint: &urdf_rs::Joint,
+        kind: JointKind,
+        dir: &Vector3<f64>,
+    ) -> Result<AxisName> {
         let rotary = kind.is_rotary();
         let mut letters = joint.name.chars();
         let named = match (letters.next(), letters.next()) {

@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 use crate::rotation::{Principal, RotFamily, rotate, still};
-use crate::types::{AxisLimits, AxisName, Axes, JointMotion, PointMotion, Pose, Tilt};
+use crate::types::{Axes, AxisLimits, AxisName, JointMotion, PointMotion, Pose, Tilt};
 use crate::wrist::Wrist;
 
 fn principal(tilt: Tilt) -> Principal {
@@ -57,10 +57,11 @@ impl Xyz {
 pub struct TableTilting {
     /// The tilting axis: A (a cradle about X, e.g. NMV5000) or B (a trunnion about Y).
     pub tilt: Tilt,
-    /// C-axis centre $r$: a point of the C axis at tilt 0, machine frame, mm.
+    /// C-axis centre $r$: a point of the C axis at tilt 0, machine frame, mm. Any point of the
+    /// axis will do: $r_z$ counts only through $r_z + d_z$.
     pub r: Vector3<f64>,
-    /// Tilt-axis centre relative to the C-axis centre, $d$, mm. Its component along the tilt
-    /// axis has no effect (any point of the tilt axis will do).
+    /// Tilt-axis centre relative to the C-axis centre, $d$, mm: $r + d$ is a point of the tilt
+    /// axis. Its component along the tilt axis has no effect.
     pub d: Vector3<f64>,
     /// Travels (mm, rad) of X Y Z, the tilt and C. Never applied by the forward kinematics.
     pub limits: AxisLimits,
@@ -122,8 +123,11 @@ impl TableTilting {
             p: rz_q.p - self.d,
             ..rz_q
         };
-        let m =
-            RotFamily::new(principal(self.tilt), rot.pos[axis]).motion(rot.vel[axis], rot.acc[axis], &u);
+        let m = RotFamily::new(principal(self.tilt), rot.pos[axis]).motion(
+            rot.vel[axis],
+            rot.acc[axis],
+            &u,
+        );
         PointMotion {
             p: self.r + self.d + m.p,
             ..m

@@ -4,21 +4,29 @@
 //! table; $s_t, s_c$ of a head-head; $s_t, r$ of a head-table) at fixed joints:
 //! $$ p_w(\theta) = p_w(0) + G\,\theta, \qquad G_{\cdot i} = p_w(e_i) - p_w(0), $$
 //! so the offsets that best explain samples $(q_k, p_k)$ solve one linear least-squares problem,
-//! $\min_\theta \sum_k \lVert p_w(0; q_k) + G(q_k)\,\theta - p_k \rVert^2$. Some combinations of
-//! offsets move no tip (a point's component along the axis it lies on); the minimum-norm
-//! solution of the singular-value decomposition sets them to zero.
+//! $\min_\theta \sum_k \lVert p_w(0; q_k) + G(q_k)\,\theta - p_k \rVert^2$.
+//!
+//! Only four of the six numbers are determined: each offset is a point of a rotary axis, and a
+//! point may slide along its axis. The fit pins one coordinate of each point to zero (the
+//! canonical form) and solves for the other four:
+//!
+//! | family | pinned | determined |
+//! |---|---|---|
+//! | table-tilting | $r_z$ (the C point slides along Z), $d$ along the tilt axis | $r_x, r_y$ and $r + d$ across the tilt axis |
+//! | head-head | $s_t$ along the tilt axis, $s_{c,z}$ | $s_t$ across the tilt axis, $s_{c,x}, s_{c,y}$ |
+//! | head-table | $s_t$ along the tilt axis, $r_z$ | $s_t$ across the tilt axis, $r_x, r_y$ |
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use crate::error::{Error, Result};
 use crate::families::{HeadHead, HeadTable, TableTilting};
 use crate::kinematics::Kinematics;
-use crate::types::{Axes, Pose};
+use crate::types::{Axes, Pose, Tilt};
 
 /// Offsets fitted to samples ([`Kinematics::fit_offsets`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct OffsetFit {
-    /// The family with the fitted offsets (the unidentifiable components zero).
+    /// The family with the fitted offsets, in the canonical form (the pinned coordinates zero).
     pub kinematics: Kinematics,
     /// RMS of the tool-tip residual over the samples, mm.
     pub rms_mm: f64,
@@ -27,7 +35,8 @@ pub struct OffsetFit {
     /// Largest tool-axis residual (unit-vector difference): the offsets cannot change it, so a
     /// large value means the samples' joints follow other conventions than the family's.
     pub max_axis: f64,
-    /// Number of offset combinations the samples determine (at most 6).
+    /// Number of offset combinations the samples determine (4 when the samples move every
+    /// rotary axis enough; fewer means some offsets are still free, and were set to zero).
     pub rank: usize,
 }
 
@@ -39,6 +48,21 @@ impl Kinematics {
             Kinematics::HeadHead(m) => Some([m.pivot, m.c_axis]),
             Kinematics::HeadTable(m) => Some([m.pivot, m.r]),
             Kinematics::Xyz(_) | Kinematics::Chain(_) => None,
+        }
+    }
+
+    /// The indices (0..6, into the two offset vectors) of the coordinates that move no tip and
+    /// are pinned to zero by the fit.
+    fn pinned_offsets(&self) -> [usize; 2] {
+        let along = |tilt: Tilt| match tilt {
+            Tilt::A => 0,
+            Tilt::B => 1,
+        };
+        match self {
+            Kinematics::TableTilting(m) => [2, 3 + along(m.tilt)],
+            Kinematics::HeadHead(m) => [along(m.tilt), 5],
+            Kinematics::HeadTable(m) => [along(m.tilt), 5],
+            Kinematics::Xyz(_) | Kinematics::Chain(_) => [0, 1],
         }
     }
 
@@ -81,7 +105,9 @@ impl Kinematics {
         }
         let fitted = match (self, self.offsets()) {
             (Kinematics::Chain(_), _) => {
-                return Err(fail("a chain's offsets are its URDF's joint origins".into()));
+                return Err(fail(
+                    "a chain's offsets are its URDF's joint origins".into(),
+                ));
             }
             (_, None) => (self.clone(), 0),
             (_, Some(_)) => {
@@ -113,15 +139,18 @@ impl Kinematics {
                         y[3 * k + r] = pose.p[r] - p0[r];
                     }
                 }
+                let pinned = self.pinned_offsets();
+                let free: Vec<usize> = (0..6).filter(|i| !pinned.contains(i)).collect();
+                let g = g.select_columns(free.iter());
                 let svd = g.svd(true, true);
                 let smax = svd.singular_values.max();
                 let eps = smax * 1e-10;
                 let rank = svd.singular_values.iter().filter(|s| **s > eps).count();
                 let theta = svd.solve(&y, eps).map_err(|e| fail(e.to_string()))?;
-                let o = [
-                    Vector3::new(theta[0], theta[1], theta[2]),
-                    Vector3::new(theta[3], theta[4], theta[5]),
-                ];
+                let mut o = [Vector3::zeros(); 2];
+                for (k, &i) in free.iter().enumerate() {
+                    o[i / 3][i % 3] = theta[k];
+                }
                 (self.with_offset_values(o), rank)
             }
         };

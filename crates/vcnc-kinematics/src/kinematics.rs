@@ -12,7 +12,7 @@ use crate::chain::{KinematicChain, unit_orientation};
 use crate::error::{Error, Result};
 use crate::families::{HeadHead, HeadTable, TableTilting, Xyz, tilt_and_c};
 use crate::types::{
-    AxisLimits, AxisName, Axes, Branch, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt,
+    Axes, AxisLimits, AxisName, Branch, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt,
     Track, Track3, Travel,
 };
 use crate::wrist::{RotaryAngles, Wrist};
@@ -243,7 +243,11 @@ impl Kinematics {
         let head_table = is(|f| matches!(f, Family::HeadTable(_)));
         given("c_centre_mm", p.c_centre_mm.is_some(), table || head_table)?;
         given("tilt_offset_mm", p.tilt_offset_mm.is_some(), table)?;
-        given("pivot_length_mm", p.pivot_length_mm.is_some(), head_head || head_table)?;
+        given(
+            "pivot_length_mm",
+            p.pivot_length_mm.is_some(),
+            head_head || head_table,
+        )?;
         given("pivot_mm", p.pivot_mm.is_some(), head_head || head_table)?;
         given("c_axis_mm", p.c_axis_mm.is_some(), head_head)?;
         let v = |a: Option<[f64; 3]>| a.map_or(Vector3::zeros(), Vector3::from);
@@ -279,12 +283,9 @@ impl Kinematics {
                 let s_c = p.c_axis_mm.map_or(s_t, Vector3::from);
                 Kinematics::HeadHead(HeadHead::new(tilt, s_t, s_c, p.limits)?)
             }
-            Family::HeadTable(tilt) => Kinematics::HeadTable(HeadTable::new(
-                tilt,
-                pivot()?,
-                v(p.c_centre_mm),
-                p.limits,
-            )?),
+            Family::HeadTable(tilt) => {
+                Kinematics::HeadTable(HeadTable::new(tilt, pivot()?, v(p.c_centre_mm), p.limits)?)
+            }
             Family::Chain => {
                 return Err(Error::BadParameter {
                     name: "family".into(),
@@ -579,14 +580,16 @@ impl Kinematics {
         }
         match self.solve_from(poses, Branch::Plus, opts) {
             Ok(sol) => Ok(sol),
-            Err(plus @ Error::OutOfTravel { .. }) => match self.solve_from(poses, Branch::Minus, opts) {
-                Ok(sol) => Ok(sol),
-                Err(minus @ Error::OutOfTravel { .. }) => Err(Error::NoBranch {
-                    plus: Box::new(plus),
-                    minus: Box::new(minus),
-                }),
-                Err(other) => Err(other),
-            },
+            Err(plus @ Error::OutOfTravel { .. }) => {
+                match self.solve_from(poses, Branch::Minus, opts) {
+                    Ok(sol) => Ok(sol),
+                    Err(minus @ Error::OutOfTravel { .. }) => Err(Error::NoBranch {
+                        plus: Box::new(plus),
+                        minus: Box::new(minus),
+                    }),
+                    Err(other) => Err(other),
+                }
+            }
             Err(other) => Err(other),
         }
     }
@@ -626,12 +629,12 @@ fn rotary_solution(previous: &Axes, tilt: AxisName, ang: &RotaryAngles) -> Rotar
 /// whole or piece by piece gives the same bits.
 ///
 /// The branch rule (docs/kinematics.md): each sample is solved on the current branch with C
-/// nearest to the previous C (within its travel); at the singularity C is held. Unless
-/// [`IkOptions::keep_branch`], where the other branch moves the rotary axes less from the
-/// previous sample (measured as $|\Delta t| + |\Delta c|$), the solver switches to it: this is
-/// what keeps C continuous when the tool axis passes through the C axis (the tilt changes sign
-/// instead of C turning half a turn). A chain follows its damped least-squares solve from the
-/// previous sample.
+/// nearest to the previous C (within its travel); at the singularity C is held. When that
+/// turns C by more than a quarter turn in one sample (the tool axis passed through or near the
+/// C axis) and is not an unwinding move, the other branch is tried, and taken if it moves the
+/// rotary axes less (measured as $|\Delta t| + |\Delta c|$): the tilt changes sign instead of
+/// C turning half a turn, and C stays continuous. [`IkOptions::keep_branch`] turns this off.
+/// A chain follows its damped least-squares solve from the previous sample.
 #[derive(Debug, Clone)]
 pub struct PoseSolver<'k> {
     kin: &'k Kinematics,
@@ -665,16 +668,19 @@ impl PoseSolver<'_> {
         let (mut joints, mut rot) =
             self.kin
                 .inverse_at(pose, self.branch, &prev, self.check_travel, Some(k))?;
-        if k > 0 && !self.keep_branch && !rot.singular && self.kin.wrist().is_some() {
+        let c_jump = (joints.c - prev.c).abs() > FRAC_PI_2;
+        if k > 0
+            && c_jump
+            && !self.keep_branch
+            && !rot.singular
+            && !rot.unwound
+            && self.kin.wrist().is_some()
+        {
             let (_, tilt) = self.kin.closed_wrist();
             let step = |j: &Axes| (j[tilt] - prev[tilt]).abs() + (j.c - prev.c).abs();
-            let other = self.kin.inverse_at(
-                pose,
-                self.branch.other(),
-                &prev,
-                self.check_travel,
-                Some(k),
-            );
+            let other =
+                self.kin
+                    .inverse_at(pose, self.branch.other(), &prev, self.check_travel, Some(k));
             if let Ok((j2, r2)) = other
                 && step(&j2) < step(&joints)
             {

@@ -74,7 +74,7 @@ pub use kinematics::{
 };
 pub use model::TableTiltingAc;
 pub use types::{
-    AxisLimits, AxisName, Axes, Branch, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt,
+    Axes, AxisLimits, AxisName, Branch, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt,
     Track, Track3, Travel,
 };
 pub use wrist::{RotaryAngles, SINGULAR_SIN_A, unwrap_near, unwrap_within};

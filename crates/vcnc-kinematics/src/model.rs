@@ -8,7 +8,7 @@ use crate::chain::KinematicChain;
 use crate::error::Result;
 use crate::families::TableTilting;
 use crate::kinematics::{IkOptions, IkSolution, Kinematics};
-use crate::types::{AxisLimits, Axes, Branch, Pose, Tilt, Track, Track3, Travel};
+use crate::types::{Axes, AxisLimits, Branch, Pose, Tilt, Track, Track3, Travel};
 use crate::wrist::{RotaryAngles, Wrist};
 
 /// The closed-form table-tilting A/C model (docs/kinematics.md; equals LinuxCNC's `xyzac-trt`
@@ -115,7 +115,8 @@ impl TableTiltingAc {
     /// and rotary angles `a`, `c` (rad):
     /// $p_m = r + d + R_x(a)\big(R_z(c)(p_w - r) - d\big)$.
     pub fn inverse_tcp(&self, p_w: &Vector3<f64>, a: f64, c: f64) -> Vector3<f64> {
-        self.family().tcp_position(p_w, &Axes::new(0.0, 0.0, 0.0, a, c))
+        self.family()
+            .tcp_position(p_w, &Axes::new(0.0, 0.0, 0.0, a, c))
     }
 
     /// [`Kinematics::inverse_tcp_track`] of this model: X Y Z tracks of the tool tip in the

@@ -335,7 +335,13 @@ impl AxisLimits {
     pub fn check(&self, axes: &Axes, sample: Option<usize>) -> Result<()> {
         self.check_axes(
             axes,
-            &[AxisName::X, AxisName::Y, AxisName::Z, AxisName::A, AxisName::C],
+            &[
+                AxisName::X,
+                AxisName::Y,
+                AxisName::Z,
+                AxisName::A,
+                AxisName::C,
+            ],
             sample,
         )
     }

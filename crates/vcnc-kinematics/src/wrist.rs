@@ -167,14 +167,21 @@ mod tests {
         assert!((c - deg(390.0)).abs() < 1e-12 && !unwound);
         // Nearest to 399° is 410°, beyond 400°: one turn back, 50°, an unwinding move.
         let (c, unwound) = unwrap_within(deg(50.0), deg(399.0), travel).unwrap_or_default();
-        assert!((c - deg(50.0)).abs() < 1e-12 && unwound, "{}", c.to_degrees());
+        assert!(
+            (c - deg(50.0)).abs() < 1e-12 && unwound,
+            "{}",
+            c.to_degrees()
+        );
         // And the other way.
         let (c, unwound) = unwrap_within(deg(-50.0), deg(-399.0), travel).unwrap_or_default();
         assert!((c - deg(-50.0)).abs() < 1e-12 && unwound);
         // A travel narrower than a turn may hold no turn of the angle.
         let narrow = Travel::new(deg(-90.0), deg(90.0)).unwrap_or_default();
         assert!(unwrap_within(deg(180.0), 0.0, narrow).is_none());
-        assert_eq!(unwrap_within(1.0, 0.5, Travel::UNBOUNDED), Some((1.0, false)));
+        assert_eq!(
+            unwrap_within(1.0, 0.5, Travel::UNBOUNDED),
+            Some((1.0, false))
+        );
     }
 
     #[test]
@@ -192,7 +199,10 @@ mod tests {
                     let b = if t > 0.0 { Branch::Plus } else { Branch::Minus };
                     let r = w.angles(&o, b, c + 0.5, Travel::UNBOUNDED, None);
                     let r = r.unwrap_or_else(|e| panic!("{e}"));
-                    assert!((r.a - t).abs() < 1e-12 && (r.c - c).abs() < 1e-9, "{tilt:?} {r:?}");
+                    assert!(
+                        (r.a - t).abs() < 1e-12 && (r.c - c).abs() < 1e-9,
+                        "{tilt:?} {r:?}"
+                    );
                     // The other branch gives the same axis with the tilt negated.
                     let r2 = w.angles(&o, b.other(), c, Travel::UNBOUNDED, None);
                     let r2 = r2.unwrap_or_else(|e| panic!("{e}"));

@@ -6,7 +6,7 @@
 
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
-    AxisLimits, Axes, Branch, IkOptions, Kinematics, Pose, TableTiltingAc, Track,
+    Axes, AxisLimits, Branch, IkOptions, Kinematics, Pose, TableTiltingAc, Track,
 };
 
 /// A fixed pseudo-random stream (PCG-style LCG): the inputs are the ones hashed in 13c6b18.
@@ -75,7 +75,11 @@ fn hashes(m: &TableTiltingAc, mi: u64, via_enum: bool) -> [u64; 4] {
             rng.range(-2.5, 2.5),
             rng.range(-20.0, 20.0),
         );
-        let p = if via_enum { kin.forward(&ax) } else { m.forward(&ax) };
+        let p = if via_enum {
+            kin.forward(&ax)
+        } else {
+            m.forward(&ax)
+        };
         for v in p.p.iter().chain(p.o.iter()) {
             h.add(*v);
         }
@@ -172,7 +176,11 @@ fn spiral_sequence_is_bit_identical_to_before_the_families() {
             let rho = 20.0 + 40.0 * theta / (3.0 * tau);
             let h = (100.0f64 * 100.0 - rho * rho).sqrt();
             Pose::new(
-                Vector3::new(30.0 + rho * theta.cos(), 20.0 + rho * theta.sin(), -50.0 + h),
+                Vector3::new(
+                    30.0 + rho * theta.cos(),
+                    20.0 + rho * theta.sin(),
+                    -50.0 + h,
+                ),
                 Vector3::new(rho * theta.cos(), rho * theta.sin(), h) / 100.0,
             )
         })

@@ -357,16 +357,13 @@ fn two_parents_is_an_error() {
 
 #[test]
 fn a_slide_named_after_a_rotary_axis_is_an_error() {
-    let text = shipped_text().replacen(
-        "type=\"continuous\"",
-        "type=\"prismatic\"",
-        1,
-    )
-    .replacen(
-        "<limit effort=\"0\" velocity=\"10.472\"/>",
-        "<limit lower=\"-1\" upper=\"1\" effort=\"0\" velocity=\"10.472\"/>",
-        1,
-    );
+    let text = shipped_text()
+        .replacen("type=\"continuous\"", "type=\"prismatic\"", 1)
+        .replacen(
+            "<limit effort=\"0\" velocity=\"10.472\"/>",
+            "<limit lower=\"-1\" upper=\"1\" effort=\"0\" velocity=\"10.472\"/>",
+            1,
+        );
     let e = err_text(&text);
     assert!(
         e.contains("joint 'c' is prismatic but its name makes it the rotary axis C"),
