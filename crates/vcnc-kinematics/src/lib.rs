@@ -2,9 +2,9 @@
 //! families, each with forward kinematics, the pose inverse (both branches, the singularity,
 //! C unwound within its travel) and the tool-centre-point inverse with analytic derivatives.
 //!
-//! | family | rotary axes | closed form | LinuxCNC module it is checked against |
+//! | family | rotary axes | closed form | LinuxCNC module it is cross-checked against |
 //! |---|---|---|---|
-//! | [`Kinematics::Xyz`] | none (tool along +Z) | $p_w = p_m$ | `trivkins` |
+//! | [`Kinematics::Xyz`] | none (tool along +Z) | $p_w = p_m$ | — (the identity, as `trivkins`) |
 //! | [`Kinematics::TableTilting`] | A or B and C, in the table | yes | `xyzac-trt-kins`, `xyzbc-trt-kins` |
 //! | [`Kinematics::HeadHead`] | C then A or B, in the head | yes | `5axiskins` |
 //! | [`Kinematics::HeadTable`] | A or B in the head, C in the table | yes | `maxkins` |

@@ -563,3 +563,82 @@ fn positive_angles_turn_the_head_or_the_table_right_handedly() {
         .o;
     assert!((hh_o - Vector3::y()).norm() < 1e-15, "{hh_o:?}");
 }
+
+// ---- round-trip figures ---------------------------------------------------------------------
+
+#[test]
+fn round_trip_figures() {
+    // Fresh random machines, poses and joints every run (seed printed): the worst FK∘IK and
+    // IK∘FK errors per family, printed for docs/kinematics.md and held to 1e-9.
+    use rand::{RngExt, SeedableRng};
+    let seed = common::fresh_seed("round_trip_figures");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    for kind in 0..3 {
+        for tilt in [Tilt::A, Tilt::B] {
+            let (mut fk_ik, mut ik_fk) = (0.0f64, 0.0f64);
+            let mut name = String::new();
+            for _ in 0..20 {
+                let mut o3 = || [0; 3].map(|_| rng.random_range(-300.0..300.0));
+                let (o1, o2) = (o3(), o3());
+                let kin = family(kind, tilt, o1, o2);
+                name = kin.family().to_string();
+                let t = tilt_axis(&kin);
+                for _ in 0..500 {
+                    let b = if rng.random_bool(0.5) {
+                        Branch::Plus
+                    } else {
+                        Branch::Minus
+                    };
+                    let tl = rng.random_range(0.01..(PI - 0.01));
+                    let az = rng.random_range(-PI..PI);
+                    let p = Vector3::new(
+                        rng.random_range(-500.0..500.0),
+                        rng.random_range(-500.0..500.0),
+                        rng.random_range(-500.0..500.0),
+                    );
+                    let pose = Pose::new(
+                        p,
+                        Vector3::new(tl.sin() * az.cos(), tl.sin() * az.sin(), tl.cos()),
+                    );
+                    let c_prev = rng.random_range(-30.0..30.0);
+                    let j = ok(kin.inverse(
+                        &pose,
+                        b,
+                        &Axes {
+                            c: c_prev,
+                            ..Axes::default()
+                        },
+                    ));
+                    let back = kin.forward(&j);
+                    fk_ik = fk_ik.max((back.p - pose.p).norm());
+                    let q = Axes {
+                        x: p.x,
+                        y: p.y,
+                        z: p.z,
+                        c: c_prev,
+                        ..Axes::default()
+                    }
+                    .with(t, b.sign() * tl);
+                    let again = ok(kin.inverse(
+                        &kin.forward(&q),
+                        b,
+                        &Axes {
+                            c: c_prev + 0.5,
+                            ..Axes::default()
+                        },
+                    ));
+                    let e = kin
+                        .axes()
+                        .iter()
+                        .map(|a| (again[*a] - q[*a]).abs())
+                        .fold(0.0, f64::max);
+                    ik_fk = ik_fk.max(e);
+                }
+            }
+            println!(
+                "{name}: FK∘IK worst {fk_ik:.2e} mm, IK∘FK worst {ik_fk:.2e} (mm or rad), 10000 cases"
+            );
+            assert!(fk_ik < 1e-9 && ik_fk < 1e-9, "seed {seed}: {name}");
+        }
+    }
+}
