@@ -15,7 +15,7 @@ use crate::types::{
     Axes, AxisLimits, AxisName, Branch, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt,
     Track, Track3, Travel,
 };
-use crate::wrist::{RotaryAngles, Wrist};
+use crate::wrist::Wrist;
 
 /// Degrees to radians, as the interpolated tracks of rotary axes are converted.
 const DEG: f64 = PI / 180.0;
@@ -358,6 +358,16 @@ impl Kinematics {
         } else {
             Travel::UNBOUNDED
         };
+        let closed = |wrist: Wrist| -> Result<RotarySolution> {
+            let ang = wrist.angles(o, branch, previous.c, c_travel, sample)?;
+            Ok(RotarySolution {
+                joints: previous
+                    .with(wrist.tilt.axis(), ang.a)
+                    .with(AxisName::C, ang.c),
+                singular: ang.singular,
+                unwound: ang.unwound,
+            })
+        };
         match self {
             Kinematics::Xyz(_) => {
                 let u = unit_orientation(o, sample)?;
@@ -379,22 +389,10 @@ impl Kinematics {
                 singular: false,
                 unwound: false,
             }),
-            _ => {
-                let (wrist, tilt) = self.closed_wrist();
-                let ang = wrist.angles(o, branch, previous.c, c_travel, sample)?;
-                Ok(rotary_solution(previous, tilt, &ang))
-            }
+            Kinematics::TableTilting(m) => closed(m.wrist()),
+            Kinematics::HeadHead(m) => closed(m.wrist()),
+            Kinematics::HeadTable(m) => closed(m.wrist()),
         }
-    }
-
-    /// The wrist and tilt axis of a closed-form five-axis family (A for the others, unused).
-    fn closed_wrist(&self) -> (Wrist, AxisName) {
-        let wrist = self.wrist().unwrap_or(Wrist {
-            tilt: Tilt::A,
-            sigma_t: 1.0,
-            sigma_c: 1.0,
-        });
-        (wrist, wrist.tilt.axis())
     }
 
     /// Tool-centre-point inverse: the slides X, Y, Z (mm) that put the tool tip at `p_w`
@@ -616,14 +614,6 @@ impl Kinematics {
     }
 }
 
-fn rotary_solution(previous: &Axes, tilt: AxisName, ang: &RotaryAngles) -> RotarySolution {
-    RotarySolution {
-        joints: previous.with(tilt, ang.a).with(AxisName::C, ang.c),
-        singular: ang.singular,
-        unwound: ang.unwound,
-    }
-}
-
 /// The pose inverse of a sequence fed in pieces (the pipeline streams samples): the state
 /// between samples (the previous joints, the current branch) lives here, so a sequence solved
 /// whole or piece by piece gives the same bits.
@@ -669,14 +659,14 @@ impl PoseSolver<'_> {
             self.kin
                 .inverse_at(pose, self.branch, &prev, self.check_travel, Some(k))?;
         let c_jump = (joints.c - prev.c).abs() > FRAC_PI_2;
-        if k > 0
+        if let Some(wrist) = self.kin.wrist()
+            && k > 0
             && c_jump
             && !self.keep_branch
             && !rot.singular
             && !rot.unwound
-            && self.kin.wrist().is_some()
         {
-            let (_, tilt) = self.kin.closed_wrist();
+            let tilt = wrist.tilt.axis();
             let step = |j: &Axes| (j[tilt] - prev[tilt]).abs() + (j.c - prev.c).abs();
             let other =
                 self.kin
