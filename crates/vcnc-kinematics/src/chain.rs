@@ -21,7 +21,7 @@ use crate::model::TableTiltingAc;
 use crate::types::{
     Axes, AxisLimits, AxisName, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt, Travel,
 };
-use crate::wrist::unwrap_within;
+use crate::wrist::{unit_orientation, unwrap_within};
 
 /// Geometric tolerance of the chain validation: axis directions (unitless) and the zero-position
 /// frames (mm and rad) must match a closed form to this.
@@ -700,24 +700,6 @@ pub const IK_TOLERANCE: f64 = 1e-13;
 
 /// Iteration limit of the chain's pose inverse.
 pub const IK_MAX_ITERATIONS: usize = 200;
-
-/// `o` normalised, or the error of a zero or non-finite tool axis.
-pub(crate) fn unit_orientation(o: &Vector3<f64>, sample: Option<usize>) -> Result<Vector3<f64>> {
-    let bad = |reason| Error::BadOrientation {
-        o: [o.x, o.y, o.z],
-        sample,
-        reason,
-    };
-    if !o.iter().all(|v| v.is_finite()) {
-        return Err(bad("not finite"));
-    }
-    let m = o.amax();
-    if m == 0.0 {
-        return Err(bad("zero length: no tool direction"));
-    }
-    let u = o / m;
-    Ok(u / u.norm())
-}
 
 fn compose(joints: &[ChainJoint], axes: &Axes) -> Isometry3<f64> {
     let mut t = Isometry3::identity();

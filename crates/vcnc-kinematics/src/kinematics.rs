@@ -8,14 +8,14 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::chain::{KinematicChain, unit_orientation};
+use crate::chain::KinematicChain;
 use crate::error::{Error, Result};
 use crate::families::{HeadHead, HeadTable, TableTilting, Xyz, tilt_and_c};
 use crate::types::{
     Axes, AxisLimits, AxisName, Branch, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt,
     Track, Track3, Travel,
 };
-use crate::wrist::Wrist;
+use crate::wrist::{Wrist, unit_orientation};
 
 /// Degrees to radians, as the interpolated tracks of rotary axes are converted.
 const DEG: f64 = PI / 180.0;

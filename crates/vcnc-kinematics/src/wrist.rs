@@ -37,6 +37,25 @@ pub struct RotaryAngles {
     pub unwound: bool,
 }
 
+/// `o` normalised, or the error of a zero or non-finite tool axis. Scaled by its largest
+/// component first, so that huge or tiny vectors normalise exactly.
+pub(crate) fn unit_orientation(o: &Vector3<f64>, sample: Option<usize>) -> Result<Vector3<f64>> {
+    let bad = |reason| Error::BadOrientation {
+        o: [o.x, o.y, o.z],
+        sample,
+        reason,
+    };
+    if !o.iter().all(|v| v.is_finite()) {
+        return Err(bad("not finite"));
+    }
+    let m = o.amax();
+    if m == 0.0 {
+        return Err(bad("zero length: no tool direction"));
+    }
+    let u = o / m;
+    Ok(u / u.norm())
+}
+
 /// `c_raw` shifted by a whole number of turns to lie nearest to `c_prev` (rad).
 pub fn unwrap_near(c_raw: f64, c_prev: f64) -> f64 {
     c_raw + TAU * ((c_prev - c_raw) / TAU).round()
@@ -95,21 +114,7 @@ impl Wrist {
         c_travel: Travel,
         sample: Option<usize>,
     ) -> Result<RotaryAngles> {
-        let bad = |reason| Error::BadOrientation {
-            o: [o.x, o.y, o.z],
-            sample,
-            reason,
-        };
-        if !o.iter().all(|v| v.is_finite()) {
-            return Err(bad("not finite"));
-        }
-        // Scale by the largest component first so that huge or tiny vectors normalise exactly.
-        let m = o.amax();
-        if m == 0.0 {
-            return Err(bad("zero length: no tool direction"));
-        }
-        let u = o / m;
-        let u = u / u.norm();
+        let u = unit_orientation(o, sample)?;
         if !c_prev.is_finite() {
             return Err(Error::BadParameter {
                 name: "previous C".into(),
