@@ -1,23 +1,30 @@
-//! The machine's kinematic chain read from URDF, and generic forward kinematics over it.
+//! A machine's kinematic chain read from URDF: any serial machine with slides X, Y, Z and up to
+//! three rotary axes, its forward kinematics, the tool-centre-point inverse and the pose inverse
+//! by damped least squares (docs/kinematics.md, "Any serial chain from a URDF").
 //!
-//! docs/kinematics.md: two branches leave the base link; one carries the X, Y, Z prismatic joints to
-//! the tool tip, the other the A revolute joint (about +X) and the C joint (about +Z) to the
-//! workpiece. Every frame is composed from the URDF joint origins and joint motions with
-//! [`Isometry3`]; the tool pose in the workpiece frame is
-//! $$ T = T_{wp}^{-1}\, T_{tool}. $$
-//! Lengths are read as mm and angles as rad (URDF's metres are only a convention here).
+//! The tool pose in the workpiece frame is $T = T_{wp}^{-1}\,T_{tool}$, with $T_{tool}$ the
+//! composition of the joint origins and motions from the base link to the tool tip and $T_{wp}$
+//! from the base link to the workpiece. The chain is kept as one list of steps from the
+//! workpiece to the tool tip: fixed transforms and joint motions, a workpiece-side joint
+//! entering with its sign reversed ($T_{wp}^{-1}$ undoes its motion). Lengths are read as mm and
+//! angles as rad (URDF's metres are only a convention here).
 
 use std::collections::HashMap;
 use std::path::Path;
 
-use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
+use crate::families::{HeadHead, HeadTable, TableTilting, Xyz};
+use crate::kinematics::Kinematics;
 use crate::model::TableTiltingAc;
-use crate::types::{Axes, AxisLimits, AxisName, Pose, Travel};
+use crate::types::{
+    Axes, AxisLimits, AxisName, Carrier, JointMotion, PointMotion, Pose, RotaryAxis, Tilt, Travel,
+};
+use crate::wrist::{unit_orientation, unwrap_within};
 
 /// Geometric tolerance of the chain validation: axis directions (unitless) and the zero-position
-/// frames (mm and rad) must match the table-tilting A/C form to this.
+/// frames (mm and rad) must match a closed form to this.
 pub const CHAIN_TOLERANCE: f64 = 1e-9;
 
 /// The joint kinds this crate accepts (a closed set; URDF's floating, planar and spherical
@@ -84,14 +91,46 @@ impl ChainJoint {
     }
 }
 
-/// A validated table-tilting A/C chain (docs/kinematics.md).
+/// One step of the chain from the workpiece frame to the tool tip.
+#[derive(Debug, Clone, PartialEq)]
+enum Step {
+    /// A fixed transform (joint origins, inverted on the workpiece side).
+    Fixed(Isometry3<f64>),
+    /// A joint's motion by `sign` times its value: +1 on the tool side, −1 on the workpiece side.
+    Joint {
+        prismatic: bool,
+        axis: Unit<Vector3<f64>>,
+        role: AxisName,
+        sign: f64,
+    },
+}
+
+/// The tool tip and its motion, and the chain's Jacobian columns, at one set of joints: the
+/// outcome of [`KinematicChain::propagate`], all in the workpiece frame.
+struct ChainState {
+    /// Tool tip, mm.
+    p: Vector3<f64>,
+    /// Tool axis, unit.
+    o: Vector3<f64>,
+    /// Tool-tip velocity for the joint velocities given, mm/s.
+    v: Vector3<f64>,
+    /// Tool-tip acceleration for the joint velocities and accelerations given, mm/s².
+    a: Vector3<f64>,
+    /// Columns X, Y, Z: the tip's motion per mm of each slide (unitless).
+    slides: Matrix3<f64>,
+    /// Per rotary joint: its role and its signed axis $\sigma z$ (unit) in the workpiece frame.
+    rotary: Vec<(AxisName, Vector3<f64>)>,
+}
+
+/// A machine's kinematic chain read from URDF (docs/kinematics.md).
 ///
-/// Built only by [`KinematicChain::from_urdf_file`] or [`KinematicChain::from_urdf_str`], which
-/// check that the URDF has exactly this structure: base → X, Y, Z prismatic joints along +X, +Y,
-/// +Z → tool tip (at the machine origin with the machine's orientation when X = Y = Z = 0), and
-/// base → A rotary about +X → C rotary about +Z → workpiece (equal to the machine frame when
-/// A = C = 0), plus any number of fixed joints. Directions are checked in the machine frame at
-/// the zero position, so intermediate fixed joints and `rpy` rotations are allowed.
+/// [`KinematicChain::read_urdf_file`] accepts any serial machine: a tool-tip link named
+/// `tool_tip`, a workpiece link named `workpiece` (or the base link), the three slides X, Y, Z
+/// and up to three rotary axes, on either side. Each moving joint drives one machine axis:
+/// the one its name spells (`x` … `c`, either case) or, for other names, the one along whose
+/// direction it moves (a prismatic joint along ±X drives X, a rotary joint about ±Y drives B).
+/// [`KinematicChain::kinematics`] turns it into its closed-form family where its forward
+/// kinematics equals one, else keeps the chain itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KinematicChain {
     name: String,
@@ -101,26 +140,25 @@ pub struct KinematicChain {
     workpiece_link: String,
     tool: Vec<ChainJoint>,
     workpiece: Vec<ChainJoint>,
-    r: Vector3<f64>,
-    d: Vector3<f64>,
+    steps: Vec<Step>,
+    rotary: Vec<RotaryAxis>,
     limits: AxisLimits,
 }
 
 impl KinematicChain {
-    /// Reads and validates a URDF file. Errors name the file.
-    pub fn from_urdf_file(path: impl AsRef<Path>) -> Result<Self> {
+    /// Reads and validates any serial machine's URDF file. Errors name the file.
+    pub fn read_urdf_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| Error::Urdf {
             file: file.clone(),
             message: e.to_string(),
         })?;
-        Self::from_urdf_str(&text, &file)
+        Self::read_urdf_str(&text, &file)
     }
 
-    /// Parses and validates URDF text; `source` names it in error messages (a path, or e.g.
-    /// `"<embedded nmv5000.urdf>"`).
-    pub fn from_urdf_str(urdf: &str, source: &str) -> Result<Self> {
+    /// Parses and validates any serial machine's URDF text; `source` names it in messages.
+    pub fn read_urdf_str(urdf: &str, source: &str) -> Result<Self> {
         let robot = urdf_rs::read_from_string(urdf).map_err(|e| Error::Urdf {
             file: source.to_string(),
             message: e.to_string(),
@@ -130,6 +168,29 @@ impl KinematicChain {
             robot: &robot,
         }
         .build()
+    }
+
+    /// Reads a URDF file that must describe a table-tilting A/C machine (the form vcnc accepted
+    /// before it knew other families; [`KinematicChain::read_urdf_file`] takes any machine).
+    pub fn from_urdf_file(path: impl AsRef<Path>) -> Result<Self> {
+        Self::read_urdf_file(path)?.require_table_tilting_ac()
+    }
+
+    /// [`KinematicChain::from_urdf_file`] from text; `source` names it in messages.
+    pub fn from_urdf_str(urdf: &str, source: &str) -> Result<Self> {
+        Self::read_urdf_str(urdf, source)?.require_table_tilting_ac()
+    }
+
+    fn require_table_tilting_ac(self) -> Result<Self> {
+        let not = |reason: String| Error::NotTableTilting {
+            file: self.source.clone(),
+            reason,
+        };
+        match self.match_closed_form() {
+            Ok(Kinematics::TableTilting(TableTilting { tilt: Tilt::A, .. })) => Ok(self),
+            Ok(other) => Err(not(format!("it is a {} machine", other.family()))),
+            Err(reason) => Err(not(reason)),
+        }
     }
 
     /// The URDF robot name.
@@ -152,7 +213,7 @@ impl KinematicChain {
         &self.tool_link
     }
 
-    /// Name of the workpiece link.
+    /// Name of the workpiece link (the base link when the URDF has no `workpiece` link).
     pub fn workpiece_link(&self) -> &str {
         &self.workpiece_link
     }
@@ -167,34 +228,59 @@ impl KinematicChain {
         &self.workpiece
     }
 
-    /// The C-axis centre r (a point of the C axis at A = 0) in the machine frame, mm, taken from
-    /// the C joint's frame origin.
-    pub fn r(&self) -> Vector3<f64> {
-        self.r
+    /// The rotary axes, in the order A, B, C, with what each turns.
+    pub fn rotary_axes(&self) -> &[RotaryAxis] {
+        &self.rotary
     }
 
-    /// The A-axis centre relative to the C-axis centre, d, mm, taken from the A joint's frame
-    /// origin minus [`KinematicChain::r`].
-    pub fn d(&self) -> Vector3<f64> {
-        self.d
-    }
-
-    /// Axis travels from the joints' `<limit>` elements (mm, rad; C unbounded when continuous).
+    /// Axis travels from the joints' `<limit>` elements (mm, rad; unbounded when continuous).
     pub fn limits(&self) -> AxisLimits {
         self.limits
     }
 
-    /// The closed-form model with r, d and limits from this chain.
+    /// The same chain with other travels (mm, rad), e.g. the machine file's.
+    pub fn with_limits(mut self, limits: AxisLimits) -> Result<Self> {
+        limits.validate()?;
+        self.limits = limits;
+        Ok(self)
+    }
+
+    /// The frame origin of the joint driving `axis` (a point of its axis) in the machine frame
+    /// at the zero position, mm; `None` if no joint drives it.
+    pub fn joint_point(&self, axis: AxisName) -> Option<Vector3<f64>> {
+        [&self.tool, &self.workpiece]
+            .into_iter()
+            .find_map(|joints| {
+                let mut t = Isometry3::identity();
+                joints.iter().find_map(|j| {
+                    t *= j.origin;
+                    (j.role == Some(axis)).then_some(t.translation.vector)
+                })
+            })
+    }
+
+    /// The C-axis centre r of an A/C table (the C joint's frame origin at zero), mm.
+    pub fn r(&self) -> Vector3<f64> {
+        self.joint_point(AxisName::C).unwrap_or_default()
+    }
+
+    /// The A-axis centre relative to the C-axis centre of an A/C table, mm.
+    pub fn d(&self) -> Vector3<f64> {
+        self.joint_point(AxisName::A).unwrap_or_default() - self.r()
+    }
+
+    /// The closed form of a table-tilting A/C chain, with r, d and limits from the chain.
+    /// Meaningful for a chain read by [`KinematicChain::from_urdf_file`], which checks that
+    /// form; [`KinematicChain::kinematics`] serves any chain.
     pub fn table_tilting_ac(&self) -> TableTiltingAc {
         TableTiltingAc {
-            r: self.r,
-            d: self.d,
+            r: self.r(),
+            d: self.d(),
             limits: self.limits,
         }
     }
 
-    /// Tool-tip frame in the machine frame, $T_{tool}$, at the given axes. Composes joint
-    /// origins and joint motions; never clamps to travel.
+    /// Tool-tip frame in the machine frame, $T_{tool}$, at the given axes. Never clamps.
     pub fn tool_frame(&self, axes: &Axes) -> Isometry3<f64> {
         compose(&self.tool, axes)
     }
@@ -204,25 +290,436 @@ impl KinematicChain {
         compose(&self.workpiece, axes)
     }
 
-    /// Generic forward kinematics: the tool pose in the workpiece frame,
-    /// $T = T_{wp}^{-1} T_{tool}$; `p` is its translation (mm) and `o` its +Z axis.
-    /// Equals [`TableTiltingAc::forward`] (tested to 1e-9 mm).
+    /// Forward kinematics: the tool pose in the workpiece frame, $T = T_{wp}^{-1} T_{tool}$;
+    /// `p` is its translation (mm) and `o` its +Z axis. Never clamps to travel.
     pub fn forward(&self, axes: &Axes) -> Pose {
-        let t = self.workpiece_frame(axes).inv_mul(&self.tool_frame(axes));
+        let mut t = Isometry3::identity();
+        for step in &self.steps {
+            match step {
+                Step::Fixed(f) => t *= f,
+                Step::Joint {
+                    prismatic,
+                    axis,
+                    role,
+                    sign,
+                } => {
+                    let q = sign * axes[*role];
+                    if *prismatic {
+                        t *= Translation3::from(axis.into_inner() * q);
+                    } else {
+                        t *= UnitQuaternion::from_axis_angle(axis, q);
+                    }
+                }
+            }
+        }
         Pose {
             p: t.translation.vector,
             o: t.rotation * Vector3::z(),
         }
     }
+
+    /// The kinematics of this chain: its closed-form family when its forward kinematics equals
+    /// one (docs/kinematics.md, "From URDF to a family"), else the chain itself.
+    pub fn kinematics(&self) -> Kinematics {
+        self.match_closed_form()
+            .unwrap_or_else(|_| Kinematics::Chain(Box::new(self.clone())))
+    }
+
+    /// The closed-form family this chain matches, or why it matches none.
+    pub fn closed_form(&self) -> Result<Kinematics> {
+        self.match_closed_form()
+            .map_err(|reason| Error::NoClosedForm {
+                file: self.source.clone(),
+                reason,
+            })
+    }
+
+    /// Joint values, velocities and accelerations → the tool tip's position, velocity and
+    /// acceleration in the workpiece frame and the Jacobian columns, by propagating the motion
+    /// of every frame along the steps (docs/kinematics.md, "Derivatives along a chain"). Each
+    /// frame carries its origin $o$, rotation $R$, angular velocity $\omega$ and acceleration
+    /// $\alpha$, origin velocity $v$ and acceleration $a$.
+    fn propagate(&self, q: &Axes, qd: &Axes, qdd: &Axes) -> ChainState {
+        let mut rot = Matrix3::identity();
+        let (mut o, mut v, mut a) = (Vector3::zeros(), Vector3::zeros(), Vector3::zeros());
+        let (mut w, mut alpha) = (Vector3::<f64>::zeros(), Vector3::<f64>::zeros());
+        let mut slides = Matrix3::zeros();
+        let mut rotary = Vec::with_capacity(3);
+        // A lever arm `off` carried by the frame: its end moves with the frame's rotation.
+        let carry = |off: Vector3<f64>, w: &Vector3<f64>, alpha: &Vector3<f64>| {
+            (w.cross(&off), alpha.cross(&off) + w.cross(&w.cross(&off)))
+        };
+        for step in &self.steps {
+            match step {
+                Step::Fixed(f) => {
+                    let off = rot * f.translation.vector;
+                    let (dv, da) = carry(off, &w, &alpha);
+                    o += off;
+                    v += dv;
+                    a += da;
+                    rot *= f.rotation.to_rotation_matrix().into_inner();
+                }
+                Step::Joint {
+                    prismatic,
+                    axis,
+                    role,
+                    sign,
+                } => {
+                    let z = rot * axis.into_inner() * *sign;
+                    let (qv, qdv, qddv) = (q[*role], qd[*role], qdd[*role]);
+                    if *prismatic {
+                        let off = z * qv;
+                        let (dv, da) = carry(off, &w, &alpha);
+                        o += off;
+                        v += dv + z * qdv;
+                        a += da + w.cross(&z) * (2.0 * qdv) + z * qddv;
+                        let col = role.index().min(2);
+                        slides.set_column(col, &z);
+                    } else {
+                        alpha += z * qddv + w.cross(&z) * qdv;
+                        w += z * qdv;
+                        rot *= Rotation3::from_axis_angle(axis, sign * qv).into_inner();
+                        rotary.push((*role, z));
+                    }
+                }
+            }
+        }
+        ChainState {
+            p: o,
+            o: rot * Vector3::z(),
+            v,
+            a,
+            slides,
+            rotary,
+        }
+    }
+
+    /// The slides' values solving `slides · x = rhs`, or the error of a chain whose slides move
+    /// along dependent directions at these rotary angles.
+    fn solve_slides(
+        slides: &Matrix3<f64>,
+        rhs: &Vector3<f64>,
+        sample: Option<usize>,
+    ) -> Result<Vector3<f64>> {
+        let scale = slides.column(0).norm() * slides.column(1).norm() * slides.column(2).norm();
+        let det = slides.determinant();
+        let solved = (det.abs() > 1e-12 * scale)
+            .then(|| slides.lu().solve(rhs))
+            .flatten();
+        solved.ok_or(Error::DependentSlides { det, sample })
+    }
+
+    /// The slides that put the tool tip at `p_w` (workpiece frame, mm) with the rotary axes of
+    /// `rot` (rad): the tip is affine in the slides when the rotary angles are fixed,
+    /// $p_w = b + S\,x$, so $x = S^{-1}(p_w - b)$, exactly and without iteration.
+    pub(crate) fn tcp_position(
+        &self,
+        p_w: &Vector3<f64>,
+        rot: &Axes,
+        sample: Option<usize>,
+    ) -> Result<Vector3<f64>> {
+        let zero = Axes::default();
+        let at0 = self.propagate(&rot.with_pm(&Vector3::zeros()), &zero, &zero);
+        Self::solve_slides(&at0.slides, &(p_w - at0.p), sample)
+    }
+
+    /// [`Self::tcp_position`] with the slides' velocity and acceleration: the tip's velocity is
+    /// linear in the slides' velocities and its acceleration linear in their accelerations, so
+    /// each follows from one propagation with the slides' rate set to zero.
+    pub(crate) fn tcp_motion(
+        &self,
+        tip: &PointMotion,
+        rot: &JointMotion,
+        sample: Option<usize>,
+    ) -> Result<PointMotion> {
+        let zero = Axes::default();
+        let pm = self.tcp_position(&tip.p, &rot.pos, sample)?;
+        let q = rot.pos.with_pm(&pm);
+        let at_v = self.propagate(&q, &rot.vel.with_pm(&Vector3::zeros()), &zero);
+        let pm_dot = Self::solve_slides(&at_v.slides, &(tip.p_dot - at_v.v), sample)?;
+        let qd = rot.vel.with_pm(&pm_dot);
+        let at_a = self.propagate(&q, &qd, &rot.acc.with_pm(&Vector3::zeros()));
+        let pm_ddot = Self::solve_slides(&at_a.slides, &(tip.p_ddot - at_a.a), sample)?;
+        Ok(PointMotion {
+            p: pm,
+            p_dot: pm_dot,
+            p_ddot: pm_ddot,
+        })
+    }
+
+    /// The rotary angles that turn the tool axis to `o` (normalised here), by damped least
+    /// squares (Levenberg–Marquardt) on the tool-axis error seeded from `seed`'s rotary angles
+    /// (docs/kinematics.md, "Pose inverse of a chain"):
+    /// $$ \Delta\theta = (J^T J + \lambda^2 I)^{-1} J^T (o - o(\theta)), \qquad
+    ///    J_i = \sigma_i z_i \times o(\theta), $$
+    /// with $\lambda$ divided by 10 after a step that lowers the error and multiplied by 10
+    /// otherwise. Each rotary angle is then moved by whole turns to the value nearest the seed
+    /// within its travel. Fails with [`Error::NoConvergence`] when the error stays above
+    /// [`IK_TOLERANCE`] (an orientation this chain cannot reach, or one too far from the seed).
+    pub(crate) fn solve_orientation(
+        &self,
+        o: &Vector3<f64>,
+        seed: &Axes,
+        check_travel: bool,
+        sample: Option<usize>,
+    ) -> Result<Axes> {
+        let target = unit_orientation(o, sample)?;
+        let zero = Axes::default();
+        let error_at = |q: &Axes| {
+            let s = self.propagate(q, &zero, &zero);
+            (target - s.o, s)
+        };
+        let mut q = *seed;
+        let (mut e, mut state) = error_at(&q);
+        let mut lambda = 1e-3;
+        let mut iterations = 0;
+        while e.norm() > IK_TOLERANCE && iterations < IK_MAX_ITERATIONS && lambda < 1e8 {
+            iterations += 1;
+            // Normal equations padded to 3×3 (a chain has at most three rotary joints).
+            let cols: Vec<Vector3<f64>> = state
+                .rotary
+                .iter()
+                .map(|(_, z)| z.cross(&state.o))
+                .collect();
+            let mut jtj = Matrix3::identity();
+            let mut jte = Vector3::zeros();
+            for (i, ci) in cols.iter().enumerate() {
+                for (k, ck) in cols.iter().enumerate() {
+                    jtj[(i, k)] = ci.dot(ck) + if i == k { lambda * lambda } else { 0.0 };
+                }
+                jte[i] = ci.dot(&e);
+            }
+            let Some(step) = jtj.cholesky().map(|c| c.solve(&jte)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut trial = q;
+            for ((role, _), dq) in state.rotary.iter().zip(step.iter()) {
+                trial[*role] += dq;
+            }
+            let (e_trial, s_trial) = error_at(&trial);
+            if e_trial.norm() < e.norm() {
+                (q, e, state) = (trial, e_trial, s_trial);
+                lambda = (lambda / 10.0).max(1e-12);
+            } else {
+                lambda *= 10.0;
+            }
+        }
+        if e.norm() > IK_TOLERANCE {
+            return Err(Error::NoConvergence {
+                residual: e.norm(),
+                iterations,
+                sample,
+            });
+        }
+        for r in &self.rotary {
+            let travel = if check_travel {
+                self.limits[r.axis]
+            } else {
+                Travel::UNBOUNDED
+            };
+            let (v, _) =
+                unwrap_within(q[r.axis], seed[r.axis], travel).ok_or(Error::OutOfTravel {
+                    axis: r.axis,
+                    value: q[r.axis],
+                    lower: travel.lower,
+                    upper: travel.upper,
+                    sample,
+                })?;
+            q[r.axis] = v;
+        }
+        Ok(q)
+    }
+
+    /// Matches the chain against the closed-form families (docs/kinematics.md, "From URDF to a
+    /// family"): the rotary axes pick the candidate, the zero position and the axis directions
+    /// must be the family's, its offsets are the joints' points at zero, and the forward
+    /// kinematics must agree at probe positions.
+    fn match_closed_form(&self) -> std::result::Result<Kinematics, String> {
+        let kin = self.closed_form_candidate()?;
+        // Probe positions spread over the travels and beyond, rotary angles of every quadrant.
+        let probes = [
+            (120.0, -80.0, 45.0, 0.3, -0.7, 2.2),
+            (-310.0, 205.0, -150.0, -1.1, 2.6, -4.0),
+            (0.0, 0.0, 0.0, 2.0, -1.9, 0.0),
+            (55.0, 400.0, 90.0, -2.9, 0.2, 7.5),
+        ];
+        let mut worst = (0.0f64, 0.0f64);
+        for (x, y, z, a, b, c) in probes {
+            let q = Axes { x, y, z, a, b, c };
+            let (g, f) = (self.forward(&q), kin.forward(&q));
+            worst = (
+                worst.0.max((g.p - f.p).norm()),
+                worst.1.max((g.o - f.o).norm()),
+            );
+        }
+        if worst.0 > CHAIN_TOLERANCE || worst.1 > CHAIN_TOLERANCE {
+            return Err(format!(
+                "its forward kinematics differs from the {} closed form by up to {:.3e} mm and \
+                 {:.3e} in the tool axis",
+                kin.family(),
+                worst.0,
+                worst.1
+            ));
+        }
+        Ok(kin)
+    }
+
+    /// The closed form this chain's structure suggests, with offsets from the joints' points at
+    /// zero, after the structural checks (zero position, directions, order of the joints).
+    fn closed_form_candidate(&self) -> std::result::Result<Kinematics, String> {
+        let tilt_of = |r: &RotaryAxis| Tilt::of(r.axis);
+        let (tilt, tilt_on, c_on) = match self.rotary.as_slice() {
+            [] => (None, None, None),
+            [t, c] if c.axis == AxisName::C && tilt_of(t).is_some() => {
+                (tilt_of(t), Some(t.turns), Some(c.turns))
+            }
+            other => {
+                let names: Vec<String> = other
+                    .iter()
+                    .map(|r| format!("{} ({})", r.axis, r.turns))
+                    .collect();
+                return Err(format!(
+                    "its rotary axes {} match no closed-form family",
+                    if names.is_empty() {
+                        "(none)".into()
+                    } else {
+                        names.join(", ")
+                    }
+                ));
+            }
+        };
+        self.check_zero_position()?;
+        self.check_directions()?;
+        let point = |axis| self.joint_point(axis).unwrap_or_default();
+        let order = |joints: &[ChainJoint], first: AxisName, then: AxisName| {
+            let pos = |a| joints.iter().position(|j| j.role == Some(a));
+            pos(first) < pos(then)
+        };
+        let limits = self.limits;
+        let kin = match (tilt, tilt_on, c_on) {
+            (None, ..) => Kinematics::Xyz(Xyz { limits }),
+            (Some(t), Some(Carrier::Table), Some(Carrier::Table)) => {
+                if !order(&self.workpiece, t.axis(), AxisName::C) {
+                    return Err(format!(
+                        "the table's C axis carries {t}; the tilt must carry C"
+                    ));
+                }
+                let r = point(AxisName::C);
+                Kinematics::TableTilting(TableTilting {
+                    tilt: t,
+                    r,
+                    d: point(t.axis()) - r,
+                    limits,
+                })
+            }
+            (Some(t), Some(Carrier::Head), Some(Carrier::Head)) => {
+                if !order(&self.tool, AxisName::C, t.axis()) {
+                    return Err(format!(
+                        "the head's {t} axis carries C; C must carry the tilt"
+                    ));
+                }
+                Kinematics::HeadHead(HeadHead {
+                    tilt: t,
+                    pivot: point(t.axis()),
+                    c_axis: point(AxisName::C),
+                    limits,
+                })
+            }
+            (Some(t), Some(Carrier::Head), Some(Carrier::Table)) => {
+                Kinematics::HeadTable(HeadTable {
+                    tilt: t,
+                    pivot: point(t.axis()),
+                    r: point(AxisName::C),
+                    limits,
+                })
+            }
+            (Some(t), ..) => {
+                return Err(format!(
+                    "a tilting table {t} under a C head matches no closed-form family"
+                ));
+            }
+        };
+        Ok(kin)
+    }
+
+    /// At zero the tool tip and the workpiece frame coincide with the machine frame.
+    fn check_zero_position(&self) -> std::result::Result<(), String> {
+        let zero = Axes::default();
+        check_identity(
+            &compose(&self.tool, &zero),
+            &format!("the tool tip link '{}'", self.tool_link),
+            "make the tool tip coincide with the machine origin, tool along +Z, at zero",
+        )?;
+        check_identity(
+            &compose(&self.workpiece, &zero),
+            &format!("the workpiece link '{}'", self.workpiece_link),
+            "the workpiece frame must equal the machine frame at zero (a fixed workpiece joint \
+             at -r on a table)",
+        )
+    }
+
+    /// Every moving joint points along its axis in the machine frame at zero: rotary joints
+    /// and tool-side slides along +, workpiece-side slides along − (a table moving −X moves the
+    /// tool +X relative to the workpiece).
+    fn check_directions(&self) -> std::result::Result<(), String> {
+        for (joints, side) in [(&self.tool, 1.0), (&self.workpiece, -1.0)] {
+            let mut t = Isometry3::identity();
+            for j in joints.iter() {
+                t *= j.origin;
+                let Some(role) = j.role else { continue };
+                let dir = t.rotation * j.axis.into_inner();
+                let (plus, unit) = unit_name(role);
+                let slide_sign = if role.is_rotary() { 1.0 } else { side };
+                let expected = unit * slide_sign;
+                let name = if slide_sign > 0.0 {
+                    plus.to_string()
+                } else {
+                    plus.replace('+', "-")
+                };
+                if (dir - expected).norm() > CHAIN_TOLERANCE {
+                    let frame = if t.rotation.angle() == 0.0 {
+                        ""
+                    } else {
+                        " in the machine frame"
+                    };
+                    return Err(format!(
+                        "joint '{}' axis is {}{frame}, expected {name} (axis {role})",
+                        j.name,
+                        fmt_vec(&dir)
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
 }
+
+/// Tolerance of the chain's pose inverse on the tool axis (unit vector): about 1e-13 rad.
+pub const IK_TOLERANCE: f64 = 1e-13;
+
+/// Iteration limit of the chain's pose inverse.
+pub const IK_MAX_ITERATIONS: usize = 200;
 
 fn compose(joints: &[ChainJoint], axes: &Axes) -> Isometry3<f64> {
     let mut t = Isometry3::identity();
     for j in joints {
-        let q = j.role.and_then(|axis| axes.get(axis)).unwrap_or(0.0);
+        let q = j.role.map_or(0.0, |axis| axes[axis]);
         t = t * j.origin * j.motion(q);
     }
     t
+}
+
+fn check_identity(t: &Isometry3<f64>, what: &str, hint: &str) -> std::result::Result<(), String> {
+    let p = t.translation.vector;
+    let angle = t.rotation.angle();
+    if p.norm() > CHAIN_TOLERANCE || angle > CHAIN_TOLERANCE {
+        return Err(format!(
+            "{what} is at {} mm, rotated by {angle} rad, at zero; {hint}",
+            fmt_vec(&p)
+        ));
+    }
+    Ok(())
 }
 
 fn fmt_vec(v: &Vector3<f64>) -> String {
@@ -237,14 +734,26 @@ fn unit_name(axis: AxisName) -> (&'static str, Vector3<f64>) {
     }
 }
 
+/// The machine axis a direction lies along (±X, ±Y, ±Z), if any: the linear one for a slide,
+/// the rotary one for a rotary joint.
+fn principal_role(dir: &Vector3<f64>, rotary: bool) -> Option<AxisName> {
+    let axes = if rotary {
+        [AxisName::A, AxisName::B, AxisName::C]
+    } else {
+        [AxisName::X, AxisName::Y, AxisName::Z]
+    };
+    axes.into_iter().find(|&a| {
+        let (_, e) = unit_name(a);
+        (dir - e).norm() <= CHAIN_TOLERANCE || (dir + e).norm() <= CHAIN_TOLERANCE
+    })
+}
+
 /// The URDF's links as a tree.
 struct Tree<'r> {
     /// Link name → index in the URDF.
     link_index: HashMap<&'r str, usize>,
-    /// Joints whose parent is each link.
-    child_joints: Vec<Vec<usize>>,
-    /// Index of the base link.
-    root: usize,
+    /// The joint whose child is each link.
+    parent_joint: Vec<Option<usize>>,
     /// Name of the base link.
     base_link: String,
 }
@@ -254,80 +763,124 @@ struct Builder<'a> {
     robot: &'a urdf_rs::Robot,
 }
 
+/// The link the tool tip must be named.
+pub const TOOL_LINK: &str = "tool_tip";
+/// The link the workpiece frame is named (optional: the base link otherwise).
+pub const WORKPIECE_LINK: &str = "workpiece";
+
 impl Builder<'_> {
     fn fail(&self, reason: String) -> Error {
-        Error::NotTableTilting {
+        Error::Chain {
             file: self.source.to_string(),
             reason,
         }
     }
 
-    /// Reads the URDF in stages: the link tree, its root-to-leaf paths, the joint kinds, the two
-    /// branches (X Y Z to the tool tip, A C to the workpiece), then the geometry at zero.
+    /// Reads the URDF in stages: the link tree, the paths to the tool tip and the workpiece,
+    /// the joints with their roles, then the steps from the workpiece to the tool tip.
     fn build(&self) -> Result<KinematicChain> {
-        let tree = self.tree()?;
-        let paths = self.paths(&tree)?;
         let kinds = self.joint_kinds()?;
-        let (tool_path, wp_path) = self.branches(&paths, &kinds, &tree.base_link)?;
-        let tool = self.convert(&tool_path, &kinds, &[AxisName::X, AxisName::Y, AxisName::Z])?;
-        let workpiece = self.convert(&wp_path, &kinds, &[AxisName::A, AxisName::C])?;
-
-        // Geometry at the zero position.
-        self.check_axes(&tool)?;
-        let wp_points = self.check_axes(&workpiece)?;
-        let zero = Axes::default();
-        let tool_tip = self.leaf_name(&tool_path, &tree.base_link);
-        let wp_link = self.leaf_name(&wp_path, &tree.base_link);
-        self.check_identity(
-            &compose(&tool, &zero),
-            &format!("the tool tip link '{tool_tip}'"),
-            "X = Y = Z = 0",
-            "make the tool tip coincide with the machine origin, tool along +Z, at zero",
-        )?;
-        self.check_identity(
-            &compose(&workpiece, &zero),
-            &format!("the workpiece link '{wp_link}'"),
-            "A = C = 0",
-            "the fixed workpiece joint's origin must be -r (the workpiece frame equals the \
-             machine frame at A = C = 0)",
-        )?;
-        let (p_a, p_c) = match wp_points.as_slice() {
-            [pa, pc] => (*pa, *pc),
-            _ => return Err(self.fail("internal: the A C branch lost a joint".into())),
+        let tree = self.tree()?;
+        let tool_path = self.path_to(&tree, TOOL_LINK)?.ok_or_else(|| {
+            self.fail(format!(
+                "no link named '{TOOL_LINK}': vcnc finds the tool tip and the workpiece by their \
+                 link names '{TOOL_LINK}' and '{WORKPIECE_LINK}' (docs/kinematics.md)"
+            ))
+        })?;
+        let wp_path = self.path_to(&tree, WORKPIECE_LINK)?.unwrap_or_default();
+        let workpiece_link = if wp_path.is_empty() && !tree.link_index.contains_key(WORKPIECE_LINK)
+        {
+            tree.base_link.clone()
+        } else {
+            WORKPIECE_LINK.to_string()
         };
-
-        let mut limits = AxisLimits::default();
-        for j in tool.iter().chain(workpiece.iter()) {
-            if let Some(t) = j.role.and_then(|axis| limits.get_mut(axis)) {
-                *t = j.travel;
+        // Joints on both paths move tool and workpiece together: only fixed ones may be shared.
+        let shared = tool_path
+            .iter()
+            .zip(&wp_path)
+            .take_while(|(a, b)| a == b)
+            .count();
+        for &ji in &tool_path[..shared] {
+            if kinds.get(ji).is_some_and(|k| k.is_movable()) {
+                return Err(self.fail(format!(
+                    "joint '{}' moves both the tool tip and the workpiece",
+                    self.joint_name(ji)
+                )));
             }
         }
+        for (ji, joint) in self.robot.joints.iter().enumerate() {
+            if kinds.get(ji).is_some_and(|k| k.is_movable())
+                && !tool_path.contains(&ji)
+                && !wp_path.contains(&ji)
+            {
+                return Err(self.fail(format!(
+                    "joint '{}' moves but is on neither the tool branch nor the workpiece branch",
+                    joint.name
+                )));
+            }
+        }
+        let tool = self.convert(&tool_path, &kinds)?;
+        let workpiece = self.convert(&wp_path, &kinds)?;
+        self.check_roles(&tool, &workpiece)?;
 
-        Ok(KinematicChain {
+        let mut limits = AxisLimits::default();
+        let mut rotary = Vec::new();
+        for (joints, turns) in [(&tool, Carrier::Head), (&workpiece, Carrier::Table)] {
+            for j in joints.iter() {
+                if let Some(axis) = j.role {
+                    limits[axis] = j.travel;
+                    if axis.is_rotary() {
+                        rotary.push(RotaryAxis { axis, turns });
+                    }
+                }
+            }
+        }
+        rotary.sort_by_key(|r| r.axis);
+
+        // Steps: T_wp^-1 (the workpiece path backwards, past the shared part) then T_tool.
+        let mut steps = Vec::new();
+        for j in workpiece[shared..].iter().rev() {
+            push_joint(&mut steps, j, -1.0);
+            push_fixed(&mut steps, j.origin.inverse());
+        }
+        for j in &tool[shared..] {
+            push_fixed(&mut steps, j.origin);
+            push_joint(&mut steps, j, 1.0);
+        }
+
+        let chain = KinematicChain {
             name: self.robot.name.clone(),
             source: self.source.to_string(),
-            base_link: tree.base_link,
-            tool_link: tool_tip,
-            workpiece_link: wp_link,
+            base_link: tree.base_link.clone(),
+            tool_link: TOOL_LINK.to_string(),
+            workpiece_link,
             tool,
             workpiece,
-            r: p_c,
-            d: p_a - p_c,
+            steps,
+            rotary,
             limits,
-        })
+        };
+        // The slides must span space at zero (the TCP inverse solves for them).
+        let zero = Axes::default();
+        let s = chain.propagate(&zero, &zero, &zero);
+        if KinematicChain::solve_slides(&s.slides, &Vector3::zeros(), None).is_err() {
+            return Err(self.fail(format!(
+                "the slides X, Y, Z move along dependent directions {}, {}, {} at zero",
+                fmt_vec(&s.slides.column(0).into()),
+                fmt_vec(&s.slides.column(1).into()),
+                fmt_vec(&s.slides.column(2).into())
+            )));
+        }
+        Ok(chain)
     }
 
-    /// The name of the link that ends `path` (the base link for an empty path).
-    fn leaf_name(&self, path: &[usize], base_link: &str) -> String {
-        path.last()
-            .and_then(|&ji| self.robot.joints.get(ji))
-            .map_or(base_link.to_string(), |j| j.child.link.clone())
+    fn joint_name(&self, ji: usize) -> &str {
+        self.robot.joints.get(ji).map_or("?", |j| j.name.as_str())
     }
 
     /// Links and joints as a tree: unique names, one parent joint per link, one base link.
     fn tree(&self) -> Result<Tree<'_>> {
         let robot = self.robot;
-        // Links and their parent joints.
         let mut link_index: HashMap<&str, usize> = HashMap::new();
         for (i, link) in robot.links.iter().enumerate() {
             if link_index.insert(link.name.as_str(), i).is_some() {
@@ -356,10 +909,11 @@ impl Builder<'_> {
                 )));
             };
             if let Some(Some(other)) = parent_joint.get(c) {
-                let other_name = robot.joints.get(*other).map_or("?", |j| j.name.as_str());
                 return Err(self.fail(format!(
                     "link '{}' is the child of two joints, '{}' and '{}'",
-                    joint.child.link, other_name, joint.name
+                    joint.child.link,
+                    self.joint_name(*other),
+                    joint.name
                 )));
             }
             if let Some(slot) = parent_joint.get_mut(c) {
@@ -394,57 +948,56 @@ impl Builder<'_> {
             .links
             .get(root)
             .map_or(String::new(), |l| l.name.clone());
-
+        // Every link must hang from the base (a loop of joints would leave some unreachable).
+        let mut stack = vec![root];
+        let mut reached = 0usize;
+        while let Some(link) = stack.pop() {
+            reached += 1;
+            for &ji in child_joints.get(link).map_or(&[][..], |v| v.as_slice()) {
+                if let Some(&c) = robot
+                    .joints
+                    .get(ji)
+                    .and_then(|j| link_index.get(j.child.link.as_str()))
+                {
+                    stack.push(c);
+                }
+            }
+        }
+        if reached != robot.links.len() {
+            return Err(self.fail(format!(
+                "{} link(s) are not connected to the base link '{}' (a loop of joints?)",
+                robot.links.len() - reached,
+                base_link
+            )));
+        }
         Ok(Tree {
             link_index,
-            child_joints,
-            root,
+            parent_joint,
             base_link,
         })
     }
 
-    /// Every root-to-leaf path of joint indices (each link has one parent, so this walk
-    /// terminates and visits every link reachable from the root exactly once).
-    fn paths(&self, tree: &Tree<'_>) -> Result<Vec<Vec<usize>>> {
-        let robot = self.robot;
-        let (link_index, child_joints, root, base_link) = (
-            &tree.link_index,
-            &tree.child_joints,
-            tree.root,
-            &tree.base_link,
-        );
-        let mut paths: Vec<Vec<usize>> = Vec::new();
-        let mut stack: Vec<(usize, Vec<usize>)> = vec![(root, Vec::new())];
-        let mut visited = 0usize;
-        while let Some((link, path)) = stack.pop() {
-            visited += 1;
-            let children = child_joints.get(link).map_or(&[][..], |v| v.as_slice());
-            if children.is_empty() {
-                paths.push(path);
-                continue;
+    /// The joints from the base link to the link named `name`, in order; `None` if there is no
+    /// such link.
+    fn path_to(&self, tree: &Tree<'_>, name: &str) -> Result<Option<Vec<usize>>> {
+        let Some(&leaf) = tree.link_index.get(name) else {
+            return Ok(None);
+        };
+        let mut link = leaf;
+        let mut path = Vec::new();
+        while let Some(Some(ji)) = tree.parent_joint.get(link) {
+            path.push(*ji);
+            let parent = self.robot.joints.get(*ji).map(|j| j.parent.link.as_str());
+            match parent.and_then(|p| tree.link_index.get(p)) {
+                Some(&p) => link = p,
+                None => return Err(self.fail("internal: a joint lost its parent link".into())),
             }
-            for &ji in children.iter().rev() {
-                let mut p = path.clone();
-                p.push(ji);
-                let child = robot
-                    .joints
-                    .get(ji)
-                    .and_then(|j| link_index.get(j.child.link.as_str()))
-                    .copied();
-                if let Some(c) = child {
-                    stack.push((c, p));
-                }
+            if path.len() > self.robot.joints.len() {
+                return Err(self.fail("internal: the joints form a loop".into()));
             }
         }
-        if visited != robot.links.len() {
-            return Err(self.fail(format!(
-                "{} link(s) are not connected to the base link '{}' (a loop of joints?)",
-                robot.links.len() - visited,
-                base_link
-            )));
-        }
-
-        Ok(paths)
+        path.reverse();
+        Ok(Some(path))
     }
 
     /// The kind of every joint, in URDF order; mimic and planar/floating joints are refused.
@@ -476,89 +1029,12 @@ impl Builder<'_> {
         Ok(kinds)
     }
 
-    /// The X Y Z branch (three prismatic joints) and the A C branch (two rotary joints); any
-    /// other moving joint is an error.
-    fn branches(
-        &self,
-        paths: &[Vec<usize>],
-        kinds: &[JointKind],
-        base_link: &str,
-    ) -> Result<(Vec<usize>, Vec<usize>)> {
-        let robot = self.robot;
-        let kind_of = |ji: usize| kinds.get(ji).copied().unwrap_or(JointKind::Fixed);
-        let movable = |path: &[usize]| -> Vec<usize> {
-            path.iter()
-                .copied()
-                .filter(|&ji| kind_of(ji).is_movable())
-                .collect()
-        };
-
-        // Identify the two branches by their movable joints.
-        let mut tool_paths = Vec::new();
-        let mut wp_paths = Vec::new();
-        for path in paths {
-            let m = movable(path);
-            let ks: Vec<JointKind> = m.iter().map(|&ji| kind_of(ji)).collect();
-            if ks.len() == 3 && ks.iter().all(|k| *k == JointKind::Prismatic) {
-                tool_paths.push(path.clone());
-            } else if ks.len() == 2 && ks.iter().all(|k| k.is_rotary()) {
-                wp_paths.push(path.clone());
-            }
-        }
-        let leaf_name = |path: &[usize]| self.leaf_name(path, base_link);
-        let tool_path = match tool_paths.as_slice() {
-            [p] => p.clone(),
-            [] => {
-                return Err(self.fail(format!(
-                    "no branch from the base link '{base_link}' has exactly three prismatic \
-                     joints (X, Y, Z) and no rotary joint"
-                )));
-            }
-            [p, q, ..] => {
-                return Err(self.fail(format!(
-                    "two leaf links, '{}' and '{}', both end an X Y Z branch; keep one tool tip",
-                    leaf_name(p),
-                    leaf_name(q)
-                )));
-            }
-        };
-        let wp_path = match wp_paths.as_slice() {
-            [p] => p.clone(),
-            [] => {
-                return Err(self.fail(format!(
-                    "no branch from the base link '{base_link}' has exactly two rotary joints \
-                     (A then C) and no prismatic joint"
-                )));
-            }
-            [p, q, ..] => {
-                return Err(self.fail(format!(
-                    "two leaf links, '{}' and '{}', both end an A C branch; keep one workpiece",
-                    leaf_name(p),
-                    leaf_name(q)
-                )));
-            }
-        };
-        for (ji, joint) in robot.joints.iter().enumerate() {
-            if kind_of(ji).is_movable() && !tool_path.contains(&ji) && !wp_path.contains(&ji) {
-                return Err(self.fail(format!(
-                    "joint '{}' moves but is on neither the X Y Z branch nor the A C branch",
-                    joint.name
-                )));
-            }
-        }
-
-        Ok((tool_path, wp_path))
-    }
-
-    /// Converts the URDF joints of one branch, assigning `roles` to its movable joints in order.
-    fn convert(
-        &self,
-        path: &[usize],
-        kinds: &[JointKind],
-        roles: &[AxisName],
-    ) -> Result<Vec<ChainJoint>> {
+    /// Converts the URDF joints of one path, giving each moving joint its machine axis: the one
+    /// its name spells, else the one along whose direction (in the machine frame at zero) it
+    /// moves.
+    fn convert(&self, path: &[usize], kinds: &[JointKind]) -> Result<Vec<ChainJoint>> {
         let mut out = Vec::with_capacity(path.len());
-        let mut roles = roles.iter();
+        let mut frame = Isometry3::identity();
         for &ji in path {
             let (Some(joint), Some(&kind)) = (self.robot.joints.get(ji), kinds.get(ji)) else {
                 return Err(self.fail("internal: joint index out of range".into()));
@@ -577,6 +1053,7 @@ impl Builder<'_> {
                 Translation3::from(xyz),
                 UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
             );
+            frame *= origin;
             let raw_axis = Vector3::from(joint.axis.xyz.0);
             let norm = raw_axis.norm();
             let axis = if kind == JointKind::Fixed {
@@ -614,7 +1091,7 @@ impl Builder<'_> {
                 JointKind::Continuous | JointKind::Fixed => Travel::UNBOUNDED,
             };
             let role = if kind.is_movable() {
-                roles.next().copied()
+                Some(self.role(joint, kind, &(frame.rotation * axis.into_inner()))?)
             } else {
                 None
             };
@@ -631,44 +1108,77 @@ impl Builder<'_> {
         Ok(out)
     }
 
-    /// Checks every movable joint's axis, expressed in the machine frame at the zero position,
-    /// against its role's direction; returns each movable joint's frame origin (a point on its
-    /// axis) in the machine frame, mm.
-    fn check_axes(&self, joints: &[ChainJoint]) -> Result<Vec<Vector3<f64>>> {
-        let mut t = Isometry3::identity();
-        let mut points = Vec::new();
-        for j in joints {
-            t *= j.origin;
-            if let Some(role) = j.role {
-                let dir = t.rotation * j.axis.into_inner();
-                let (name, expected) = unit_name(role);
-                if (dir - expected).norm() > CHAIN_TOLERANCE {
-                    let shown = if t.rotation.angle() == 0.0 {
-                        format!("joint '{}' axis is {}", j.name, fmt_vec(&dir))
-                    } else {
-                        format!(
-                            "joint '{}' axis is {} in the machine frame",
-                            j.name,
-                            fmt_vec(&dir)
-                        )
-                    };
-                    return Err(self.fail(format!("{shown}, expected {name} (axis {role})")));
-                }
-                points.push(t.translation.vector);
-            }
+    /// The machine axis a moving joint drives (its name, else its direction `dir` at zero).
+    fn role(
+        &self,
+        joint: &urdf_rs::Joint,
+        kind: JointKind,
+        dir: &Vector3<f64>,
+    ) -> Result<AxisName> {
+        let rotary = kind.is_rotary();
+        let mut letters = joint.name.chars();
+        let named = match (letters.next(), letters.next()) {
+            (Some(c), None) => AxisName::from_letter(c),
+            _ => None,
+        };
+        match named {
+            Some(axis) if axis.is_rotary() != rotary => Err(self.fail(format!(
+                "joint '{}' is {} but its name makes it the {} axis {axis}",
+                joint.name,
+                if rotary { "rotary" } else { "prismatic" },
+                if axis.is_rotary() { "rotary" } else { "linear" },
+            ))),
+            Some(axis) => Ok(axis),
+            None => principal_role(dir, rotary).ok_or_else(|| {
+                self.fail(format!(
+                    "joint '{}' axis is {} in the machine frame, not along X, Y or Z: name the \
+                     joint after the machine axis it drives (x, y, z, a, b or c)",
+                    joint.name,
+                    fmt_vec(dir)
+                ))
+            }),
         }
-        Ok(points)
     }
 
-    fn check_identity(&self, t: &Isometry3<f64>, what: &str, at: &str, hint: &str) -> Result<()> {
-        let p = t.translation.vector;
-        let angle = t.rotation.angle();
-        if p.norm() > CHAIN_TOLERANCE || angle > CHAIN_TOLERANCE {
-            return Err(self.fail(format!(
-                "{what} is at {} mm, rotated by {angle} rad, at {at}; {hint}",
-                fmt_vec(&p)
-            )));
+    /// Each machine axis is driven by one joint; X, Y and Z are there.
+    fn check_roles(&self, tool: &[ChainJoint], workpiece: &[ChainJoint]) -> Result<()> {
+        let mut by_axis: HashMap<AxisName, &str> = HashMap::new();
+        for j in tool.iter().chain(workpiece) {
+            if let Some(axis) = j.role
+                && let Some(other) = by_axis.insert(axis, &j.name)
+            {
+                return Err(self.fail(format!(
+                    "joints '{other}' and '{}' both drive axis {axis}",
+                    j.name
+                )));
+            }
+        }
+        for axis in [AxisName::X, AxisName::Y, AxisName::Z] {
+            if !by_axis.contains_key(&axis) {
+                return Err(self.fail(format!(
+                    "no joint drives axis {axis}: vcnc needs the three slides X, Y and Z"
+                )));
+            }
         }
         Ok(())
+    }
+}
+
+fn push_fixed(steps: &mut Vec<Step>, f: Isometry3<f64>) {
+    if let Some(Step::Fixed(last)) = steps.last_mut() {
+        *last *= f;
+    } else {
+        steps.push(Step::Fixed(f));
+    }
+}
+
+fn push_joint(steps: &mut Vec<Step>, j: &ChainJoint, sign: f64) {
+    if let Some(role) = j.role {
+        steps.push(Step::Joint {
+            prismatic: j.kind == JointKind::Prismatic,
+            axis: j.axis,
+            role,
+            sign,
+        });
     }
 }

@@ -18,13 +18,97 @@ pub enum Error {
         message: String,
     },
 
-    /// The URDF parsed but is not the X Y Z / A→C table-tilting chain of docs/kinematics.md.
+    /// The URDF was read where a table-tilting A/C chain is required
+    /// ([`KinematicChain::from_urdf_file`](crate::KinematicChain::from_urdf_file)) and is not one.
     #[error("{file}: not a table-tilting A/C chain: {reason}")]
     NotTableTilting {
         /// Path or source name of the URDF.
         file: String,
         /// What is wrong, with the joint or link name and the numbers, e.g.
         /// "joint 'a' axis is (0, 1, 0), expected +X".
+        reason: String,
+    },
+
+    /// The URDF parsed but is not a machine vcnc can use (docs/kinematics.md, "Any serial
+    /// chain from a URDF").
+    #[error("{file}: cannot use the URDF as a machine: {reason}")]
+    Chain {
+        /// Path or source name of the URDF.
+        file: String,
+        /// What is wrong, with the joint or link name and the numbers.
+        reason: String,
+    },
+
+    /// The chain matches no closed-form family ([`KinematicChain::closed_form`](crate::KinematicChain::closed_form)).
+    #[error("{file}: the chain matches no closed-form family: {reason}")]
+    NoClosedForm {
+        /// Path or source name of the URDF.
+        file: String,
+        /// Why, with the joint name or the numbers.
+        reason: String,
+    },
+
+    /// The damped least-squares inverse of a chain did not reach the tool axis asked for.
+    #[error(
+        "the inverse kinematics did not converge{}: tool-axis error {residual:.3e} after          {iterations} iterations (an orientation this machine cannot reach, or too far from the          previous sample)",
+        AtSample(*sample)
+    )]
+    NoConvergence {
+        /// The remaining tool-axis error (unit vector difference, about rad).
+        residual: f64,
+        /// Iterations made.
+        iterations: usize,
+        /// Index of the pose in the sequence, if it came from one.
+        sample: Option<usize>,
+    },
+
+    /// A chain's slides move along dependent directions at the rotary angles asked for, so no
+    /// slide position puts the tool tip where it is asked.
+    #[error(
+        "the slides X, Y, Z move along dependent directions (determinant {det:.3e}){}",
+        AtSample(*sample)
+    )]
+    DependentSlides {
+        /// Determinant of the slides' direction matrix (unitless).
+        det: f64,
+        /// Index of the sample, if it came from a sequence.
+        sample: Option<usize>,
+    },
+
+    /// The machine lacks an axis its kinematics needs.
+    #[error("a {family} machine needs axis {axis}")]
+    MissingAxis {
+        /// The missing axis.
+        axis: AxisName,
+        /// The family, e.g. "table-tilting B/C".
+        family: String,
+    },
+
+    /// The number of rotary tracks given is not the kinematics' number of rotary axes
+    /// (a caller's bug: a runtime failure, not bad input).
+    #[error("{got} rotary tracks given, the kinematics has {expected} rotary axes")]
+    TrackCount {
+        /// Rotary axes of the kinematics.
+        expected: usize,
+        /// Tracks given.
+        got: usize,
+    },
+
+    /// A track has another number of samples than the TCP flags (a caller's bug).
+    #[error("a track has {got} samples, the TCP flags {expected}")]
+    TrackLength {
+        /// Samples of the TCP flags.
+        expected: usize,
+        /// Samples of the track.
+        got: usize,
+    },
+
+    /// Offsets cannot be fitted: a chain (no offsets of its own), or too few samples.
+    #[error("cannot fit the offsets of a {family} machine: {reason}")]
+    Fit {
+        /// The family.
+        family: String,
+        /// Why.
         reason: String,
     },
 
@@ -94,9 +178,10 @@ pub enum Error {
 }
 
 impl Error {
-    /// Every error of this crate is about its input (a URDF, a pose, a travel): exit code 2.
+    /// True for errors about the input (a URDF, a pose, a travel, a parameter): exit code 2.
+    /// False for a caller's bug (tracks of the wrong count or length): a runtime failure.
     pub fn is_bad_input(&self) -> bool {
-        true
+        !matches!(self, Error::TrackCount { .. } | Error::TrackLength { .. })
     }
 }
 

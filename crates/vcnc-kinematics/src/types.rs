@@ -1,6 +1,7 @@
-//! Plain data types shared by the chain, the closed-form model and `vcnc-contour`.
+//! Plain data types shared by every family, the URDF chain and `vcnc-contour`.
 
 use std::fmt;
+use std::ops::{Index, IndexMut};
 
 pub use vcnc_axis::AxisName;
 
@@ -36,73 +37,181 @@ impl Default for Pose {
     }
 }
 
-/// Positions of the five machine axes.
+/// Joint values of a machine: one slot per [`AxisName`], mm for X Y Z and rad for A B C.
+///
+/// A family uses the slots of its axes ([`Kinematics::axes`](crate::Kinematics::axes)); the
+/// others are ignored by the forward kinematics and copied through by the inverse ones.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Axes {
-    /// X slide, mm (tool-tip position in the machine frame).
+    /// X slide, mm (the tool tip in the machine frame when every rotary axis is at zero).
     pub x: f64,
     /// Y slide, mm.
     pub y: f64,
     /// Z slide, mm.
     pub z: f64,
-    /// A tilt about +X, rad (positive tilts the table right-handedly about +X).
+    /// A, rad: rotation about +X, continuous (not wrapped).
     pub a: f64,
-    /// C rotation about +Z, rad, continuous (not wrapped); positive turns the table
-    /// right-handedly about +Z.
+    /// B, rad: rotation about +Y, continuous.
+    pub b: f64,
+    /// C, rad: rotation about +Z, continuous.
     pub c: f64,
 }
 
 impl Axes {
-    /// Axes from their values (mm, mm, mm, rad, rad).
+    /// The axes of a table-tilting A/C machine (mm, mm, mm, rad, rad); B is 0.
     pub fn new(x: f64, y: f64, z: f64, a: f64, c: f64) -> Self {
-        Self { x, y, z, a, c }
-    }
-
-    /// The five axes of a table-tilting A/C machine, in order.
-    pub const NAMES: [AxisName; 5] = [
-        AxisName::X,
-        AxisName::Y,
-        AxisName::Z,
-        AxisName::A,
-        AxisName::C,
-    ];
-
-    /// The value of one axis (mm or rad); `None` for B, which this machine does not have.
-    pub fn get(&self, axis: AxisName) -> Option<f64> {
-        match axis {
-            AxisName::X => Some(self.x),
-            AxisName::Y => Some(self.y),
-            AxisName::Z => Some(self.z),
-            AxisName::A => Some(self.a),
-            AxisName::B => None,
-            AxisName::C => Some(self.c),
+        Self {
+            x,
+            y,
+            z,
+            a,
+            b: 0.0,
+            c,
         }
     }
 
-    /// `[x, y, z, a, c]` (mm, mm, mm, rad, rad).
-    pub fn to_array(&self) -> [f64; 5] {
-        [self.x, self.y, self.z, self.a, self.c]
+    /// Every slot from a function of its axis (mm or rad).
+    pub fn from_fn(mut f: impl FnMut(AxisName) -> f64) -> Self {
+        Self {
+            x: f(AxisName::X),
+            y: f(AxisName::Y),
+            z: f(AxisName::Z),
+            a: f(AxisName::A),
+            b: f(AxisName::B),
+            c: f(AxisName::C),
+        }
     }
 
-    /// From `[x, y, z, a, c]` (mm, mm, mm, rad, rad).
-    pub fn from_array(v: [f64; 5]) -> Self {
-        let [x, y, z, a, c] = v;
-        Self { x, y, z, a, c }
+    /// The value of one axis (mm or rad). `Some` for every axis (the `Option` is kept for the
+    /// callers written when B had no slot).
+    pub fn get(&self, axis: AxisName) -> Option<f64> {
+        Some(self[axis])
+    }
+
+    /// The same axes with `axis` set to `value` (mm or rad).
+    pub fn with(mut self, axis: AxisName, value: f64) -> Self {
+        self[axis] = value;
+        self
+    }
+
+    /// The six values in the order X Y Z A B C (mm, rad).
+    pub fn values(&self) -> [f64; 6] {
+        [self.x, self.y, self.z, self.a, self.b, self.c]
     }
 
     /// The linear axes as a vector `pm = (X, Y, Z)`, mm.
     pub fn pm(&self) -> Vector3<f64> {
         Vector3::new(self.x, self.y, self.z)
     }
+
+    /// The same axes with X, Y, Z replaced by `pm`, mm.
+    pub fn with_pm(self, pm: &Vector3<f64>) -> Self {
+        Self {
+            x: pm.x,
+            y: pm.y,
+            z: pm.z,
+            ..self
+        }
+    }
 }
 
-/// Inverse-kinematics branch (docs/kinematics.md): the sign of A.
+impl Index<AxisName> for Axes {
+    type Output = f64;
+
+    fn index(&self, axis: AxisName) -> &f64 {
+        match axis {
+            AxisName::X => &self.x,
+            AxisName::Y => &self.y,
+            AxisName::Z => &self.z,
+            AxisName::A => &self.a,
+            AxisName::B => &self.b,
+            AxisName::C => &self.c,
+        }
+    }
+}
+
+impl IndexMut<AxisName> for Axes {
+    fn index_mut(&mut self, axis: AxisName) -> &mut f64 {
+        match axis {
+            AxisName::X => &mut self.x,
+            AxisName::Y => &mut self.y,
+            AxisName::Z => &mut self.z,
+            AxisName::A => &mut self.a,
+            AxisName::B => &mut self.b,
+            AxisName::C => &mut self.c,
+        }
+    }
+}
+
+/// What a rotary axis turns: the spindle head (the tool) or the table (the workpiece).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Carrier {
+    /// The axis turns the spindle head: positive angles turn the tool right-handedly.
+    Head,
+    /// The axis turns the table: positive angles turn the workpiece right-handedly.
+    Table,
+}
+
+impl fmt::Display for Carrier {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Carrier::Head => "head",
+            Carrier::Table => "table",
+        })
+    }
+}
+
+/// A rotary axis of a machine and what it turns (its role in the kinematics).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct RotaryAxis {
+    /// A, B or C.
+    pub axis: AxisName,
+    /// The head or the table.
+    pub turns: Carrier,
+}
+
+/// The tilting rotary axis of a five-axis family: A (about +X) or B (about +Y). The other
+/// rotary axis of every closed-form family is C (about +Z).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Tilt {
+    /// A, about +X.
+    A,
+    /// B, about +Y.
+    B,
+}
+
+impl Tilt {
+    /// [`AxisName::A`] or [`AxisName::B`].
+    pub fn axis(self) -> AxisName {
+        match self {
+            Tilt::A => AxisName::A,
+            Tilt::B => AxisName::B,
+        }
+    }
+
+    /// The tilt of a rotary axis name; `None` for C and the linear axes.
+    pub fn of(axis: AxisName) -> Option<Tilt> {
+        match axis {
+            AxisName::A => Some(Tilt::A),
+            AxisName::B => Some(Tilt::B),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Tilt {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.axis().as_str())
+    }
+}
+
+/// Inverse-kinematics branch (docs/kinematics.md): the sign of the tilting axis (A or B).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Branch {
-    /// Branch +1: $a = \arccos o_z \in [0, \pi]$, $c = \operatorname{atan2}(o_x, o_y)$.
+    /// Branch +1: the tilt is $\arccos o_z \in [0, \pi]$.
     #[default]
     Plus,
-    /// Branch −1: $a = -\arccos o_z \in [-\pi, 0]$, $c = \operatorname{atan2}(-o_x, -o_y)$.
+    /// Branch −1: the tilt is $-\arccos o_z \in [-\pi, 0]$.
     Minus,
 }
 
@@ -192,7 +301,7 @@ impl Default for Travel {
     }
 }
 
-/// Travel of every axis (mm for X, Y, Z; rad for A, C).
+/// Travel of every axis (mm for X, Y, Z; rad for A, B, C); unbounded by default.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AxisLimits {
     /// X travel, mm.
@@ -203,43 +312,45 @@ pub struct AxisLimits {
     pub z: Travel,
     /// A travel, rad.
     pub a: Travel,
+    /// B travel, rad.
+    pub b: Travel,
     /// C travel, rad (unbounded for a continuous C).
     pub c: Travel,
 }
 
 impl AxisLimits {
-    /// The travel of one axis; `None` for B, which this machine does not have.
+    /// The travel of one axis. `Some` for every axis (the `Option` is kept for the callers
+    /// written when B had no slot).
     pub fn get(&self, axis: AxisName) -> Option<Travel> {
-        match axis {
-            AxisName::X => Some(self.x),
-            AxisName::Y => Some(self.y),
-            AxisName::Z => Some(self.z),
-            AxisName::A => Some(self.a),
-            AxisName::B => None,
-            AxisName::C => Some(self.c),
-        }
+        Some(self[axis])
     }
 
-    /// Mutable access to the travel of one axis; `None` for B.
+    /// Mutable access to the travel of one axis; `Some` for every axis.
     pub fn get_mut(&mut self, axis: AxisName) -> Option<&mut Travel> {
-        match axis {
-            AxisName::X => Some(&mut self.x),
-            AxisName::Y => Some(&mut self.y),
-            AxisName::Z => Some(&mut self.z),
-            AxisName::A => Some(&mut self.a),
-            AxisName::B => None,
-            AxisName::C => Some(&mut self.c),
-        }
+        Some(&mut self[axis])
     }
 
-    /// `Ok` if every axis of `axes` is within travel, else the first violation in the order
-    /// X, Y, Z, A, C, tagged with `sample`.
+    /// `Ok` if every axis of a table-tilting A/C machine (X, Y, Z, A, C) is within travel, else
+    /// the first violation in that order, tagged with `sample`.
     pub fn check(&self, axes: &Axes, sample: Option<usize>) -> Result<()> {
-        for (axis, t) in Axes::NAMES
-            .into_iter()
-            .zip([self.x, self.y, self.z, self.a, self.c])
-        {
-            let v = axes.get(axis).unwrap_or(0.0);
+        self.check_axes(
+            axes,
+            &[
+                AxisName::X,
+                AxisName::Y,
+                AxisName::Z,
+                AxisName::A,
+                AxisName::C,
+            ],
+            sample,
+        )
+    }
+
+    /// `Ok` if each axis of `names` is within travel, else the first violation in the order of
+    /// `names`, tagged with `sample`.
+    pub fn check_axes(&self, axes: &Axes, names: &[AxisName], sample: Option<usize>) -> Result<()> {
+        for &axis in names {
+            let (t, v) = (self[axis], axes[axis]);
             if !t.contains(v) {
                 return Err(Error::OutOfTravel {
                     axis,
@@ -252,4 +363,90 @@ impl AxisLimits {
         }
         Ok(())
     }
+
+    /// `Ok` if every travel is `lower <= upper` with neither bound NaN.
+    pub(crate) fn validate(&self) -> Result<()> {
+        for axis in AxisName::ALL {
+            let t = self[axis];
+            Travel::new(t.lower, t.upper).map_err(|_| Error::BadParameter {
+                name: format!("travel of {axis}"),
+                value: format!("{} ..= {}", t.lower, t.upper),
+                reason: "needs lower <= upper, neither NaN",
+            })?;
+        }
+        Ok(())
+    }
+}
+
+impl Index<AxisName> for AxisLimits {
+    type Output = Travel;
+
+    fn index(&self, axis: AxisName) -> &Travel {
+        match axis {
+            AxisName::X => &self.x,
+            AxisName::Y => &self.y,
+            AxisName::Z => &self.z,
+            AxisName::A => &self.a,
+            AxisName::B => &self.b,
+            AxisName::C => &self.c,
+        }
+    }
+}
+
+impl IndexMut<AxisName> for AxisLimits {
+    fn index_mut(&mut self, axis: AxisName) -> &mut Travel {
+        match axis {
+            AxisName::X => &mut self.x,
+            AxisName::Y => &mut self.y,
+            AxisName::Z => &mut self.z,
+            AxisName::A => &mut self.a,
+            AxisName::B => &mut self.b,
+            AxisName::C => &mut self.c,
+        }
+    }
+}
+
+/// A point's position, velocity and acceleration (mm, mm/s, mm/s²): the tool tip in the
+/// workpiece frame as a tool-centre-point interpolator produces it, or the slides' motion.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PointMotion {
+    /// Position, mm.
+    pub p: Vector3<f64>,
+    /// Velocity, mm/s.
+    pub p_dot: Vector3<f64>,
+    /// Acceleration, mm/s².
+    pub p_ddot: Vector3<f64>,
+}
+
+/// Joint positions with their first two time derivatives (mm, rad; per s; per s²).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct JointMotion {
+    /// Positions, mm and rad.
+    pub pos: Axes,
+    /// Velocities, mm/s and rad/s.
+    pub vel: Axes,
+    /// Accelerations, mm/s² and rad/s².
+    pub acc: Axes,
+}
+
+/// One axis over a run, borrowed: position, velocity and acceleration per sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Track<'a> {
+    /// Position per sample (mm or deg).
+    pub pos: &'a [f64],
+    /// Velocity per sample (units/s).
+    pub vel: &'a [f64],
+    /// Acceleration per sample (units/s²).
+    pub acc: &'a [f64],
+}
+
+/// One axis over a run, owned: position, velocity and acceleration per sample.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Track3 {
+    /// Position per sample (mm).
+    pub pos: Vec<f64>,
+    /// Velocity per sample (mm/s).
+    pub vel: Vec<f64>,
+    /// Acceleration per sample (mm/s²).
+    pub acc: Vec<f64>,
 }

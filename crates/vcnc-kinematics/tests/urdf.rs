@@ -23,7 +23,7 @@ fn custom_urdf(r: [f64; 3], d: [f64; 3]) -> String {
         r#"<?xml version="1.0"?>
 <robot name="custom">
   <link name="base"/><link name="column"/><link name="sx"/><link name="sy"/><link name="sz"/>
-  <link name="tip"/><link name="cradle"/><link name="cradle2"/><link name="table"/><link name="wp"/>
+  <link name="tool_tip"/><link name="cradle"/><link name="cradle2"/><link name="table"/><link name="workpiece"/>
   <joint name="column" type="fixed"><parent link="base"/><child link="column"/>
     <origin xyz="0 0 0" rpy="0 0 1.5707963267948966"/></joint>
   <joint name="x" type="prismatic"><parent link="column"/><child link="sx"/>
@@ -33,7 +33,7 @@ fn custom_urdf(r: [f64; 3], d: [f64; 3]) -> String {
     <axis xyz="0 2 0"/><limit lower="-500" upper="500" velocity="800"/></joint>
   <joint name="z" type="prismatic"><parent link="sy"/><child link="sz"/>
     <origin xyz="5 6 7"/><axis xyz="0 0 1"/><limit lower="-500" upper="500" velocity="800"/></joint>
-  <joint name="spindle" type="fixed"><parent link="sz"/><child link="tip"/>
+  <joint name="spindle" type="fixed"><parent link="sz"/><child link="tool_tip"/>
     <origin xyz="-5 -6 -7"/></joint>
   <joint name="a" type="revolute"><parent link="base"/><child link="cradle"/>
     <origin xyz="{} {} {}" rpy="0 0 0"/><axis xyz="1 0 0"/>
@@ -42,7 +42,7 @@ fn custom_urdf(r: [f64; 3], d: [f64; 3]) -> String {
     <origin xyz="0 0 0" rpy="0.3 0 0"/></joint>
   <joint name="c" type="continuous"><parent link="cradle2"/><child link="table"/>
     <origin xyz="{} {} {}" rpy="-0.3 0 0"/><axis xyz="0 0 1"/><limit velocity="10"/></joint>
-  <joint name="workpiece" type="fixed"><parent link="table"/><child link="wp"/>
+  <joint name="workpiece" type="fixed"><parent link="table"/><child link="workpiece"/>
     <origin xyz="{} {} {}"/></joint>
 </robot>"#,
         rd[0],
@@ -227,11 +227,14 @@ fn wrong_a_axis_is_named_with_the_numbers() {
 }
 
 #[test]
-fn wrong_prismatic_order_is_reported() {
+fn dependent_slides_are_reported() {
+    // Joint 'y' (named Y) moves along Z like 'z': the slides no longer span space.
     let text = shipped_text().replacen("<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 0 1\"/>", 1);
     let e = err_text(&text);
     assert!(
-        e.contains("joint 'y' axis is (0, 0, 1), expected +Y"),
+        e.contains(
+            "the slides X, Y, Z move along dependent directions (1, 0, 0), (0, 0, 1), (0, 0, 1)"
+        ),
         "{e}"
     );
 }
@@ -319,7 +322,7 @@ fn extra_movable_joint_is_an_error() {
     );
     let e = err_text(&text);
     assert!(
-        e.contains("joint 'w' moves but is on neither the X Y Z branch nor the A C branch"),
+        e.contains("joint 'w' moves but is on neither the tool branch nor the workpiece branch"),
         "{e}"
     );
 }
@@ -353,11 +356,42 @@ fn two_parents_is_an_error() {
 }
 
 #[test]
-fn missing_rotary_branch_is_an_error() {
-    let text = shipped_text().replacen("type=\"continuous\"", "type=\"prismatic\"", 1);
+fn a_slide_named_after_a_rotary_axis_is_an_error() {
+    let text = shipped_text()
+        .replacen("type=\"continuous\"", "type=\"prismatic\"", 1)
+        .replacen(
+            "<limit effort=\"0\" velocity=\"10.472\"/>",
+            "<limit lower=\"-1\" upper=\"1\" effort=\"0\" velocity=\"10.472\"/>",
+            1,
+        );
     let e = err_text(&text);
     assert!(
-        e.contains("no branch from the base link 'machine' has exactly two rotary joints"),
+        e.contains("joint 'c' is prismatic but its name makes it the rotary axis C"),
         "{e}"
     );
+}
+
+#[test]
+fn a_machine_of_another_family_is_not_an_ac_chain() {
+    // The cradle turned to tilt about Y, joint renamed: a table-tilting B/C machine, which the
+    // A/C reader refuses and the general reader maps onto its closed form.
+    let text = shipped_text()
+        .replacen("<joint name=\"a\"", "<joint name=\"b\"", 1)
+        .replacen(
+            "<axis xyz=\"1 0 0\"/>\n    <limit lower=\"-2.0943951023931953\"",
+            "<axis xyz=\"0 1 0\"/>\n    <limit lower=\"-2.0943951023931953\"",
+            1,
+        );
+    let e = err_text(&text);
+    assert_eq!(
+        e,
+        "test.urdf: not a table-tilting A/C chain: it is a table-tilting B/C machine"
+    );
+    match vcnc_kinematics::Kinematics::from_urdf_str(&text, "test.urdf") {
+        Ok(k) => assert_eq!(
+            k.family(),
+            vcnc_kinematics::Family::TableTilting(vcnc_kinematics::Tilt::B)
+        ),
+        Err(e) => panic!("{e}"),
+    }
 }
