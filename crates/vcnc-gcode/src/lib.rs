@@ -38,13 +38,13 @@ pub use generate::{
     spiral_points, tcp_program,
 };
 pub use interp::{
-    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, ProgramRead, StartPosition,
-    Toolpath, interpret,
+    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, PathMode, Plane, ProgramRead,
+    StartPosition, Toolpath, interpret,
 };
 pub use interpolate::stream::{ProgramSource, SampleChunk, StreamOptions, StreamPlan, plan};
 pub use interpolate::{
-    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,
-    interpolate,
+    AxisLimits, AxisTrack, BlockSpan, CycleTime, InterpolateOptions, Limits, MoveClass,
+    PlannerRules, Profile, Slowdown, Trajectory, interpolate,
 };
 pub use syntax::{
     Assignment, BinOp, Block, ChunkParser, Comment, CommentKind, Expr, ExprId, ExprKind, Func,

@@ -42,7 +42,7 @@ fn identification_takes_20_to_60_s_and_reverses_30_times() {
         assert_eq!(run.toolpath.moves.len(), 70);
         assert_eq!(run.toolpath.start, [0.0; 6]);
         assert!(pts.iter().all(|p| p[0].abs() <= 50.0));
-        assert!(run.toolpath.moves.iter().all(|m| m.exact_stop));
+        assert!(run.toolpath.moves.iter().all(|m| m.path.is_exact_stop()));
         // Feeds up to 250 mm/s (F15000), read from the program's F words (the interpolator
         // would cap any faster feed at the 250 mm/s limit, so the trajectory alone cannot
         // show it), and the trajectory within the limit.
@@ -182,7 +182,7 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
     };
     let run = load(&text, &opts, &limits, &InterpolateOptions::default()).unwrap();
     let tp = &run.toolpath;
-    assert!(tp.moves.iter().all(|m| m.tcp && !m.exact_stop));
+    assert!(tp.moves.iter().all(|m| m.tcp && !m.path.is_exact_stop()));
     assert!(tp.moves.iter().all(|m| matches!(m.kind, MoveKind::Linear)));
     let l: f64 = tp
         .moves

@@ -203,7 +203,7 @@ fn all_axes() -> InterpolateOptions {
 }
 
 fn continuous(m: &Move) -> bool {
-    !m.exact_stop
+    !m.path.is_exact_stop()
         && matches!(m.feed, Some(Feed::UnitsPerMin(_)))
         && matches!(m.kind, MoveKind::Linear | MoveKind::Arc(_))
 }
@@ -341,7 +341,7 @@ proptest! {
             }
             let dur = b.t_end_s - b.t_start_s;
             let straight = matches!(m.kind, MoveKind::Linear | MoveKind::Rapid);
-            if straight && (m.exact_stop || m.kind == MoveKind::Rapid) {
+            if straight && (m.path.is_exact_stop() || m.kind == MoveKind::Rapid) {
                 let expected = match m.feed {
                     Some(Feed::InverseTime(f)) => rounded((60.0 / f).max(t_star_line(m, &limits)), ts),
                     _ => rounded(t_star_line(m, &limits), ts),
