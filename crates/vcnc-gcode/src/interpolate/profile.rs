@@ -301,3 +301,69 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod ruckig {
+    use super::*;
+
+    /// The goldens of `scripts/ruckig/goldens.py`: (L, V, A, J, duration, seven phase times).
+    pub(crate) fn goldens() -> Vec<([f64; 5], [f64; 7])> {
+        let text = include_str!("../../tests/data/ruckig/single_moves.csv");
+        text.lines()
+            .filter(|l| !l.starts_with('#') && !l.starts_with("length"))
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                (
+                    [v[0], v[1], v[2], v[3], v[4]],
+                    std::array::from_fn(|i| v[5 + i]),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn seven_phase_durations_equal_ruckigs() {
+        // Truth: Ruckig's time-optimal durations and phases (tests/data/ruckig, made by
+        // scripts/ruckig/goldens.py). Figures: the largest relative difference of the duration
+        // and of any phase (relative to the duration).
+        let g = goldens();
+        assert!(g.len() >= 50);
+        // The jerk of the seven phases (+J, 0, −J, 0, −J, 0, +J) in both; Ruckig writes the two
+        // middle −J phases as one when there is no cruise. Compare the phases with zero-length
+        // ones dropped and equal neighbours joined.
+        let canonical = |t: &[f64; 7], total: f64| -> Vec<(f64, i8)> {
+            let signs = [1i8, 0, -1, 0, -1, 0, 1];
+            let mut out: Vec<(f64, i8)> = Vec::new();
+            for (d, s) in t.iter().zip(signs) {
+                if *d <= 1e-12 * total {
+                    continue;
+                }
+                match out.last_mut() {
+                    Some(last) if last.1 == s => last.0 += d,
+                    _ => out.push((*d, s)),
+                }
+            }
+            out
+        };
+        let (mut worst_t, mut worst_phase) = (0.0f64, 0.0f64);
+        for ([l, v, a, j, t], phases) in &g {
+            let p = SCurve::rest_to_rest(*l, *v, *a, *j);
+            worst_t = worst_t.max((p.duration() - t).abs() / t);
+            let (mine, theirs) = (canonical(&p.phase_durations(), *t), canonical(phases, *t));
+            assert_eq!(
+                mine.iter().map(|x| x.1).collect::<Vec<_>>(),
+                theirs.iter().map(|x| x.1).collect::<Vec<_>>(),
+                "phases of {l} {v} {a} {j}"
+            );
+            for (m, r) in mine.iter().zip(&theirs) {
+                worst_phase = worst_phase.max((m.0 - r.0).abs() / t);
+            }
+        }
+        println!(
+            "{} moves: duration within {worst_t:.1e}, phases within {worst_phase:.1e} of Ruckig's (relative)",
+            g.len()
+        );
+        assert!(worst_t < 1e-9, "{worst_t}");
+        assert!(worst_phase < 1e-8, "{worst_phase}");
+    }
+}
