@@ -185,6 +185,11 @@ struct Tail {
     mv: Move,
     /// Speed cap at its start.
     w_in: f64,
+    /// LinuxCNC's rules: the rest of a line a blend consumed (part of the blend's element).
+    consumed: bool,
+    /// Share of the acceleration cap its junctions take (the larger of the two ends': kinks
+    /// at its start and end never act at once; LinuxCNC's `kink_accel_reduce`).
+    reduce: f64,
 }
 
 /// A chain being planned.
@@ -450,17 +455,20 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
         };
         self.slowed.feed(&seg, mv);
         if mv.path.is_exact_stop() || mv.stop_after {
+            let mut seg = seg;
+            if self.cfg.lc && matches!(mv.path, PathMode::Blend { .. }) {
+                // A G64 block that ends in a stop: half acceleration (end_state).
+                seg.acap *= 0.5;
+            }
             return self.single(seg, mv, false);
         }
-        self.open_chain(seg, mv, f64::INFINITY);
+        self.open_chain(seg, mv, 1.0);
         Ok(())
     }
 
-    /// Open a chain whose first element is `seg` (acceleration cap scaled by `keep`).
-    fn open_chain(&mut self, mut seg: Seg, mv: &Move, keep: f64) {
-        if keep.is_finite() {
-            seg.acap *= keep;
-        }
+    /// Open a chain whose first element is `seg` (its acceleration cap kept to the share
+    /// `keep`).
+    fn open_chain(&mut self, seg: Seg, mv: &Move, keep: f64) {
         let cfg = self.cfg;
         self.state = State::Chain(Box::new(ChainState {
             tcp: mv.tcp,
@@ -476,6 +484,8 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                 },
                 mv: mv.clone(),
                 w_in: 0.0,
+                consumed: false,
+                reduce: 1.0 - keep,
             },
             plan: Plan::new(cfg.tf, cfg.speed_bound(mv.tcp, seg.xyz_basis)),
             sampler: None,
@@ -647,7 +657,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
         match j {
             Joint::Stop { keep } => {
                 if let State::Chain(c) = &mut self.state {
-                    c.tail.side.seg.acap *= keep;
+                    c.tail.reduce = c.tail.reduce.max(1.0 - keep);
                 }
                 self.end_state(false)?;
                 if mv.path.is_exact_stop() || mv.stop_after {
@@ -664,15 +674,16 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                 keep_a,
                 keep_b,
             } => {
-                let mut b = b;
-                b.seg.acap *= keep_b;
                 let State::Chain(c) = &mut self.state else {
                     return Ok(true);
                 };
-                c.tail.side.seg.acap *= keep_a;
+                c.tail.reduce = c.tail.reduce.max(1.0 - keep_a);
                 let w = cap.min(c.tail.side.seg.vcap).min(b.seg.vcap);
                 self.push_tail()?;
                 self.set_tail(b, mv, w);
+                if let State::Chain(c) = &mut self.state {
+                    c.tail.reduce = 1.0 - keep_b;
+                }
             }
             Joint::Blend {
                 blend,
@@ -691,6 +702,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                     if consume {
                         tail.side.seg.vcap = tail.side.seg.vcap.min(blend.vcap);
                         tail.side.seg.acap = tail.side.seg.acap.min(blend.acap);
+                        tail.consumed = true;
                     }
                     w_blend = tail.side.seg.vcap.min(blend.vcap).min(junction_curvature(
                         cfg,
@@ -715,6 +727,8 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                     },
                     mv: c.tail.mv.clone(),
                     w_in: w_blend,
+                    consumed: false,
+                    reduce: 0.0,
                 };
                 self.push_tail()?;
                 let mut b = b;
@@ -738,6 +752,8 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                 side,
                 mv: mv.clone(),
                 w_in,
+                consumed: false,
+                reduce: 0.0,
             };
         }
     }
@@ -750,8 +766,10 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
             return Ok(());
         };
         let mut seg = c.tail.side.seg;
-        if cfg.lc {
-            // LinuxCNC 2.9 (tp.c tpComputeOptimalVelocity): at least 1.02 samples per element.
+        seg.acap *= 1.0 - c.tail.reduce;
+        if cfg.lc && !c.tail.consumed {
+            // LinuxCNC 2.9 (tp.c tpComputeOptimalVelocity): at least 1.02 samples per element
+            // (a consumed line is part of its blend's element).
             seg.vcap = seg.vcap.min(seg.len / (1.02 * ts));
         }
         let w = c.tail.w_in.min(seg.vcap);
@@ -802,7 +820,8 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                     c.tail.side.seg.acap *= 0.5;
                 }
                 if c.pushed == 0 {
-                    let seg = c.tail.side.seg;
+                    let mut seg = c.tail.side.seg;
+                    seg.acap *= 1.0 - c.tail.reduce;
                     let mv = c.tail.mv.clone();
                     return self.single(seg, &mv, false);
                 }
