@@ -13,6 +13,11 @@ from one sample before the machine first moves to one sample after it last moves
 
 Usage (as root, with the Debian package linuxcnc-uspace installed):
     /usr/bin/python3 scripts/linuxcnc-planner/record.py [name ...]
+    /usr/bin/python3 scripts/linuxcnc-planner/record.py --data DIR --limits "X=v,a Y=v,a Z=v,a" \
+        program.ngc ...
+The second form records programs from elsewhere (for example LinuxCNC's own ncfiles) into
+DIR/programs and DIR/recordings, with the limits line prepended; the comparison test reads DIR
+when VCNC_LINUXCNC_PLANNER_DIR names it.
 """
 import os
 import re
@@ -104,8 +109,10 @@ def version():
     return out.stdout.strip() or "unknown"
 
 
-def record(name):
-    program = os.path.join(PROGRAMS, name + ".ngc")
+def record(name, programs=None, recordings=None):
+    programs = programs or PROGRAMS
+    recordings = recordings or RECORDINGS
+    program = os.path.join(programs, name + ".ngc")
     limits = limits_of(program)
     work = tempfile.mkdtemp(prefix="vcnc-lcnc-")
     os.chmod(work, 0o1777)  # rtapi_app runs as RTAPI_UID and makes its socket here
@@ -140,7 +147,7 @@ def record(name):
         # points with the weights (1, 4, 1)/6: a rest-to-rest motion starts one sample earlier
         # and ends one sample later than the planner's. The cycle time is the planner's.
         cycle = (last - first - 2) * TS
-        out = os.path.join(RECORDINGS, name + ".txt")
+        out = os.path.join(recordings, name + ".txt")
         with open(out, "w") as f:
             f.write(f"# LinuxCNC {version()} planner, program {name}.ngc, recorded by "
                     "scripts/linuxcnc-planner/record.py\n")
@@ -155,9 +162,25 @@ def record(name):
 
 
 def main():
-    names = sys.argv[1:] or sorted(p[:-4] for p in os.listdir(PROGRAMS) if p.endswith(".ngc"))
-    os.makedirs(RECORDINGS, exist_ok=True)
-    table = os.path.join(RECORDINGS, "cycle_times.csv")
+    args = sys.argv[1:]
+    programs, recordings = PROGRAMS, RECORDINGS
+    if args[:1] == ["--data"]:
+        data, limits, paths = args[1], args[3], args[4:]
+        if args[2] != "--limits":
+            raise SystemExit("usage: record.py --data DIR --limits 'X=v,a Y=v,a Z=v,a' program.ngc ...")
+        programs, recordings = os.path.join(data, "programs"), os.path.join(data, "recordings")
+        os.makedirs(programs, exist_ok=True)
+        args = []
+        for p in paths:
+            name = os.path.splitext(os.path.basename(p))[0]
+            with open(p) as f:
+                text = f.read()
+            with open(os.path.join(programs, name + ".ngc"), "w") as f:
+                f.write(f"(limits {limits})\n" + text)
+            args.append(name)
+    names = args or sorted(p[:-4] for p in os.listdir(programs) if p.endswith(".ngc"))
+    os.makedirs(recordings, exist_ok=True)
+    table = os.path.join(recordings, "cycle_times.csv")
     times = {}
     if os.path.exists(table):
         with open(table) as f:
@@ -165,7 +188,7 @@ def main():
                 n, t = line.strip().split(",")
                 times[n] = t
     for name in names:
-        cycle = record(name)
+        cycle = record(name, programs, recordings)
         times[name] = f"{cycle:.3f}"
         print(f"{name}: {cycle:.3f} s")
     with open(table, "w") as f:

@@ -113,6 +113,10 @@ pub struct InterpOptions {
     pub max_call_depth: usize,
     /// Most moves in the toolpath. Default 10 000 000 (about 1.5 GB of moves).
     pub max_moves: usize,
+    /// The path mode before the program sets one (a control's start-up code). Default
+    /// [`PathMode::ExactStop`] (`G61.1`); LinuxCNC 2.9 starts in a plain `G64` unless its INI
+    /// file's start-up code names a mode (docs/gcode.md, "Path modes").
+    pub path_mode: PathMode,
 }
 
 impl Default for InterpOptions {
@@ -133,6 +137,7 @@ impl Default for InterpOptions {
             max_loop_iterations: 10_000_000,
             max_call_depth: 10,
             max_moves: 10_000_000,
+            path_mode: PathMode::ExactStop,
         }
     }
 }
@@ -570,9 +575,7 @@ impl<'a> Interp<'a> {
                 absolute: true,
                 arc_absolute: false,
                 inverse_time: false,
-                // vcnc's start-up mode is exact stop (LinuxCNC's comes from its INI file's
-                // start-up code; docs/gcode.md, "Path modes").
-                path: PathMode::ExactStop,
+                path: opts.path_mode,
                 tcp: false,
                 feed: None,
                 spindle_rpm: 0.0,
