@@ -188,3 +188,116 @@ fn fresh_random_moves_are_time_optimal_and_within_the_limits() {
         }
     }
 }
+
+/// The programs of `tests/data/linuxcnc-planner/programs` with their limits, each axis' jerk
+/// limit 40 times its acceleration limit (a moving average of 50 ms).
+fn planner_programs() -> Vec<(String, String, Limits)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/linuxcnc-planner/programs");
+    let mut out = Vec::new();
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    names.sort();
+    for p in names {
+        let src = std::fs::read_to_string(&p).unwrap();
+        let first = src.lines().next().unwrap();
+        let inner = first.trim_start_matches("(limits ").trim_end_matches(')');
+        let mut limits = Limits::uniform_with_jerk(0.0, 0.0, f64::INFINITY);
+        for (i, w) in inner.split_whitespace().enumerate() {
+            let (_, vals) = w.split_once('=').unwrap();
+            let (v, a) = vals.split_once(',').unwrap();
+            limits.axes[i].max_vel = v.parse().unwrap();
+            limits.axes[i].max_acc = a.parse().unwrap();
+            limits.axes[i].max_jerk = 40.0 * limits.axes[i].max_acc;
+        }
+        let name = p.file_stem().unwrap().to_string_lossy().to_string();
+        out.push((name, src, limits));
+    }
+    out
+}
+
+/// Largest sampled velocity, acceleration and jerk of each axis over its limits (first,
+/// second and third differences of the positions, and the analytic velocity and acceleration).
+fn worst_per_axis(t: &Trajectory, limits: &Limits) -> [f64; 3] {
+    let mut w = [0.0f64; 3];
+    for track in &t.axes {
+        let l = limits.axes[track.name.index()];
+        let one = Trajectory {
+            axes: vec![track.clone()],
+            ..t.clone()
+        };
+        let r = worst(&one, [l.max_vel, l.max_acc, l.max_jerk], 1000.0);
+        for (a, b) in w.iter_mut().zip(r) {
+            *a = a.max(b);
+        }
+    }
+    w
+}
+
+#[test]
+fn chains_keep_every_sample_within_velocity_acceleration_and_jerk() {
+    // Programs with G61 corners, G64 blends of lines and arcs, short segments, rapids, cycles
+    // and inverse time: every sample's velocity, acceleration and jerk (differences of the
+    // sampled positions) within the axis limits.
+    for (name, src, limits) in planner_programs() {
+        let opts = InterpolateOptions {
+            axes: Some(vec![AxisName::X, AxisName::Y, AxisName::Z]),
+            ..opts()
+        };
+        let t = load(&src, &InterpOptions::default(), &limits, &opts)
+            .unwrap()
+            .trajectory;
+        let w = worst_per_axis(&t, &limits);
+        println!(
+            "{name}: {:.3} s; velocity, acceleration, jerk up to {:.4} {:.4} {:.4} of the limits",
+            t.duration_s(),
+            w[0],
+            w[1],
+            w[2]
+        );
+        for x in w {
+            assert!(x <= 1.0 + 1e-6, "{name}: {w:?}");
+        }
+    }
+}
+
+#[test]
+fn short_segments_do_not_stall_the_chain() {
+    // 2000 segments of 0.05 mm on a circle of radius 500 mm at F6000 (100 mm/s), blended
+    // under G64: a planner that brings the acceleration to zero at every junction would crawl
+    // (each 0.05 mm segment alone allows a speed change of (2·0.05)^(2/3)·J^(1/3) ≈ 10 mm/s).
+    // Truth: the same 100 mm as one straight move takes its time-optimal duration; the chain,
+    // whose junctions and gentle curve take little, must come within 5 % of that plus the
+    // moving average's length, and reach the feed.
+    let (v, a, j) = (100.0, 1000.0, 50_000.0);
+    let limits = Limits::uniform_with_jerk(300.0, a, j);
+    let mut src = String::from("G21 G90 G64\nG0 X500 Y0\nG1 F6000\n");
+    let n = 2000;
+    let step = 0.05 / 500.0;
+    for k in 1..=n {
+        let ang = k as f64 * step;
+        src.push_str(&format!("X{:.6} Y{:.6}\n", 500.0 * ang.cos(), 500.0 * ang.sin()));
+    }
+    src.push_str("M2\n");
+    let t = load(&src, &InterpOptions::default(), &limits, &opts())
+        .unwrap()
+        .trajectory;
+    let feed_span: Vec<usize> = (0..t.len())
+        .filter(|&k| t.span_at(k).is_some_and(|b| b.line > 2))
+        .collect();
+    let dur = feed_span.len() as f64 * TS;
+    let one_move = oracle(100.0, v, a, j);
+    // The chain's trapezoid smoothed over T_f = 2a/j.
+    let bound = (100.0 / v + v / a) * 1.05 + 2.0 * a / j;
+    println!("chain {dur:.3} s, one straight move {one_move:.3} s, bound {bound:.3} s");
+    assert!(dur <= bound, "{dur} > {bound}");
+    let top = feed_span
+        .iter()
+        .map(|&k| t.axes[0].vel[k].hypot(t.axes[1].vel[k]))
+        .fold(0.0, f64::max);
+    assert!(top > 0.99 * v, "top speed {top}");
+    let w = worst_per_axis(&t, &limits);
+    assert!(w.iter().all(|x| *x <= 1.0 + 1e-6), "{w:?}");
+}

@@ -134,8 +134,9 @@ pub(crate) struct Plan {
     pub(crate) done: VecDeque<Planned>,
     /// Elements so far.
     pub(crate) elems: usize,
-    /// Jerk-limited: speed cap of the last piece made.
+    /// Jerk-limited: speed cap of the last piece made, acceleration cap of the last element.
     last_vcap: f64,
+    last_acap: f64,
 }
 
 impl Plan {
@@ -153,6 +154,7 @@ impl Plan {
             done: VecDeque::new(),
             elems: 0,
             last_vcap: 0.0,
+            last_acap: f64::INFINITY,
         }
     }
 
@@ -161,8 +163,10 @@ impl Plan {
         self.pend.len()
     }
 
-    /// Add an element with the junction speed cap `w` at its start (ignored for the first).
-    pub(crate) fn push(&mut self, seg: &Seg, w: f64) {
+    /// Add an element with the junction speed cap `w` at its start (ignored for the first);
+    /// under the jerk-limited profile the junction's zone keeps the share `keep` of the
+    /// acceleration caps around it.
+    pub(crate) fn push(&mut self, seg: &Seg, w: f64, keep: f64) {
         let s0 = self.total;
         self.total += seg.len;
         let first = self.elems == 0;
@@ -189,9 +193,10 @@ impl Plan {
                     lo: s0 - ext,
                     hi: s0 + ext,
                     v: w,
-                    a: f64::INFINITY,
+                    a: keep * self.last_acap.min(seg.acap),
                 });
             }
+            self.last_acap = seg.acap;
             // Later elements start at or after the chain's end, so no later zone reaches back
             // before this.
             let upto = self.total - self.vbound * self.tf;

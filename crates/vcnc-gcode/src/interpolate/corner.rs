@@ -112,30 +112,65 @@ fn kink_share_per_speed(cfg: &Cfg, dg: &[f64; 6], tcp: bool) -> f64 {
     f
 }
 
-/// Jerk-limited: the speed cap at a junction where the path's second derivative jumps by `dg2`
-/// (per unit of s²): the acceleration steps by $v^2|\Delta g''_i|$, which the samples see as a
-/// jerk of at most that over $T_s$.
-pub(crate) fn curvature_cap(cfg: &Cfg, dg2: &[f64; 6], tcp: bool) -> f64 {
-    if !cfg.jerk {
-        return f64::INFINITY;
-    }
-    let l = &cfg.limits;
-    let mut cap = f64::INFINITY;
-    for (i, d) in dg2.iter().enumerate() {
-        if tcp && i < 3 {
-            continue;
+/// Jerk-limited: what a junction does to the samples' jerk. Where the path's direction jumps by
+/// $\Delta g'$ and its second derivative by $\Delta g''$ (per unit of s), running through at
+/// speed $v$ steps the velocity of quantity $i$ by $v|\Delta g'_i|$ and its acceleration by
+/// $v^2|\Delta g''_i|$ at one instant; the third difference of its samples then reaches at most
+/// $$ \frac{v|\Delta g'_i|}{T_s^2} + \frac{3}{4}\frac{v^2|\Delta g''_i|}{T_s} $$
+/// (a velocity step moves the third difference by at most the step over $T_s^2$, an acceleration
+/// step by at most ¾ of it over $T_s$). [`JerkJump::share`] is that over the jerk limit.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct JerkJump {
+    /// Per quantity: the two coefficients over its jerk limit.
+    terms: Vec<(f64, f64)>,
+}
+
+impl JerkJump {
+    pub(crate) fn new(cfg: &Cfg, dg: &[f64; 6], dg2: &[f64; 6], tcp: bool) -> JerkJump {
+        let l = &cfg.limits;
+        let ts = cfg.ts;
+        let mut terms = Vec::new();
+        let mut add = |d1: f64, d2: f64, j: f64| {
+            if (d1 != 0.0 || d2 != 0.0) && j.is_finite() {
+                terms.push((d1 / (ts * ts * j), 0.75 * d2 / (ts * j)));
+            }
+        };
+        for i in 0..6 {
+            if tcp && i < 3 {
+                continue;
+            }
+            add(dg[i].abs(), dg2[i].abs(), l.axes[i].max_jerk);
         }
-        if *d != 0.0 {
-            cap = cap.min((l.axes[i].max_jerk * cfg.ts / d.abs()).sqrt());
+        if tcp {
+            add(norm3(&dg[0..3]), norm3(&dg2[0..3]), l.tcp_max_jerk);
         }
+        JerkJump { terms }
     }
-    if tcp {
-        let n = norm3(&dg2[0..3]);
-        if n > 0.0 {
-            cap = cap.min((l.tcp_max_jerk * cfg.ts / n).sqrt());
-        }
+
+    /// The largest share of a jerk limit the junction takes at speed `v`.
+    pub(crate) fn share(&self, v: f64) -> f64 {
+        self.terms
+            .iter()
+            .map(|(c1, c2)| c1 * v + c2 * v * v)
+            .fold(0.0, f64::max)
     }
-    cap
+
+    /// The speed at which the junction takes the share `r` of the jerk limits.
+    pub(crate) fn cap(&self, r: f64) -> f64 {
+        self.terms
+            .iter()
+            .map(|&(c1, c2)| {
+                if c2 > 0.0 {
+                    // c2 v² + c1 v − r = 0, the positive root.
+                    2.0 * r / (c1 + (c1 * c1 + 4.0 * c2 * r).sqrt())
+                } else if c1 > 0.0 {
+                    r / c1
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
 }
 
 /// The junction between `a` (its end) and `b` (its start, with its move's path mode `b_mode`
@@ -146,7 +181,8 @@ pub(crate) fn joint(cfg: &Cfg, a: &Side, b: &Side) -> Joint {
     let dg: [f64; 6] = std::array::from_fn(|i| gb1[i] - ga1[i]);
     let dg2: [f64; 6] = std::array::from_fn(|i| gb2[i] - ga2[i]);
     let vmax = a.seg.vcap.min(b.seg.vcap);
-    let curv = curvature_cap(cfg, &dg2, a.tcp);
+    let _ = dg2;
+    let curv = f64::INFINITY;
     let blend_mode = matches!(a.mode, PathMode::Blend { .. });
     let lines = matches!(a.kind, MoveKind::Linear | MoveKind::Rapid)
         && matches!(b.kind, MoveKind::Linear | MoveKind::Rapid)
@@ -295,8 +331,8 @@ fn blend(cfg: &Cfg, a: &Side, b: &Side) -> Option<Joint> {
         return None;
     }
     let (bl, len) = arc(&c, a, b, d, r);
-    let (v, acc, j) = blend_caps(cfg, &bl, len, a.tcp);
     let vfeed = a.seg.vfeed.min(b.seg.vfeed);
+    let (v, acc, j) = blend_caps(cfg, &bl, len, a.tcp, vfeed);
     Some(Joint::Blend {
         blend: Seg {
             geom: Geom::Blend(bl),

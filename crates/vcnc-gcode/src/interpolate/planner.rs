@@ -17,7 +17,7 @@
 use std::collections::VecDeque;
 
 use super::chain::{Elem, Out, Piece, Plan, Planned, Prof, Sampler};
-use super::corner::{Joint, Side, curvature_cap, joint};
+use super::corner::{JerkJump, Joint, Side, joint};
 use super::geom::Geom;
 use super::profile::{SCurve, Trap};
 use super::segment::{Cfg, Seg, segment};
@@ -201,8 +201,9 @@ struct ChainState {
     plan: Plan,
     /// Second pass: the sampler, once the chain has two elements.
     sampler: Option<Sampler>,
-    /// Elements handed to the plan.
+    /// Elements handed to the plan, and the last one.
     pushed: usize,
+    last: Option<Seg>,
 }
 
 /// A chain of fine blocks being gathered.
@@ -490,6 +491,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
             plan: Plan::new(cfg.tf, cfg.speed_bound(mv.tcp, seg.xyz_basis)),
             sampler: None,
             pushed: 0,
+            last: None,
         }));
     }
 
@@ -704,12 +706,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                         tail.side.seg.acap = tail.side.seg.acap.min(blend.acap);
                         tail.consumed = true;
                     }
-                    w_blend = tail.side.seg.vcap.min(blend.vcap).min(junction_curvature(
-                        cfg,
-                        &tail.side.seg,
-                        &blend,
-                        tail.side.tcp,
-                    ));
+                    w_blend = tail.side.seg.vcap.min(blend.vcap);
                     self.push_tail()?;
                 } else {
                     w_blend = tail.w_in.min(blend.vcap);
@@ -736,7 +733,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                 let w = blend
                     .vcap
                     .min(b.seg.vcap)
-                    .min(junction_curvature(cfg, &blend, &b.seg, mv.tcp));
+;
                 self.set_tail(b, mv, w);
             }
         }
@@ -772,9 +769,31 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
             // (a consumed line is part of its blend's element).
             seg.vcap = seg.vcap.min(seg.len / (1.02 * ts));
         }
-        let w = c.tail.w_in.min(seg.vcap);
+        let mut w = c.tail.w_in.min(seg.vcap);
+        let mut keep = 1.0;
+        // An element shorter than a thousandth of a sample at its speed (what rounding leaves of
+        // a line between two blends) is passed over at once: its two junctions act as one,
+        // between the elements around it.
+        let tiny = seg.len < 1e-3 * seg.vcap * ts;
+        if cfg.jerk
+            && !tiny
+            && let Some(prev) = &c.last
+        {
+            // The junction's own jerk takes at most half of the limits; the path's jerk around
+            // it (the zone of its cap) keeps the rest ([`JerkJump`]).
+            let (ga1, ga2) = prev.geom.ends(prev.len, true);
+            let (gb1, gb2) = seg.geom.ends(seg.len, false);
+            let dg: [f64; 6] = std::array::from_fn(|i| gb1[i] - ga1[i]);
+            let dg2: [f64; 6] = std::array::from_fn(|i| gb2[i] - ga2[i]);
+            let jump = JerkJump::new(cfg, &dg, &dg2, c.tcp);
+            w = w.min(jump.cap(0.5));
+            keep = 1.0 - jump.share(w);
+        }
+        if !tiny {
+            c.last = Some(seg);
+        }
         let s0 = c.plan.total;
-        c.plan.push(&seg, w);
+        c.plan.push(&seg, w, keep);
         c.pushed += 1;
         self.lookahead_peak = self.lookahead_peak.max(c.plan.pending());
         if c.pushed == 1
@@ -898,18 +917,6 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
             }
         }
     }
-}
-
-/// Jerk-limited: the speed cap at the junction of `a` (end) and `b` (start) from the jump of
-/// the path's second derivative ([`curvature_cap`]).
-fn junction_curvature(cfg: &Cfg, a: &Seg, b: &Seg, tcp: bool) -> f64 {
-    if !cfg.jerk {
-        return f64::INFINITY;
-    }
-    let (_, ga2) = a.geom.ends(a.len, true);
-    let (_, gb2) = b.geom.ends(b.len, false);
-    let d: [f64; 6] = std::array::from_fn(|i| gb2[i] - ga2[i]);
-    curvature_cap(cfg, &d, tcp)
 }
 
 /// The part `[s0, s1]` of a straight element (blends trim only lines).

@@ -179,10 +179,14 @@ pub(crate) fn feed_speed(feed: Option<Feed>, len: f64) -> f64 {
 
 /// Caps from derivative bounds (module doc): for every limited quantity $i$ (an axis, or the
 /// tool tip in TCP mode) with bounds $G_1, G_2, G_3$ of $|g'|, |g''|, |g'''|$,
-/// $$ G_1 \dot s \le v_i, \quad G_2 \dot s^2 \le \beta a_i, \quad G_1 |\ddot s| \le (1-\beta) a_i, $$
-/// ($\beta = 0$ where $G_2 = 0$), and under the jerk-limited profile, each of the three terms of
-/// $g'''\dot s^3 + 3g''\dot s\ddot s + g'\dddot s$ within a third of $j_i$ (all of it to the
-/// last where $G_2 = G_3 = 0$). Returns (speed cap, acceleration cap, jerk cap).
+/// $$ G_1 \dot s \le v_i, \quad G_2 V^2 \le \beta a_i, \quad
+///    G_1 |\ddot s| \le a_i - G_2 V^2 $$
+/// with $V$ the speed the element can reach (the tangential acceleration gets what the
+/// centripetal one leaves at that speed, at least $1 - \beta$), and under the jerk-limited profile
+/// $G_3\dot s^3 + 3G_2\dot s|\ddot s| + G_1|\dddot s| \le j_i$: the first term at most half of
+/// $j_i$, and with the acceleration cap tied to the jerk cap by the moving average
+/// ($A = J T_f/2$, [`super::chain`]), $J = (j_i - G_3 V^3)/(G_1 + \tfrac32 G_2 V T_f)$ at the
+/// element's speed cap $V$. Returns (speed cap, acceleration cap, jerk cap).
 pub(crate) fn caps(
     cfg: &Cfg,
     terms: &[(f64, f64, f64, f64, f64, f64)],
@@ -190,44 +194,34 @@ pub(crate) fn caps(
 ) -> (f64, f64, f64) {
     let beta = cfg.beta;
     let mut v = f64::INFINITY;
-    let mut a = f64::INFINITY;
-    let mut j = f64::INFINITY;
-    for &(g1, g2, _, vl, al, _) in terms {
+    for &(g1, g2, g3, vl, al, jl) in terms {
         if g1 > 0.0 {
             v = v.min(vl / g1);
         }
         if g2 > 0.0 {
             v = v.min((beta * al / g2).sqrt());
-            if g1 > 0.0 {
-                a = a.min((1.0 - beta) * al / g1);
-            }
-        } else if g1 > 0.0 {
-            a = a.min(al / g1);
+        }
+        if cfg.jerk && jl.is_finite() && g3 > 0.0 {
+            // The speed term of the jerk takes at most half of it.
+            v = v.min((jl / (2.0 * g3)).cbrt());
+        }
+    }
+    // At the speed the element can reach, the tangential acceleration gets what the
+    // centripetal one leaves (at least 1 − β), the path's jerk what the other two terms leave.
+    let vv = v.min(vfeed);
+    let mut a = f64::INFINITY;
+    let mut j = f64::INFINITY;
+    for &(g1, g2, g3, _, al, jl) in terms {
+        if g1 > 0.0 {
+            a = a.min((al - g2 * vv * vv) / g1);
+        }
+        if cfg.jerk && jl.is_finite() && g1 > 0.0 {
+            let room = jl - g3 * vv * vv * vv;
+            j = j.min(room / (g1 + 1.5 * g2 * vv * cfg.tf));
         }
     }
     if cfg.jerk {
-        let vv = v.min(vfeed);
-        for &(g1, g2, g3, _, _, jl) in terms {
-            if !jl.is_finite() {
-                continue;
-            }
-            if g2 == 0.0 && g3 == 0.0 {
-                if g1 > 0.0 {
-                    j = j.min(jl / g1);
-                }
-                continue;
-            }
-            if g3 > 0.0 {
-                v = v.min((jl / (3.0 * g3)).cbrt());
-            }
-            if g2 > 0.0 && vv > 0.0 {
-                a = a.min(jl / (9.0 * g2 * vv.min(v)));
-            }
-            if g1 > 0.0 {
-                j = j.min(jl / (3.0 * g1));
-            }
-        }
-        // The moving average gives |s'''| ≤ 2A/T_f: keep that within the jerk cap.
+        // The moving average gives |s'''| <= 2A/T_f: keep that within the jerk cap.
         a = a.min(j * cfg.tf / 2.0);
     }
     (v, a, j)
@@ -427,8 +421,7 @@ pub(crate) fn segment(mv: &Move, index: usize, cfg: &Cfg) -> Result<Option<Seg>,
                 );
                 let t = terms(cfg, &b, Some(tip), mv.tcp);
                 let vfeed = feed_speed(mv.feed, len);
-                let (_, aj, jj) = caps(cfg, &t, vfeed);
-                let (vj, _, _) = caps(cfg, &t, vfeed);
+                let (vj, aj, jj) = caps(cfg, &t, vfeed);
                 vlim = vlim.min(vj);
                 acap = acap.min(aj);
                 jcap = jcap.min(jj);
@@ -462,11 +455,18 @@ pub(crate) fn segment(mv: &Move, index: usize, cfg: &Cfg) -> Result<Option<Seg>,
     }))
 }
 
-/// The caps of a corner blend (vcnc's rules: [`caps`] over its derivative bounds).
-pub(crate) fn blend_caps(cfg: &Cfg, b: &Blend, len: f64, tcp: bool) -> (f64, f64, f64) {
+/// The caps of a corner blend run at most at `vfeed` (vcnc's rules: [`caps`] over its
+/// derivative bounds).
+pub(crate) fn blend_caps(
+    cfg: &Cfg,
+    b: &Blend,
+    len: f64,
+    tcp: bool,
+    vfeed: f64,
+) -> (f64, f64, f64) {
     let g = Geom::Blend(*b);
     let bd = g.bounds(len);
     let tip = (1.0, 1.0 / b.r, 1.0 / (b.r * b.r));
     let t = terms(cfg, &bd, Some(tip), tcp);
-    caps(cfg, &t, f64::INFINITY)
+    caps(cfg, &t, vfeed)
 }
