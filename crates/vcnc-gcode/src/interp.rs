@@ -285,6 +285,37 @@ impl PathMode {
     pub fn is_exact_stop(&self) -> bool {
         matches!(self, PathMode::ExactStop)
     }
+
+    /// A path mode written as its G-code: `G61.1`, `G61`, `G64`, `G64 P<mm>`, `G64 P<mm> Q<mm>`
+    /// (mm; `P0` is a plain `G64`, `Q` defaults to `P`, as in LinuxCNC); `None` for anything
+    /// else. Case and blanks between words do not matter.
+    pub fn parse(text: &str) -> Option<PathMode> {
+        let words: Vec<String> = text.split_whitespace().map(str::to_uppercase).collect();
+        let first = words.first()?;
+        match (first.as_str(), words.len()) {
+            ("G61.1", 1) => return Some(PathMode::ExactStop),
+            ("G61", 1) => return Some(PathMode::ExactPath),
+            ("G64", _) => {}
+            _ => return None,
+        }
+        let (mut p, mut q) = (None, None);
+        for w in &words[1..] {
+            let v: f64 = w.get(1..)?.parse().ok()?;
+            if !(v.is_finite() && v >= 0.0) {
+                return None;
+            }
+            match w.as_bytes()[0] {
+                b'P' if p.is_none() => p = Some(v),
+                b'Q' if q.is_none() => q = Some(v),
+                _ => return None,
+            }
+        }
+        let positive = |x: Option<f64>| x.filter(|v| *v > 0.0);
+        Some(PathMode::Blend {
+            tolerance_mm: positive(p),
+            merge_mm: if q.is_some() { positive(q) } else { positive(p) },
+        })
+    }
 }
 
 /// The interpreted program: moves in mm and degrees.

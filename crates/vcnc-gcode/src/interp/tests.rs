@@ -316,6 +316,14 @@ fn path_mode_stops_and_program_end() {
     assert_eq!(modes[4], PathMode::ExactStop);
     assert_eq!(modes[5], blend(Some(0.254), Some(0.254)));
     assert_eq!(errors("G64 P-1 G0 X1"), vec![(1, 5)]);
+    assert_eq!(PathMode::parse("g61.1"), Some(PathMode::ExactStop));
+    assert_eq!(PathMode::parse(" G61 "), Some(PathMode::ExactPath));
+    assert_eq!(PathMode::parse("G64 P0.02"), Some(blend(Some(0.02), Some(0.02))));
+    assert_eq!(PathMode::parse("G64 P0 Q0.1"), Some(blend(None, Some(0.1))));
+    assert_eq!(PathMode::parse("G64"), Some(blend(None, None)));
+    for bad in ["", "G62", "G64 P", "G64 P-1", "G64 X1", "G61 P1", "G64 P1 P2"] {
+        assert_eq!(PathMode::parse(bad), None, "{bad}");
+    }
     let (_, warnings) = run("G0 X0\nM2\nG1 X9").unwrap();
     assert_eq!(warnings.len(), 1);
     assert_eq!(warnings[0].line, 3);

@@ -584,10 +584,6 @@ impl Sampler {
         }
     }
 
-    /// Every sample is out.
-    pub(crate) fn done(&self) -> bool {
-        self.j >= self.n
-    }
 }
 
 /// Position, velocity and acceleration at path position `s` of an element with path speed and

@@ -233,6 +233,7 @@ impl SCurve {
 
     /// The phase durations, s (jerk +J, acceleration, jerk −J, cruise, jerk −J, deceleration,
     /// jerk +J).
+    #[cfg(test)]
     pub(crate) fn phase_durations(&self) -> [f64; 7] {
         std::array::from_fn(|i| self.phases[i].t)
     }
