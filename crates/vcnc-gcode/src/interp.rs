@@ -313,7 +313,11 @@ impl PathMode {
         let positive = |x: Option<f64>| x.filter(|v| *v > 0.0);
         Some(PathMode::Blend {
             tolerance_mm: positive(p),
-            merge_mm: if q.is_some() { positive(q) } else { positive(p) },
+            merge_mm: if q.is_some() {
+                positive(q)
+            } else {
+                positive(p)
+            },
         })
     }
 }

@@ -362,7 +362,6 @@ pub fn time_exact_rates(pos: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
     (vel, acc)
 }
 
-
 /// The output axes: those asked for (sorted, without repeats), else those the program uses
 /// (X Y Z when it uses none).
 pub(crate) fn output_axes(opts: &InterpolateOptions, used: [bool; 6]) -> Vec<AxisName> {
@@ -406,7 +405,11 @@ impl Out for Collector<'_> {
             return;
         }
         self.last_index = Some(index);
-        let first = if self.traj.blocks.is_empty() { 0 } else { first };
+        let first = if self.traj.blocks.is_empty() {
+            0
+        } else {
+            first
+        };
         self.traj.blocks.push(BlockSpan {
             move_index: index,
             line: self.tp.moves.get(index).map_or(mv.line, |m| m.line),
@@ -734,7 +737,9 @@ mod tests {
         assert_eq!(t.warnings[0].line, 2);
         assert!(
             t.warnings[0].message.starts_with("3 feed block(s)")
-                && t.warnings[0].message.contains("inverse time F600 asks for 1000.000 mm/s"),
+                && t.warnings[0]
+                    .message
+                    .contains("inverse time F600 asks for 1000.000 mm/s"),
             "{}",
             t.warnings[0].message
         );
@@ -789,6 +794,31 @@ mod tests {
         let k = (t.blocks[0].t_end_s / t.ts).round() as usize;
         assert_eq!(t.span_at(k).unwrap().class, MoveClass::Rapid);
         assert_eq!(t.span_at(k + 1).unwrap().class, MoveClass::Feed);
+    }
+
+    #[test]
+    fn the_cycle_time_splits_into_feeds_rapids_and_dwells() {
+        // Truth: the spans' durations summed by class (a rapid, a G64 chain of feeds, a dwell,
+        // a G61.1 feed, then a rapid chain under G64).
+        let limits = Limits::uniform(100.0, 1000.0);
+        let src = "G0 X5\nG64 G1 X6 F600\nY3\nG4 P0.1\nG61.1 G1 X8\nG64 G0 X20\nY30 Z5";
+        let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
+        let mut by = [0.0f64; 3];
+        for b in &t.blocks {
+            let i = match b.class {
+                MoveClass::Feed => 0,
+                MoveClass::Rapid => 1,
+                MoveClass::Dwell => 2,
+            };
+            by[i] += b.t_end_s - b.t_start_s;
+        }
+        let c = t.cycle;
+        assert!((c.total_s - t.duration_s()).abs() < 1e-12);
+        assert!((c.feed_s + c.rapid_s + c.dwell_s - c.total_s).abs() < 1e-12);
+        for (got, want) in [c.feed_s, c.rapid_s, c.dwell_s].iter().zip(by) {
+            assert!((got - want).abs() < 1e-9, "{c:?} vs {by:?}");
+        }
+        assert!((c.dwell_s - 0.1).abs() < 1e-12 && c.rapid_s > 0.0 && c.feed_s > 0.0);
     }
 
     #[test]

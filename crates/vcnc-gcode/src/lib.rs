@@ -88,6 +88,9 @@ pub enum Error {
         /// What is accepted.
         expected: &'static str,
     },
+    /// The jerk-limited profile was asked for without a jerk limit on any axis.
+    #[error("the jerk-limited profile needs a jerk limit (max_jerk) on the axes; none is given")]
+    NoJerkLimit,
     /// A move needs an axis whose limit is zero.
     #[error("line {line}: {} must move but its {what} limit is 0", axis_label(*.axis))]
     AxisCannotMove {
@@ -168,6 +171,7 @@ impl Error {
             Error::Program { .. }
             | Error::InvalidLimit { .. }
             | Error::InvalidOption { .. }
+            | Error::NoJerkLimit
             | Error::AxisCannotMove { .. }
             | Error::TooManySamples { .. }
             | Error::NonFinite { .. }

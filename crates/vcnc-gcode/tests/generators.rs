@@ -199,10 +199,7 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s_without_dips() {
     let t = run.trajectory.duration_s();
     println!("spiral: L = {l:.3} mm, T = {t:.4} s (one trapezoid: {t_star:.4} s)");
     assert!((l - 755.0).abs() < 5.0);
-    assert!(
-        t >= t_star - 1e-9 && t < t_star + 0.005,
-        "{t} vs {t_star}"
-    );
+    assert!(t >= t_star - 1e-9 && t < t_star + 0.005, "{t} vs {t_star}");
     assert!((t - 10.1).abs() < 0.1);
     // Tip speed: 75 mm/s cruise from 0.05 s to T − 0.05 s, no dips.
     let v = |k: usize| {

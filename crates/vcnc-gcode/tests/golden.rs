@@ -7,8 +7,8 @@
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use vcnc_gcode::{
-    Block, CommentKind, Diagnostic, Feed, InterpOptions, MoveKind, ParseOptions, PathMode, interpret,
-    parse_with,
+    Block, CommentKind, Diagnostic, Feed, InterpOptions, MoveKind, ParseOptions, PathMode,
+    interpret, parse_with,
 };
 
 fn corpus_dir() -> PathBuf {

@@ -171,7 +171,10 @@ fn fresh_random_moves_are_time_optimal_and_within_the_limits() {
         let t_star = oracle(l, v, a, j);
         // The oracle's grid is within 1e-9 of the optimum; the rounding then agrees unless the
         // optimum falls within that of a sample boundary.
-        let (lo, hi) = (rounded(t_star * (1.0 - 1e-9)), rounded(t_star * (1.0 + 1e-9)));
+        let (lo, hi) = (
+            rounded(t_star * (1.0 - 1e-9)),
+            rounded(t_star * (1.0 + 1e-9)),
+        );
         let d = tr.duration_s();
         assert!(
             (d - lo).abs() < 1e-12 || (d - hi).abs() < 1e-12,
@@ -278,7 +281,11 @@ fn short_segments_do_not_stall_the_chain() {
     let step = 0.05 / 500.0;
     for k in 1..=n {
         let ang = k as f64 * step;
-        src.push_str(&format!("X{:.6} Y{:.6}\n", 500.0 * ang.cos(), 500.0 * ang.sin()));
+        src.push_str(&format!(
+            "X{:.6} Y{:.6}\n",
+            500.0 * ang.cos(),
+            500.0 * ang.sin()
+        ));
     }
     src.push_str("M2\n");
     let t = load(&src, &InterpOptions::default(), &limits, &opts())

@@ -45,8 +45,8 @@ fn limits_of(src: &str) -> [(f64, f64); 3] {
 
 /// A recording: the cycle time and the joint positions (mm) every 1 ms.
 fn recording(name: &str) -> (f64, Vec<[f64; 3]>) {
-    let text = std::fs::read_to_string(data().join("recordings").join(format!("{name}.txt")))
-        .unwrap();
+    let text =
+        std::fs::read_to_string(data().join("recordings").join(format!("{name}.txt"))).unwrap();
     let mut cycle = f64::NAN;
     let mut pts = Vec::new();
     for line in text.lines() {
@@ -56,7 +56,10 @@ fn recording(name: &str) -> (f64, Vec<[f64; 3]>) {
             }
             continue;
         }
-        let v: Vec<f64> = line.split_whitespace().map(|x| x.parse().unwrap()).collect();
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
         pts.push([v[0], v[1], v[2]]);
     }
     (cycle, pts)
@@ -98,6 +101,8 @@ fn path_distance(from: &[[f64; 3]], to: &[[f64; 3]], window: usize) -> f64 {
 struct Row {
     name: String,
     mode: &'static str,
+    limits: [(f64, f64); 3],
+    vcnc_rules_s: f64,
     vcnc_s: f64,
     linuxcnc_s: f64,
     path_mm: f64,
@@ -126,6 +131,15 @@ fn compare(name: &str) -> Row {
     };
     let run = load(&src, &interp, &limits, &opts).unwrap();
     let t = &run.trajectory;
+    // vcnc's own rules on the same limits, for the table (not checked).
+    let own = InterpolateOptions {
+        planner: PlannerRules::Vcnc,
+        ..opts.clone()
+    };
+    let vcnc_rules_s = load(&src, &interp, &limits, &own)
+        .unwrap()
+        .trajectory
+        .duration_s();
     let (cycle, rec) = recording(name);
     let ours: Vec<[f64; 3]> = (0..t.len())
         .map(|k| std::array::from_fn(|i| t.axes[i].pos[k]))
@@ -137,7 +151,9 @@ fn compare(name: &str) -> Row {
             .split("G64P")
             .skip(1)
             .filter_map(|r| {
-                let end = r.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(r.len());
+                let end = r
+                    .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+                    .unwrap_or(r.len());
                 r[..end].parse::<f64>().ok()
             })
             .fold(0.0, f64::max);
@@ -165,6 +181,8 @@ fn compare(name: &str) -> Row {
     Row {
         name: name.to_string(),
         mode,
+        limits: lim,
+        vcnc_rules_s,
         vcnc_s: t.duration_s(),
         linuxcnc_s: cycle,
         path_mm: path,
@@ -184,20 +202,29 @@ fn cycle_times_paths_and_accelerations_agree_with_linuxcnc() {
         .collect();
     names.sort();
     assert!(names.len() >= 8 || std::env::var_os("VCNC_LINUXCNC_PLANNER_DIR").is_some());
-    println!("| program | mode | vcnc s | LinuxCNC s | difference | path mm | max |Δ²x|/a |");
+    println!(
+        "| program | mode | limits X, Y, Z (mm/s, mm/s²) | vcnc s | LinuxCNC s | difference | path mm | max |Δ²x|/a | vcnc's own rules s |"
+    );
     let mut failures = Vec::new();
     for name in &names {
         let r = compare(name);
         let diff = r.vcnc_s / r.linuxcnc_s - 1.0;
+        let lim = r
+            .limits
+            .iter()
+            .map(|(v, a)| format!("{v}/{a}"))
+            .collect::<Vec<_>>()
+            .join(", ");
         println!(
-            "| {} | {} | {:.3} | {:.3} | {:+.2} % | {:.4} | {:.4} |",
+            "| {} | {} | {lim} | {:.3} | {:.3} | {:+.2} % | {:.4} | {:.4} | {:.3} |",
             r.name,
             r.mode,
             r.vcnc_s,
             r.linuxcnc_s,
             100.0 * diff,
             r.path_mm,
-            r.acc_ratio
+            r.acc_ratio,
+            r.vcnc_rules_s
         );
         let bound = if r.mode == "G64" { 0.02 } else { 0.01 };
         if diff.abs() > bound {
@@ -205,10 +232,16 @@ fn cycle_times_paths_and_accelerations_agree_with_linuxcnc() {
         }
         // The chord of a 1 ms step and LinuxCNC's cubic joint interpolation add a few µm.
         if r.path_mm > r.tol_mm + 0.005 {
-            failures.push(format!("{}: path {:.4} mm > {}", r.name, r.path_mm, r.tol_mm));
+            failures.push(format!(
+                "{}: path {:.4} mm > {}",
+                r.name, r.path_mm, r.tol_mm
+            ));
         }
         if r.acc_ratio > 1.01 {
-            failures.push(format!("{}: acceleration {:.4} of the limit", r.name, r.acc_ratio));
+            failures.push(format!(
+                "{}: acceleration {:.4} of the limit",
+                r.name, r.acc_ratio
+            ));
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");

@@ -103,11 +103,19 @@ fn check_jerk(t: &Trajectory, limits: &Limits) -> Result<(), TestCaseError> {
                 continue;
             }
             let j = limits.axes[i].max_jerk;
-            prop_assert!(d3(i).abs() <= j * (1.0 + 1e-6) + noise, "{} jerk {} > {j} at k {k}", a.name, d3(i));
+            prop_assert!(
+                d3(i).abs() <= j * (1.0 + 1e-6) + noise,
+                "{} jerk {} > {j} at k {k}",
+                a.name,
+                d3(i)
+            );
         }
         if all_tcp {
             let j = (0..3).map(|i| d3(i).powi(2)).sum::<f64>().sqrt();
-            prop_assert!(j <= limits.tcp_max_jerk * (1.0 + 1e-6) + noise, "tip jerk {j} at k {k}");
+            prop_assert!(
+                j <= limits.tcp_max_jerk * (1.0 + 1e-6) + noise,
+                "tip jerk {j} at k {k}"
+            );
         }
     }
     Ok(())
@@ -218,7 +226,10 @@ fn render(ops: &[Op], style: Style) -> String {
             Op::PathMode(m) => {
                 let code = ["G61.1", "G61", "G64", "G64 P0.05", "G64 P0.02 Q0.01"][*m as usize];
                 let tol = |x: f64| format!("{}", len(x));
-                let code = code.replace("0.05", &tol(0.05)).replace("0.02", &tol(0.02)).replace("0.01", &tol(0.01));
+                let code = code
+                    .replace("0.05", &tol(0.05))
+                    .replace("0.02", &tol(0.02))
+                    .replace("0.01", &tol(0.01));
                 let _ = writeln!(out, "{code}");
             }
             Op::Tcp(on) => {
@@ -296,7 +307,8 @@ fn check_limits(t: &Trajectory, limits: &Limits) -> Result<(), TestCaseError> {
     // The second differences of the sampled positions too: no corner is taken at speed.
     let ts2 = t.ts * t.ts;
     for k in 1..t.len().saturating_sub(1) {
-        let d2 = |i: usize| (t.axes[i].pos[k + 1] - 2.0 * t.axes[i].pos[k] + t.axes[i].pos[k - 1]) / ts2;
+        let d2 =
+            |i: usize| (t.axes[i].pos[k + 1] - 2.0 * t.axes[i].pos[k] + t.axes[i].pos[k - 1]) / ts2;
         // Round-off of positions up to ~100 units over Ts².
         let noise = 1e-12 / ts2;
         for (i, a) in t.axes.iter().enumerate() {
@@ -313,7 +325,10 @@ fn check_limits(t: &Trajectory, limits: &Limits) -> Result<(), TestCaseError> {
         }
         if t.tcp[k] && t.tcp[k - 1] && t.tcp[k + 1] {
             let a = (0..3).map(|i| d2(i).powi(2)).sum::<f64>().sqrt();
-            prop_assert!(a <= limits.tcp_max_acc * tol + noise, "tip second difference {a} at k {k}");
+            prop_assert!(
+                a <= limits.tcp_max_acc * tol + noise,
+                "tip second difference {a} at k {k}"
+            );
         }
     }
     for k in 0..t.len() {

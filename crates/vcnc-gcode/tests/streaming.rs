@@ -112,6 +112,7 @@ fn same(src: &str, interp: &InterpOptions, limits: &Limits, opts: &InterpolateOp
         assert_eq!(g.class, classes, "per-sample classes");
         assert_eq!(p.warnings, whole.warnings, "warnings");
         assert_eq!(p.slowdown, t.slowdown, "slowdown");
+        assert_eq!(p.cycle, t.cycle, "cycle time");
         assert_eq!(p.start, whole.toolpath.start);
         assert_eq!(p.axes_used, whole.toolpath.axes_used);
         assert_eq!(p.moves, whole.toolpath.moves.len());

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
 use vcnc_gcode::{
-    AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits, PathMode, PlannerRules,
-    Profile,
+    AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits, PathMode,
+    PlannerRules, Profile,
 };
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
@@ -813,7 +813,10 @@ mod tests {
         // Defaults: trapezoidal, vcnc's rules, exact stop at start-up, no jerk limits.
         let m = Machine::from_toml_str(base, "m.toml", &dir).unwrap();
         let o = m.interpolate_options();
-        assert_eq!((o.profile, o.planner), (Profile::Trapezoidal, PlannerRules::Vcnc));
+        assert_eq!(
+            (o.profile, o.planner),
+            (Profile::Trapezoidal, PlannerRules::Vcnc)
+        );
         assert_eq!(m.interp_options(false).path_mode, PathMode::ExactStop);
         assert!(m.limits().axes[0].max_jerk.is_infinite());
         // Jerk limits, the jerk-limited profile, LinuxCNC's rules, a start-up mode, and the
@@ -846,13 +849,25 @@ mod tests {
         );
         // The jerk-limited profile without an axis' jerk limit names the key to set.
         let missing = src.replacen("max_jerk = 50000.0", "", 1);
-        let e = Machine::from_toml_str(&missing, "m.toml", &dir).unwrap_err().to_string();
-        assert!(e.contains("trajectory.profile") && e.contains("max_jerk"), "{e}");
+        let e = Machine::from_toml_str(&missing, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("trajectory.profile") && e.contains("max_jerk"),
+            "{e}"
+        );
         let bad = src.replace("G64 P0.01", "G65");
-        let e = Machine::from_toml_str(&bad, "m.toml", &dir).unwrap_err().to_string();
-        assert!(e.contains("gcode.startup_path_mode") && e.contains("G65"), "{e}");
+        let e = Machine::from_toml_str(&bad, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("gcode.startup_path_mode") && e.contains("G65"),
+            "{e}"
+        );
         let bad = src.replace("max_linear_jerk = 1e5", "max_linear_jerk = -1.0");
-        let e = Machine::from_toml_str(&bad, "m.toml", &dir).unwrap_err().to_string();
+        let e = Machine::from_toml_str(&bad, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("trajectory.max_linear_jerk"), "{e}");
     }
 

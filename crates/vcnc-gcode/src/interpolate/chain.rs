@@ -53,7 +53,7 @@ pub(crate) struct Planned {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Prof {
     Trap(Trap),
-    S(SCurve),
+    S(Box<SCurve>),
 }
 
 impl Prof {
@@ -315,7 +315,6 @@ impl Plan {
     }
 }
 
-
 /// Where samples and spans go (the stream's chunks, or the whole trajectory).
 pub(crate) trait Out {
     /// The span of move `index`: samples `first..end`, times `t0..t1` (s). A span of the same
@@ -443,7 +442,10 @@ impl Sampler {
         let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
         loop {
             let c = self.spans_done;
-            let Some(e) = c.checked_sub(self.elem_offset).and_then(|i| self.elems.get(i)) else {
+            let Some(e) = c
+                .checked_sub(self.elem_offset)
+                .and_then(|i| self.elems.get(i))
+            else {
                 return;
             };
             let last = self.elems_total == Some(c + 1);
@@ -583,7 +585,6 @@ impl Sampler {
             self.elem_offset += 1;
         }
     }
-
 }
 
 /// Position, velocity and acceleration at path position `s` of an element with path speed and

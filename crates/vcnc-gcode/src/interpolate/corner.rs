@@ -48,7 +48,7 @@ pub(crate) enum Joint {
     /// and put this element between them. `consume`: the rest of the element before takes the
     /// blend's caps (LinuxCNC's rules).
     Blend {
-        blend: Seg,
+        blend: Box<Seg>,
         trim_a: f64,
         trim_b: f64,
         consume: bool,
@@ -176,13 +176,10 @@ impl JerkJump {
 /// The junction between `a` (its end) and `b` (its start, with its move's path mode `b_mode`
 /// and length `b_nominal`).
 pub(crate) fn joint(cfg: &Cfg, a: &Side, b: &Side) -> Joint {
-    let (ga1, ga2) = a.seg.geom.ends(a.seg.len, true);
-    let (gb1, gb2) = b.seg.geom.ends(b.seg.len, false);
+    let (ga1, _) = a.seg.geom.ends(a.seg.len, true);
+    let (gb1, _) = b.seg.geom.ends(b.seg.len, false);
     let dg: [f64; 6] = std::array::from_fn(|i| gb1[i] - ga1[i]);
-    let dg2: [f64; 6] = std::array::from_fn(|i| gb2[i] - ga2[i]);
     let vmax = a.seg.vcap.min(b.seg.vcap);
-    let _ = dg2;
-    let curv = f64::INFINITY;
     let blend_mode = matches!(a.mode, PathMode::Blend { .. });
     let lines = matches!(a.kind, MoveKind::Linear | MoveKind::Rapid)
         && matches!(b.kind, MoveKind::Linear | MoveKind::Rapid)
@@ -214,7 +211,7 @@ pub(crate) fn joint(cfg: &Cfg, a: &Side, b: &Side) -> Joint {
         let r = cfg.kink_ratio;
         if scale < r {
             return Joint::Through {
-                cap: vmax.min(curv),
+                cap: vmax,
                 keep_a: 1.0 - scale,
                 keep_b: 1.0 - scale,
             };
@@ -234,7 +231,7 @@ pub(crate) fn joint(cfg: &Cfg, a: &Side, b: &Side) -> Joint {
             }
         }
         return Joint::Through {
-            cap: kink_vel.min(curv),
+            cap: kink_vel,
             keep_a: 1.0 - r,
             keep_b: 1.0 - r,
         };
@@ -242,12 +239,15 @@ pub(crate) fn joint(cfg: &Cfg, a: &Side, b: &Side) -> Joint {
     let f = vmax * kink_share_per_speed(cfg, &dg, a.tcp);
     if f <= cfg.kink_ratio {
         return Joint::Through {
-            cap: vmax.min(curv),
+            cap: vmax,
             keep_a: 1.0 - f,
             keep_b: 1.0 - f,
         };
     }
-    if blend_mode && lines && let Some(bl) = blend(cfg, a, b) {
+    if blend_mode
+        && lines
+        && let Some(bl) = blend(cfg, a, b)
+    {
         return bl;
     }
     Joint::Stop { keep: 1.0 }
@@ -334,7 +334,7 @@ fn blend(cfg: &Cfg, a: &Side, b: &Side) -> Option<Joint> {
     let vfeed = a.seg.vfeed.min(b.seg.vfeed);
     let (v, acc, j) = blend_caps(cfg, &bl, len, a.tcp, vfeed);
     Some(Joint::Blend {
-        blend: Seg {
+        blend: Box::new(Seg {
             geom: Geom::Blend(bl),
             len,
             vcap: v.min(vfeed),
@@ -344,7 +344,7 @@ fn blend(cfg: &Cfg, a: &Side, b: &Side) -> Option<Joint> {
             jcap: j,
             move_index: a.seg.move_index,
             xyz_basis: true,
-        },
+        }),
         trim_a: d,
         trim_b: d,
         consume: false,
@@ -410,7 +410,7 @@ fn lc_blend(cfg: &Cfg, a: &Side, b: &Side) -> Option<Joint> {
     let consume = (a.seg.len - d) / v_plan < 4.0 * cfg.ts;
     let acap = 0.5 * a_max;
     Some(Joint::Blend {
-        blend: Seg {
+        blend: Box::new(Seg {
             geom: Geom::Blend(bl),
             len,
             vcap: v_plan.min(len / cfg.ts),
@@ -420,7 +420,7 @@ fn lc_blend(cfg: &Cfg, a: &Side, b: &Side) -> Option<Joint> {
             jcap: f64::INFINITY,
             move_index: a.seg.move_index,
             xyz_basis: true,
-        },
+        }),
         trim_a: d,
         trim_b: d,
         consume,

@@ -191,7 +191,12 @@ fn hermite(sig: f64, order: usize) -> [f64; 4] {
             -6.0 * s2 + 6.0 * sig,
             3.0 * s2 - 2.0 * sig,
         ],
-        2 => [12.0 * sig - 6.0, 6.0 * sig - 4.0, -12.0 * sig + 6.0, 6.0 * sig - 2.0],
+        2 => [
+            12.0 * sig - 6.0,
+            6.0 * sig - 4.0,
+            -12.0 * sig + 6.0,
+            6.0 * sig - 2.0,
+        ],
         _ => [12.0, 6.0, -12.0, 6.0],
     }
 }
@@ -296,7 +301,10 @@ mod tests {
             let (pp, g1p, _) = g.eval(s + h, len);
             for i in 0..6 {
                 assert!(((pp[i] - pm[i]) / (2.0 * h) - g1[i]).abs() < 1e-6, "g1 {i}");
-                assert!(((g1p[i] - g1m[i]) / (2.0 * h) - g2[i]).abs() < 1e-5, "g2 {i}");
+                assert!(
+                    ((g1p[i] - g1m[i]) / (2.0 * h) - g2[i]).abs() < 1e-5,
+                    "g2 {i}"
+                );
             }
             assert!((p[0].hypot(p[1]) - 1.0).abs() < 1e-12);
         }

@@ -22,9 +22,9 @@ use super::geom::Geom;
 use super::profile::{SCurve, Trap};
 use super::segment::{Cfg, Seg, segment};
 use super::{CycleTime, MoveClass, Slowdown};
+use crate::Error;
 use crate::diag::{Diagnostic, Span};
 use crate::interp::{Feed, Move, MoveKind, PathMode};
-use crate::Error;
 
 /// Per chain, in program order, what the second pass cannot know before the chain's end.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -512,7 +512,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
             let p = SCurve::rest_to_rest(seg.len, seg.vcap, seg.acap, seg.jcap);
             let n = samples_for(p.duration(), ts, max)?;
             let lam = (n as f64 * ts / p.duration()).max(1.0);
-            (Prof::S(p), n, lam)
+            (Prof::S(Box::new(p)), n, lam)
         } else {
             let opt = Trap::new(seg.len, 0.0, 0.0, seg.vcap, seg.acap);
             let n = samples_for(opt.duration(), ts, max)?;
@@ -628,15 +628,19 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
         let State::Chain(c) = &self.state else {
             return Ok(false);
         };
-        let joins = matches!(mv.kind, MoveKind::Rapid | MoveKind::Linear | MoveKind::Arc(_))
-            && !fine_block(mv, cfg.ts)
+        let joins = matches!(
+            mv.kind,
+            MoveKind::Rapid | MoveKind::Linear | MoveKind::Arc(_)
+        ) && !fine_block(mv, cfg.ts)
             && mv.tcp == c.tcp
             && matches!(mv.kind, MoveKind::Rapid) == c.rapid;
         if !joins {
             // LinuxCNC stops between a feed and a rapid (tp.c handleModeChange) without halving
             // the acceleration; a dwell or a fine block follows a stop that does.
-            let switch = matches!(mv.kind, MoveKind::Rapid | MoveKind::Linear | MoveKind::Arc(_))
-                && !fine_block(mv, cfg.ts);
+            let switch = matches!(
+                mv.kind,
+                MoveKind::Rapid | MoveKind::Linear | MoveKind::Arc(_)
+            ) && !fine_block(mv, cfg.ts);
             self.end_state(!switch)?;
             return Ok(false);
         }
@@ -693,6 +697,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                 trim_b,
                 consume,
             } => {
+                let blend = *blend;
                 let State::Chain(c) = &mut self.state else {
                     return Ok(true);
                 };
@@ -730,10 +735,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                 self.push_tail()?;
                 let mut b = b;
                 b.seg = trim(&b.seg, trim_b, b.seg.len);
-                let w = blend
-                    .vcap
-                    .min(b.seg.vcap)
-;
+                let w = blend.vcap.min(b.seg.vcap);
                 self.set_tail(b, mv, w);
             }
         }
@@ -801,7 +803,11 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
         {
             let (n, lam) = decisions.chains.pop_front().unwrap_or((0, 1.0));
             let (tcp, rapid) = (c.tcp, c.rapid);
-            let class = if rapid { MoveClass::Rapid } else { MoveClass::Feed };
+            let class = if rapid {
+                MoveClass::Rapid
+            } else {
+                MoveClass::Feed
+            };
             let base = self.account(n, class)?;
             if let State::Chain(c) = &mut self.state {
                 c.sampler = Some(Sampler::new(n, lam, cfg.tf, base, ts, tcp));

@@ -274,7 +274,12 @@ mod tests {
             let (a, b) = (t.eval(k as f64 * h).0, t.eval((k + 1) as f64 * h).0);
             sum += 0.5 * (a + b) * h;
         }
-        assert!((t.integral(end) - sum).abs() < 1e-7, "{} {}", t.integral(end), sum);
+        assert!(
+            (t.integral(end) - sum).abs() < 1e-7,
+            "{} {}",
+            t.integral(end),
+            sum
+        );
         for s in [0.0, 0.3, 2.0, 7.7, 9.99, 10.0] {
             let tau = t.time_at(s);
             assert!((t.eval(tau).0 - s).abs() < 1e-9, "{s}");

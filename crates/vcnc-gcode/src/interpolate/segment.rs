@@ -158,11 +158,7 @@ pub(crate) fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result
         ));
     }
     if opts.profile == Profile::JerkLimited && Cfg::new(limits, opts).tf <= 0.0 {
-        return Err(bad(
-            "profile",
-            f64::NAN,
-            "a jerk limit on some axis for the jerk-limited profile",
-        ));
+        return Err(Error::NoJerkLimit);
     }
     Ok(())
 }
@@ -243,7 +239,14 @@ pub(crate) fn terms(
         }
         let ax = l.axes[i];
         if b.g1[i] > 0.0 || b.g2[i] > 0.0 {
-            out.push((b.g1[i], b.g2[i], b.g3[i], ax.max_vel, ax.max_acc, ax.max_jerk));
+            out.push((
+                b.g1[i],
+                b.g2[i],
+                b.g3[i],
+                ax.max_vel,
+                ax.max_acc,
+                ax.max_jerk,
+            ));
         }
     }
     if tcp && let Some((t1, t2, t3)) = tip {
@@ -457,13 +460,7 @@ pub(crate) fn segment(mv: &Move, index: usize, cfg: &Cfg) -> Result<Option<Seg>,
 
 /// The caps of a corner blend run at most at `vfeed` (vcnc's rules: [`caps`] over its
 /// derivative bounds).
-pub(crate) fn blend_caps(
-    cfg: &Cfg,
-    b: &Blend,
-    len: f64,
-    tcp: bool,
-    vfeed: f64,
-) -> (f64, f64, f64) {
+pub(crate) fn blend_caps(cfg: &Cfg, b: &Blend, len: f64, tcp: bool, vfeed: f64) -> (f64, f64, f64) {
     let g = Geom::Blend(*b);
     let bd = g.bounds(len);
     let tip = (1.0, 1.0 / b.r, 1.0 / (b.r * b.r));

@@ -153,7 +153,6 @@ pub struct StreamPlan {
     pub lookahead_peak: usize,
     interp: InterpOptions,
     cfg: Cfg,
-    opts: InterpolateOptions,
     stream: StreamOptions,
     decisions: Decisions,
 }
@@ -184,8 +183,7 @@ pub fn plan(
         max: opts.max_samples,
         duration_s: total as f64 * opts.ts,
     })?;
-    let (lookahead_peak, any_tcp, cycle) =
-        (planner.lookahead_peak, planner.any_tcp, planner.cycle);
+    let (lookahead_peak, any_tcp, cycle) = (planner.lookahead_peak, planner.any_tcp, planner.cycle);
     drop(planner);
     Ok(StreamPlan {
         ts: opts.ts,
@@ -201,7 +199,6 @@ pub fn plan(
         lookahead_peak,
         interp: interp.clone(),
         cfg,
-        opts: opts.clone(),
         stream: stream.clone(),
         decisions,
     })
@@ -270,7 +267,6 @@ impl StreamPlan {
             }
             .into());
         }
-        let _ = &self.opts;
         Ok(())
     }
 }
@@ -362,14 +358,8 @@ impl<E> Out for Emitter<'_, E> {
         } else {
             first
         };
-        self.spans.push_back((
-            first,
-            end,
-            mv.line,
-            MoveClass::of(&mv.kind),
-            mv.end,
-            index,
-        ));
+        self.spans
+            .push_back((first, end, mv.line, MoveClass::of(&mv.kind), mv.end, index));
     }
 
     fn sample(&mut self, p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], tcp: bool) {
