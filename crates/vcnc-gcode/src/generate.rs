@@ -96,7 +96,7 @@ fn num(v: f64, decimals: usize) -> String {
 /// (uniform in [short_min, short_max]) with probability `short_fraction` or long (uniform in
 /// [long_min, 2R]), each reversing the previous direction with probability
 /// `reversal_probability`; a stroke that would leave ±R turns back if there is room, otherwise
-/// it is shortened to the room in the roomier direction. Every block is exact stop (`G61`), so
+/// it is shortened to the room in the roomier direction. Every block is exact stop (`G61.1`), so
 /// the axis rests between moves. The program opens with `G0 <axis>0`, so the machine starts at
 /// rest at 0. Same options (seed included) → the same text, byte for byte.
 pub fn identification(axis: AxisName, opts: &IdentificationOptions) -> Result<String, Error> {
@@ -176,7 +176,7 @@ pub fn identification(axis: AxisName, opts: &IdentificationOptions) -> Result<St
     );
     let _ = writeln!(
         out,
-        "(short strokes {}..{} {unit} with probability {}, long strokes {}..{} {unit}, reversal probability {}; exact stop G61)",
+        "(short strokes {}..{} {unit} with probability {}, long strokes {}..{} {unit}, reversal probability {}; exact stop G61.1)",
         o.short_min,
         o.short_max,
         o.short_fraction,
@@ -184,7 +184,7 @@ pub fn identification(axis: AxisName, opts: &IdentificationOptions) -> Result<St
         2.0 * r,
         o.reversal_probability
     );
-    let _ = writeln!(out, "G21 G90 G94 G17 G61");
+    let _ = writeln!(out, "G21 G90 G94 G17 G61.1");
     let _ = writeln!(out, "G0 {axis}0");
     let mut x = 0.0f64;
     let mut dir = if rng.random_bool(0.5) { 1.0 } else { -1.0 };

@@ -113,6 +113,10 @@ pub struct InterpOptions {
     pub max_call_depth: usize,
     /// Most moves in the toolpath. Default 10 000 000 (about 1.5 GB of moves).
     pub max_moves: usize,
+    /// The path mode before the program sets one (a control's start-up code). Default
+    /// [`PathMode::ExactStop`] (`G61.1`); LinuxCNC 2.9 starts in a plain `G64` unless its INI
+    /// file's start-up code names a mode (docs/gcode.md, "Path modes").
+    pub path_mode: PathMode,
 }
 
 impl Default for InterpOptions {
@@ -133,6 +137,7 @@ impl Default for InterpOptions {
             max_loop_iterations: 10_000_000,
             max_call_depth: 10,
             max_moves: 10_000_000,
+            path_mode: PathMode::ExactStop,
         }
     }
 }
@@ -244,15 +249,77 @@ pub struct Move {
     pub end: [f64; 6],
     /// Feed of `G1`/`G2`/`G3` moves; `None` for rapids and dwells.
     pub feed: Option<Feed>,
-    /// `true` under `G61` (rest at the end of the block), `false` under `G64`.
-    pub exact_stop: bool,
+    /// The path mode in force (modal group 13: `G61.1`, `G61`, `G64 P Q`).
+    pub path: PathMode,
     /// The machine must come to rest after this move whatever the path mode (`M0`, `M1`, `M6`
     /// or the end of the program follow it).
     pub stop_after: bool,
     /// Tool-centre-point mode: X Y Z are the tool tip in the workpiece frame.
     pub tcp: bool,
-    /// `G64 P` blending tolerance, mm (`None`: the interpolator's default).
-    pub blend_tolerance_mm: Option<f64>,
+}
+
+/// How a block ends and how the next one joins it: the path mode in force when the block runs
+/// (modal group 13), as LinuxCNC 2.9 reads it (docs/gcode.md, "Path modes").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PathMode {
+    /// `G61.1`, exact stop: the machine comes to rest at the end of the block.
+    ExactStop,
+    /// `G61`, exact path: the path runs through the programmed end point; the machine stops
+    /// there only where the path turns (a corner), and runs on where the next block continues
+    /// in the same direction.
+    ExactPath,
+    /// `G64 [P] [Q]`, continuous path: corners are blended.
+    Blend {
+        /// `P`: the blend may leave the programmed corner by at most this much, mm; `None` for
+        /// a plain `G64` (no `P`, or `P0`): the planner's own rule.
+        tolerance_mm: Option<f64>,
+        /// `Q`: consecutive straight feed moves that stay within this distance of one straight
+        /// line are merged into one move, mm; `None`: no merging. A `G64 P` without `Q` merges
+        /// within `P`, as in LinuxCNC.
+        merge_mm: Option<f64>,
+    },
+}
+
+impl PathMode {
+    /// `G61.1`: rest at the end of every block.
+    pub fn is_exact_stop(&self) -> bool {
+        matches!(self, PathMode::ExactStop)
+    }
+
+    /// A path mode written as its G-code: `G61.1`, `G61`, `G64`, `G64 P<mm>`, `G64 P<mm> Q<mm>`
+    /// (mm; `P0` is a plain `G64`, `Q` defaults to `P`, as in LinuxCNC); `None` for anything
+    /// else. Case and blanks between words do not matter.
+    pub fn parse(text: &str) -> Option<PathMode> {
+        let words: Vec<String> = text.split_whitespace().map(str::to_uppercase).collect();
+        let first = words.first()?;
+        match (first.as_str(), words.len()) {
+            ("G61.1", 1) => return Some(PathMode::ExactStop),
+            ("G61", 1) => return Some(PathMode::ExactPath),
+            ("G64", _) => {}
+            _ => return None,
+        }
+        let (mut p, mut q) = (None, None);
+        for w in &words[1..] {
+            let v: f64 = w.get(1..)?.parse().ok()?;
+            if !(v.is_finite() && v >= 0.0) {
+                return None;
+            }
+            match w.as_bytes()[0] {
+                b'P' if p.is_none() => p = Some(v),
+                b'Q' if q.is_none() => q = Some(v),
+                _ => return None,
+            }
+        }
+        let positive = |x: Option<f64>| x.filter(|v| *v > 0.0);
+        Some(PathMode::Blend {
+            tolerance_mm: positive(p),
+            merge_mm: if q.is_some() {
+                positive(q)
+            } else {
+                positive(p)
+            },
+        })
+    }
 }
 
 /// The interpreted program: moves in mm and degrees.
@@ -355,11 +422,10 @@ struct State {
     /// `G90.1`: arc centres I J K absolute.
     arc_absolute: bool,
     inverse_time: bool,
-    exact_stop: bool,
+    path: PathMode,
     tcp: bool,
     /// Current `G94` feed: mm/min (linear) and the raw value (deg/min for rotary moves).
     feed: Option<(f64, f64)>,
-    blend_tol: Option<f64>,
     spindle_rpm: f64,
     current_tool: u32,
     selected_tool: u32,
@@ -544,10 +610,9 @@ impl<'a> Interp<'a> {
                 absolute: true,
                 arc_absolute: false,
                 inverse_time: false,
-                exact_stop: true,
+                path: opts.path_mode,
                 tcp: false,
                 feed: None,
-                blend_tol: None,
                 spindle_rpm: 0.0,
                 current_tool: 0,
                 selected_tool: 0,

@@ -1,4 +1,4 @@
-//! Trapezoidal interpolation of a [`Toolpath`] at the sample period $T_s$ (docs/gcode.md).
+//! Interpolation of a [`Toolpath`] at the sample period $T_s$ (docs/gcode.md, "Interpolation").
 //!
 //! Every move is a curve $\mathbf{g}(s)$ of its path parameter $s \in [0, L]$ and a scalar
 //! speed profile $s(t)$; the samples are analytic:
@@ -10,52 +10,31 @@
 //! **Path parameter and feed rule.** $L$ is the XYZ length of the move (the tool-tip path in
 //! TCP mode); for a move of rotary axes alone it is $\sqrt{\Delta A^2+\Delta B^2+\Delta C^2}$ in
 //! degrees (NIST RS274NGC v3, 2.1.2.5). `G94` feeds apply along $s$ (mm/min, or deg/min for a
-//! pure rotary move); rotary axes moving with linear ones move in proportion to $s$. Rapids
-//! use the same parameter and no feed: they run at the limits.
+//! pure rotary move); a `G93` block runs at $L F / 60$ along $s$, so that it lasts $1/F$ plus its
+//! ramps (LinuxCNC's inverse-time rule). Rapids run at the limits.
 //!
-//! **Limits along the path.** For a straight move $\mathbf{g}' = \mathbf{u} = \Delta\mathbf{x}/L$
-//! is constant, so axis $i$ stays within its limits when
+//! **Limits along the path** ([`segment`](self::segment)): for a straight move
+//! $\mathbf{g}' = \mathbf{u} = \Delta\mathbf{x}/L$ is constant, so axis $i$ stays within its
+//! limits when
 //! $$ \dot s \le V = \min\Big(\tfrac{F}{60}, \min_i \tfrac{v_{\max,i}}{|u_i|}\Big), \qquad
-//!    |\ddot s| \le A = \min_i \tfrac{a_{\max,i}}{|u_i|}. $$
-//! In TCP mode X Y Z are the tool tip: instead of their axis limits the tip path limits apply,
-//! $|\dot{\mathbf{p}}| \le$ `tcp_max_vel`, $|\ddot{\mathbf{p}}| \le$ `tcp_max_acc`; A B C keep
-//! their own limits. On an arc of radius $r$ the in-plane velocity has magnitude
-//! $\sigma R_v \dot s$ and the in-plane acceleration at most
-//! $\sigma^2 R_c \dot s^2 + \sigma R_v |\ddot s|$, with $\sigma = |\Phi|/L$ (rad per unit of
-//! $s$), $R_v = \sqrt{k^2 + r^2}$, $R_c = \sqrt{4k^2 + r^2}$ and $k$ the radius change per
-//! radian (0 on a true circle). The centripetal term gets the fraction $\beta$
-//! ([`InterpolateOptions::arc_centripetal_fraction`], default ½) of the smaller in-plane
-//! acceleration limit, the tangential term the rest:
-//! $$ \dot s \le \sqrt{\beta A_p / (\sigma^2 R_c)}, \qquad |\ddot s| \le (1-\beta) A_p / (\sigma R_v). $$
-//! Both bounds hold for every component, so no axis exceeds its limits anywhere on the arc.
+//!    |\ddot s| \le A = \min_i \tfrac{a_{\max,i}}{|u_i|}, \qquad
+//!    |\dddot s| \le J = \min_i \tfrac{j_{\max,i}}{|u_i|}. $$
+//! In TCP mode the tool-tip limits replace those of X Y Z. On arcs and corner blends the
+//! centripetal acceleration takes the fraction $\beta$
+//! ([`InterpolateOptions::arc_centripetal_fraction`]) of the acceleration limit.
 //!
-//! **Exact stop** (`G61`, rapids, dwells, `G93`): each block is a rest-to-rest trapezoid. Its
-//! time-optimal duration is
-//! $$ T^* = \frac{L}{V} + \frac{V}{A} \quad (L \ge V^2/A), \qquad T^* = 2\sqrt{L/A} \ \text{(triangle)}, $$
-//! rounded **up** to $T = \lceil T^*/T_s \rceil T_s$ by lowering the peak speed with $A$ kept:
-//! $v_p = 2AL / (AT + \sqrt{A^2T^2 - 4AL})$ (the smaller root of $T = L/v_p + v_p/A$), so the
-//! block ends exactly on a sample and on its programmed point.
+//! **How moves join** ([`planner`](self::planner), [`corner`](self::corner),
+//! [`chain`](self::chain)): a `G61.1` block stops at its end; `G61` (exact path) runs through
+//! where the next block continues in the same direction and stops at corners; `G64` blends
+//! corners with arcs within its tolerance `P` and merges straight feeds within `Q`. Moves joined
+//! without a stop form a chain, planned with an exact, bounded look-ahead: a backward pass from
+//! an assumed stop and a forward pass from the chain's start, the chain's duration rounded up to
+//! whole samples by one time scale ($t = \lambda\tau$, $\lambda \ge 1$).
 //!
-//! **Continuous path** (`G64`): consecutive `G64` feed moves (same TCP mode, same kind of path
-//! parameter, no stop between them) form one chain. The junction speed between two segments is
-//! limited by the junction-deviation rule (grbl, LinuxCNC's `G64 P` analogue): with $\theta$ the
-//! angle between the exit and entry directions,
-//! $\cos\theta = -\mathbf{t}_1\cdot\mathbf{t}_2$ and $\delta$ the deviation
-//! ([`InterpolateOptions::junction_deviation`] or the move's `G64 P`),
-//! $$ v_j^2 = A\,\delta\,\frac{\sin(\theta/2)}{1 - \sin(\theta/2)}, $$
-//! and by a rotary-axis rule when X Y Z set the path: the jump of axis $i$'s velocity,
-//! $v_j |u_{i}^{+} - u_{i}^{-}|$, may not exceed $a_{\max,i} T_s$. A backward pass (from rest at
-//! the end, $v_{\text{entry}} \le \sqrt{v_{\text{exit}}^2 + 2AL}$) and a forward pass (from rest at
-//! the start) then give every segment its entry and exit speeds, and each segment is a trapezoid
-//! between them under its own $V$ and $A$. Collinear short segments therefore run as one
-//! trapezoid over the whole chain. The chain's total duration is rounded up to a whole number of
-//! samples by uniform time scaling ($t = \lambda\tau$, $\lambda \ge 1$: speeds divide by
-//! $\lambda$, accelerations by $\lambda^2$). Velocity jumps at junctions are the
-//! (bounded) price of a polyline; within a segment every sample honours the limits.
-//!
-//! **Inverse time** (`G93`): a feed block takes exactly $1/F$ minutes, rounded up to a whole
-//! number of samples (exact when $60/F$ is a multiple of $T_s$): a rest-to-rest trapezoid with
-//! the acceleration $A$ and the peak speed lowered as above to fit that duration.
+//! **Profiles** ([`Profile`]): trapezoidal (acceleration-limited, unbounded jerk), or
+//! jerk-limited: a block on its own runs the time-optimal seven-phase profile (checked against
+//! Ruckig), a chain its trapezoid smoothed by a moving average of the path position
+//! ([`chain`](self::chain)).
 //!
 //! **Time-exact chains of fine blocks** (`G93` + `G64`, every block's $1/F$ exactly one sample
 //! period $T_s$, `G1` only): such a program is a stream of set-points, one per interpolation
@@ -65,35 +44,42 @@
 //! at rest before its first and after its last block ([`time_exact_rates`]):
 //! $$ \dot{\mathbf x}_k = \frac{\mathbf x_{k+1} - \mathbf x_{k-1}}{2T_s}, \qquad
 //!    \ddot{\mathbf x}_k = \frac{\mathbf x_{k+1} - 2\mathbf x_k + \mathbf x_{k-1}}{T_s^2}. $$
-//! Each block's speed along its path parameter must stay within the speed cap $V$ above
-//! (axis, tool-tip and feed-independent limits); its acceleration is the program's affair (a
-//! pre-compensated set-point has acceleration spikes the axis does not perform). A chain with
-//! a block too fast for the limits runs as before — every `G93` block an exact stop — with a
-//! warning naming the block. Blocks with a longer $1/F$, arcs and `G61` blocks are never part
-//! of such a chain, so no other program changes.
+//! A chain with a block too fast for the limits runs block by block, each an exact stop, with a
+//! warning naming the block.
 //!
 //! **Feeds the machine cannot follow** are run at its limits, as a control does, never refused:
-//! a `G94` feed above a block's speed cap $V_{\lim}$ (the axis, tool-tip or centripetal limits
-//! above) runs at $V_{\lim}$, slowed by the factor $F/(60 V_{\lim})$; a `G93` block whose $1/F$
-//! is shorter than its time-optimal duration $T^*$ at the limits takes $T^*$, slowed by
-//! $T^* F / 60$. One warning sums them up: how many blocks were slowed and the worst one (line
-//! and factor); [`Trajectory::slowdown`] holds the same figures.
+//! a block whose programmed speed along $s$ exceeds its speed cap runs at the cap. One warning
+//! sums them up: how many blocks were slowed and the worst one (line and factor);
+//! [`Trajectory::slowdown`] holds the same figures.
 //!
 //! **Dwell**: holds the position for $P$ seconds rounded up to $T_s$.
 
-use crate::diag::{Diagnostic, Span};
-use crate::interp::{Feed, Move, MoveKind, Toolpath};
+use crate::diag::Diagnostic;
+use crate::interp::{Move, MoveKind, Toolpath};
 use crate::{AxisName, Error};
 
+pub(crate) mod chain;
+pub(crate) mod corner;
+pub(crate) mod geom;
+pub(crate) mod planner;
+pub(crate) mod profile;
+pub(crate) mod segment;
 pub mod stream;
 
-/// Velocity and acceleration limit of one axis.
+use chain::Out;
+use planner::{Decisions, Mode, Planner};
+use segment::{Cfg, check_limits};
+
+/// Velocity, acceleration and jerk limit of one axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisLimits {
     /// Largest speed, mm/s for X Y Z, deg/s for A B C. 0 means the axis cannot move.
     pub max_vel: f64,
     /// Largest acceleration, mm/s² for X Y Z, deg/s² for A B C. 0 means the axis cannot move.
     pub max_acc: f64,
+    /// Largest jerk, mm/s³ or deg/s³; `f64::INFINITY`: none (the trapezoidal profile never
+    /// needs one). Used by [`Profile::JerkLimited`].
+    pub max_jerk: f64,
 }
 
 /// Machine limits used by the interpolator.
@@ -106,17 +92,55 @@ pub struct Limits {
     /// Tool-tip path acceleration limit in TCP mode, mm/s² (LinuxCNC
     /// `TRAJ MAX_LINEAR_ACCELERATION`).
     pub tcp_max_acc: f64,
+    /// Tool-tip path jerk limit in TCP mode, mm/s³ (`f64::INFINITY`: none).
+    pub tcp_max_jerk: f64,
 }
 
 impl Limits {
-    /// The same limits on every axis and on the tool-tip path (units per s and per s²).
+    /// The same limits on every axis and on the tool-tip path (units per s and per s²), no jerk
+    /// limit.
     pub fn uniform(max_vel: f64, max_acc: f64) -> Self {
+        Limits::uniform_with_jerk(max_vel, max_acc, f64::INFINITY)
+    }
+
+    /// The same limits on every axis and on the tool-tip path, with a jerk limit (units/s³).
+    pub fn uniform_with_jerk(max_vel: f64, max_acc: f64, max_jerk: f64) -> Self {
         Limits {
-            axes: [AxisLimits { max_vel, max_acc }; 6],
+            axes: [AxisLimits {
+                max_vel,
+                max_acc,
+                max_jerk,
+            }; 6],
             tcp_max_vel: max_vel,
             tcp_max_acc: max_acc,
+            tcp_max_jerk: max_jerk,
         }
     }
+}
+
+/// The speed profile of the interpolator (docs/gcode.md, "Speed profiles").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Profile {
+    /// Acceleration-limited trapezoids, unbounded jerk (the paper's identification runs).
+    #[default]
+    Trapezoidal,
+    /// Jerk-limited: time-optimal seven-phase profiles for blocks on their own, moving-average
+    /// smoothed trapezoids for chains. Needs [`AxisLimits::max_jerk`].
+    JerkLimited,
+}
+
+/// Whose rules the planner follows where controls differ (docs/gcode.md, "LinuxCNC 2.9's
+/// planner").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PlannerRules {
+    /// vcnc's: the full acceleration on every stop, corner blends as large as the tolerance
+    /// allows, half the acceleration centripetal on arcs ([`InterpolateOptions::arc_centripetal_fraction`]).
+    #[default]
+    Vcnc,
+    /// LinuxCNC 2.9's trajectory planner (`tp.c`, `tc.c`, `blendmath.c`): 90 % of the
+    /// acceleration next to exact-path corners, √3/2 of it centripetal on arcs, its blend-arc
+    /// sizing, half the acceleration on a `G64` block that ends in a stop.
+    LinuxCnc29,
 }
 
 /// Interpolator settings. Plain data; [`Default`] gives the documented defaults.
@@ -127,14 +151,18 @@ pub struct InterpolateOptions {
     /// Largest number of samples a trajectory may have; longer ones are an error. Default
     /// 10 000 000 (2.8 h at 1 ms).
     pub max_samples: usize,
-    /// Junction deviation $\delta$ for `G64` corners, mm (deg for pure rotary chains), used when
-    /// the move has no `G64 P`. Default 0.01.
-    pub junction_deviation: f64,
+    /// Blend tolerance of a plain `G64` (no `P`), mm (deg for pure rotary chains); `None`
+    /// (default): LinuxCNC 2.9's rule, a quarter of the shorter block's length.
+    pub blend_tolerance: Option<f64>,
     /// Axes to output; `None` (default): the axes the program uses.
     pub axes: Option<Vec<AxisName>>,
     /// Fraction $\beta$ of the acceleration limit given to the centripetal acceleration on arcs
     /// (the rest is for the tangential one), in (0, 1). Default 0.5.
     pub arc_centripetal_fraction: f64,
+    /// Speed profile. Default trapezoidal.
+    pub profile: Profile,
+    /// Planner rules. Default vcnc's.
+    pub planner: PlannerRules,
 }
 
 impl Default for InterpolateOptions {
@@ -142,9 +170,11 @@ impl Default for InterpolateOptions {
         InterpolateOptions {
             ts: 0.001,
             max_samples: 10_000_000,
-            junction_deviation: 0.01,
+            blend_tolerance: None,
             axes: None,
             arc_centripetal_fraction: 0.5,
+            profile: Profile::Trapezoidal,
+            planner: PlannerRules::Vcnc,
         }
     }
 }
@@ -195,7 +225,7 @@ pub struct BlockSpan {
     pub class: MoveClass,
     /// Start time, s.
     pub t_start_s: f64,
-    /// End time, s (exact-stop blocks end on a sample; inner `G64` segments need not).
+    /// End time, s (exact-stop blocks end on a sample; blocks inside a chain need not).
     pub t_end_s: f64,
     /// First sample of the span: samples `first_sample..end_sample` belong to it. A sample on
     /// the boundary of two spans belongs to the one that ends there (the first span also has
@@ -219,6 +249,31 @@ pub struct Slowdown {
     pub worst_factor: f64,
 }
 
+/// The cycle time of a program and how it splits between the kinds of move (a chain of moves
+/// joined without a stop counts as the kind of its moves: feeds or rapids).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CycleTime {
+    /// The whole program, s (the trajectory's duration).
+    pub total_s: f64,
+    /// Feed moves (`G1` `G2` `G3`, the feed moves of cycles), s.
+    pub feed_s: f64,
+    /// Rapids (`G0`, the positioning moves of cycles, `G28`, `G30`), s.
+    pub rapid_s: f64,
+    /// Dwells, s.
+    pub dwell_s: f64,
+}
+
+impl CycleTime {
+    pub(crate) fn add(&mut self, class: MoveClass, dt: f64) {
+        self.total_s += dt;
+        match class {
+            MoveClass::Feed => self.feed_s += dt,
+            MoveClass::Rapid => self.rapid_s += dt,
+            MoveClass::Dwell => self.dwell_s += dt,
+        }
+    }
+}
+
 /// The sampled reference trajectory.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Trajectory {
@@ -228,10 +283,13 @@ pub struct Trajectory {
     pub axes: Vec<AxisTrack>,
     /// Per sample: `true` when X Y Z are tool-tip coordinates (TCP mode).
     pub tcp: Vec<bool>,
-    /// The moves' time spans, in order (zero-length moves have none).
+    /// The moves' time spans, in order (zero-length moves have none, nor have moves merged by
+    /// `G64 Q`: the merged move's span names the last of them, as LinuxCNC does).
     pub blocks: Vec<BlockSpan>,
     /// Feeds slowed to the machine's limits, if any.
     pub slowdown: Option<Slowdown>,
+    /// The cycle time and its split by kind of move.
+    pub cycle: CycleTime,
     /// Warnings raised while interpolating (the slowdown summary).
     pub warnings: Vec<Diagnostic>,
 }
@@ -304,566 +362,6 @@ pub fn time_exact_rates(pos: &[f64], ts: f64) -> (Vec<f64>, Vec<f64>) {
     (vel, acc)
 }
 
-/// Trapezoidal (or triangular) speed profile from $v_0$ to $v_1$ over length $L$, unscaled time.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Trap {
-    v0: f64,
-    vp: f64,
-    a: f64,
-    ta: f64,
-    tc: f64,
-    td: f64,
-    la: f64,
-    lc: f64,
-    len: f64,
-}
-
-impl Trap {
-    /// Fastest profile with entry `v0`, exit `v1`, cruise cap `vcap`, acceleration `a`.
-    pub(crate) fn new(len: f64, v0: f64, v1: f64, vcap: f64, a: f64) -> Trap {
-        let reach = (a * len + 0.5 * (v0 * v0 + v1 * v1)).sqrt();
-        let vp = vcap.min(reach).max(v0).max(v1);
-        Trap::with_peak(len, v0, v1, vp, a)
-    }
-
-    /// Rest-to-rest profile lasting `t` (≥ the optimal time) with acceleration `a`:
-    /// $v_p = 2aL/(aT + \sqrt{a^2T^2 - 4aL})$.
-    pub(crate) fn rest_to_rest_lasting(len: f64, a: f64, t: f64) -> Trap {
-        let disc = (a * a * t * t - 4.0 * a * len).max(0.0);
-        let vp = 2.0 * a * len / (a * t + disc.sqrt());
-        Trap::with_peak(len, 0.0, 0.0, vp, a)
-    }
-
-    fn with_peak(len: f64, v0: f64, v1: f64, vp: f64, a: f64) -> Trap {
-        let ta = ((vp - v0) / a).max(0.0);
-        let td = ((vp - v1) / a).max(0.0);
-        let la = (vp * vp - v0 * v0) / (2.0 * a);
-        let ld = (vp * vp - v1 * v1) / (2.0 * a);
-        let lc = (len - la - ld).max(0.0);
-        let tc = if vp > 0.0 { lc / vp } else { 0.0 };
-        Trap {
-            v0,
-            vp,
-            a,
-            ta,
-            tc,
-            td,
-            la: la.max(0.0),
-            lc,
-            len,
-        }
-    }
-
-    pub(crate) fn duration(&self) -> f64 {
-        self.ta + self.tc + self.td
-    }
-
-    /// $(s, \dot s, \ddot s)$ at local time `tau`.
-    pub(crate) fn eval(&self, tau: f64) -> (f64, f64, f64) {
-        let tau = tau.max(0.0);
-        let (s, sd, sdd) = if tau < self.ta {
-            (
-                self.v0 * tau + 0.5 * self.a * tau * tau,
-                self.v0 + self.a * tau,
-                self.a,
-            )
-        } else if tau < self.ta + self.tc {
-            (self.la + self.vp * (tau - self.ta), self.vp, 0.0)
-        } else if tau < self.duration() {
-            let u = tau - self.ta - self.tc;
-            (
-                self.la + self.lc + self.vp * u - 0.5 * self.a * u * u,
-                self.vp - self.a * u,
-                -self.a,
-            )
-        } else {
-            (self.len, self.vp - self.a * self.td, 0.0)
-        };
-        (s.clamp(0.0, self.len), sd.max(0.0), sdd)
-    }
-}
-
-/// Curve of one move, $\mathbf{g}(s)$.
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum Geom {
-    Line {
-        p0: [f64; 6],
-        end: [f64; 6],
-        d: [f64; 6],
-    },
-    Arc {
-        p0: [f64; 6],
-        end: [f64; 6],
-        u: usize,
-        v: usize,
-        c: [f64; 2],
-        theta0: f64,
-        /// Direction: +1 counter-clockwise, −1 clockwise.
-        sgn: f64,
-        /// |sweep|, rad.
-        phi: f64,
-        r0: f64,
-        /// Radius change per radian, mm/rad.
-        k: f64,
-    },
-}
-
-/// One move ready for profiling.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Seg {
-    geom: Geom,
-    len: f64,
-    /// Speed cap along s (feed and limits).
-    vcap: f64,
-    /// Speed cap from the limits alone.
-    vlim: f64,
-    /// Programmed `G94` speed along s (∞ for rapids and `G93` blocks).
-    vfeed: f64,
-    /// Acceleration cap along s.
-    acap: f64,
-    move_index: usize,
-    /// `true`: s is the XYZ length; `false`: the rotary length.
-    xyz_basis: bool,
-}
-
-impl Geom {
-    /// Position, first and second derivative with respect to s.
-    fn eval(&self, s: f64, len: f64) -> ([f64; 6], [f64; 6], [f64; 6]) {
-        match *self {
-            Geom::Line { p0, end, d } => {
-                let mut p = [0.0; 6];
-                let mut g1 = [0.0; 6];
-                let f = s / len;
-                for i in 0..6 {
-                    p[i] = if s >= len { end[i] } else { p0[i] + d[i] * f };
-                    g1[i] = d[i] / len;
-                }
-                (p, g1, [0.0; 6])
-            }
-            Geom::Arc {
-                p0,
-                end,
-                u,
-                v,
-                c,
-                theta0,
-                sgn,
-                phi,
-                r0,
-                k,
-            } => {
-                let sigma = phi / len;
-                let f = (s / len).clamp(0.0, 1.0);
-                let ph = f * phi;
-                let r = r0 + k * ph;
-                let a = theta0 + sgn * ph;
-                let (sa, ca) = a.sin_cos();
-                let mut p = [0.0; 6];
-                let mut g1 = [0.0; 6];
-                let mut g2 = [0.0; 6];
-                for i in 0..6 {
-                    p[i] = if s >= len {
-                        end[i]
-                    } else {
-                        p0[i] + (end[i] - p0[i]) * f
-                    };
-                    g1[i] = (end[i] - p0[i]) / len;
-                }
-                if s < len {
-                    p[u] = c[0] + r * ca;
-                    p[v] = c[1] + r * sa;
-                }
-                g1[u] = (k * ca - sgn * r * sa) * sigma;
-                g1[v] = (k * sa + sgn * r * ca) * sigma;
-                g2[u] = (-2.0 * sgn * k * sa - r * ca) * sigma * sigma;
-                g2[v] = (2.0 * sgn * k * ca - r * sa) * sigma * sigma;
-                (p, g1, g2)
-            }
-        }
-    }
-}
-
-fn norm3(x: &[f64]) -> f64 {
-    x.iter().map(|v| v * v).sum::<f64>().sqrt()
-}
-
-pub(crate) fn check_limits(limits: &Limits, opts: &InterpolateOptions) -> Result<(), Error> {
-    for (i, l) in limits.axes.iter().enumerate() {
-        for (name, value) in [("max_vel", l.max_vel), ("max_acc", l.max_acc)] {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(Error::InvalidLimit {
-                    axis: AxisName::from_index(i),
-                    name,
-                    value,
-                });
-            }
-        }
-    }
-    for (name, value) in [
-        ("tcp_max_vel", limits.tcp_max_vel),
-        ("tcp_max_acc", limits.tcp_max_acc),
-    ] {
-        if !(value.is_finite() && value >= 0.0) {
-            return Err(Error::InvalidLimit {
-                axis: None,
-                name,
-                value,
-            });
-        }
-    }
-    let bad = |name: &'static str, value: f64, expected: &'static str| Error::InvalidOption {
-        name,
-        value,
-        expected,
-    };
-    if !(opts.ts.is_finite() && opts.ts > 0.0) {
-        return Err(bad("ts", opts.ts, "a positive number of seconds"));
-    }
-    if !(opts.junction_deviation.is_finite() && opts.junction_deviation >= 0.0) {
-        return Err(bad(
-            "junction_deviation",
-            opts.junction_deviation,
-            "a non-negative length",
-        ));
-    }
-    let beta = opts.arc_centripetal_fraction;
-    if !(beta > 0.0 && beta < 1.0) {
-        return Err(bad(
-            "arc_centripetal_fraction",
-            beta,
-            "a fraction in (0, 1)",
-        ));
-    }
-    Ok(())
-}
-
-/// Build the segment of a motion move; `None` for a zero-length move.
-pub(crate) fn segment(
-    mv: &Move,
-    index: usize,
-    limits: &Limits,
-    opts: &InterpolateOptions,
-) -> Result<Option<Seg>, Error> {
-    let d: [f64; 6] = std::array::from_fn(|i| mv.end[i] - mv.start[i]);
-    let cannot = |axis: usize, what: &'static str| Error::AxisCannotMove {
-        axis: AxisName::from_index(axis),
-        what,
-        line: mv.line,
-    };
-    let tcp_cannot = |what: &'static str| Error::AxisCannotMove {
-        axis: None,
-        what,
-        line: mv.line,
-    };
-    let mut vlim = f64::INFINITY;
-    let mut acap = f64::INFINITY;
-    // Per-axis limit on a component that moves with rate `rate` per unit of s.
-    let per_axis = |i: usize, rate: f64, vlim: &mut f64, acap: &mut f64| -> Result<(), Error> {
-        if rate == 0.0 {
-            return Ok(());
-        }
-        let l = limits.axes[i];
-        if l.max_vel <= 0.0 {
-            return Err(cannot(i, "velocity"));
-        }
-        if l.max_acc <= 0.0 {
-            return Err(cannot(i, "acceleration"));
-        }
-        *vlim = vlim.min(l.max_vel / rate.abs());
-        *acap = acap.min(l.max_acc / rate.abs());
-        Ok(())
-    };
-    let beta = opts.arc_centripetal_fraction;
-    let (geom, len, xyz_basis) = match mv.kind {
-        MoveKind::Dwell { .. } => return Ok(None),
-        MoveKind::Rapid | MoveKind::Linear => {
-            let xyz = norm3(&d[0..3]);
-            let rot = norm3(&d[3..6]);
-            let (len, xyz_basis) = if xyz > 0.0 {
-                (xyz, true)
-            } else if rot > 0.0 {
-                (rot, false)
-            } else {
-                return Ok(None);
-            };
-            for (i, &di) in d.iter().enumerate() {
-                if mv.tcp && i < 3 {
-                    continue;
-                }
-                per_axis(i, di / len, &mut vlim, &mut acap)?;
-            }
-            if mv.tcp && xyz > 0.0 {
-                let rate = xyz / len;
-                if limits.tcp_max_vel <= 0.0 {
-                    return Err(tcp_cannot("velocity"));
-                }
-                if limits.tcp_max_acc <= 0.0 {
-                    return Err(tcp_cannot("acceleration"));
-                }
-                vlim = vlim.min(limits.tcp_max_vel / rate);
-                acap = acap.min(limits.tcp_max_acc / rate);
-            }
-            (
-                Geom::Line {
-                    p0: mv.start,
-                    end: mv.end,
-                    d,
-                },
-                len,
-                xyz_basis,
-            )
-        }
-        MoveKind::Arc(arc) => {
-            let (u, v, w) = arc.plane.axes();
-            let phi = arc.sweep_rad.abs();
-            let r0 = arc.radius_start_mm;
-            let r1 = arc.radius_end_mm;
-            let k = (r1 - r0) / phi;
-            let rmax = r0.max(r1);
-            let planar = 0.5 * (r0 + r1) * phi;
-            let len = planar.hypot(d[w]);
-            if !(len > 0.0 && len.is_finite()) {
-                return Ok(None);
-            }
-            let sigma = phi / len;
-            let rv = k.hypot(rmax);
-            let rc = (2.0 * k).hypot(rmax);
-            for i in [w, 3, 4, 5] {
-                if mv.tcp && i < 3 {
-                    continue;
-                }
-                per_axis(i, d[i] / len, &mut vlim, &mut acap)?;
-            }
-            let (vp, ap, rt) = if mv.tcp {
-                if limits.tcp_max_vel <= 0.0 {
-                    return Err(tcp_cannot("velocity"));
-                }
-                if limits.tcp_max_acc <= 0.0 {
-                    return Err(tcp_cannot("acceleration"));
-                }
-                (limits.tcp_max_vel, limits.tcp_max_acc, rv.hypot(d[w] / phi))
-            } else {
-                for i in [u, v] {
-                    if limits.axes[i].max_vel <= 0.0 {
-                        return Err(cannot(i, "velocity"));
-                    }
-                    if limits.axes[i].max_acc <= 0.0 {
-                        return Err(cannot(i, "acceleration"));
-                    }
-                }
-                (
-                    limits.axes[u].max_vel.min(limits.axes[v].max_vel),
-                    limits.axes[u].max_acc.min(limits.axes[v].max_acc),
-                    rv,
-                )
-            };
-            vlim = vlim
-                .min(vp / (sigma * rt))
-                .min((beta * ap / (sigma * sigma * rc)).sqrt());
-            acap = acap.min((1.0 - beta) * ap / (sigma * rt));
-            let (sa, ca) = (mv.start[v] - arc.centre[1], mv.start[u] - arc.centre[0]);
-            (
-                Geom::Arc {
-                    p0: mv.start,
-                    end: mv.end,
-                    u,
-                    v,
-                    c: arc.centre,
-                    theta0: sa.atan2(ca),
-                    sgn: arc.sweep_rad.signum(),
-                    phi,
-                    r0,
-                    k,
-                },
-                len,
-                true,
-            )
-        }
-    };
-    let vfeed = match mv.feed {
-        Some(Feed::UnitsPerMin(f)) => f / 60.0,
-        _ => f64::INFINITY,
-    };
-    let vcap = vfeed.min(vlim);
-    if !(vcap > 0.0 && acap > 0.0 && vlim.is_finite() && acap.is_finite() && len.is_finite()) {
-        return Err(Error::NonFinite {
-            line: mv.line,
-            what: "path speed or acceleration cap",
-        });
-    }
-    Ok(Some(Seg {
-        geom,
-        len,
-        vcap,
-        vlim,
-        vfeed,
-        acap,
-        move_index: index,
-        xyz_basis,
-    }))
-}
-
-/// A stretch of the timeline: a hold or a chain of segments with their profiles.
-#[derive(Debug, Clone)]
-pub(crate) struct Piece {
-    /// Samples in the piece (its duration is `n · ts`).
-    n: u64,
-    /// Time scale λ ≥ 1 (t = λ τ).
-    lambda: f64,
-    /// Segments with their profile and unscaled start time.
-    segs: Vec<(Seg, Trap, f64)>,
-    /// Hold position (dwell) when `segs` is empty.
-    hold: [f64; 6],
-    /// Move index of a dwell.
-    dwell_move: Option<usize>,
-    tcp: bool,
-    /// A time-exact chain of fine blocks (module doc): its positions at the samples.
-    exact: Option<Exact>,
-}
-
-/// The samples of a time-exact chain: `points[j]` is the position at the piece's sample `j`
-/// (`points[0]` the start, `points[n]` the end); `moves[j]` the move that ends on `points[j + 1]`.
-#[derive(Debug, Clone)]
-pub(crate) struct Exact {
-    points: Vec<[f64; 6]>,
-    moves: Vec<usize>,
-}
-
-/// Number of whole samples covering `t` seconds (tolerating round-off just above a multiple).
-pub(crate) fn samples_for(t: f64, ts: f64, max: usize) -> Result<u64, Error> {
-    let n = (t / ts - 1e-9).ceil().max(0.0);
-    if !n.is_finite() || n > max as f64 {
-        return Err(Error::TooManySamples {
-            samples: n,
-            max,
-            duration_s: t,
-        });
-    }
-    Ok(n as u64)
-}
-
-/// Rest-to-rest piece for one segment lasting at least `t_min` rounded up (exact stop).
-pub(crate) fn single(
-    seg: Seg,
-    tcp: bool,
-    t_req: Option<f64>,
-    ts: f64,
-    max: usize,
-) -> Result<Piece, Error> {
-    let opt = Trap::new(seg.len, 0.0, 0.0, seg.vcap, seg.acap);
-    let target = t_req.unwrap_or(opt.duration()).max(opt.duration());
-    let n = samples_for(target, ts, max)?;
-    let t = n as f64 * ts;
-    let trap = if t > opt.duration() {
-        Trap::rest_to_rest_lasting(seg.len, seg.acap, t)
-    } else {
-        opt
-    };
-    let lambda = (t / trap.duration()).max(1.0);
-    Ok(Piece {
-        n,
-        lambda,
-        segs: vec![(seg, trap, 0.0)],
-        hold: [0.0; 6],
-        dwell_move: None,
-        tcp,
-        exact: None,
-    })
-}
-
-/// The rest-to-rest piece of a block run on its own (exact stop, `G93`, rapid): a `G93` block
-/// lasts its $1/F$ (at least $T^*$, the feed cap not applying), any other block its rounded
-/// time-optimal duration; a block slowed to the limits is noted in `slowed`.
-pub(crate) fn exact_stop_piece(
-    seg: Seg,
-    mv: &Move,
-    slowed: &mut Slowed,
-    ts: f64,
-    max: usize,
-) -> Result<Piece, Error> {
-    match mv.feed {
-        Some(Feed::InverseTime(f)) => {
-            let want = 60.0 / f;
-            let t_min = Trap::new(seg.len, 0.0, 0.0, seg.vlim, seg.acap).duration();
-            if want < t_min * (1.0 - 1e-12) {
-                slowed.note(
-                    t_min / want,
-                    mv,
-                    Cause::InverseTime {
-                        want_s: want,
-                        min_s: t_min,
-                        f,
-                    },
-                );
-            }
-            // The feed cap does not apply: the duration does (at least T*).
-            let seg = Seg {
-                vcap: seg.vlim,
-                ..seg
-            };
-            single(seg, mv.tcp, Some(want), ts, max)
-        }
-        _ => {
-            slowed.feed(&seg, mv);
-            single(seg, mv.tcp, None, ts, max)
-        }
-    }
-}
-
-/// Position, velocity and acceleration at unscaled time `tau_rel` into a segment's profile, the
-/// chain's time scale applied ($\dot s / \lambda$, $\ddot s / \lambda^2$ with `inv` = 1/λ,
-/// `inv2` = 1/λ²; module doc).
-pub(crate) fn eval_scaled(
-    seg: &Seg,
-    trap: &Trap,
-    tau_rel: f64,
-    inv: f64,
-    inv2: f64,
-) -> ([f64; 6], [f64; 6], [f64; 6]) {
-    let (s, sd, sdd) = trap.eval(tau_rel);
-    let (sd, sdd) = (sd * inv, sdd * inv2);
-    let (p, g1, g2) = seg.geom.eval(s, seg.len);
-    let mut v = [0.0; 6];
-    let mut a = [0.0; 6];
-    for i in 0..6 {
-        v[i] = g1[i] * sd;
-        a[i] = g2[i] * sd * sd + g1[i] * sdd;
-    }
-    (p, v, a)
-}
-
-/// Velocity and acceleration at `b` of a time-exact chain from its neighbours `a` and `c`
-/// (central differences, [`time_exact_rates`]).
-pub(crate) fn central_rates(
-    a: &[f64; 6],
-    b: &[f64; 6],
-    c: &[f64; 6],
-    ts: f64,
-) -> ([f64; 6], [f64; 6]) {
-    let v = std::array::from_fn(|i| (c[i] - a[i]) / (2.0 * ts));
-    let acc = std::array::from_fn(|i| (c[i] - 2.0 * b[i] + a[i]) / (ts * ts));
-    (v, acc)
-}
-
-/// First and one-past-last sample (within a piece of `n` samples) of the span of a chain's
-/// segment starting at unscaled time `tau0` and lasting `dur`: samples $k$ with
-/// $t_\text{start} < t_k \le t_\text{end}$ ([`BlockSpan::first_sample`]); the first segment
-/// starts at 0, the last ends on the piece's last sample.
-pub(crate) fn chain_span(
-    tau0: f64,
-    dur: f64,
-    lam: f64,
-    n: usize,
-    ts: f64,
-    first: bool,
-    last: bool,
-) -> (usize, usize) {
-    let last_in = |t_rel: f64| ((t_rel / ts + 1e-9).floor().max(0.0) as usize).min(n);
-    let k_end = if last { n } else { last_in(lam * (tau0 + dur)) };
-    let k_first = if first { 0 } else { last_in(lam * tau0) };
-    (k_first, k_end.max(k_first))
-}
-
 /// The output axes: those asked for (sorted, without repeats), else those the program uses
 /// (X Y Z when it uses none).
 pub(crate) fn output_axes(opts: &InterpolateOptions, used: [bool; 6]) -> Vec<AxisName> {
@@ -889,520 +387,122 @@ pub(crate) fn output_axes(opts: &InterpolateOptions, used: [bool; 6]) -> Vec<Axi
     }
 }
 
-/// Junction speed cap between `a` (exit) and `b` (entry).
-pub(crate) fn junction(a: &Seg, b: &Seg, delta: f64, limits: &Limits, ts: f64) -> f64 {
-    let (_, ta, _) = a.geom.eval(a.len, a.len);
-    let (_, tb, _) = b.geom.eval(0.0, b.len);
-    let range = if a.xyz_basis { 0..3 } else { 3..6 };
-    let na = norm3(&ta[range.clone()]);
-    let nb = norm3(&tb[range.clone()]);
-    let mut vj = a.vcap.min(b.vcap);
-    if !(na > 0.0 && nb > 0.0) {
-        return 0.0;
-    }
-    let dot: f64 = range.clone().map(|i| ta[i] * tb[i]).sum::<f64>() / (na * nb);
-    let cos_theta = -dot;
-    if cos_theta > 0.999_999 {
-        return 0.0;
-    }
-    if cos_theta > -0.999_999 {
-        let sin_half = (0.5 * (1.0 - cos_theta)).sqrt();
-        let acc = a.acap.min(b.acap);
-        vj = vj.min((acc * delta * sin_half / (1.0 - sin_half)).sqrt());
-    }
-    if a.xyz_basis {
-        for i in 3..6 {
-            let jump = (tb[i] - ta[i]).abs();
-            if jump > 0.0 {
-                vj = vj.min(limits.axes[i].max_acc * ts / jump);
-            }
-        }
-    }
-    vj.max(0.0)
+/// The whole trajectory as [`Out`]: the sample columns and the spans.
+struct Collector<'t> {
+    tp: &'t Toolpath,
+    idx: Vec<usize>,
+    traj: Trajectory,
+    last_index: Option<usize>,
 }
 
-/// Look-ahead over a chain of ≥ 2 segments: junction caps, backward and forward passes.
-fn chain(
-    segs: Vec<Seg>,
-    deltas: &[f64],
-    tcp: bool,
-    limits: &Limits,
-    ts: f64,
-    max: usize,
-) -> Result<Piece, Error> {
-    let m = segs.len();
-    let mut vj = vec![0.0; m + 1];
-    for i in 1..m {
-        vj[i] = junction(&segs[i - 1], &segs[i], deltas[i], limits, ts);
-    }
-    // Backward pass: vj[i] is the speed at the start of segment i (end of i − 1).
-    for i in (0..m).rev() {
-        let reach = (vj[i + 1] * vj[i + 1] + 2.0 * segs[i].acap * segs[i].len).sqrt();
-        vj[i] = vj[i].min(reach);
-    }
-    vj[0] = 0.0;
-    vj[m] = 0.0;
-    // Forward pass.
-    for i in 0..m {
-        let reach = (vj[i] * vj[i] + 2.0 * segs[i].acap * segs[i].len).sqrt();
-        vj[i + 1] = vj[i + 1].min(reach);
-    }
-    let mut out = Vec::with_capacity(m);
-    let mut t = 0.0;
-    for (i, seg) in segs.into_iter().enumerate() {
-        let trap = Trap::new(seg.len, vj[i], vj[i + 1], seg.vcap, seg.acap);
-        let d = trap.duration();
-        out.push((seg, trap, t));
-        t += d;
-    }
-    let n = samples_for(t, ts, max)?;
-    let lambda = (n as f64 * ts / t).max(1.0);
-    Ok(Piece {
-        n,
-        lambda,
-        segs: out,
-        hold: [0.0; 6],
-        dwell_move: None,
-        tcp,
-        exact: None,
-    })
-}
-
-/// A fine block: `G1` under `G93` and `G64` whose $1/F$ is exactly one sample period (within
-/// $10^{-9}$ relative), the element of a time-exact chain (module doc).
-pub(crate) fn fine_block(mv: &Move, ts: f64) -> bool {
-    !mv.exact_stop
-        && matches!(mv.kind, MoveKind::Linear)
-        && matches!(mv.feed, Some(Feed::InverseTime(f)) if (60.0 / (f * ts) - 1.0).abs() <= 1e-9)
-}
-
-/// What became of a chain of fine blocks; `next` is the index of the first move after it.
-enum Chain {
-    /// Run time-exactly as this piece.
-    Exact { piece: Piece, next: usize },
-    /// A block is faster than the limits allow: the blocks run as before, block by block, with
-    /// this warning.
-    Refused { next: usize, warning: Diagnostic },
-}
-
-/// The time-exact chain of fine blocks starting at move `i` (module doc).
-fn time_exact_chain(
-    tp: &Toolpath,
-    i: usize,
-    limits: &Limits,
-    opts: &InterpolateOptions,
-) -> Result<Chain, Error> {
-    let ts = opts.ts;
-    let first = &tp.moves[i];
-    let mut points = vec![first.start];
-    let mut moves = Vec::new();
-    let mut refusal: Option<(f64, f64, &Move, bool)> = None;
-    let mut j = i;
-    while j < tp.moves.len() {
-        let m = &tp.moves[j];
-        if !fine_block(m, ts) || m.tcp != first.tcp {
-            break;
+impl Out for Collector<'_> {
+    fn span(&mut self, first: usize, end: usize, t0: f64, t1: f64, index: usize, mv: &Move) {
+        if self.last_index == Some(index)
+            && let Some(b) = self.traj.blocks.last_mut()
+        {
+            b.end_sample = end;
+            b.t_end_s = t1;
+            return;
         }
-        if let Some(seg) = segment(m, j, limits, opts)? {
-            // The block's speed along its path parameter against the limits' speed cap.
-            let speed = seg.len / ts;
-            if speed > seg.vlim * (1.0 + 1e-9)
-                && refusal.is_none_or(|r| speed / seg.vlim > r.0 / r.1)
-            {
-                refusal = Some((speed, seg.vlim, m, !seg.xyz_basis));
-            }
-            points.push(m.end);
-            moves.push(j);
-        }
-        j += 1;
-        if m.stop_after {
-            break;
-        }
-    }
-    if let Some((speed, cap, m, deg)) = refusal {
-        let unit = if deg { "deg" } else { "mm" };
-        let message = format!(
-            "the {} fine blocks from line {} (G93 G64, 1/F = one sample period) are not run as set-points: line {} needs {speed:.3} {unit}/s along its path, the limits allow {cap:.3} {unit}/s; each block runs as an exact stop",
-            j - i,
-            first.line,
-            m.line
-        );
-        let span = Span {
-            line: m.line,
-            col: m.col,
-            start: 0,
-            end: 0,
+        self.last_index = Some(index);
+        let first = if self.traj.blocks.is_empty() {
+            0
+        } else {
+            first
         };
-        return Ok(Chain::Refused {
-            next: j,
-            warning: Diagnostic::warning(span, message),
+        self.traj.blocks.push(BlockSpan {
+            move_index: index,
+            line: self.tp.moves.get(index).map_or(mv.line, |m| m.line),
+            class: MoveClass::of(&mv.kind),
+            t_start_s: t0,
+            t_end_s: t1,
+            first_sample: first,
+            end_sample: end,
+            tcp: mv.tcp,
         });
     }
-    let n = moves.len() as u64;
-    Ok(Chain::Exact {
-        piece: Piece {
-            n,
-            lambda: 1.0,
-            segs: Vec::new(),
-            hold: first.start,
-            dwell_move: None,
-            tcp: first.tcp,
-            exact: Some(Exact { points, moves }),
-        },
-        next: j,
-    })
-}
 
-pub(crate) fn continuous(mv: &Move) -> bool {
-    !mv.exact_stop
-        && matches!(mv.feed, Some(Feed::UnitsPerMin(_)))
-        && matches!(mv.kind, MoveKind::Linear | MoveKind::Arc(_))
-}
-
-/// Why a block was slowed (numbers only: the message is built once, for the worst block).
-#[derive(Clone, Copy)]
-pub(crate) enum Cause {
-    /// `G94`: programmed speed and the cap, along s (mm/s or deg/s).
-    Feed { v_feed: f64, v_lim: f64, deg: bool },
-    /// `G93`: requested and shortest durations, s, and F (1/min).
-    InverseTime { want_s: f64, min_s: f64, f: f64 },
-}
-
-/// Blocks slowed to the limits: the count and the worst (factor, line, column, cause).
-#[derive(Default)]
-pub(crate) struct Slowed {
-    count: usize,
-    worst: Option<(f64, u32, u32, Cause)>,
-}
-
-impl Slowed {
-    /// Note a `G94` segment whose feed is above its speed cap.
-    pub(crate) fn feed(&mut self, seg: &Seg, mv: &Move) {
-        if seg.vfeed.is_finite() && seg.vfeed > seg.vlim * (1.0 + 1e-9) {
-            let cause = Cause::Feed {
-                v_feed: seg.vfeed,
-                v_lim: seg.vlim,
-                deg: !seg.xyz_basis,
-            };
-            self.note(seg.vfeed / seg.vlim, mv, cause);
+    fn sample(&mut self, p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], tcp: bool) {
+        for (track, &i) in self.traj.axes.iter_mut().zip(&self.idx) {
+            track.pos.push(p[i]);
+            track.vel.push(v[i]);
+            track.acc.push(a[i]);
         }
+        self.traj.tcp.push(tcp);
     }
 
-    /// The notes of `later` (taken in order after these), as if noted here one by one.
-    pub(crate) fn merge(&mut self, later: Slowed) {
-        self.count += later.count;
-        if let Some(w) = later.worst
-            && self.worst.is_none_or(|s| w.0 > s.0)
-        {
-            self.worst = Some(w);
-        }
-    }
-
-    pub(crate) fn note(&mut self, factor: f64, mv: &Move, cause: Cause) {
-        self.count += 1;
-        if self.worst.is_none_or(|w| factor > w.0) {
-            self.worst = Some((factor, mv.line, mv.col, cause));
-        }
-    }
-
-    pub(crate) fn finish(self, warnings: &mut Vec<Diagnostic>) -> Option<Slowdown> {
-        let (factor, line, col, cause) = self.worst?;
-        let detail = match cause {
-            Cause::Feed { v_feed, v_lim, deg } => {
-                let unit = if deg { "deg" } else { "mm" };
-                format!(
-                    "F{} asks for {v_feed:.3} {unit}/s, the limits allow {v_lim:.3} {unit}/s",
-                    fmt_num(v_feed * 60.0)
-                )
-            }
-            Cause::InverseTime { want_s, min_s, f } => format!(
-                "inverse time F{} asks for {want_s:.4} s, the limits need {min_s:.4} s",
-                fmt_num(f)
-            ),
-        };
-        warnings.push(Diagnostic::warning(
-            Span {
-                line,
-                col,
-                start: 0,
-                end: 0,
-            },
-            format!(
-                "{} feed block(s) run slower than programmed, at the machine's limits; the worst is line {line} ({detail}): {factor:.3} times slower",
-                self.count
-            ),
-        ));
-        Some(Slowdown {
-            blocks: self.count,
-            worst_line: line,
-            worst_factor: factor,
-        })
+    fn failed(&self) -> bool {
+        false
     }
 }
 
-/// A number without trailing zeros.
-fn fmt_num(x: f64) -> String {
-    let s = format!("{x:.4}");
-    s.trim_end_matches('0').trim_end_matches('.').to_string()
-}
-
-/// Interpolate a toolpath into samples (module doc).
+/// Interpolate a toolpath into samples (module doc): the planner's two passes
+/// ([`planner`](self::planner)) over the moves in memory.
 pub fn interpolate(
     tp: &Toolpath,
     limits: &Limits,
     opts: &InterpolateOptions,
 ) -> Result<Trajectory, Error> {
     check_limits(limits, opts)?;
+    let cfg = Cfg::new(limits, opts);
     let ts = opts.ts;
-    let max = opts.max_samples;
-    let mut slowed = Slowed::default();
-    let mut pieces: Vec<Piece> = Vec::new();
-    let mut total: u64 = 0;
-    let push = |p: Piece, total: &mut u64, pieces: &mut Vec<Piece>| -> Result<(), Error> {
-        *total += p.n;
-        if *total + 1 > max as u64 {
-            return Err(Error::TooManySamples {
-                samples: (*total + 1) as f64,
-                max,
-                duration_s: *total as f64 * ts,
-            });
-        }
-        pieces.push(p);
-        Ok(())
-    };
-    let mut i = 0;
-    // Fine blocks before this move index run as exact stops (their chain was refused).
-    let mut not_exact_until = 0;
-    let mut warnings_early: Vec<Diagnostic> = Vec::new();
-    while i < tp.moves.len() {
-        let mv = &tp.moves[i];
-        if let MoveKind::Dwell { seconds } = mv.kind {
-            let n = samples_for(seconds, ts, max)?;
-            let p = Piece {
-                n,
-                lambda: 1.0,
-                segs: Vec::new(),
-                hold: mv.start,
-                dwell_move: Some(i),
-                tcp: mv.tcp,
-                exact: None,
-            };
-            push(p, &mut total, &mut pieces)?;
-            i += 1;
-            continue;
-        }
-        if i >= not_exact_until && fine_block(mv, ts) {
-            match time_exact_chain(tp, i, limits, opts)? {
-                Chain::Exact { piece, next } => {
-                    push(piece, &mut total, &mut pieces)?;
-                    i = next;
-                    continue;
-                }
-                Chain::Refused { next, warning } => {
-                    // Run these blocks as before (each an exact stop), and say why.
-                    warnings_early.push(warning);
-                    not_exact_until = next;
-                }
-            }
-        }
-        if continuous(mv) {
-            // Gather the chain.
-            let mut segs = Vec::new();
-            let mut deltas = Vec::new();
-            let mut j = i;
-            let mut basis = None;
-            while j < tp.moves.len() {
-                let m = &tp.moves[j];
-                if !continuous(m) || m.tcp != mv.tcp {
-                    break;
-                }
-                if let Some(seg) = segment(m, j, limits, opts)? {
-                    if basis.is_some_and(|b| b != seg.xyz_basis) {
-                        break;
-                    }
-                    basis = Some(seg.xyz_basis);
-                    slowed.feed(&seg, m);
-                    segs.push(seg);
-                    deltas.push(m.blend_tolerance_mm.unwrap_or(opts.junction_deviation));
-                }
-                j += 1;
-                if m.stop_after {
-                    break;
-                }
-            }
-            match segs.len() {
-                0 => {}
-                1 => {
-                    let seg = segs[0];
-                    push(single(seg, mv.tcp, None, ts, max)?, &mut total, &mut pieces)?;
-                }
-                _ => push(
-                    chain(segs, &deltas, mv.tcp, limits, ts, max)?,
-                    &mut total,
-                    &mut pieces,
-                )?,
-            }
-            i = j.max(i + 1);
-            continue;
-        }
-        if let Some(seg) = segment(mv, i, limits, opts)? {
-            let piece = exact_stop_piece(seg, mv, &mut slowed, ts, max)?;
-            push(piece, &mut total, &mut pieces)?;
-        }
-        i += 1;
+    let mut decisions = Decisions::default();
+    let mut first = Planner::new(&cfg, Mode::Plan(&mut decisions));
+    for m in &tp.moves {
+        first.push(m.clone())?;
     }
-    let mut warnings = warnings_early;
-    let slowdown = slowed.finish(&mut warnings);
-    let mut t = sample(tp, &pieces, total, opts, warnings)?;
-    t.slowdown = slowdown;
-    Ok(t)
-}
-
-/// Fill the sample arrays.
-fn sample(
-    tp: &Toolpath,
-    pieces: &[Piece],
-    total: u64,
-    opts: &InterpolateOptions,
-    warnings: Vec<Diagnostic>,
-) -> Result<Trajectory, Error> {
-    let ts = opts.ts;
-    let names = output_axes(opts, tp.axes_used);
-    let idx: Vec<usize> = names.iter().map(|a| a.index()).collect();
+    first.finish()?;
+    let mut warnings = std::mem::take(&mut first.warnings_early);
+    let slowdown = std::mem::take(&mut first.slowed).finish(&mut warnings);
+    let (total, cycle) = (first.total, first.cycle);
+    drop(first);
     let len = usize::try_from(total + 1).map_err(|_| Error::TooManySamples {
         samples: (total + 1) as f64,
         max: opts.max_samples,
         duration_s: total as f64 * ts,
     })?;
-    let mut axes: Vec<AxisTrack> = names
-        .iter()
-        .map(|&name| AxisTrack {
-            name,
-            pos: Vec::with_capacity(len),
-            vel: Vec::with_capacity(len),
-            acc: Vec::with_capacity(len),
-        })
-        .collect();
-    let mut tcp = Vec::with_capacity(len);
-    let mut blocks = Vec::with_capacity(tp.moves.len());
-    let emit = |p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], axes: &mut [AxisTrack]| {
-        for (track, &i) in axes.iter_mut().zip(&idx) {
-            track.pos.push(p[i]);
-            track.vel.push(v[i]);
-            track.acc.push(a[i]);
-        }
+    let names = output_axes(opts, tp.axes_used);
+    let mut out = Collector {
+        tp,
+        idx: names.iter().map(|a| a.index()).collect(),
+        traj: Trajectory {
+            ts,
+            axes: names
+                .iter()
+                .map(|&name| AxisTrack {
+                    name,
+                    pos: Vec::with_capacity(len),
+                    vel: Vec::with_capacity(len),
+                    acc: Vec::with_capacity(len),
+                })
+                .collect(),
+            tcp: Vec::with_capacity(len),
+            blocks: Vec::with_capacity(tp.moves.len()),
+            slowdown,
+            cycle,
+            warnings,
+        },
+        last_index: None,
     };
-    let zero = [0.0; 6];
-    let class = |mi: usize| {
-        tp.moves
-            .get(mi)
-            .map_or(MoveClass::Feed, |m| MoveClass::of(&m.kind))
-    };
-    let mut k0: u64 = 0;
-    for piece in pieces {
-        let t0 = k0 as f64 * ts;
-        let lam = piece.lambda;
-        // Samples k with t_start < t_k ≤ t_end belong to a span (BlockSpan::first_sample).
-        let base = k0 as usize;
-        let n = piece.n as usize;
-        if let Some(ex) = &piece.exact {
-            // Time-exact: the positions are the block end points; velocity and acceleration
-            // are their central differences, at rest before and after (time_exact_rates).
-            for (j, &mi) in ex.moves.iter().enumerate() {
-                blocks.push(BlockSpan {
-                    move_index: mi,
-                    line: tp.moves.get(mi).map_or(0, |m| m.line),
-                    class: class(mi),
-                    t_start_s: t0 + j as f64 * ts,
-                    t_end_s: t0 + (j + 1) as f64 * ts,
-                    first_sample: base + j + 1,
-                    end_sample: base + j + 2,
-                    tcp: piece.tcp,
-                });
-            }
-            let last = ex.points.len() - 1;
-            for j in 0..n {
-                let (a, b, c) = (
-                    &ex.points[j.saturating_sub(1)],
-                    &ex.points[j],
-                    &ex.points[(j + 1).min(last)],
-                );
-                let (v, acc) = central_rates(a, b, c, ts);
-                emit(b, &v, &acc, &mut axes);
-                tcp.push(piece.tcp);
-            }
-        } else if piece.segs.is_empty() {
-            if let Some(mi) = piece.dwell_move {
-                blocks.push(BlockSpan {
-                    move_index: mi,
-                    line: tp.moves.get(mi).map_or(0, |m| m.line),
-                    class: class(mi),
-                    t_start_s: t0,
-                    t_end_s: t0 + piece.n as f64 * ts,
-                    first_sample: base + 1,
-                    end_sample: base + n + 1,
-                    tcp: piece.tcp,
-                });
-            }
-            for _ in 0..piece.n {
-                emit(&piece.hold, &zero, &zero, &mut axes);
-                tcp.push(piece.tcp);
-            }
-        } else {
-            let last = piece.segs.len() - 1;
-            for (j, (seg, trap, tau0)) in piece.segs.iter().enumerate() {
-                let t_end = if j == last {
-                    t0 + piece.n as f64 * ts
-                } else {
-                    t0 + lam * (tau0 + trap.duration())
-                };
-                let (k_first, k_end) =
-                    chain_span(*tau0, trap.duration(), lam, n, ts, j == 0, j == last);
-                blocks.push(BlockSpan {
-                    move_index: seg.move_index,
-                    line: tp.moves.get(seg.move_index).map_or(0, |m| m.line),
-                    class: class(seg.move_index),
-                    t_start_s: t0 + lam * tau0,
-                    t_end_s: t_end,
-                    first_sample: base + k_first + 1,
-                    end_sample: base + k_end + 1,
-                    tcp: piece.tcp,
-                });
-            }
-            let mut cur = 0usize;
-            let (inv, inv2) = (1.0 / lam, 1.0 / (lam * lam));
-            for j in 0..piece.n {
-                let tau = j as f64 * ts * inv;
-                while cur < last && tau >= piece.segs[cur + 1].2 {
-                    cur += 1;
-                }
-                let (seg, trap, tau0) = &piece.segs[cur];
-                let (p, v, a) = eval_scaled(seg, trap, tau - tau0, inv, inv2);
-                emit(&p, &v, &a, &mut axes);
-                tcp.push(piece.tcp);
-            }
-        }
-        k0 += piece.n;
+    let mut second = Planner::new(
+        &cfg,
+        Mode::Sample {
+            decisions: &mut decisions,
+            out: &mut out,
+        },
+    );
+    for m in &tp.moves {
+        second.push(m.clone())?;
     }
-    // Final sample: at rest on the last programmed point.
-    let end = tp.moves.last().map_or(tp.start, |m| m.end);
-    emit(&end, &zero, &zero, &mut axes);
-    tcp.push(tp.moves.last().is_some_and(|m| m.tcp));
-    if let Some(first) = blocks.first_mut() {
-        first.first_sample = 0;
-    }
-    Ok(Trajectory {
-        ts,
-        axes,
-        tcp,
-        blocks,
-        slowdown: None,
-        warnings,
-    })
+    second.finish()?;
+    second.final_sample(tp.start);
+    drop(second);
+    Ok(out.traj)
 }
 
 #[cfg(test)]
 mod tests {
+    use super::profile::Trap;
     use super::*;
     use crate::{InterpOptions, load};
 
@@ -1566,60 +666,86 @@ mod tests {
     }
 
     #[test]
-    fn g64_corner_speed_follows_the_junction_deviation() {
-        // 90° corner: cos θ = 0, sin(θ/2) = √½, v_j² = A δ sin/(1 − sin) (grbl's rule).
-        let (a, delta) = (1000.0, 0.01);
-        let s = std::f64::consts::FRAC_1_SQRT_2;
-        let vj = (a * delta * s / (1.0 - s)).sqrt();
+    fn g64_corners_are_blended_within_the_tolerance_and_the_limits() {
+        // A 90° corner under G64 P0.01: the blend arc is tangent to both lines at
+        // d = T cos θ / (1 − sin θ) from the corner (θ = 45°), its radius R = d tan θ, and it
+        // leaves the corner by exactly T; on it the speed is capped by the centripetal share
+        // β a of the acceleration, v = √(β a R) (module doc of corner.rs).
+        let (a, tol) = (1000.0, 0.01);
+        let theta = std::f64::consts::FRAC_PI_4;
+        let d = theta.cos() * tol / (1.0 - theta.sin());
+        let r = d * theta.tan();
+        let v_arc = (0.5 * a * r).sqrt();
         let limits = Limits::uniform(500.0, a);
         let t = traj(
-            "G64 G0 X0 Y0\nG1 X10 F6000\nY10",
+            "G64 P0.01 G0 X0 Y0\nG1 X10 F6000\nY10",
             &limits,
             &InterpolateOptions::default(),
         )
         .unwrap();
-        let corner = t.blocks[0].t_end_s;
-        let k = (corner / t.ts).floor() as usize;
-        // The speed changes by at most A·Ts between samples around the corner.
-        for kk in [k, k + 1] {
-            assert!(
-                (speed(&t, kk) - vj).abs() <= a * t.ts + 1e-9,
-                "{} vs {vj}",
-                speed(&t, kk)
-            );
+        let (x, y) = (t.axis(AxisName::X).unwrap(), t.axis(AxisName::Y).unwrap());
+        let closest = (0..t.len())
+            .map(|k| (x.pos[k] - 10.0).hypot(y.pos[k]))
+            .fold(f64::INFINITY, f64::min);
+        // Samples 1 ms apart at ≈ 3.5 mm/s straddle the arc's middle within 2 µm.
+        assert!((closest - tol).abs() < 0.002, "{closest}");
+        let slowest = (1..t.len() - 1)
+            .filter(|&k| x.pos[k] > 9.9 && y.pos[k] < 0.1)
+            .map(|k| speed(&t, k))
+            .fold(f64::INFINITY, f64::min);
+        // The chain's rounding to whole samples slows it by λ ≥ 1 (a fraction of a sample over
+        // its 0.2 s).
+        assert!(
+            slowest <= v_arc * (1.0 + 1e-9) && slowest > v_arc / 1.01,
+            "{slowest} vs {v_arc}"
+        );
+        // No sample turns the corner at speed: the second differences stay within the limit.
+        for track in [x, y] {
+            for k in 1..t.len() - 1 {
+                let d2 = (track.pos[k + 1] - 2.0 * track.pos[k] + track.pos[k - 1]) / 1e-6;
+                assert!(d2.abs() <= a * (1.0 + 1e-9), "{} k {k}: {d2}", track.name);
+            }
         }
-        assert!(vj > 0.0);
     }
 
     #[test]
-    fn inverse_time_blocks_last_one_over_f() {
+    fn inverse_time_blocks_last_one_over_f_plus_their_ramps() {
+        // LinuxCNC's rule: a G93 block runs at L·F/60 along its path, so that it lasts 1/F
+        // plus its ramps: T = L/v + v/A (v reached), here under G61.1 (each block alone).
         let limits = Limits::uniform(100.0, 1000.0);
-        let src = "G0 X0\nG93 G1 X10 F60\nG1 X12 F120\nG1 X13 F600\nG3 X15 Y2 R2 F30";
+        let src = "G61.1 G0 X0\nG93 G1 X10 F60\nG1 X12 F120\nG1 X13 F600\nG3 X15 Y2 R2 F30";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
         let d: Vec<f64> = t.blocks.iter().map(|b| b.t_end_s - b.t_start_s).collect();
-        for (got, want) in d.iter().zip([1.0, 0.5, 0.1, 2.0]) {
-            assert!((got - want).abs() < 1e-12, "{d:?}");
+        let rounded = |x: f64| (x / 1e-3 - 1e-9).ceil() * 1e-3;
+        let arc = std::f64::consts::PI; // a quarter of a circle of radius 2
+        let want = [
+            rounded(1.0 + 10.0 / 1000.0),
+            rounded(0.5 + 4.0 / 1000.0),
+            rounded(0.1 + 10.0 / 1000.0),
+            // On the arc half the acceleration is tangential.
+            rounded(2.0 + (arc * 30.0 / 60.0) / 500.0),
+        ];
+        for (got, want) in d.iter().zip(want) {
+            assert!((got - want).abs() < 1e-12, "{d:?} vs {want}");
         }
         assert_eq!(t.axis(AxisName::X).unwrap().pos.last(), Some(&15.0));
-        // 100 mm in 0.1 s cannot be done at 100 mm/s: it runs at the limits (T* = 1.1 s),
-        // 11 times slower, with one summary warning naming the line.
-        let src = "G0 X0\nG93 G1 X100 F600\nG1 X0 F300\nG94 G1 X10 F60000";
+        // 100 mm in 0.1 s asks for 1000 mm/s: it runs at the 100 mm/s limit, 10 times slower,
+        // with one summary warning naming the line.
+        let src = "G61.1 G0 X0\nG93 G1 X100 F600\nG1 X0 F300\nG94 G1 X10 F60000";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
-        let d: Vec<f64> = t.blocks.iter().map(|b| b.t_end_s - b.t_start_s).collect();
-        assert!(
-            (d[0] - 1.1).abs() < 1e-12 && (d[1] - 1.1).abs() < 1e-12,
-            "{d:?}"
-        );
         assert_eq!(t.warnings.len(), 1);
         assert_eq!(t.warnings[0].line, 2);
         assert!(
-            t.warnings[0].message.starts_with("3 feed block(s)"),
+            t.warnings[0].message.starts_with("3 feed block(s)")
+                && t.warnings[0]
+                    .message
+                    .contains("inverse time F600 asks for 1000.000 mm/s"),
             "{}",
             t.warnings[0].message
         );
         let s = t.slowdown.unwrap();
         assert_eq!((s.blocks, s.worst_line), (3, 2));
-        assert!((s.worst_factor - 11.0).abs() < 1e-9);
+        assert!((s.worst_factor - 10.0).abs() < 1e-9);
         // Within the limits: no warning.
         let t = traj(
             "G0 X0\nG1 X10 F600",
@@ -1668,6 +794,31 @@ mod tests {
         let k = (t.blocks[0].t_end_s / t.ts).round() as usize;
         assert_eq!(t.span_at(k).unwrap().class, MoveClass::Rapid);
         assert_eq!(t.span_at(k + 1).unwrap().class, MoveClass::Feed);
+    }
+
+    #[test]
+    fn the_cycle_time_splits_into_feeds_rapids_and_dwells() {
+        // Truth: the spans' durations summed by class (a rapid, a G64 chain of feeds, a dwell,
+        // a G61.1 feed, then a rapid chain under G64).
+        let limits = Limits::uniform(100.0, 1000.0);
+        let src = "G0 X5\nG64 G1 X6 F600\nY3\nG4 P0.1\nG61.1 G1 X8\nG64 G0 X20\nY30 Z5";
+        let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
+        let mut by = [0.0f64; 3];
+        for b in &t.blocks {
+            let i = match b.class {
+                MoveClass::Feed => 0,
+                MoveClass::Rapid => 1,
+                MoveClass::Dwell => 2,
+            };
+            by[i] += b.t_end_s - b.t_start_s;
+        }
+        let c = t.cycle;
+        assert!((c.total_s - t.duration_s()).abs() < 1e-12);
+        assert!((c.feed_s + c.rapid_s + c.dwell_s - c.total_s).abs() < 1e-12);
+        for (got, want) in [c.feed_s, c.rapid_s, c.dwell_s].iter().zip(by) {
+            assert!((got - want).abs() < 1e-9, "{c:?} vs {by:?}");
+        }
+        assert!((c.dwell_s - 0.1).abs() < 1e-12 && c.rapid_s > 0.0 && c.feed_s > 0.0);
     }
 
     #[test]
@@ -1724,6 +875,7 @@ mod tests {
         limits.axes[3] = AxisLimits {
             max_vel: 1000.0,
             max_acc: 1.0e5,
+            max_jerk: f64::INFINITY,
         };
         limits.axes[5] = limits.axes[3];
         let src = "G0 X0 Y0 Z0 A0 C0\nG43.4\nG1 X30 Y40 A10 C20 F60000";
@@ -1791,13 +943,13 @@ mod tests {
     #[test]
     fn fine_blocks_too_fast_for_the_limits_run_as_exact_stops_with_a_warning() {
         // 1 mm in 1 ms is 1000 mm/s, twice the 500 mm/s limit: the chain is refused, every block
-        // runs as the G93 exact stop it was before (the same trajectory as under G61), and one
-        // warning names the block.
+        // runs as an exact stop (the same trajectory as under G61.1), and one warning names the
+        // block.
         let limits = Limits::uniform(500.0, 5000.0);
         let src = "G0 X0\nG93 G64\nG1 X0.1 F60000\nG1 X1.1 F60000\nG1 X1.2 F60000\n";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
         let g61 = traj(
-            &src.replace("G64", "G61"),
+            &src.replace("G64", "G61.1"),
             &limits,
             &InterpolateOptions::default(),
         )
@@ -1815,7 +967,8 @@ mod tests {
 
     #[test]
     fn longer_inverse_time_blocks_under_g64_are_not_set_points() {
-        // 1/F = 2 ms is not one sample period: the blocks keep their exact-stop trapezoids.
+        // 1/F = 2 ms is not one sample period: the blocks run as ordinary moves at L·F/60, a
+        // chain through their collinear junction, as under G61 (exact path).
         let limits = Limits::uniform(500.0, 5000.0);
         let src = "G0 X0\nG93 G64\nG1 X0.001 F30000\nG1 X0.002 F30000\n";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();

@@ -39,13 +39,13 @@ pub use generate::{
     spiral_points, tcp_program,
 };
 pub use interp::{
-    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, Plane, ProgramRead, StartPosition,
-    Toolpath, interpret,
+    ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, PathMode, Plane, ProgramRead,
+    StartPosition, Toolpath, interpret,
 };
 pub use interpolate::stream::{ProgramSource, SampleChunk, StreamOptions, StreamPlan, plan};
 pub use interpolate::{
-    AxisLimits, AxisTrack, BlockSpan, InterpolateOptions, Limits, MoveClass, Slowdown, Trajectory,
-    interpolate,
+    AxisLimits, AxisTrack, BlockSpan, CycleTime, InterpolateOptions, Limits, MoveClass,
+    PlannerRules, Profile, Slowdown, Trajectory, interpolate,
 };
 pub use syntax::{
     Assignment, BinOp, Block, ChunkParser, Comment, CommentKind, Expr, ExprId, ExprKind, Func,
@@ -89,6 +89,9 @@ pub enum Error {
         /// What is accepted.
         expected: &'static str,
     },
+    /// The jerk-limited profile was asked for without a jerk limit on any axis.
+    #[error("the jerk-limited profile needs a jerk limit (max_jerk) on the axes; none is given")]
+    NoJerkLimit,
     /// A move needs an axis whose limit is zero.
     #[error("line {line}: {} must move but its {what} limit is 0", axis_label(*.axis))]
     AxisCannotMove {
@@ -169,6 +172,7 @@ impl Error {
             Error::Program { .. }
             | Error::InvalidLimit { .. }
             | Error::InvalidOption { .. }
+            | Error::NoJerkLimit
             | Error::AxisCannotMove { .. }
             | Error::TooManySamples { .. }
             | Error::NonFinite { .. }

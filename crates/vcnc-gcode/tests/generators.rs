@@ -42,7 +42,7 @@ fn identification_takes_20_to_60_s_and_reverses_30_times() {
         assert_eq!(run.toolpath.moves.len(), 70);
         assert_eq!(run.toolpath.start, [0.0; 6]);
         assert!(pts.iter().all(|p| p[0].abs() <= 50.0));
-        assert!(run.toolpath.moves.iter().all(|m| m.exact_stop));
+        assert!(run.toolpath.moves.iter().all(|m| m.path.is_exact_stop()));
         // Feeds up to 250 mm/s (F15000), read from the program's F words (the interpolator
         // would cap any faster feed at the 250 mm/s limit, so the trajectory alone cannot
         // show it), and the trajectory within the limit.
@@ -160,7 +160,7 @@ fn spiral_geometry_matches_spec_section_6() {
 }
 
 #[test]
-fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
+fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s_without_dips() {
     let pts = spiral_points(&SpiralOptions::default()).unwrap();
     let text = tcp_program(&angles(&pts), &TcpProgramOptions::default()).unwrap();
     let mut limits = Limits::uniform(250.0, 2500.0);
@@ -182,7 +182,7 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
     };
     let run = load(&text, &opts, &limits, &InterpolateOptions::default()).unwrap();
     let tp = &run.toolpath;
-    assert!(tp.moves.iter().all(|m| m.tcp && !m.exact_stop));
+    assert!(tp.moves.iter().all(|m| m.tcp && !m.path.is_exact_stop()));
     assert!(tp.moves.iter().all(|m| matches!(m.kind, MoveKind::Linear)));
     let l: f64 = tp
         .moves
@@ -192,15 +192,14 @@ fn spiral_program_runs_as_one_trapezoid_in_about_10_1_s() {
             (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
         })
         .sum();
-    // One trapezoid over the whole path: T = L/V + V/A, rounded up to the 1 ms sample.
+    // One trapezoid over the whole path: T = L/V + V/A, rounded up to the 1 ms sample; the
+    // corner blends of plain G64 (arcs within a quarter of a segment, tangent to both) take a
+    // little of the tip's acceleration sideways where the ramps run over them, a few ms.
     let t_star = l / 75.0 + 75.0 / 1500.0;
     let t = run.trajectory.duration_s();
     println!("spiral: L = {l:.3} mm, T = {t:.4} s (one trapezoid: {t_star:.4} s)");
     assert!((l - 755.0).abs() < 5.0);
-    assert!(
-        t >= t_star - 1e-9 && t < t_star + 0.001 + 1e-9,
-        "{t} vs {t_star}"
-    );
+    assert!(t >= t_star - 1e-9 && t < t_star + 0.005, "{t} vs {t_star}");
     assert!((t - 10.1).abs() < 0.1);
     // Tip speed: 75 mm/s cruise from 0.05 s to T − 0.05 s, no dips.
     let v = |k: usize| {

@@ -7,8 +7,8 @@
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use vcnc_gcode::{
-    Block, CommentKind, Diagnostic, Feed, InterpOptions, MoveKind, ParseOptions, interpret,
-    parse_with,
+    Block, CommentKind, Diagnostic, Feed, InterpOptions, MoveKind, ParseOptions, PathMode,
+    interpret, parse_with,
 };
 
 fn corpus_dir() -> PathBuf {
@@ -118,7 +118,18 @@ fn snapshot(name: &str, src: &str, lenient: bool) -> (String, bool) {
                     m.line,
                     m.col,
                     m.end,
-                    if m.exact_stop { " G61" } else { " G64" },
+                    match m.path {
+                        PathMode::ExactStop => " G61.1".to_string(),
+                        PathMode::ExactPath => " G61".to_string(),
+                        PathMode::Blend {
+                            tolerance_mm,
+                            merge_mm,
+                        } => format!(
+                            " G64{}{}",
+                            tolerance_mm.map_or(String::new(), |p| format!(" P{p}")),
+                            merge_mm.map_or(String::new(), |q| format!(" Q{q}"))
+                        ),
+                    },
                     if m.tcp { " TCP" } else { "" }
                 );
             }

@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use std::fmt::Write;
 use vcnc_gcode::{
     AxisName, Feed, InterpOptions, InterpolateOptions, Limits, Move, MoveKind, ParseOptions,
-    Trajectory, interpolate, interpret, load, parse_bytes, parse_with,
+    PlannerRules, Profile, Trajectory, interpolate, interpret, load, parse_bytes, parse_with,
 };
 
 #[derive(Debug, Clone)]
@@ -34,7 +34,8 @@ enum Op {
         minutes: f64,
     },
     Dwell(f64),
-    PathMode(bool),
+    /// 0: G61.1, 1: G61, 2: G64, 3: G64 P0.05, 4: G64 P0.02 Q0.01.
+    PathMode(u8),
     Tcp(bool),
 }
 
@@ -58,27 +59,66 @@ fn op() -> impl Strategy<Value = Op> {
             .prop_map(|(ccw, r, phi0, sweep, dz, feed)| Op::Arc { ccw, r, phi0, sweep, dz, feed }),
         1 => (disp(), 0.005f64..0.05).prop_map(|(d, minutes)| Op::InverseTime { d, minutes }),
         1 => (0.0f64..0.3).prop_map(Op::Dwell),
-        2 => any::<bool>().prop_map(Op::PathMode),
+        2 => (0u8..5).prop_map(Op::PathMode),
         1 => any::<bool>().prop_map(Op::Tcp),
     ]
 }
 
 fn limits() -> impl Strategy<Value = Limits> {
     (
-        prop::array::uniform6((20.0f64..500.0, 200.0f64..20000.0)),
+        prop::array::uniform6((20.0f64..500.0, 200.0f64..20000.0, 5.0f64..200.0)),
         20.0f64..500.0,
         200.0f64..20000.0,
+        5.0f64..200.0,
     )
-        .prop_map(|(axes, tv, ta)| {
+        .prop_map(|(axes, tv, ta, tj)| {
             let mut l = Limits::uniform(1.0, 1.0);
-            for (i, (v, a)) in axes.iter().enumerate() {
+            for (i, (v, a, j)) in axes.iter().enumerate() {
                 l.axes[i].max_vel = *v;
                 l.axes[i].max_acc = *a;
+                // The jerk limit: 5 to 200 times the acceleration limit, per second.
+                l.axes[i].max_jerk = a * j;
             }
             l.tcp_max_vel = tv;
             l.tcp_max_acc = ta;
+            l.tcp_max_jerk = ta * tj;
             l
         })
+}
+
+/// The third differences of the sampled positions within the jerk limits (jerk-limited
+/// profile), per axis and for the tool tip in TCP spans.
+fn check_jerk(t: &Trajectory, limits: &Limits) -> Result<(), TestCaseError> {
+    let ts3 = t.ts * t.ts * t.ts;
+    let noise = 1e-11 / ts3;
+    for k in 1..t.len().saturating_sub(2) {
+        let d3 = |i: usize| {
+            let p = &t.axes[i].pos;
+            (p[k + 2] - 3.0 * p[k + 1] + 3.0 * p[k] - p[k - 1]) / ts3
+        };
+        let tcp = t.tcp[k - 1] || t.tcp[k] || t.tcp[k + 1] || t.tcp[k + 2];
+        let all_tcp = t.tcp[k - 1] && t.tcp[k] && t.tcp[k + 1] && t.tcp[k + 2];
+        for (i, a) in t.axes.iter().enumerate() {
+            if tcp && i < 3 {
+                continue;
+            }
+            let j = limits.axes[i].max_jerk;
+            prop_assert!(
+                d3(i).abs() <= j * (1.0 + 1e-6) + noise,
+                "{} jerk {} > {j} at k {k}",
+                a.name,
+                d3(i)
+            );
+        }
+        if all_tcp {
+            let j = (0..3).map(|i| d3(i).powi(2)).sum::<f64>().sqrt();
+            prop_assert!(
+                j <= limits.tcp_max_jerk * (1.0 + 1e-6) + noise,
+                "tip jerk {j} at k {k}"
+            );
+        }
+    }
+    Ok(())
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -102,7 +142,7 @@ fn render(ops: &[Op], style: Style) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{} G90 G17 G94 G61",
+        "{} G90 G17 G94 G61.1",
         if style == Style::Inch { "G20" } else { "G21" }
     );
     let mut first = String::from("G0");
@@ -183,8 +223,14 @@ fn render(ops: &[Op], style: Style) -> String {
             Op::Dwell(p) => {
                 let _ = writeln!(out, "G4 P{p}");
             }
-            Op::PathMode(g64) => {
-                let _ = writeln!(out, "{}", if *g64 { "G64" } else { "G61" });
+            Op::PathMode(m) => {
+                let code = ["G61.1", "G61", "G64", "G64 P0.05", "G64 P0.02 Q0.01"][*m as usize];
+                let tol = |x: f64| format!("{}", len(x));
+                let code = code
+                    .replace("0.05", &tol(0.05))
+                    .replace("0.02", &tol(0.02))
+                    .replace("0.01", &tol(0.01));
+                let _ = writeln!(out, "{code}");
             }
             Op::Tcp(on) => {
                 let _ = writeln!(out, "{}", if *on { "G43.4" } else { "G49" });
@@ -202,10 +248,18 @@ fn all_axes() -> InterpolateOptions {
     }
 }
 
-fn continuous(m: &Move) -> bool {
-    !m.exact_stop
-        && matches!(m.feed, Some(Feed::UnitsPerMin(_)))
-        && matches!(m.kind, MoveKind::Linear | MoveKind::Arc(_))
+/// The machine must be at rest after `m` when `next` follows (docs/gcode.md, "Path modes"): a
+/// `G61.1` block, a stop, the end, a dwell next, a change between rapids and feeds, of TCP
+/// mode or of the kind of path parameter. (`G61` and `G64` may stop at corners too.)
+fn rests(m: &Move, next: Option<&Move>) -> bool {
+    m.path.is_exact_stop()
+        || m.stop_after
+        || next.is_none_or(|n| {
+            matches!(n.kind, MoveKind::Dwell { .. })
+                || n.tcp != m.tcp
+                || (n.kind == MoveKind::Rapid) != (m.kind == MoveKind::Rapid)
+                || xyz_basis(n) != xyz_basis(m)
+        })
 }
 
 fn xyz_basis(m: &Move) -> bool {
@@ -221,7 +275,9 @@ fn t_star_line(m: &Move, limits: &Limits) -> f64 {
     let l = if xyz > 0.0 { xyz } else { rot };
     let mut v = match m.feed {
         Some(Feed::UnitsPerMin(f)) => f / 60.0,
-        _ => f64::INFINITY,
+        // LinuxCNC's inverse-time rule: the block's length in 1/F.
+        Some(Feed::InverseTime(f)) => l * f / 60.0,
+        None => f64::INFINITY,
     };
     let mut a = f64::INFINITY;
     for (i, &di) in d.iter().enumerate() {
@@ -248,6 +304,33 @@ fn rounded(t: f64, ts: f64) -> f64 {
 
 fn check_limits(t: &Trajectory, limits: &Limits) -> Result<(), TestCaseError> {
     let tol = 1.0 + 1e-9;
+    // The second differences of the sampled positions too: no corner is taken at speed.
+    let ts2 = t.ts * t.ts;
+    for k in 1..t.len().saturating_sub(1) {
+        let d2 =
+            |i: usize| (t.axes[i].pos[k + 1] - 2.0 * t.axes[i].pos[k] + t.axes[i].pos[k - 1]) / ts2;
+        // Round-off of positions up to ~100 units over Ts².
+        let noise = 1e-12 / ts2;
+        for (i, a) in t.axes.iter().enumerate() {
+            if t.tcp[k] && i < 3 {
+                continue;
+            }
+            prop_assert!(
+                d2(i).abs() <= limits.axes[i].max_acc * tol + noise,
+                "{} second difference {} > {} at k {k}",
+                a.name,
+                d2(i),
+                limits.axes[i].max_acc
+            );
+        }
+        if t.tcp[k] && t.tcp[k - 1] && t.tcp[k + 1] {
+            let a = (0..3).map(|i| d2(i).powi(2)).sum::<f64>().sqrt();
+            prop_assert!(
+                a <= limits.tcp_max_acc * tol + noise,
+                "tip second difference {a} at k {k}"
+            );
+        }
+    }
     for k in 0..t.len() {
         for (i, a) in t.axes.iter().enumerate() {
             if t.tcp[k] && i < 3 {
@@ -326,10 +409,8 @@ proptest! {
         for (j, b) in t.blocks.iter().enumerate() {
             let m = &moves[b.move_index];
             let next = t.blocks.get(j + 1).map(|n| &moves[n.move_index]);
-            let rests = !continuous(m)
-                || m.stop_after
-                || next.is_none_or(|n| !continuous(n) || n.tcp != m.tcp || xyz_basis(n) != xyz_basis(m));
-            if rests {
+            let prev = j.checked_sub(1).map(|p| &moves[t.blocks[p].move_index]);
+            if rests(m, next) {
                 // Ends exactly on a sample, at rest, on the programmed point.
                 let kf = b.t_end_s / ts;
                 let k = kf.round() as usize;
@@ -341,11 +422,10 @@ proptest! {
             }
             let dur = b.t_end_s - b.t_start_s;
             let straight = matches!(m.kind, MoveKind::Linear | MoveKind::Rapid);
-            if straight && (m.exact_stop || m.kind == MoveKind::Rapid) {
-                let expected = match m.feed {
-                    Some(Feed::InverseTime(f)) => rounded((60.0 / f).max(t_star_line(m, &limits)), ts),
-                    _ => rounded(t_star_line(m, &limits), ts),
-                };
+            // A block on its own: it rests at both ends.
+            let alone = rests(m, next) && prev.is_none_or(|p| rests(p, Some(m)));
+            if straight && alone {
+                let expected = rounded(t_star_line(m, &limits), ts);
                 prop_assert!((dur - expected).abs() < 1e-9, "line {}: {dur} vs {expected}", m.line);
             }
             if let MoveKind::Dwell { seconds } = m.kind {
@@ -366,6 +446,35 @@ proptest! {
                     step <= 0.5 * acc * ts * ts * (1.0 + 1e-6) + 1e-12,
                     "axis {}: last step {step} jumps onto the end point", a.name
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn every_profile_and_rule_set_keeps_the_samples_within_the_limits(
+        ops in prop::collection::vec(op(), 1..10),
+        limits in limits(),
+    ) {
+        // Jerk-limited (vcnc's and LinuxCNC's rules) and trapezoidal under LinuxCNC 2.9's
+        // rules: velocities, accelerations and second differences within the limits, third
+        // differences within the jerk limits under the jerk-limited profile.
+        let src = render(&ops, Style::Absolute);
+        for (profile, planner) in [
+            (Profile::JerkLimited, PlannerRules::Vcnc),
+            (Profile::Trapezoidal, PlannerRules::LinuxCnc29),
+            (Profile::JerkLimited, PlannerRules::LinuxCnc29),
+        ] {
+            let opts = InterpolateOptions { profile, planner, ..all_axes() };
+            let run = load(&src, &InterpOptions::default(), &limits, &opts)
+                .map_err(|e| TestCaseError::fail(format!("{e}\n{src}")))?;
+            let t = &run.trajectory;
+            check_limits(t, &limits)?;
+            if profile == Profile::JerkLimited {
+                check_jerk(t, &limits)?;
+            }
+            let last = run.toolpath.points().last().copied().unwrap_or(run.toolpath.start);
+            for (i, a) in t.axes.iter().enumerate() {
+                prop_assert_eq!(a.pos.last().copied(), Some(last[i]));
             }
         }
     }

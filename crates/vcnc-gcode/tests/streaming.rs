@@ -7,8 +7,8 @@
 use proptest::prelude::*;
 use std::fmt::Write;
 use vcnc_gcode::{
-    AxisName, Error, InterpOptions, InterpolateOptions, Limits, MoveClass, SampleChunk,
-    StreamOptions, TcpProgramOptions, load, plan,
+    AxisName, Error, InterpOptions, InterpolateOptions, Limits, MoveClass, PlannerRules, Profile,
+    SampleChunk, StreamOptions, TcpProgramOptions, load, plan,
 };
 
 /// Everything a streamed run hands over, gathered.
@@ -112,10 +112,26 @@ fn same(src: &str, interp: &InterpOptions, limits: &Limits, opts: &InterpolateOp
         assert_eq!(g.class, classes, "per-sample classes");
         assert_eq!(p.warnings, whole.warnings, "warnings");
         assert_eq!(p.slowdown, t.slowdown, "slowdown");
+        assert_eq!(p.cycle, t.cycle, "cycle time");
         assert_eq!(p.start, whole.toolpath.start);
         assert_eq!(p.axes_used, whole.toolpath.axes_used);
         assert_eq!(p.moves, whole.toolpath.moves.len());
     }
+}
+
+/// vcnc's rules (trapezoidal and jerk-limited) and LinuxCNC 2.9's.
+fn option_sets() -> [InterpolateOptions; 3] {
+    [
+        InterpolateOptions::default(),
+        InterpolateOptions {
+            profile: Profile::JerkLimited,
+            ..InterpolateOptions::default()
+        },
+        InterpolateOptions {
+            planner: PlannerRules::LinuxCnc29,
+            ..InterpolateOptions::default()
+        },
+    ]
 }
 
 fn nmv_like() -> Limits {
@@ -126,6 +142,10 @@ fn nmv_like() -> Limits {
     }
     l.tcp_max_vel = 250.0;
     l.tcp_max_acc = 2500.0;
+    for a in &mut l.axes {
+        a.max_jerk = 50.0 * a.max_acc;
+    }
+    l.tcp_max_jerk = 50.0 * l.tcp_max_acc;
     l
 }
 
@@ -144,12 +164,9 @@ fn the_spiral_and_the_identification_program_stream_bit_for_bit() {
         "/../../gcode/spiral.ngc"
     ))
     .unwrap();
-    same(
-        &spiral,
-        &tcp_opts(),
-        &nmv_like(),
-        &InterpolateOptions::default(),
-    );
+    for opts in option_sets() {
+        same(&spiral, &tcp_opts(), &nmv_like(), &opts);
+    }
     let ident = vcnc_gcode::identification(AxisName::X, &Default::default()).unwrap();
     same(
         &ident,
@@ -219,12 +236,9 @@ fn long_tcp(n: usize, feed: f64) -> String {
 #[test]
 fn a_long_tcp_program_streams_bit_for_bit_with_a_short_look_ahead() {
     let src = long_tcp(6000, 3000.0);
-    same(
-        &src,
-        &tcp_opts(),
-        &nmv_like(),
-        &InterpolateOptions::default(),
-    );
+    for opts in option_sets() {
+        same(&src, &tcp_opts(), &nmv_like(), &opts);
+    }
     let p = plan(
         src.as_str(),
         &tcp_opts(),
@@ -267,12 +281,14 @@ fn a_long_chain_with_sharp_corners_anywhere_streams_bit_for_bit() {
         let _ = writeln!(src, "X{x:.4} Y{y:.4} Z{z:.4}");
     }
     src.push_str("M2\n");
-    same(
-        &src,
-        &InterpOptions::default(),
-        &Limits::uniform(250.0, 2500.0),
-        &InterpolateOptions::default(),
-    );
+    for opts in option_sets() {
+        same(
+            &src,
+            &InterpOptions::default(),
+            &Limits::uniform_with_jerk(250.0, 2500.0, 100_000.0),
+            &opts,
+        );
+    }
 }
 
 /// Fine blocks (G93 G64, 1/F = Ts): accepted as set-points, then a chain too fast for the limits
@@ -702,7 +718,8 @@ enum Op {
         feed: f64,
     },
     Dwell(f64),
-    PathMode(bool),
+    /// 0: G61.1, 1: G61, 2: G64, 3: G64 P0.05, 4: G64 P0.02 Q0.01.
+    PathMode(u8),
     InverseTime {
         d: [f64; 6],
         minutes: f64,
@@ -728,7 +745,7 @@ fn op() -> impl Strategy<Value = Op> {
         2 => (any::<bool>(), 1.0f64..20.0, 0.1f64..6.0, 5.0f64..250.0)
             .prop_map(|(ccw, r, sweep, feed)| Op::Arc { ccw, r, sweep, feed }),
         1 => (0.0f64..0.05).prop_map(Op::Dwell),
-        3 => any::<bool>().prop_map(Op::PathMode),
+        3 => (0u8..5).prop_map(Op::PathMode),
         1 => (disp(), 0.001f64..0.02).prop_map(|(d, minutes)| Op::InverseTime { d, minutes }),
         1 => (1usize..40).prop_map(Op::Fine),
     ]
@@ -737,7 +754,7 @@ fn op() -> impl Strategy<Value = Op> {
 fn render(ops: &[Op]) -> String {
     let names = ['X', 'Y', 'Z', 'A', 'B', 'C'];
     let mut pos = [0.0f64; 6];
-    let mut out = String::from("G21 G90 G17 G94 G61\n");
+    let mut out = String::from("G21 G90 G17 G94 G61.1\n");
     let words = |out: &mut String, new: &[f64; 6], pos: &[f64; 6]| {
         for i in 0..6 {
             if new[i] != pos[i] {
@@ -779,8 +796,9 @@ fn render(ops: &[Op]) -> String {
             Op::Dwell(p) => {
                 let _ = writeln!(out, "G4 P{p:.3}");
             }
-            Op::PathMode(g64) => {
-                let _ = writeln!(out, "{}", if *g64 { "G64" } else { "G61" });
+            Op::PathMode(m) => {
+                let code = ["G61.1", "G61", "G64", "G64 P0.05", "G64 P0.02 Q0.01"][*m as usize];
+                let _ = writeln!(out, "{code}");
             }
             Op::InverseTime { d, minutes } => {
                 let new: [f64; 6] = std::array::from_fn(|i| pos[i] + d[i]);
@@ -810,6 +828,9 @@ proptest! {
     #[test]
     fn random_programs_stream_bit_for_bit(ops in prop::collection::vec(op(), 1..40)) {
         let src = render(&ops);
-        same(&src, &InterpOptions::default(), &Limits::uniform(150.0, 1500.0), &InterpolateOptions::default());
+        let limits = Limits::uniform_with_jerk(150.0, 1500.0, 60_000.0);
+        for opts in option_sets() {
+            same(&src, &InterpOptions::default(), &limits, &opts);
+        }
     }
 }

@@ -85,7 +85,8 @@ fn default_branch() -> i8 {
     -1
 }
 
-/// `[trajectory]`: limits of the tool-tip path in TCP mode (LinuxCNC `[TRAJ]`).
+/// `[trajectory]`: limits of the tool-tip path in TCP mode (LinuxCNC `[TRAJ]`) and how the
+/// interpolator plans (docs/gcode.md, "Interpolation").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrajectoryFile {
@@ -93,9 +94,18 @@ pub struct TrajectoryFile {
     pub max_linear_velocity: f64,
     /// Tool-tip path acceleration limit, mm/s². Default 1500 (docs/contour.md).
     pub max_linear_acceleration: f64,
-    /// Junction deviation of the G64 corner rule, mm. Default: the interpolator's.
+    /// Tool-tip path jerk limit, mm/s³ (needed with `profile = "jerk-limited"` on a machine
+    /// with `[kinematics]`). Default: none.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub junction_deviation: Option<f64>,
+    pub max_linear_jerk: Option<f64>,
+    /// Blend tolerance of a plain `G64` (no `P`), mm. Default: LinuxCNC 2.9's rule, a quarter
+    /// of the shorter block's length. (`junction_deviation`, its earlier name, is read too.)
+    #[serde(alias = "junction_deviation", skip_serializing_if = "Option::is_none")]
+    pub blend_tolerance: Option<f64>,
+    /// Speed profile: `"trapezoidal"` (default) or `"jerk-limited"`.
+    pub profile: ProfileFile,
+    /// Planner rules: `"vcnc"` (default) or `"linuxcnc-2.9"` (LinuxCNC 2.9's planner).
+    pub planner: PlannerFile,
 }
 
 impl Default for TrajectoryFile {
@@ -103,9 +113,35 @@ impl Default for TrajectoryFile {
         TrajectoryFile {
             max_linear_velocity: 250.0,
             max_linear_acceleration: 1500.0,
-            junction_deviation: None,
+            max_linear_jerk: None,
+            blend_tolerance: None,
+            profile: ProfileFile::default(),
+            planner: PlannerFile::default(),
         }
     }
+}
+
+/// `trajectory.profile`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProfileFile {
+    /// Acceleration-limited trapezoids.
+    #[default]
+    Trapezoidal,
+    /// Jerk-limited (needs every axis' `max_jerk`).
+    JerkLimited,
+}
+
+/// `trajectory.planner`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum PlannerFile {
+    /// vcnc's rules.
+    #[default]
+    #[serde(rename = "vcnc")]
+    Vcnc,
+    /// LinuxCNC 2.9's trajectory planner.
+    #[serde(rename = "linuxcnc-2.9")]
+    LinuxCnc29,
 }
 
 /// `[gcode]`: dialect settings.
@@ -116,6 +152,11 @@ pub struct GcodeFile {
     pub tcp_on_mcodes: Vec<u32>,
     /// M-codes that switch tool-centre-point mode off (e.g. M429).
     pub tcp_off_mcodes: Vec<u32>,
+    /// The path mode before the program sets one (the control's start-up code): `"G61.1"`
+    /// (default), `"G61"`, `"G64"`, `"G64 P<mm> [Q<mm>]"`. LinuxCNC 2.9 starts in a plain `G64`
+    /// unless its INI file's start-up code names a mode.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub startup_path_mode: Option<String>,
 }
 
 /// `[identification]`: the identification program and the identifier.
@@ -176,6 +217,9 @@ pub struct AxisFile {
     pub max_velocity: f64,
     /// Acceleration limit, units/s².
     pub max_acceleration: f64,
+    /// Jerk limit, units/s³ (needed with `trajectory.profile = "jerk-limited"`). Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_jerk: Option<f64>,
     /// Mechanics and amplifier.
     pub plant: Plant,
     /// Controller gains, or desired poles to design them.

@@ -20,8 +20,8 @@ mod options_file;
 mod sweep;
 
 pub use file::{
-    AxisFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, ProgramFile,
-    TrajectoryFile, Unit,
+    AxisFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile, ProfileFile,
+    ProgramFile, TrajectoryFile, Unit,
 };
 pub use locate::{LineCol, line_col, locate_key};
 pub use machine::{AcAxes, Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};

@@ -11,14 +11,20 @@ use std::path::{Path, PathBuf};
 
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
-use vcnc_gcode::{AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits};
+use vcnc_gcode::{
+    AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits, PathMode,
+    PlannerRules, Profile,
+};
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
     Axes, AxisLimits as Travels, Branch, IkOptions, KinematicChain, Pose, TableTiltingAc, Track,
     Travel,
 };
 
-use crate::file::{AxisFile, IdentificationFile, KinematicsFile, MachineFile, ProgramFile};
+use crate::file::{
+    AxisFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile, ProfileFile,
+    ProgramFile, TrajectoryFile,
+};
 use crate::locate::{error_offset, line_col, locate_key};
 use crate::options_file::OptionsFile;
 use crate::{Error, embedded};
@@ -36,6 +42,8 @@ pub struct Axis {
     pub max_velocity: f64,
     /// Acceleration limit, units/s².
     pub max_acceleration: f64,
+    /// Jerk limit, units/s³ (`None`: none).
+    pub max_jerk: Option<f64>,
     /// The true drive (validated: stable, gains resolved).
     pub drive: Drive,
     /// Half-range of this axis' identification moves, axis units.
@@ -216,10 +224,18 @@ pub struct Machine {
     pub tcp_max_vel: f64,
     /// Tool-tip path acceleration limit, mm/s².
     pub tcp_max_acc: f64,
-    /// Junction deviation override, mm.
-    pub junction_deviation: Option<f64>,
+    /// Tool-tip path jerk limit, mm/s³ (`None`: none).
+    pub tcp_max_jerk: Option<f64>,
+    /// Blend tolerance of a plain `G64`, mm (`None`: LinuxCNC 2.9's rule).
+    pub blend_tolerance: Option<f64>,
+    /// Speed profile.
+    pub profile: Profile,
+    /// Planner rules.
+    pub planner: PlannerRules,
     /// M-codes switching TCP on / off.
     pub tcp_mcodes: (Vec<u32>, Vec<u32>),
+    /// The path mode before the program sets one.
+    pub startup_path_mode: PathMode,
     /// Identification program and identifier settings.
     pub identification: IdentificationSettings,
 }
@@ -367,17 +383,20 @@ impl Machine {
         let mut axes = [GcodeAxisLimits {
             max_vel: 0.0,
             max_acc: 0.0,
+            max_jerk: f64::INFINITY,
         }; 6];
         for a in &self.axes {
             axes[a.name.index()] = GcodeAxisLimits {
                 max_vel: a.max_velocity,
                 max_acc: a.max_acceleration,
+                max_jerk: a.max_jerk.unwrap_or(f64::INFINITY),
             };
         }
         Limits {
             axes,
             tcp_max_vel: self.tcp_max_vel,
             tcp_max_acc: self.tcp_max_acc,
+            tcp_max_jerk: self.tcp_max_jerk.unwrap_or(f64::INFINITY),
         }
     }
 
@@ -402,21 +421,21 @@ impl Machine {
             start: vcnc_gcode::StartPosition::Machine(self.start_position()),
             tcp_on_mcodes: self.tcp_mcodes.0.clone(),
             tcp_off_mcodes: self.tcp_mcodes.1.clone(),
+            path_mode: self.startup_path_mode,
             ..InterpOptions::default()
         }
     }
 
     /// Interpolation options (sample period, this machine's axes).
     pub fn interpolate_options(&self) -> InterpolateOptions {
-        let mut o = InterpolateOptions {
+        InterpolateOptions {
             ts: self.ts,
             axes: Some(self.axis_names()),
+            blend_tolerance: self.blend_tolerance,
+            profile: self.profile,
+            planner: self.planner,
             ..InterpolateOptions::default()
-        };
-        if let Some(j) = self.junction_deviation {
-            o.junction_deviation = j;
         }
-        o
     }
 
     /// The kinematics, or an error saying the machine has none (needed for TCP programs, poses
@@ -467,11 +486,8 @@ impl Checker<'_> {
         let ts = self.sample_period(file.sample_period_s)?;
         let axes = self.axes(&file, ts)?;
         let t = &file.trajectory;
-        self.trajectory(
-            t.max_linear_velocity,
-            t.max_linear_acceleration,
-            t.junction_deviation,
-        )?;
+        self.trajectory(t, &axes, file.kinematics.is_some())?;
+        let startup_path_mode = self.startup_path_mode(&file.gcode)?;
         let identification = self.identification(&file.identification)?;
         let kinematics = match &file.kinematics {
             None => None,
@@ -485,8 +501,18 @@ impl Checker<'_> {
             kinematics,
             tcp_max_vel: t.max_linear_velocity,
             tcp_max_acc: t.max_linear_acceleration,
-            junction_deviation: t.junction_deviation,
+            tcp_max_jerk: t.max_linear_jerk,
+            blend_tolerance: t.blend_tolerance,
+            profile: match t.profile {
+                ProfileFile::Trapezoidal => Profile::Trapezoidal,
+                ProfileFile::JerkLimited => Profile::JerkLimited,
+            },
+            planner: match t.planner {
+                PlannerFile::Vcnc => PlannerRules::Vcnc,
+                PlannerFile::LinuxCnc29 => PlannerRules::LinuxCnc29,
+            },
             tcp_mcodes: (file.gcode.tcp_on_mcodes, file.gcode.tcp_off_mcodes),
+            startup_path_mode,
             identification,
         })
     }
@@ -548,6 +574,7 @@ impl Checker<'_> {
         for (field, v) in [
             ("max_velocity", a.max_velocity),
             ("max_acceleration", a.max_acceleration),
+            ("max_jerk", a.max_jerk.unwrap_or(1.0)),
         ] {
             if !positive(v) || v > LIMIT {
                 return Err(self.invalid(
@@ -606,6 +633,7 @@ impl Checker<'_> {
             travel: a.travel,
             max_velocity: a.max_velocity,
             max_acceleration: a.max_acceleration,
+            max_jerk: a.max_jerk,
             drive,
             identification_range: range,
             identification_centre: centre,
@@ -613,26 +641,60 @@ impl Checker<'_> {
         })
     }
 
-    /// `[trajectory]`.
-    fn trajectory(&self, vel: f64, acc: f64, junction: Option<f64>) -> Result<(), Error> {
+    /// `[trajectory]`: positive limits; the jerk-limited profile needs every axis' jerk limit
+    /// (and the tool tip's on a machine with kinematics).
+    fn trajectory(&self, t: &TrajectoryFile, axes: &[Axis], kinematics: bool) -> Result<(), Error> {
         for (field, v) in [
-            ("max_linear_velocity", vel),
-            ("max_linear_acceleration", acc),
+            ("max_linear_velocity", t.max_linear_velocity),
+            ("max_linear_acceleration", t.max_linear_acceleration),
+            ("max_linear_jerk", t.max_linear_jerk.unwrap_or(1.0)),
         ] {
-            if !positive(v) {
+            if !positive(v) || v > LIMIT {
                 return Err(self.invalid(
                     &format!("trajectory.{field}"),
-                    format!("{field} must be positive, got {v:?}"),
+                    format!("{field} must be positive and at most {LIMIT:e}, got {v:?}"),
                 ));
             }
         }
-        if let Some(j) = junction.filter(|j| !positive(*j)) {
+        if let Some(j) = t.blend_tolerance.filter(|j| !positive(*j)) {
             return Err(self.invalid(
-                "trajectory.junction_deviation",
-                format!("junction deviation must be positive, got {j:?}"),
+                "trajectory.blend_tolerance",
+                format!("blend tolerance must be positive, got {j:?}"),
             ));
         }
+        if t.profile == ProfileFile::JerkLimited {
+            if let Some(a) = axes.iter().find(|a| a.max_jerk.is_none()) {
+                return Err(self.invalid(
+                    "trajectory.profile",
+                    format!(
+                        "the jerk-limited profile needs a jerk limit on every axis: set axes.{}.max_jerk (units/s³), or profile = \"trapezoidal\"",
+                        a.name
+                    ),
+                ));
+            }
+            if kinematics && t.max_linear_jerk.is_none() {
+                return Err(self.invalid(
+                    "trajectory.profile",
+                    "the jerk-limited profile needs the tool tip's jerk limit on a machine with kinematics: set trajectory.max_linear_jerk (mm/s³)".to_string(),
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// `[gcode] startup_path_mode`.
+    fn startup_path_mode(&self, g: &GcodeFile) -> Result<PathMode, Error> {
+        match &g.startup_path_mode {
+            None => Ok(PathMode::ExactStop),
+            Some(text) => PathMode::parse(text).ok_or_else(|| {
+                self.invalid(
+                    "gcode.startup_path_mode",
+                    format!(
+                        "\"{text}\" is not a path mode: write \"G61.1\", \"G61\", \"G64\" or \"G64 P<mm> [Q<mm>]\""
+                    ),
+                )
+            }),
+        }
     }
 
     /// `[identification]`: the program and the identifier options.
@@ -817,6 +879,71 @@ mod tests {
         assert!(e.contains("<embedded>/machines/nmv5000.toml"), "{e}");
         let e = doc.with_values(&[("axes.Q.plant.j", 1.0)]).unwrap_err();
         assert!(e.to_string().contains("axes.Q"), "{e}");
+    }
+
+    #[test]
+    fn planner_keys_reach_the_interpolator_and_bad_ones_name_their_key() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
+        let base = embedded::NMV5000_TOML;
+        // Defaults: trapezoidal, vcnc's rules, exact stop at start-up, no jerk limits.
+        let m = Machine::from_toml_str(base, "m.toml", &dir).unwrap();
+        let o = m.interpolate_options();
+        assert_eq!(
+            (o.profile, o.planner),
+            (Profile::Trapezoidal, PlannerRules::Vcnc)
+        );
+        assert_eq!(m.interp_options(false).path_mode, PathMode::ExactStop);
+        assert!(m.limits().axes[0].max_jerk.is_infinite());
+        // Jerk limits, the jerk-limited profile, LinuxCNC's rules, a start-up mode, and the
+        // earlier name of the plain-G64 tolerance.
+        let mut src = base.replace(
+            "[trajectory]",
+            "[trajectory]\nprofile = \"jerk-limited\"\nplanner = \"linuxcnc-2.9\"\nmax_linear_jerk = 1e5\njunction_deviation = 0.02",
+        );
+        src = src.replace("[gcode]", "[gcode]\nstartup_path_mode = \"G64 P0.01\"");
+        for axis in ["X", "Y", "Z", "A", "C"] {
+            src = src.replace(
+                &format!("[axes.{axis}]"),
+                &format!("[axes.{axis}]\nmax_jerk = 50000.0"),
+            );
+        }
+        let m = Machine::from_toml_str(&src, "m.toml", &dir).unwrap();
+        let o = m.interpolate_options();
+        assert_eq!(
+            (o.profile, o.planner, o.blend_tolerance),
+            (Profile::JerkLimited, PlannerRules::LinuxCnc29, Some(0.02))
+        );
+        assert_eq!(m.limits().axes[0].max_jerk, 50000.0);
+        assert_eq!(m.limits().tcp_max_jerk, 1e5);
+        assert_eq!(
+            m.interp_options(false).path_mode,
+            PathMode::Blend {
+                tolerance_mm: Some(0.01),
+                merge_mm: Some(0.01)
+            }
+        );
+        // The jerk-limited profile without an axis' jerk limit names the key to set.
+        let missing = src.replacen("max_jerk = 50000.0", "", 1);
+        let e = Machine::from_toml_str(&missing, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("trajectory.profile") && e.contains("max_jerk"),
+            "{e}"
+        );
+        let bad = src.replace("G64 P0.01", "G65");
+        let e = Machine::from_toml_str(&bad, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("gcode.startup_path_mode") && e.contains("G65"),
+            "{e}"
+        );
+        let bad = src.replace("max_linear_jerk = 1e5", "max_linear_jerk = -1.0");
+        let e = Machine::from_toml_str(&bad, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("trajectory.max_linear_jerk"), "{e}");
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! (execute in LinuxCNC's order, `Interp::execute_block`). See the parent module's doc.
 
 use super::eval::Target;
-use super::{Cycle, Interp, MM_PER_INCH, Motion, Plane, code10, gname};
+use super::{Cycle, Interp, MM_PER_INCH, Motion, PathMode, Plane, code10, gname};
 use crate::diag::{DiagnosticKind, Severity, Span};
 use crate::syntax::Block;
 
@@ -793,19 +793,34 @@ impl Interp<'_> {
             self.select_coordinate_system(index);
         }
         if let Some((c, _)) = k.path {
-            self.st.exact_stop = c != 640;
-            self.st.blend_tol = None;
-            if c == 640
-                && let Some((p, s)) = k.w.get('P')
-            {
-                if p < 0.0 {
-                    self.err(s, DiagnosticKind::Block, || {
-                        format!("G64 tolerance P{p} is negative")
-                    });
-                } else if p > 0.0 {
-                    self.st.blend_tol = Some(p * self.lscale());
+            self.st.path = match c {
+                610 => PathMode::ExactPath,
+                611 => PathMode::ExactStop,
+                _ => {
+                    // G64 P Q as LinuxCNC's convert_control_mode: P0 or no P is a plain G64;
+                    // Q defaults to P.
+                    let tol = |letter: char, this: &mut Self| -> Option<f64> {
+                        let (v, s) = k.w.get(letter)?;
+                        if v < 0.0 {
+                            this.err(s, DiagnosticKind::Block, || {
+                                format!("G64 tolerance {letter}{v} is negative")
+                            });
+                            return None;
+                        }
+                        (v > 0.0).then(|| v * this.lscale())
+                    };
+                    let tolerance_mm = tol('P', self);
+                    let merge_mm = if k.w.get('Q').is_some() {
+                        tol('Q', self)
+                    } else {
+                        tolerance_mm
+                    };
+                    PathMode::Blend {
+                        tolerance_mm,
+                        merge_mm,
+                    }
                 }
-            }
+            };
         }
         if let Some((c, _)) = k.distance {
             self.st.absolute = c == 900;

@@ -22,7 +22,7 @@
 //! [`MoveKind::Linear`], dwells [`MoveKind::Dwell`]. Moves inside a cycle stop exactly.
 
 use super::block::{AT, CARET, Checked};
-use super::{Cycle, Feed, Interp, Motion, MoveKind};
+use super::{Cycle, Feed, Interp, Motion, MoveKind, PathMode};
 use crate::diag::{DiagnosticKind, Span};
 
 /// LinuxCNC `G83_RAPID_DELTA`: how far above the last depth a peck restarts, inches.
@@ -328,13 +328,14 @@ impl Interp<'_> {
             }
         }
         let m = self.to_machine_from(p, cur);
-        let exact = self.st.exact_stop;
-        self.st.exact_stop = true;
+        // LinuxCNC runs canned cycles in exact-path mode (G61), whatever the mode in force.
+        let mode = self.st.path;
+        self.st.path = PathMode::ExactPath;
         if rapid {
             self.emit(MoveKind::Rapid, m, span, None);
         } else {
             self.emit(MoveKind::Linear, m, span, Some(feed));
         }
-        self.st.exact_stop = exact;
+        self.st.path = mode;
     }
 }

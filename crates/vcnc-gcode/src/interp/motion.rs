@@ -5,7 +5,7 @@
 use std::f64::consts::TAU;
 
 use super::block::{AT, CARET, Checked, Val};
-use super::{ArcMove, Feed, Interp, Motion, Move, MoveKind, Plane};
+use super::{ArcMove, Feed, Interp, Motion, Move, MoveKind, PathMode, Plane};
 use crate::diag::{DiagnosticKind, Span};
 
 const AXES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
@@ -254,10 +254,13 @@ impl Interp<'_> {
             start,
             end,
             feed,
-            exact_stop: self.st.exact_stop || matches!(kind, MoveKind::Dwell { .. }),
+            path: if matches!(kind, MoveKind::Dwell { .. }) {
+                PathMode::ExactStop
+            } else {
+                self.st.path
+            },
             stop_after: matches!(kind, MoveKind::Dwell { .. }),
             tcp: self.st.tcp,
-            blend_tolerance_mm: self.st.blend_tol,
         });
     }
 

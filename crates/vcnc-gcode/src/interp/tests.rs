@@ -289,10 +289,51 @@ fn tcp_mode_by_g43_4_or_mapped_m_codes() {
 fn path_mode_stops_and_program_end() {
     let tp = ok("%\nG0 X1\nG64 P0.05 G1 X2 F100\nM6 T2\nG1 X3\nM0\nG61 G1 X4\nM30\nG1 X9\n%");
     assert_eq!(tp.moves.len(), 4);
-    assert!(!tp.moves[1].exact_stop && tp.moves[1].stop_after);
-    assert_eq!(tp.moves[1].blend_tolerance_mm, Some(0.05));
+    // vcnc's start-up mode is exact stop (G61.1).
+    assert_eq!(tp.moves[0].path, PathMode::ExactStop);
+    assert!(tp.moves[1].stop_after);
+    // G64 P without Q merges within P (LinuxCNC's convert_control_mode).
+    assert_eq!(
+        tp.moves[1].path,
+        PathMode::Blend {
+            tolerance_mm: Some(0.05),
+            merge_mm: Some(0.05)
+        }
+    );
     assert!(tp.moves[2].stop_after);
-    assert!(tp.moves[3].exact_stop);
+    assert_eq!(tp.moves[3].path, PathMode::ExactPath);
+    let tp =
+        ok("G0 X1\nG64 G1 X2 F100\nG64 P0.1 Q0.02 X3\nG64 P0 Q0.5 X4\nG61.1 X5\nG20 G64 P0.01 X6");
+    let modes: Vec<PathMode> = tp.moves.iter().map(|m| m.path).collect();
+    let blend = |p: Option<f64>, q: Option<f64>| PathMode::Blend {
+        tolerance_mm: p,
+        merge_mm: q,
+    };
+    assert_eq!(modes[1], blend(None, None));
+    assert_eq!(modes[2], blend(Some(0.1), Some(0.02)));
+    assert_eq!(modes[3], blend(None, Some(0.5)));
+    assert_eq!(modes[4], PathMode::ExactStop);
+    assert_eq!(modes[5], blend(Some(0.254), Some(0.254)));
+    assert_eq!(errors("G64 P-1 G0 X1"), vec![(1, 5)]);
+    assert_eq!(PathMode::parse("g61.1"), Some(PathMode::ExactStop));
+    assert_eq!(PathMode::parse(" G61 "), Some(PathMode::ExactPath));
+    assert_eq!(
+        PathMode::parse("G64 P0.02"),
+        Some(blend(Some(0.02), Some(0.02)))
+    );
+    assert_eq!(PathMode::parse("G64 P0 Q0.1"), Some(blend(None, Some(0.1))));
+    assert_eq!(PathMode::parse("G64"), Some(blend(None, None)));
+    for bad in [
+        "",
+        "G62",
+        "G64 P",
+        "G64 P-1",
+        "G64 X1",
+        "G61 P1",
+        "G64 P1 P2",
+    ] {
+        assert_eq!(PathMode::parse(bad), None, "{bad}");
+    }
     let (_, warnings) = run("G0 X0\nM2\nG1 X9").unwrap();
     assert_eq!(warnings.len(), 1);
     assert_eq!(warnings[0].line, 3);

@@ -28,12 +28,11 @@
 
 use std::collections::VecDeque;
 
-use super::{
-    Limits, Move, MoveClass, MoveKind, Piece, Seg, Slowdown, Slowed, Trap, central_rates,
-    chain_span, check_limits, continuous, eval_scaled, exact_stop_piece, fine_block, junction,
-    output_axes, samples_for, segment, single,
-};
-use crate::diag::{Diagnostic, Span};
+use super::chain::Out;
+use super::planner::{Decisions, Mode, Planner};
+use super::segment::{Cfg, check_limits};
+use super::{CycleTime, Limits, Move, MoveClass, Slowdown, output_axes};
+use crate::diag::Diagnostic;
 use crate::interp::{ChunkInterp, ProgramRead};
 use crate::{AxisName, Error, InterpOptions, InterpolateOptions};
 
@@ -146,24 +145,16 @@ pub struct StreamPlan {
     pub moves: usize,
     /// Feeds slowed to the machine's limits, if any.
     pub slowdown: Option<Slowdown>,
+    /// The cycle time and its split by kind of move ([`crate::Trajectory::cycle`]).
+    pub cycle: CycleTime,
     /// Every warning (parser, interpreter, interpolator), in the order of [`crate::load`].
     pub warnings: Vec<Diagnostic>,
-    /// Most segments the look-ahead held at once.
+    /// Most pieces the look-ahead held at once.
     pub lookahead_peak: usize,
     interp: InterpOptions,
-    limits: Limits,
-    opts: InterpolateOptions,
+    cfg: Cfg,
     stream: StreamOptions,
     decisions: Decisions,
-}
-
-/// Per chain, in program order, what the second pass cannot know before the chain's end.
-#[derive(Debug, Clone, Default, PartialEq)]
-struct Decisions {
-    /// Time-scaled chains of ≥ 2 segments: sample count and λ.
-    chains: VecDeque<(u64, f64)>,
-    /// Fine-block chains: `true` when run time-exactly.
-    fine: VecDeque<bool>,
 }
 
 /// First pass: parse, interpret and plan `src` without sampling ([module doc](self)).
@@ -178,9 +169,9 @@ pub fn plan(
     stream: &StreamOptions,
 ) -> Result<StreamPlan, Error> {
     check_limits(limits, opts)?;
+    let cfg = Cfg::new(limits, opts);
     let mut decisions = Decisions::default();
-    let mut planner: Planner<'_, '_, Error> =
-        Planner::new(limits, opts, Mode::Plan(&mut decisions));
+    let mut planner = Planner::new(&cfg, Mode::Plan(&mut decisions));
     let run = run_source(src, interp, stream, &mut planner)?;
     let mut warnings = run.warnings;
     warnings.extend(planner.warnings_early.iter().cloned());
@@ -192,8 +183,7 @@ pub fn plan(
         max: opts.max_samples,
         duration_s: total as f64 * opts.ts,
     })?;
-    let lookahead_peak = planner.lookahead_peak;
-    let any_tcp = planner.any_tcp;
+    let (lookahead_peak, any_tcp, cycle) = (planner.lookahead_peak, planner.any_tcp, planner.cycle);
     drop(planner);
     Ok(StreamPlan {
         ts: opts.ts,
@@ -204,11 +194,11 @@ pub fn plan(
         any_tcp,
         moves: run.moves,
         slowdown,
+        cycle,
         warnings,
         lookahead_peak,
         interp: interp.clone(),
-        limits: *limits,
-        opts: opts.clone(),
+        cfg,
         stream: stream.clone(),
         decisions,
     })
@@ -230,7 +220,7 @@ impl StreamPlan {
         let mut decisions = self.decisions.clone();
         let mut failure: Option<E> = None;
         let n_axes = self.axes.len();
-        let emitter = Emitter {
+        let mut emitter = Emitter {
             idx: self.axes.iter().map(|a| a.index()).collect(),
             chunk: SampleChunk {
                 pos: vec![Vec::new(); n_axes],
@@ -246,39 +236,33 @@ impl StreamPlan {
             failure: &mut failure,
         };
         let mut planner = Planner::new(
-            &self.limits,
-            &self.opts,
+            &self.cfg,
             Mode::Sample {
                 decisions: &mut decisions,
-                out: emitter,
+                out: &mut emitter,
             },
         );
         let run = run_source(src, &self.interp, &self.stream, &mut planner);
+        let total = planner.total;
         let run = match run {
             Ok(r) => r,
-            Err(e) => return Err(planner.take_failure().unwrap_or_else(|| e.into())),
+            Err(e) => {
+                drop(planner);
+                return Err(failure.unwrap_or_else(|| e.into()));
+            }
         };
-        if let Some(e) = planner.take_failure() {
+        planner.final_sample(run.start);
+        drop(planner);
+        emitter.flush();
+        if let Some(e) = failure {
             return Err(e);
         }
-        // Final sample: at rest on the last programmed point.
-        let (end, tcp) = planner
-            .last_move
-            .as_ref()
-            .map_or((run.start, false), |m| (m.end, m.tcp));
-        if let Mode::Sample { out, .. } = &mut planner.mode {
-            out.sample(&end, &[0.0; 6], &[0.0; 6], tcp);
-            out.flush();
-        }
-        if let Some(e) = planner.take_failure() {
-            return Err(e);
-        }
-        if planner.total + 1 != self.samples as u64 {
+        if total + 1 != self.samples as u64 {
             return Err(Error::Read {
                 message: format!(
                     "the program changed between the two passes ({} samples, then {})",
                     self.samples,
-                    planner.total + 1
+                    total + 1
                 ),
             }
             .into());
@@ -301,11 +285,11 @@ struct SourceRun {
 /// planner at the first error, and the interpreter runs on to the end. A planner error is
 /// returned only for a program without errors (the whole-program path interprets before it
 /// interpolates).
-fn run_source<E>(
+fn run_source(
     src: &(impl ProgramSource + ?Sized),
     interp_opts: &InterpOptions,
     stream: &StreamOptions,
-    planner: &mut Planner<'_, '_, E>,
+    planner: &mut Planner<'_, '_, '_>,
 ) -> Result<SourceRun, Error> {
     let reader = src.open().map_err(|e| Error::Read {
         message: e.to_string(),
@@ -346,7 +330,7 @@ fn run_source<E>(
     })
 }
 
-/// The sampling side of the second pass.
+/// The sampling side of the second pass: samples into chunks, each with its span resolved.
 struct Emitter<'s, E> {
     /// Indices in X Y Z A B C of the output axes.
     idx: Vec<usize>,
@@ -354,22 +338,28 @@ struct Emitter<'s, E> {
     chunk_samples: usize,
     /// Index of the next sample.
     next_sample: usize,
-    /// Spans not yet passed: (first sample, end sample, line, class, target).
-    spans: VecDeque<(usize, usize, u32, MoveClass, [f64; 6])>,
+    /// Spans not yet passed: (first sample, end sample, line, class, target, move index).
+    spans: VecDeque<(usize, usize, u32, MoveClass, [f64; 6], usize)>,
     first_span: bool,
     sink: &'s mut dyn FnMut(&SampleChunk) -> Result<(), E>,
     failure: &'s mut Option<E>,
 }
 
-impl<E> Emitter<'_, E> {
-    fn span(&mut self, first: usize, end: usize, mv: &Move) {
+impl<E> Out for Emitter<'_, E> {
+    fn span(&mut self, first: usize, end: usize, _t0: f64, _t1: f64, index: usize, mv: &Move) {
+        if let Some(last) = self.spans.back_mut()
+            && last.5 == index
+        {
+            last.1 = end;
+            return;
+        }
         let first = if std::mem::take(&mut self.first_span) {
             0
         } else {
             first
         };
         self.spans
-            .push_back((first, end, mv.line, MoveClass::of(&mv.kind), mv.end));
+            .push_back((first, end, mv.line, MoveClass::of(&mv.kind), mv.end, index));
     }
 
     fn sample(&mut self, p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], tcp: bool) {
@@ -405,6 +395,12 @@ impl<E> Emitter<'_, E> {
         }
     }
 
+    fn failed(&self) -> bool {
+        self.failure.is_some()
+    }
+}
+
+impl<E> Emitter<'_, E> {
     fn flush(&mut self) {
         if self.chunk.is_empty() || self.failure.is_some() {
             self.chunk.clear();
@@ -414,586 +410,5 @@ impl<E> Emitter<'_, E> {
             *self.failure = Some(e);
         }
         self.chunk.clear();
-    }
-}
-
-/// Plan only, or plan and sample. (One planner exists per pass: the size difference between the
-/// variants costs nothing.)
-#[allow(clippy::large_enum_variant)]
-enum Mode<'d, 's, E> {
-    Plan(&'d mut Decisions),
-    Sample {
-        decisions: &'d mut Decisions,
-        out: Emitter<'s, E>,
-    },
-}
-
-/// Samples a profiled chain (or a single block) as its segments become final: the chain part
-/// of [`crate::interpolate`]'s sampling, one segment at a time.
-struct ChainSampler {
-    /// Samples of the piece and its time scale.
-    n: u64,
-    lam: f64,
-    /// First sample of the piece in the trajectory.
-    base: u64,
-    tcp: bool,
-    /// Final segments not yet passed, with profile, unscaled start time and move.
-    win: VecDeque<(Seg, Trap, f64, Move)>,
-    /// Index in the chain of `win[0]`.
-    offset: usize,
-    /// Spans emitted for `win[..spans_done]`.
-    spans_done: usize,
-    /// Next sample of the piece and the index in `win` of its segment.
-    j: u64,
-    cur: usize,
-}
-
-impl ChainSampler {
-    fn new(n: u64, lam: f64, base: u64, tcp: bool) -> Self {
-        ChainSampler {
-            n,
-            lam,
-            base,
-            tcp,
-            win: VecDeque::new(),
-            offset: 0,
-            spans_done: 0,
-            j: 0,
-            cur: 0,
-        }
-    }
-
-    /// Emit every span and sample the final segments decide; `ended`: no segment follows.
-    fn pump<E>(&mut self, ended: bool, out: &mut Emitter<'_, E>, ts: f64) {
-        let n = self.n as usize;
-        let base = self.base as usize;
-        let lam = self.lam;
-        while self.spans_done < self.win.len() && (self.spans_done + 1 < self.win.len() || ended) {
-            let (_, trap, tau0, mv) = &self.win[self.spans_done];
-            let first = self.offset + self.spans_done == 0;
-            let last = ended && self.spans_done + 1 == self.win.len();
-            let (k_first, k_end) = chain_span(*tau0, trap.duration(), lam, n, ts, first, last);
-            out.span(base + k_first + 1, base + k_end + 1, mv);
-            self.spans_done += 1;
-        }
-        let (inv, inv2) = (1.0 / lam, 1.0 / (lam * lam));
-        while self.j < self.n {
-            let tau = self.j as f64 * ts * inv;
-            while self.cur + 1 < self.win.len() && tau >= self.win[self.cur + 1].2 {
-                self.cur += 1;
-            }
-            if self.cur + 1 >= self.win.len() && !ended {
-                break;
-            }
-            let (seg, trap, tau0, _) = &self.win[self.cur];
-            let (p, v, a) = eval_scaled(seg, trap, tau - tau0, inv, inv2);
-            out.sample(&p, &v, &a, self.tcp);
-            self.j += 1;
-        }
-        while self.cur > 0 && self.spans_done > 0 {
-            self.win.pop_front();
-            self.cur -= 1;
-            self.spans_done -= 1;
-            self.offset += 1;
-        }
-    }
-}
-
-/// A `G64` chain being planned ([module doc](self)).
-struct ChainState {
-    tcp: bool,
-    basis: Option<bool>,
-    /// Segments not yet final with their moves and the junction cap at the start of each (the
-    /// first entry's cap is unused: its junction is final).
-    pend: VecDeque<(Seg, f64, Move)>,
-    /// Forward-pass speed at the start of `pend[0]`.
-    vf: f64,
-    /// Segments in the chain so far.
-    count: usize,
-    /// Unscaled time of the final segments so far.
-    t: f64,
-    /// Scan the look-ahead when it holds this many segments.
-    scan_at: usize,
-    /// Second pass: the sampler, once the chain has two segments.
-    sampler: Option<ChainSampler>,
-}
-
-/// A chain of fine blocks being gathered ([module doc](self)).
-struct FineState {
-    tcp: bool,
-    first_line: u32,
-    /// Moves in the chain so far.
-    blocks: usize,
-    /// Second pass: run time-exactly (else every block as an exact stop).
-    exact: bool,
-    /// First pass: the worst block too fast for the limits (speed, cap, line, col, rotary).
-    refusal: Option<(f64, f64, u32, u32, bool)>,
-    /// First pass: what running the blocks as exact stops adds (samples, slowdowns).
-    alt_samples: u64,
-    alt_slowed: Slowed,
-    /// Points of the chain (first pass: counted; second pass: the last two kept).
-    points: u64,
-    prev: [f64; 6],
-    cur: [f64; 6],
-    /// First sample of the chain in the trajectory.
-    base: u64,
-}
-
-enum State {
-    Idle,
-    Chain(Box<ChainState>),
-    Fine(Box<FineState>),
-}
-
-/// The planner of both passes: the logic of [`crate::interpolate`] fed one move at a time.
-struct Planner<'d, 's, E> {
-    limits: &'d Limits,
-    opts: &'d InterpolateOptions,
-    mode: Mode<'d, 's, E>,
-    /// Moves received and not yet planned (the newest may still become a stop).
-    queue: VecDeque<(usize, Move)>,
-    received: usize,
-    state: State,
-    slowed: Slowed,
-    warnings_early: Vec<Diagnostic>,
-    total: u64,
-    last_move: Option<Move>,
-    lookahead_peak: usize,
-    any_tcp: bool,
-}
-
-impl<'d, 's, E> Planner<'d, 's, E> {
-    fn new(limits: &'d Limits, opts: &'d InterpolateOptions, mode: Mode<'d, 's, E>) -> Self {
-        Planner {
-            limits,
-            opts,
-            mode,
-            queue: VecDeque::new(),
-            received: 0,
-            state: State::Idle,
-            slowed: Slowed::default(),
-            warnings_early: Vec::new(),
-            total: 0,
-            last_move: None,
-            lookahead_peak: 0,
-            any_tcp: false,
-        }
-    }
-
-    fn take_failure(&mut self) -> Option<E> {
-        match &mut self.mode {
-            Mode::Sample { out, .. } => out.failure.take(),
-            Mode::Plan(_) => None,
-        }
-    }
-
-    fn sampling(&self) -> bool {
-        matches!(self.mode, Mode::Sample { .. })
-    }
-
-    /// Count a piece's samples against the budget (as [`crate::interpolate`] does).
-    fn account(&mut self, n: u64) -> Result<u64, Error> {
-        let base = self.total;
-        self.total += n;
-        let max = self.opts.max_samples;
-        if self.total + 1 > max as u64 {
-            return Err(Error::TooManySamples {
-                samples: (self.total + 1) as f64,
-                max,
-                duration_s: self.total as f64 * self.opts.ts,
-            });
-        }
-        Ok(base)
-    }
-
-    /// The next move of the program.
-    fn push(&mut self, mv: Move) -> Result<(), Error> {
-        if let Mode::Sample { out, .. } = &self.mode
-            && out.failure.is_some()
-        {
-            return Err(Error::Read {
-                message: "the output failed".into(),
-            });
-        }
-        self.any_tcp |= mv.tcp;
-        self.queue.push_back((self.received, mv));
-        self.received += 1;
-        // The newest move waits: the next piece may still mark it as a stop.
-        while self.queue.len() > 1 {
-            self.step()?;
-        }
-        Ok(())
-    }
-
-    /// The program has ended: plan what is left.
-    fn finish(&mut self) -> Result<(), Error> {
-        while !self.queue.is_empty() {
-            self.step()?;
-        }
-        self.end_state()
-    }
-
-    /// Plan the oldest queued move.
-    fn step(&mut self) -> Result<(), Error> {
-        let Some((i, mv)) = self.queue.pop_front() else {
-            return Ok(());
-        };
-        let taken = match std::mem::replace(&mut self.state, State::Idle) {
-            State::Idle => false,
-            State::Chain(c) => {
-                self.state = State::Chain(c);
-                self.chain_move(i, &mv)?
-            }
-            State::Fine(f) => {
-                self.state = State::Fine(f);
-                self.fine_move(i, &mv)?
-            }
-        };
-        if !taken {
-            self.idle_move(i, &mv)?;
-        }
-        self.last_move = Some(mv);
-        Ok(())
-    }
-
-    /// A move with no chain open (the outer loop of [`crate::interpolate`]).
-    fn idle_move(&mut self, i: usize, mv: &Move) -> Result<(), Error> {
-        let ts = self.opts.ts;
-        let max = self.opts.max_samples;
-        if let MoveKind::Dwell { seconds } = mv.kind {
-            let n = samples_for(seconds, ts, max)?;
-            let base = self.account(n)?;
-            if let Mode::Sample { out, .. } = &mut self.mode {
-                let b = base as usize;
-                out.span(b + 1, b + n as usize + 1, mv);
-                for _ in 0..n {
-                    out.sample(&mv.start, &[0.0; 6], &[0.0; 6], mv.tcp);
-                }
-            }
-            return Ok(());
-        }
-        if fine_block(mv, ts) {
-            let exact = match &mut self.mode {
-                Mode::Plan(_) => true,
-                Mode::Sample { decisions, .. } => decisions.fine.pop_front().unwrap_or(true),
-            };
-            let fine = FineState {
-                tcp: mv.tcp,
-                first_line: mv.line,
-                blocks: 0,
-                exact,
-                refusal: None,
-                alt_samples: 0,
-                alt_slowed: Slowed::default(),
-                points: 1,
-                prev: mv.start,
-                cur: mv.start,
-                base: self.total,
-            };
-            self.state = State::Fine(Box::new(fine));
-            let taken = self.fine_move(i, mv)?;
-            debug_assert!(taken);
-            return Ok(());
-        }
-        if continuous(mv) {
-            self.state = State::Chain(Box::new(ChainState {
-                tcp: mv.tcp,
-                basis: None,
-                pend: VecDeque::new(),
-                vf: 0.0,
-                count: 0,
-                t: 0.0,
-                scan_at: 64,
-                sampler: None,
-            }));
-            let taken = self.chain_move(i, mv)?;
-            debug_assert!(taken);
-            return Ok(());
-        }
-        self.exact_stop(i, mv, false)
-    }
-
-    /// A block run on its own, rest to rest; `alt`: the first pass's alternative of a fine
-    /// chain (counted apart, in the chain's state, until the chain's end decides).
-    fn exact_stop(&mut self, i: usize, mv: &Move, alt: bool) -> Result<(), Error> {
-        let (ts, max) = (self.opts.ts, self.opts.max_samples);
-        let Some(seg) = segment(mv, i, self.limits, self.opts)? else {
-            return Ok(());
-        };
-        if alt {
-            if let State::Fine(f) = &mut self.state {
-                let piece = exact_stop_piece(seg, mv, &mut f.alt_slowed, ts, max)?;
-                f.alt_samples += piece.n;
-            }
-            return Ok(());
-        }
-        let piece = exact_stop_piece(seg, mv, &mut self.slowed, ts, max)?;
-        self.sample_piece(piece, mv)
-    }
-
-    /// Count a whole piece of one block and, in the second pass, sample it.
-    fn sample_piece(&mut self, piece: Piece, mv: &Move) -> Result<(), Error> {
-        let base = self.account(piece.n)?;
-        if let Mode::Sample { out, .. } = &mut self.mode {
-            let mut s = ChainSampler::new(piece.n, piece.lambda, base, piece.tcp);
-            for (seg, trap, tau0) in piece.segs {
-                s.win.push_back((seg, trap, tau0, mv.clone()));
-            }
-            s.pump(true, out, self.opts.ts);
-        }
-        Ok(())
-    }
-
-    /// A move offered to the open fine chain; `false` when it ends the chain before it.
-    fn fine_move(&mut self, i: usize, mv: &Move) -> Result<bool, Error> {
-        let ts = self.opts.ts;
-        let State::Fine(f) = &self.state else {
-            return Ok(false);
-        };
-        if !fine_block(mv, ts) || mv.tcp != f.tcp {
-            self.end_state()?;
-            return Ok(false);
-        }
-        let sampling = self.sampling();
-        let exact = f.exact;
-        if !sampling {
-            // Both ways, decided at the chain's end.
-            self.exact_stop(i, mv, true)?;
-        } else if !exact {
-            self.exact_stop(i, mv, false)?;
-        }
-        let seg = segment(mv, i, self.limits, self.opts)?;
-        let State::Fine(f) = &mut self.state else {
-            return Ok(true);
-        };
-        f.blocks += 1;
-        if let Some(seg) = seg {
-            if !sampling {
-                let speed = seg.len / ts;
-                if speed > seg.vlim * (1.0 + 1e-9)
-                    && f.refusal.is_none_or(|r| speed / seg.vlim > r.0 / r.1)
-                {
-                    f.refusal = Some((speed, seg.vlim, mv.line, mv.col, !seg.xyz_basis));
-                }
-                f.points += 1;
-            } else if exact {
-                // Point q arrives: sample q − 1 needs points q − 2, q − 1 and q (module doc of
-                // the interpolator: central differences, at rest before the first point).
-                let q = f.points;
-                f.points += 1;
-                let (a, b, c) = (if q >= 2 { f.prev } else { f.cur }, f.cur, mv.end);
-                f.prev = f.cur;
-                f.cur = mv.end;
-                let k = (f.base + q - 1) as usize;
-                let tcp = f.tcp;
-                if let Mode::Sample { out, .. } = &mut self.mode {
-                    out.span(k + 1, k + 2, mv);
-                    let (v, acc) = central_rates(&a, &b, &c, ts);
-                    out.sample(&b, &v, &acc, tcp);
-                }
-            }
-        }
-        if mv.stop_after {
-            self.end_state()?;
-        }
-        Ok(true)
-    }
-
-    /// A move offered to the open chain; `false` when it ends the chain before it.
-    fn chain_move(&mut self, i: usize, mv: &Move) -> Result<bool, Error> {
-        let State::Chain(c) = &self.state else {
-            return Ok(false);
-        };
-        if !continuous(mv) || mv.tcp != c.tcp {
-            self.end_state()?;
-            return Ok(false);
-        }
-        if let Some(seg) = segment(mv, i, self.limits, self.opts)? {
-            let State::Chain(c) = &mut self.state else {
-                return Ok(false);
-            };
-            if c.basis.is_some_and(|b| b != seg.xyz_basis) {
-                self.end_state()?;
-                return Ok(false);
-            }
-            c.basis = Some(seg.xyz_basis);
-            self.slowed.feed(&seg, mv);
-            let delta = mv
-                .blend_tolerance_mm
-                .unwrap_or(self.opts.junction_deviation);
-            self.add_segment(seg, delta, mv)?;
-        }
-        if mv.stop_after {
-            self.end_state()?;
-        }
-        Ok(true)
-    }
-
-    fn add_segment(&mut self, seg: Seg, delta: f64, mv: &Move) -> Result<(), Error> {
-        let ts = self.opts.ts;
-        let State::Chain(c) = &mut self.state else {
-            return Ok(());
-        };
-        let cap = match c.pend.back() {
-            Some((prev, _, _)) => junction(prev, &seg, delta, self.limits, ts),
-            None => 0.0,
-        };
-        c.pend.push_back((seg, cap, mv.clone()));
-        c.count += 1;
-        self.lookahead_peak = self.lookahead_peak.max(c.pend.len());
-        if c.count == 2
-            && let Mode::Sample { decisions, .. } = &mut self.mode
-        {
-            let (n, lam) = decisions.chains.pop_front().unwrap_or((0, 1.0));
-            let tcp = c.tcp;
-            let base = self.total;
-            self.account(n)?;
-            if let State::Chain(c) = &mut self.state {
-                c.sampler = Some(ChainSampler::new(n, lam, base, tcp));
-            }
-        }
-        let State::Chain(c) = &mut self.state else {
-            return Ok(());
-        };
-        if c.pend.len() >= c.scan_at {
-            // The last junction whose speed is its own cap, looking back from a stop after
-            // the newest segment (module doc).
-            let mut w = 0.0f64;
-            let mut found = None;
-            for k in (1..c.pend.len()).rev() {
-                let (s, cap, _) = &c.pend[k];
-                let reach = (w * w + 2.0 * s.acap * s.len).sqrt();
-                if *cap <= reach {
-                    found = Some(k);
-                    break;
-                }
-                w = reach;
-            }
-            if let Some(k) = found {
-                let cap_k = c.pend[k].1;
-                self.finalise(k, cap_k);
-            }
-            if let State::Chain(c) = &mut self.state {
-                c.scan_at = c.pend.len() + c.pend.len().max(64);
-            }
-        }
-        self.pump(false);
-        Ok(())
-    }
-
-    /// Profile `pend[..k]`: the backward pass from junction `k`, whose speed is `end_speed`,
-    /// then the forward pass, as [`crate::interpolate`] runs them.
-    fn finalise(&mut self, k: usize, end_speed: f64) {
-        let State::Chain(c) = &mut self.state else {
-            return;
-        };
-        let mut wb = vec![0.0f64; k + 1];
-        wb[k] = end_speed;
-        for kk in (1..k).rev() {
-            let (s, cap, _) = &c.pend[kk];
-            let reach = (wb[kk + 1] * wb[kk + 1] + 2.0 * s.acap * s.len).sqrt();
-            wb[kk] = cap.min(reach);
-        }
-        for exit_b in wb.iter().skip(1) {
-            let Some((seg, _, mv)) = c.pend.pop_front() else {
-                break;
-            };
-            let reach = (c.vf * c.vf + 2.0 * seg.acap * seg.len).sqrt();
-            let exit = exit_b.min(reach);
-            let trap = Trap::new(seg.len, c.vf, exit, seg.vcap, seg.acap);
-            let tau0 = c.t;
-            c.t += trap.duration();
-            c.vf = exit;
-            if let Some(s) = &mut c.sampler {
-                s.win.push_back((seg, trap, tau0, mv));
-            }
-        }
-    }
-
-    /// Sample what the open chain's final segments allow.
-    fn pump(&mut self, ended: bool) {
-        let ts = self.opts.ts;
-        if let (State::Chain(c), Mode::Sample { out, .. }) = (&mut self.state, &mut self.mode)
-            && let Some(s) = &mut c.sampler
-        {
-            s.pump(ended, out, ts);
-        }
-    }
-
-    /// Close the open chain, if any.
-    fn end_state(&mut self) -> Result<(), Error> {
-        let (ts, max) = (self.opts.ts, self.opts.max_samples);
-        match std::mem::replace(&mut self.state, State::Idle) {
-            State::Idle => Ok(()),
-            State::Chain(mut c) => match c.count {
-                0 => Ok(()),
-                1 => {
-                    // One segment: a block of its own, as the whole-program path runs it.
-                    let Some((seg, _, mv)) = c.pend.pop_front() else {
-                        return Ok(());
-                    };
-                    let piece = single(seg, c.tcp, None, ts, max)?;
-                    self.sample_piece(piece, &mv)
-                }
-                _ => {
-                    let k = c.pend.len();
-                    let sampling = c.sampler.is_some();
-                    self.state = State::Chain(c);
-                    self.finalise(k, 0.0);
-                    self.pump(true);
-                    let State::Chain(c) = std::mem::replace(&mut self.state, State::Idle) else {
-                        return Ok(());
-                    };
-                    if !sampling {
-                        let t = c.t;
-                        let n = samples_for(t, ts, max)?;
-                        let lambda = (n as f64 * ts / t).max(1.0);
-                        self.account(n)?;
-                        if let Mode::Plan(d) = &mut self.mode {
-                            d.chains.push_back((n, lambda));
-                        }
-                    }
-                    Ok(())
-                }
-            },
-            State::Fine(f) => {
-                if self.sampling() {
-                    if f.exact {
-                        // The samples were emitted as the blocks came; count them.
-                        let n = f.points - 1;
-                        self.account(n)?;
-                    }
-                    return Ok(());
-                }
-                match f.refusal {
-                    Some((speed, cap, line, col, deg)) => {
-                        let unit = if deg { "deg" } else { "mm" };
-                        let message = format!(
-                            "the {} fine blocks from line {} (G93 G64, 1/F = one sample period) are not run as set-points: line {line} needs {speed:.3} {unit}/s along its path, the limits allow {cap:.3} {unit}/s; each block runs as an exact stop",
-                            f.blocks, f.first_line
-                        );
-                        let span = Span {
-                            line,
-                            col,
-                            start: 0,
-                            end: 0,
-                        };
-                        self.warnings_early.push(Diagnostic::warning(span, message));
-                        self.slowed.merge(f.alt_slowed);
-                        self.account(f.alt_samples)?;
-                        if let Mode::Plan(d) = &mut self.mode {
-                            d.fine.push_back(false);
-                        }
-                    }
-                    None => {
-                        self.account(f.points - 1)?;
-                        if let Mode::Plan(d) = &mut self.mode {
-                            d.fine.push_back(true);
-                        }
-                    }
-                }
-                Ok(())
-            }
-        }
     }
 }
