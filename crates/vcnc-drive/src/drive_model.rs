@@ -34,6 +34,13 @@
 //!   differences of a trapezoidal profile are wrong next to every change of acceleration, and
 //!   a fit bends the poles to absorb that).
 //!
+//! Which of the two a model uses is its [`ReferenceInput`] (`DriveModel::input`), a property of
+//! the drive it models, recorded in `model.toml` and honoured by every simulation: a control
+//! whose feed-forward takes the interpolator's velocity and acceleration is modelled with
+//! [`ReferenceInput::Smooth`] (the exact derivatives when known, else the central differences
+//! of the positions), one whose feed-forward differentiates its setpoints with
+//! [`ReferenceInput::Hold`] (docs/identification.md, "The model input").
+//!
 //! A sub-sample dead time $T_d = (m + \varphi)T_s$ shifts the knots of the first-order hold
 //! to $t_k + \varphi T_s$: each sample period is integrated in two exact pieces, $\varphi T_s$
 //! and $(1 - \varphi)T_s$, so the delayed input is represented exactly (no re-interpolation
@@ -56,6 +63,41 @@ pub const MAX_DELAY_S: f64 = 10.0;
 /// Largest actual-value latency a model accepts, s: far above any control's (a few servo
 /// cycles), small enough that a value in the wrong unit (ms written as s) is refused.
 pub const MAX_ACTUAL_LATENCY_S: f64 = 0.1;
+
+/// How a model's reference input is rebuilt from the nominal positions (module documentation;
+/// docs/identification.md, "The model input"): what the drive's feed-forward sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReferenceInput {
+    /// The interpolator's velocity and acceleration, each held first-order: the exact ones
+    /// when the interpolator's are known (a simulated machine, a prediction), else the central
+    /// differences of the positions ([`crate::model::central_differences`]), exact at every
+    /// sample whose neighbours share its acceleration. A control whose feed-forward is fed by
+    /// its interpolator. The default (what a model file without the key means, and what
+    /// [`ClosedLoopModel::simulate`] does).
+    #[default]
+    Smooth,
+    /// The first-order hold of the positions with its exact derivatives: a constant velocity
+    /// over each sample, the velocity changes as impulses of acceleration. A control whose
+    /// feed-forward differentiates its position setpoints.
+    Hold,
+}
+
+impl ReferenceInput {
+    /// Name as in `model.toml` (`smooth`, `hold`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            ReferenceInput::Smooth => "smooth",
+            ReferenceInput::Hold => "hold",
+        }
+    }
+}
+
+impl std::fmt::Display for ReferenceInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
 
 /// A nominal-position filter of unit static gain, applied to the reference before the loop.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -174,6 +216,9 @@ pub struct DriveModel {
     /// prediction of the physical axis advances the model's output by it. It does not enter
     /// the model's own dynamics ([`DriveModel::simulate`] gives the logged position).
     pub actual_latency_s: f64,
+    /// How the reference input is rebuilt from the nominal positions (default
+    /// [`ReferenceInput::Smooth`]).
+    pub input: ReferenceInput,
 }
 
 impl From<ClosedLoopModel> for DriveModel {
@@ -184,6 +229,7 @@ impl From<ClosedLoopModel> for DriveModel {
             reference_filter: None,
             extra_pole_hz: None,
             actual_latency_s: 0.0,
+            input: ReferenceInput::Smooth,
         }
     }
 }
@@ -207,6 +253,8 @@ struct RawDriveModel {
     extra_pole_hz: Option<f64>,
     #[serde(default, skip_serializing_if = "is_zero")]
     actual_latency_s: f64,
+    #[serde(default)]
+    input: ReferenceInput,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -230,6 +278,7 @@ impl TryFrom<RawDriveModel> for DriveModel {
             reference_filter: r.reference_filter,
             extra_pole_hz: r.extra_pole_hz,
             actual_latency_s: r.actual_latency_s,
+            input: r.input,
         };
         m.validate()?;
         Ok(m)
@@ -251,6 +300,7 @@ impl From<DriveModel> for RawDriveModel {
             reference_filter: m.reference_filter,
             extra_pole_hz: m.extra_pole_hz,
             actual_latency_s: m.actual_latency_s,
+            input: m.input,
         }
     }
 }
@@ -358,9 +408,14 @@ impl DriveModel {
         Ok(())
     }
 
-    /// Whether only the paper's seven parameters are used.
+    /// Whether the model is the paper's seven parameters as [`ClosedLoopModel::simulate`] runs
+    /// them: no dead time, filter or extra pole, and the smooth input
+    /// ([`ReferenceInput::Smooth`]; a model with the hold input is simulated by this type).
     pub fn is_core_only(&self) -> bool {
-        self.delay_s == 0.0 && self.reference_filter.is_none() && self.extra_pole_hz.is_none()
+        self.delay_s == 0.0
+            && self.reference_filter.is_none()
+            && self.extra_pole_hz.is_none()
+            && self.input == ReferenceInput::Smooth
     }
 
     /// Every pole, rad/s: the core's three, the filter's, the extra one.
@@ -507,7 +562,8 @@ impl DriveModel {
     /// Free run from the samples `pos`, `vel`, `acc` (each held first-order) at period `ts`,
     /// starting at rest at `pos[0]`. Returns the position at every sample. See the module
     /// documentation; with no dead time, filter or extra pole this is
-    /// [`ClosedLoopModel::simulate`] up to rounding.
+    /// [`ClosedLoopModel::simulate`] up to rounding. A model with the hold input
+    /// ([`ReferenceInput::Hold`]) uses `pos` alone, as [`DriveModel::simulate_positions`].
     ///
     /// This is [`DriveModel::stream`] (of a model that is not core-only) fed the whole
     /// reference: a stream fed it in pieces gives the same positions bit for bit.
@@ -517,26 +573,43 @@ impl DriveModel {
         ts: f64,
         opts: &SimOptions,
     ) -> Result<Vec<f64>, Error> {
-        Ok(self
-            .simulate_run(ModelInput::Derivatives(reference), ts, opts)?
-            .position)
+        let input = match self.input {
+            ReferenceInput::Smooth => ModelInput::Derivatives(reference),
+            ReferenceInput::Hold => ModelInput::Positions(reference.pos),
+        };
+        Ok(self.simulate_run(input, ts, opts)?.position)
     }
 
-    /// Free run from the position samples alone, held first-order with the exact derivatives
-    /// of that hold (module documentation), starting at rest at `pos[0]`.
+    /// Free run from the position samples alone, starting at rest at `pos[0]`, with the model's
+    /// input (module documentation): the first-order hold with its exact derivatives
+    /// ([`ReferenceInput::Hold`]), or the positions with their central-difference velocity and
+    /// acceleration, each held first-order ([`ReferenceInput::Smooth`]).
     pub fn simulate_positions(
         &self,
         pos: &[f64],
         ts: f64,
         opts: &SimOptions,
     ) -> Result<Vec<f64>, Error> {
-        Ok(self
-            .simulate_run(ModelInput::Positions(pos), ts, opts)?
-            .position)
+        let input = self.input_of(pos, ts);
+        Ok(self.simulate_run(input.as_input(), ts, opts)?.position)
+    }
+
+    /// The input of this model rebuilt from the positions `pos` alone: the positions
+    /// ([`ReferenceInput::Hold`]), or the positions with their central-difference velocity and
+    /// acceleration ([`ReferenceInput::Smooth`]), held by the returned [`PositionsInput`].
+    pub fn input_of<'a>(&self, pos: &'a [f64], ts: f64) -> PositionsInput<'a> {
+        match self.input {
+            ReferenceInput::Hold => PositionsInput::Hold(pos),
+            ReferenceInput::Smooth => {
+                let (vel, acc) = crate::model::central_differences(pos, ts);
+                PositionsInput::Smooth { pos, vel, acc }
+            }
+        }
     }
 
     /// Free run with the friction level of every sample (the identifier fits the friction the
-    /// model itself would apply). `opts.integrator` is ignored: the scheme is exact. With
+    /// model itself would apply). `opts.integrator` is ignored: the scheme is exact. The input
+    /// is taken as given (`input` states which convention), whatever `self.input` says. With
     /// [`ModelInput::Derivatives`] this is the stream of [`DriveModel::stream`] fed the whole
     /// reference at once.
     pub fn simulate_run(
@@ -545,12 +618,34 @@ impl DriveModel {
         ts: f64,
         opts: &SimOptions,
     ) -> Result<ModelRun, Error> {
+        self.simulate_run_from(input, ts, opts, &[])
+    }
+
+    /// [`DriveModel::simulate_run`] from the state `z0` at the first sample instead of rest: the
+    /// states of [`DriveModel::realisation`] in deviations from the first reference position
+    /// (`[filter (0–2), q, x_c - x_{r,0}, v_c, lag (0–1)]`; empty: rest). Before the first
+    /// sample the reference is at rest at its first value, as in a run from rest. A trace that
+    /// starts in motion is predicted from the state the identifier estimates for it.
+    pub fn simulate_run_from(
+        &self,
+        input: ModelInput<'_>,
+        ts: f64,
+        opts: &SimOptions,
+        z0: &[f64],
+    ) -> Result<ModelRun, Error> {
         self.validate()?;
         if !(ts > 0.0 && ts.is_finite()) {
             return Err(Error::BadSamplePeriod { ts });
         }
         let n = input.check()?;
         let stepper = Stepper::new(self, ts)?;
+        if !(z0.is_empty() || z0.len() == stepper.ns) || z0.iter().any(|v| !v.is_finite()) {
+            return Err(Error::BadParameter {
+                name: "initial state",
+                value: z0.len() as f64,
+                expected: "one finite value per state of the realisation, or none",
+            });
+        }
         let mut out = ModelRun {
             position: Vec::with_capacity(n),
             friction: Vec::with_capacity(n),
@@ -558,6 +653,7 @@ impl DriveModel {
         match input {
             ModelInput::Derivatives(r) => {
                 let mut stream = ExtendedStream::new(stepper, *opts);
+                stream.set_state(z0);
                 stream.feed(r, 0, &mut out.position, Some(&mut out.friction))?;
                 out.friction.push(0.0);
             }
@@ -580,6 +676,10 @@ impl DriveModel {
                 let mut z = vec![0.0; stepper.ns];
                 let mut next = vec![0.0; stepper.ns];
                 out.position.push(r0);
+                if z0.iter().any(|v| *v != 0.0) {
+                    z.copy_from_slice(z0);
+                    out.position[0] = r0 + dot(&stepper.cx, &z);
+                }
                 for k in 0..n - 1 {
                     let j = k as isize - stepper.m as isize;
                     let (f, x) = stepper.step(&mut z, &mut next, j, true, sample, opts);
@@ -593,6 +693,35 @@ impl DriveModel {
             }
         }
         Ok(out)
+    }
+}
+
+/// A model's input rebuilt from positions alone ([`DriveModel::input_of`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum PositionsInput<'a> {
+    /// The positions, held first-order with their exact derivatives.
+    Hold(&'a [f64]),
+    /// The positions with their central-difference velocity and acceleration (axis units/s,
+    /// /s²), each held first-order.
+    Smooth {
+        /// Positions, axis units.
+        pos: &'a [f64],
+        /// Velocity, axis units/s.
+        vel: Vec<f64>,
+        /// Acceleration, axis units/s².
+        acc: Vec<f64>,
+    },
+}
+
+impl PositionsInput<'_> {
+    /// As the input of [`DriveModel::simulate_run`].
+    pub fn as_input(&self) -> ModelInput<'_> {
+        match self {
+            PositionsInput::Hold(p) => ModelInput::Positions(p),
+            PositionsInput::Smooth { pos, vel, acc } => {
+                ModelInput::Derivatives(Reference { pos, vel, acc })
+            }
+        }
     }
 }
 
@@ -764,6 +893,14 @@ pub(crate) struct ExtendedStream {
     count: usize,
     z: Vec<f64>,
     next: Vec<f64>,
+    /// The hold input ([`ReferenceInput::Hold`]): the positions alone drive the model, each
+    /// input sample kept as $[x_r - x_{r,0}$, the slope after it (set when the next sample
+    /// comes), $0]$.
+    hold: bool,
+    /// Sample period, s (for the slopes of the hold input).
+    ts: f64,
+    /// The last position fed, axis units (hold input).
+    last_p: f64,
 }
 
 impl ExtendedStream {
@@ -779,12 +916,26 @@ impl ExtendedStream {
             count: 0,
             z: vec![0.0; ns],
             next: vec![0.0; ns],
+            hold: false,
+            ts: 0.0,
+            last_p: 0.0,
         }
     }
 
-    /// The stream of `model` (validated by the caller) at `ts` (checked).
+    /// The stream of `model` (validated by the caller) at `ts` (checked), with the model's
+    /// input convention.
     pub(crate) fn of(model: &DriveModel, ts: f64, opts: SimOptions) -> Result<Self, Error> {
-        Ok(ExtendedStream::new(Stepper::new(model, ts)?, opts))
+        let mut s = ExtendedStream::new(Stepper::new(model, ts)?, opts);
+        s.hold = model.input == ReferenceInput::Hold;
+        s.ts = ts;
+        Ok(s)
+    }
+
+    /// Starts from state `z0` (checked by the caller; empty: rest) instead of rest.
+    fn set_state(&mut self, z0: &[f64]) {
+        if !z0.is_empty() {
+            self.z.copy_from_slice(z0);
+        }
     }
 
     /// Runs the next samples (checked by the caller; `first` samples came before) and appends
@@ -810,10 +961,22 @@ impl ExtendedStream {
                 self.hist.drain(..drop);
                 self.base += drop;
             }
-            self.hist.push([p - self.r0, *v, *a]);
+            if self.hold {
+                if let Some(last) = self.hist.last_mut() {
+                    last[1] = (p - self.last_p) / self.ts;
+                }
+                self.last_p = *p;
+                self.hist.push([p - self.r0, 0.0, 0.0]);
+            } else {
+                self.hist.push([p - self.r0, *v, *a]);
+            }
             self.count += 1;
             if self.count == 1 {
-                position.push(self.r0);
+                position.push(if self.z.iter().any(|v| *v != 0.0) {
+                    self.r0 + dot(&self.stepper.cx, &self.z)
+                } else {
+                    self.r0
+                });
                 continue;
             }
             // The step from sample k = count - 2 to the new one; its knot is input sample
@@ -828,9 +991,14 @@ impl ExtendedStream {
                     hist[i as usize - base]
                 }
             };
-            let (f, x) =
-                self.stepper
-                    .step(&mut self.z, &mut self.next, j, false, sample, &self.opts);
+            let (f, x) = self.stepper.step(
+                &mut self.z,
+                &mut self.next,
+                j,
+                self.hold,
+                sample,
+                &self.opts,
+            );
             if let Some(fr) = friction.as_deref_mut() {
                 fr.push(f);
             }
@@ -1127,6 +1295,135 @@ mod tests {
     }
 
     #[test]
+    fn the_input_convention_is_honoured_by_every_simulation() {
+        // Truth: the two explicit inputs of simulate_run. A hold model driven through
+        // `simulate` (velocity and acceleration given) or its stream (in pieces) uses the
+        // positions alone, bit for bit as `simulate_run(Positions)`; a smooth model driven by
+        // positions alone uses their central differences.
+        let (p, v, a) = sampled(1.3e-3, 1500, 0.0);
+        let o = SimOptions::default();
+        let r = Reference {
+            pos: &p,
+            vel: &v,
+            acc: &a,
+        };
+        for base in [
+            DriveModel::from(table1()),
+            DriveModel {
+                delay_s: 0.0071,
+                reference_filter: Some(ReferenceFilter::FirstOrder { tau_s: 0.004 }),
+                ..DriveModel::from(table1())
+            },
+        ] {
+            let hold = DriveModel {
+                input: ReferenceInput::Hold,
+                ..base
+            };
+            assert!(!hold.is_core_only());
+            let want = hold
+                .simulate_run(ModelInput::Positions(&p), 1.3e-3, &o)
+                .unwrap()
+                .position;
+            assert_eq!(hold.simulate(r, 1.3e-3, &o).unwrap(), want);
+            assert_eq!(hold.simulate_positions(&p, 1.3e-3, &o).unwrap(), want);
+            let mut s = hold.stream(1.3e-3, &o).unwrap();
+            let mut got = vec![];
+            for (i, j) in [(0, 1), (1, 700), (700, 701), (701, 1500)] {
+                let piece = Reference {
+                    pos: &p[i..j],
+                    vel: &v[i..j],
+                    acc: &a[i..j],
+                };
+                s.feed(piece, &mut got).unwrap();
+            }
+            assert_eq!(got, want);
+            // Smooth: positions alone are their central differences.
+            let (cv, ca) = crate::model::central_differences(&p, 1.3e-3);
+            let smooth = base;
+            let want = smooth
+                .simulate(
+                    Reference {
+                        pos: &p,
+                        vel: &cv,
+                        acc: &ca,
+                    },
+                    1.3e-3,
+                    &o,
+                )
+                .unwrap();
+            assert_eq!(smooth.simulate_positions(&p, 1.3e-3, &o).unwrap(), want);
+            // The two differ: by about half a sample of velocity through b1.
+            let d = want
+                .iter()
+                .zip(hold.simulate_positions(&p, 1.3e-3, &o).unwrap())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(d > 1e-5, "{d}");
+        }
+    }
+
+    #[test]
+    fn a_run_from_a_state_adds_the_free_response() {
+        // Truth: superposition for a linear model (no friction): the run from z0 is the run
+        // from rest plus c_x exp(A t_k) z0, the matrix exponential by nalgebra.
+        let mut core = table1();
+        core.dc = 0.0;
+        let ts = 1e-3;
+        let (p, v, a) = sampled(ts, 800, 0.0);
+        let o = SimOptions::default();
+        for m in [
+            DriveModel::from(core),
+            DriveModel {
+                reference_filter: Some(ReferenceFilter::SecondOrder {
+                    wn_hz: 30.0,
+                    zeta: 0.7,
+                }),
+                extra_pole_hz: Some(90.0),
+                input: ReferenceInput::Hold,
+                ..DriveModel::from(core)
+            },
+        ] {
+            let real = m.realisation();
+            let n = real.a.nrows();
+            let z0: Vec<f64> = (0..n).map(|i| 0.01 * (i as f64 + 1.0)).collect();
+            let input = ModelInput::Derivatives(Reference {
+                pos: &p,
+                vel: &v,
+                acc: &a,
+            });
+            let rest = m.simulate_run(input, ts, &o).unwrap().position;
+            let from = m.simulate_run_from(input, ts, &o, &z0).unwrap().position;
+            let zv = nalgebra::DVector::from_vec(z0.clone());
+            let d = (0..p.len())
+                .map(|k| {
+                    let e = (&real.a * (k as f64 * ts)).exp() * &zv;
+                    let free: f64 = real.cx.iter().zip(e.iter()).map(|(c, z)| c * z).sum();
+                    (from[k] - rest[k] - free).abs()
+                })
+                .fold(0.0, f64::max);
+            assert!(d < 1e-10, "{d}");
+            let hold = m
+                .simulate_run_from(ModelInput::Positions(&p), ts, &o, &z0)
+                .unwrap()
+                .position;
+            let hold_rest = m
+                .simulate_run(ModelInput::Positions(&p), ts, &o)
+                .unwrap()
+                .position;
+            let e = (&real.a * (0.5)).exp() * &zv;
+            let free: f64 = real.cx.iter().zip(e.iter()).map(|(c, z)| c * z).sum();
+            assert!((hold[500] - hold_rest[500] - free).abs() < 1e-10);
+        }
+        let bad = DriveModel::from(core).simulate_run_from(
+            ModelInput::Positions(&p),
+            ts,
+            &o,
+            &[1.0, 2.0],
+        );
+        assert!(matches!(bad, Err(Error::BadParameter { .. })), "{bad:?}");
+    }
+
+    #[test]
     fn serde_form_is_flat_and_checked() {
         let m = DriveModel {
             delay_s: 0.08,
@@ -1147,5 +1444,17 @@ mod tests {
         assert!(serde_json::from_str::<DriveModel>(&bad).is_err());
         let unknown = s.replace("\"a1\"", "\"a9\":1,\"a1\"");
         assert!(serde_json::from_str::<DriveModel>(&unknown).is_err());
+        // The input is written, and a model without it is smooth (what a prediction always did).
+        assert!(s.contains("\"input\":\"smooth\""), "{s}");
+        let hold = DriveModel {
+            input: ReferenceInput::Hold,
+            ..m
+        };
+        let h = serde_json::to_string(&hold).unwrap();
+        assert!(h.contains("\"input\":\"hold\""), "{h}");
+        assert_eq!(serde_json::from_str::<DriveModel>(&h).unwrap(), hold);
+        let legacy = s.replace(",\"input\":\"smooth\"", "");
+        assert_ne!(legacy, s);
+        assert_eq!(serde_json::from_str::<DriveModel>(&legacy).unwrap(), m);
     }
 }

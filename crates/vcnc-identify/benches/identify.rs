@@ -9,7 +9,8 @@ use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 use vcnc_drive::Poles;
 use vcnc_identify::{
-    IdentifyOptions, ModelStructure, Pso, RefineSetup, Regressors, Start, Trace, identify, refine,
+    IdentifyOptions, ModelStructure, Pso, ReferenceInput, RefineSetup, Regressors, Start, Trace,
+    identify, refine,
 };
 
 #[path = "../tests/support/mod.rs"]
@@ -56,12 +57,7 @@ fn bench(c: &mut Criterion) {
                 black_box(&tr),
                 &regs,
                 std::slice::from_ref(&start),
-                RefineSetup {
-                    structure: ModelStructure::Paper,
-                    bounds: &opts.bounds,
-                    extended: &opts.extended_bounds,
-                    opts: &opts.refine,
-                },
+                RefineSetup::full(ModelStructure::Paper, ReferenceInput::Smooth, &opts),
             )
             .expect("refine")
         })
@@ -82,6 +78,14 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("identify_measured_all_structures", |b| {
         b.iter(|| identify(black_box(&measured), &all).expect("identify"))
+    });
+    // The default search of `vcnc identify --trace`: every structure and both model inputs.
+    let command = IdentifyOptions {
+        inputs: vec![ReferenceInput::Smooth, ReferenceInput::Hold],
+        ..all.clone()
+    };
+    g.bench_function("identify_measured_default_search", |b| {
+        b.iter(|| identify(black_box(&measured), &command).expect("identify"))
     });
     g.finish();
 }

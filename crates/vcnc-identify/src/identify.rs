@@ -6,13 +6,16 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use vcnc_drive::drive_model::ReferenceInput;
 use vcnc_drive::{ClosedLoopModel, DriveModel, Poles, ReferenceFilter, SimOptions};
 
 use crate::Error;
 use crate::metrics::{FitMetrics, fit_metrics_with, score};
 use crate::options::{IdentifyOptions, ModelStructure};
 use crate::pso::{HistoryEntry, Pso, PsoResult};
-use crate::refine::{BoundHit, RefineResult, RefineSetup, Start, Uncertainty, refine};
+use crate::refine::{
+    BoundHit, RefineResult, RefineSetup, Start, Uncertainty, UncertaintyLevel, refine,
+};
 use crate::regress::{Regressors, Theta};
 use crate::trace::Trace;
 
@@ -30,60 +33,208 @@ pub struct LsBaseline {
     pub cost: f64,
 }
 
-/// Where the validation figures of the structures come from.
+/// Where the validation figures of the candidates come from.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 #[serde(rename_all = "kebab-case", tag = "kind")]
 pub enum ValidationSource {
-    /// One structure only: nothing to choose, no validation.
+    /// One candidate only: nothing to choose, no validation.
     None,
     /// A separate validation trace ([`identify_with_validation`]).
     Trace,
-    /// The end of the single trace, held out of the fit: samples `first..` (0-based).
+    /// A held-out part of the single trace (0-based samples of the whole trace): the
+    /// candidates were fitted on the stretch `stretch_first..stretch_first + stretch_samples`
+    /// less the held-out samples `first..first + samples`, and scored on those.
     HeldOut {
         /// First held-out sample.
         first: usize,
         /// Number of held-out samples.
         samples: usize,
+        /// First sample of the stretch the candidates were compared on.
+        stretch_first: usize,
+        /// Samples of that stretch (the whole trace, or [`SCREEN_SAMPLES`] of it).
+        stretch_samples: usize,
     },
 }
 
-/// One model structure as identified.
+/// One candidate model as identified: a structure with a model input.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StructureFit {
     /// The structure.
     pub structure: ModelStructure,
-    /// Its refined model (fitted on the whole estimation trace).
+    /// The model input ([`ReferenceInput`]).
+    pub input: ReferenceInput,
+    /// Its refined model.
     pub model: DriveModel,
     /// Poles of the model's core.
     pub poles: Poles,
     /// The refinement's details: costs, stages, parameters on bounds, uncertainty.
     pub refinement: RefineResult,
-    /// Fit on the estimation trace.
+    /// Fit on the trace it was refined on (`whole`: the estimation trace; else the fitted part
+    /// of the compared stretch).
     pub estimation: FitMetrics,
-    /// Validation error that chose the structure: on the held-out samples (from the fit on the
-    /// rest of the trace) or on the separate validation trace. `None` when nothing was chosen.
+    /// Whether it was refined on the whole estimation trace with every stage (the chosen
+    /// candidate and the paper's structure with the chosen input), or only compared (a quicker
+    /// fit on the fitted part of the stretch, docs/identification.md, "Choosing a structure").
+    pub whole: bool,
+    /// Validation error that chose: on the held-out samples (from the fit on the rest of the
+    /// stretch) or on the separate validation trace. `None` when nothing was chosen.
     pub validation: Option<FitMetrics>,
+    /// Why the candidate's parameters are not trusted (on a bound, not determined by the
+    /// data), from its compared fit; empty when they are.
+    pub degenerate: Vec<Degeneracy>,
+    /// The choice's verdict on this candidate; `None` when nothing was chosen.
+    pub verdict: Option<Verdict>,
 }
+
+/// Why a candidate's parameters are not trusted ([`StructureFit::degenerate`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum Degeneracy {
+    /// A parameter ended on a bound of its search region.
+    OnBound(BoundHit),
+    /// A pole or the structure's own parameter has no deviation (NaN) or one larger than
+    /// [`UNDETERMINED_RELATIVE`] times its value.
+    Undetermined {
+        /// Parameter name (`p_hz`, `wn_hz`, `zeta`, `dc`, `delay_s`, ...).
+        parameter: &'static str,
+        /// Its value.
+        value: f64,
+        /// Its relative standard deviation (NaN: none).
+        relative_std: f64,
+    },
+}
+
+impl std::fmt::Display for Degeneracy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Degeneracy::OnBound(h) => {
+                write!(f, "{} = {} on its {} bound", h.parameter, h.value, h.bound)
+            }
+            Degeneracy::Undetermined {
+                parameter,
+                value,
+                relative_std,
+            } if relative_std.is_nan() => {
+                write!(f, "{parameter} = {value} not determined by the data")
+            }
+            Degeneracy::Undetermined {
+                parameter,
+                value,
+                relative_std,
+            } => write!(
+                f,
+                "{parameter} = {value} not determined by the data (± {:.0} %)",
+                100.0 * relative_std
+            ),
+        }
+    }
+}
+
+/// Relative standard deviation above which a pole or a structure's own parameter counts as not
+/// determined for the choice (100 %: the data do not fix even its order of magnitude).
+pub const UNDETERMINED_RELATIVE: f64 = 1.0;
+
+/// The choice's verdict on one candidate ([`StructureFit::verdict`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum Verdict {
+    /// Chosen: what the model file holds.
+    Chosen,
+    /// Its validation error is higher than the chosen candidate's.
+    HigherError {
+        /// Its validation free-run RMS, axis units.
+        rms: f64,
+        /// The chosen candidate's, axis units.
+        chosen_rms: f64,
+    },
+    /// Within `selection_margin` of the lowest validation error, but with more parameters
+    /// than the chosen candidate (or the same number and a higher error).
+    Simpler {
+        /// Its validation free-run RMS, axis units.
+        rms: f64,
+        /// The chosen candidate's, axis units.
+        chosen_rms: f64,
+        /// The margin, relative.
+        margin: f64,
+    },
+    /// Its parameters are not trusted ([`StructureFit::degenerate`]) and its validation error
+    /// is not below the best trusted candidate's by `degenerate_margin`.
+    Degenerate {
+        /// Its validation free-run RMS, axis units.
+        rms: f64,
+        /// The chosen candidate's, axis units.
+        chosen_rms: f64,
+        /// The margin, relative.
+        margin: f64,
+    },
+}
+
+impl std::fmt::Display for Verdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Verdict::Chosen => f.write_str("chosen"),
+            Verdict::HigherError { rms, chosen_rms } => write!(
+                f,
+                "validation error {:.4e} above the chosen {:.4e}",
+                rms, chosen_rms
+            ),
+            Verdict::Simpler {
+                rms,
+                chosen_rms,
+                margin,
+            } => write!(
+                f,
+                "validation error {:.4e} within {:.0} % of the chosen {:.4e}, which has fewer parameters",
+                rms,
+                100.0 * margin,
+                chosen_rms
+            ),
+            Verdict::Degenerate {
+                rms,
+                chosen_rms,
+                margin,
+            } => write!(
+                f,
+                "parameters on a bound or not determined, and its validation error {:.4e} is not {:.0} % below the chosen {:.4e}",
+                rms,
+                100.0 * margin,
+                chosen_rms
+            ),
+        }
+    }
+}
+
+/// Longest stretch of a single trace on which the candidates are compared, samples
+/// (docs/identification.md, "Choosing a structure"): a longer trace is compared on the
+/// stretch of this length with the longest reference path, and only the chosen candidate (and
+/// the paper's structure) is refined on the whole.
+pub const SCREEN_SAMPLES: usize = 15_000;
 
 /// Everything [`identify`] found: the chosen model, the paper's PSO result and the baseline side
 /// by side, the swarm history and the fit on the estimation run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Identification {
-    /// The paper's 7-parameter model, refined by output error (or the PSO result when the
-    /// refinement is off). Always inside the pole bounds, hence stable.
+    /// The paper's 7-parameter model (with the chosen model input), refined by output error
+    /// (or the PSO result when the refinement is off). Always inside the pole bounds, hence
+    /// stable.
     pub identified: ClosedLoopModel,
     /// Poles of `identified`.
     pub identified_poles: Poles,
-    /// The model of the structure chosen by validation error (the paper's when only it was
+    /// The paper structure's model with its input: `identified` as the model file would hold it.
+    pub identified_model: DriveModel,
+    /// The model of the candidate chosen by validation error (the paper's when only it was
     /// asked for): what a model file should hold.
     pub model: DriveModel,
     /// The chosen structure.
     pub structure: ModelStructure,
-    /// Every structure identified, the paper's first.
+    /// The chosen model input (`model.input`).
+    pub input: ReferenceInput,
+    /// Every candidate identified, the paper's structure with the chosen input first.
     pub structures: Vec<StructureFit>,
     /// Where the validation figures come from.
     pub validation: ValidationSource,
-    /// Standard deviations of the chosen model's parameters.
+    /// Standard deviations of the chosen model's parameters, widened by the sensitivity to the
+    /// model input (docs/identification.md, "Parameter uncertainty").
     pub uncertainty: Option<Uncertainty>,
     /// Parameters of the chosen model that ended on a bound.
     pub on_bounds: Vec<BoundHit>,
@@ -105,7 +256,7 @@ pub struct Identification {
     pub condition_phi2: f64,
     /// Whether the trace was treated as starting in motion.
     pub moving_start: bool,
-    /// Fit of `identified` on the estimation run.
+    /// Fit of `identified_model` on the estimation run.
     pub fit_estimation: FitMetrics,
     /// Fit of `paper_pso` on the estimation run.
     pub fit_estimation_paper: FitMetrics,
@@ -195,6 +346,46 @@ fn distinct_starts(candidates: &[(Vec<f64>, f64)], k: usize, extra: &[f64]) -> V
     out
 }
 
+/// One candidate of the choice: a structure with a model input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Candidate {
+    structure: ModelStructure,
+    input: ReferenceInput,
+}
+
+/// The candidates asked for: every structure (the paper's first) with every input, each once.
+/// No input asked for means the trace's own: smooth when it carries the interpolator's exact
+/// derivatives, else hold.
+fn candidates(trace: &Trace, opts: &IdentifyOptions) -> Vec<Candidate> {
+    let mut structures = vec![ModelStructure::Paper];
+    for s in &opts.structures {
+        if !structures.contains(s) {
+            structures.push(*s);
+        }
+    }
+    let mut inputs: Vec<ReferenceInput> = vec![];
+    for i in &opts.inputs {
+        if !inputs.contains(i) {
+            inputs.push(*i);
+        }
+    }
+    if inputs.is_empty() {
+        inputs.push(if trace.reference_derivatives.is_some() {
+            ReferenceInput::Smooth
+        } else {
+            ReferenceInput::Hold
+        });
+    }
+    structures
+        .iter()
+        .flat_map(|&structure| {
+            inputs
+                .iter()
+                .map(move |&input| Candidate { structure, input })
+        })
+        .collect()
+}
+
 /// Identifies the closed-loop model of one axis from `trace` (docs/identification.md).
 ///
 /// Steps: validate the options; build the prefiltered regressors and their Gram matrix (one
@@ -203,167 +394,471 @@ fn distinct_starts(candidates: &[(Vec<f64>, f64)], k: usize, extra: &[f64]) -> V
 /// least-squares subproblem, seeded with `opts.seed`; output-error refinement from the swarm's
 /// distinct good particles (when `opts.refine.enabled`); fit metrics on the trace.
 ///
-/// With `opts.structures` beyond the paper's, each structure is identified the same way and
-/// the one with the lowest validation error is chosen: the last `opts.holdout_fraction` of the
-/// trace is held out (the structures are fitted on the rest; each model runs free through the
-/// whole trace and is scored on the held-out samples only); then the chosen structure and the
-/// paper's are refitted on the whole trace. Held out at the end, and contiguous: a free run
-/// needs the initial state, which is known only at the trace's start, and the residuals of
-/// neighbouring samples are strongly correlated, so scattered held-out samples would be
-/// predicted from their fitted neighbours' errors rather than from the model. When the end of
-/// the trace hardly moves (less than a tenth of the reference's path), the start is held out
-/// instead (fit on the rest, scored on the start).
+/// With several candidates (`opts.structures` beyond the paper's, or several `opts.inputs`)
+/// the one with the lowest validation error is chosen, on a stretch of the trace (the whole
+/// trace, or the [`SCREEN_SAMPLES`] with the longest reference path): the last
+/// `opts.holdout_fraction` of the stretch is held out, every candidate is fitted on the rest
+/// (a quicker fit: at most two friction stages, the linearised uncertainty), runs free
+/// through the stretch and is scored on the held-out samples only; then the chosen candidate
+/// and the paper's structure with the chosen input are refined on the whole trace, from their
+/// compared fits. A candidate whose parameters are on a bound or not determined is chosen only
+/// if it beats the best trusted one by `opts.degenerate_margin` ([`Verdict`]). Held out at the
+/// end, and contiguous: a free run needs the initial state, known only at the start, and the
+/// residuals of neighbouring samples are strongly correlated, so scattered held-out samples
+/// would be predicted from their fitted neighbours' errors rather than from the model. When
+/// the end of a stretch that starts at rest hardly moves (less than a tenth of its reference
+/// path), its start is held out instead.
 pub fn identify(trace: &Trace, opts: &IdentifyOptions) -> Result<Identification, Error> {
     opts.validate()?;
-    let structures = structure_list(opts);
+    let cands = candidates(trace, opts);
     let main = swarm(trace, opts)?;
-    if structures.len() == 1 || !opts.refine.enabled {
-        let fits = fit_structures(trace, &main, &structures[..1], opts, None)?;
-        return assemble(trace, main, fits, ValidationSource::None, None);
+    if cands.len() == 1 || !opts.refine.enabled {
+        let c = cands[0];
+        let starts = distinct_starts(&main.result.candidates, opts.refine.starts, &[]);
+        let fit = fit_one(trace, &main, c, &starts, opts, Stage::Whole)?;
+        return assemble(trace, main, vec![fit], ValidationSource::None, None, opts);
     }
-    let n = trace.len();
-    let split = n - ((n as f64 * opts.holdout_fraction) as usize).max(1);
+    // The stretch the candidates are compared on, and its held-out part.
+    let (w0, w1) = screen_window(trace);
+    let stretch = sub_trace(trace, w0..w1)?;
+    let m = stretch.len();
+    let split = m - ((m as f64 * opts.holdout_fraction) as usize).max(1);
     let path = |a: usize, b: usize| -> f64 {
-        trace.xr[a..b].windows(2).map(|w| (w[1] - w[0]).abs()).sum()
+        stretch.xr[a..b]
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .sum()
     };
-    let hold_end = path(split, n) >= 0.1 * path(0, n);
+    let moving = !stretch.starts_at_rest(crate::trace::REST_SPEED);
+    let hold_end = moving || path(split, m) >= 0.1 * path(0, m);
     let (fit_range, hold) = if hold_end {
-        (0..split, split..n)
+        (0..split, split..m)
     } else {
-        let k = n - split;
-        (k..n, 0..k)
+        let k = m - split;
+        (k..m, 0..k)
     };
-    let part = Trace::new(
-        trace.ts,
-        trace.xr[fit_range.clone()].to_vec(),
-        trace.x[fit_range.clone()].to_vec(),
-    )?;
-    let part = match &trace.reference_derivatives {
-        Some((v, a)) => part.with_reference_derivatives(
-            v[fit_range.clone()].to_vec(),
-            a[fit_range.clone()].to_vec(),
-        )?,
-        None => part,
-    };
-    let part_swarm = swarm(&part, opts)?;
-    let part_fits = fit_structures(&part, &part_swarm, &structures, opts, None)?;
-    // Validation: each model (fitted on the part) runs free through the whole trace; the
-    // held-out samples score it. Fitted on the end, it must run through the start too: its
-    // free run from rest at the start is all it knows.
-    let validations: Vec<FitMetrics> = part_fits
-        .iter()
-        .map(|f| score(&f.model, trace, Some(hold.clone()), opts))
-        .collect::<Result<_, _>>()?;
-    let chosen = choose(&part_fits, &validations, opts.selection_margin);
-    // Refit the paper's structure and the chosen one on the whole trace, from their part fits.
-    let mut refit: Vec<ModelStructure> = vec![ModelStructure::Paper];
-    if structures[chosen] != ModelStructure::Paper {
-        refit.push(structures[chosen]);
-    }
-    let mut fits = fit_structures(trace, &main, &refit, opts, Some(&part_fits))?;
-    // Report every structure: the refitted ones whole, the others as fitted on the part.
-    for (i, f) in part_fits.into_iter().enumerate() {
-        let v = validations[i].clone();
-        match fits.iter_mut().find(|g| g.structure == f.structure) {
-            Some(g) => g.validation = Some(v),
-            None => fits.push(StructureFit {
-                validation: Some(v),
-                ..f
-            }),
-        }
-    }
+    let part = sub_trace(&stretch, fit_range)?;
+    let psw = &swarm(&part, opts)?;
+    // Validation: each model (fitted on the part) runs free through the stretch; the held-out
+    // samples score it.
+    let validate = |m: &DriveModel| score(m, &stretch, Some(hold.clone()), opts);
+    let (screened, validations) = compare(&part, psw, &cands, opts, &validate)?;
     let source = ValidationSource::HeldOut {
-        first: hold.start,
+        first: w0 + hold.start,
         samples: hold.len(),
+        stretch_first: w0,
+        stretch_samples: m,
     };
-    assemble(trace, main, fits, source, Some(structures[chosen]))
+    finish(trace, main, screened, validations, source, opts)
 }
 
 /// [`identify`] with a separate validation trace of the same axis (a simulated machine's
-/// validation program, or a second recording): every structure is fitted on `trace` and
-/// scored by its free run on `validation`; the lowest validation error chooses.
+/// validation program, or a second recording): every candidate is fitted on `trace` (the
+/// quicker fit of the comparison) and scored by its free run on `validation`; the choice is
+/// [`identify`]'s; the chosen candidate and the paper's structure with the chosen input are
+/// then refined with every stage.
 pub fn identify_with_validation(
     trace: &Trace,
     validation: &Trace,
     opts: &IdentifyOptions,
 ) -> Result<Identification, Error> {
     opts.validate()?;
-    let structures = structure_list(opts);
+    let cands = candidates(trace, opts);
     let main = swarm(trace, opts)?;
-    let mut fits = fit_structures(trace, &main, &structures, opts, None)?;
-    let validations: Vec<FitMetrics> = fits
-        .iter()
-        .map(|f| score(&f.model, validation, None, opts))
-        .collect::<Result<_, _>>()?;
-    let chosen = choose(&fits, &validations, opts.selection_margin);
-    for (f, v) in fits.iter_mut().zip(validations) {
-        f.validation = Some(v);
+    if cands.len() == 1 || !opts.refine.enabled {
+        let c = cands[0];
+        let starts = distinct_starts(&main.result.candidates, opts.refine.starts, &[]);
+        let mut fit = fit_one(trace, &main, c, &starts, opts, Stage::Whole)?;
+        fit.validation = Some(score(&fit.model, validation, None, opts)?);
+        return assemble(
+            trace,
+            main,
+            vec![fit],
+            ValidationSource::Trace,
+            Some(c),
+            opts,
+        );
     }
-    let s = structures[chosen];
-    assemble(trace, main, fits, ValidationSource::Trace, Some(s))
+    let validate = |m: &DriveModel| score(m, validation, None, opts);
+    let (screened, validations) = compare(trace, &main, &cands, opts, &validate)?;
+    finish(
+        trace,
+        main,
+        screened,
+        validations,
+        ValidationSource::Trace,
+        opts,
+    )
 }
 
-/// The paper's structure first, then the others asked for, each once.
-fn structure_list(opts: &IdentifyOptions) -> Vec<ModelStructure> {
-    let mut out = vec![ModelStructure::Paper];
-    for s in &opts.structures {
-        if !out.contains(s) {
-            out.push(*s);
+/// The choice among the compared candidates, then the whole-trace refinement of the chosen one
+/// and of the paper's structure with the chosen input (in parallel), from their compared fits
+/// (and, for the paper's structure, the swarm's best particle); every candidate reported.
+fn finish(
+    trace: &Trace,
+    main: Swarm,
+    mut screened: Vec<StructureFit>,
+    validations: Vec<FitMetrics>,
+    source: ValidationSource,
+    opts: &IdentifyOptions,
+) -> Result<Identification, Error> {
+    let (chosen, verdicts) = choose(&screened, &validations, opts);
+    for ((f, v), verdict) in screened.iter_mut().zip(validations).zip(verdicts) {
+        f.validation = Some(v);
+        f.verdict = Some(verdict);
+    }
+    let c = Candidate {
+        structure: screened[chosen].structure,
+        input: screened[chosen].input,
+    };
+    let paper = Candidate {
+        structure: ModelStructure::Paper,
+        input: c.input,
+    };
+    let refit = |cand: Candidate| -> Result<StructureFit, Error> {
+        let prev = screened
+            .iter()
+            .find(|f| f.structure == cand.structure && f.input == cand.input);
+        // From the compared fit (near the whole trace's optimum), else the swarm's best.
+        let starts: Vec<Start> = match prev {
+            Some(f) => vec![start_of(&f.model, cand.structure)],
+            None => distinct_starts(&main.result.candidates, opts.refine.starts, &[]),
+        };
+        let mut fit = fit_one(trace, &main, cand, &starts, opts, Stage::Whole)?;
+        if let Some(p) = prev {
+            fit.validation = p.validation.clone();
+            fit.verdict = p.verdict.clone();
+            fit.degenerate = p.degenerate.clone();
+        }
+        Ok(fit)
+    };
+    let (chosen_fit, paper_fit) = if c == paper {
+        (refit(c)?, None)
+    } else {
+        let (a, b) = rayon::join(|| refit(c), || refit(paper));
+        (a?, Some(b?))
+    };
+    // The sensitivity to the model input: the paper's structure compared with either input.
+    let twin = screened
+        .iter()
+        .find(|f| f.structure == ModelStructure::Paper && f.input != c.input);
+    let me = screened
+        .iter()
+        .find(|f| f.structure == ModelStructure::Paper && f.input == c.input);
+    let mut chosen_fit = chosen_fit;
+    if let (Some(me), Some(twin), Some(u)) = (me, twin, chosen_fit.refinement.uncertainty.as_mut())
+    {
+        widen_by_input(u, me, twin);
+    }
+    let mut fits = vec![];
+    fits.push(paper_fit.clone().unwrap_or_else(|| chosen_fit.clone()));
+    if paper_fit.is_some() {
+        fits.push(chosen_fit);
+    }
+    for f in screened {
+        if !fits
+            .iter()
+            .any(|g| g.structure == f.structure && g.input == f.input)
+        {
+            fits.push(f);
+        }
+    }
+    assemble(trace, main, fits, source, Some(c), opts)
+}
+
+/// Widens the chosen model's deviations `u` by its sensitivity to the model input (docs/
+/// identification.md, "Parameter uncertainty"): the compared fits of the paper's structure with
+/// the chosen input (`me`) and the other (`twin`) differ by $\Delta_i$ in each parameter; with the
+/// two inputs weighed by their validation likelihoods — $w$ the other's posterior weight from
+/// the ratio of the held-out mean squares over the independent samples the residual's
+/// correlation window leaves, $\ln(w / (1 - w)) = -\tfrac{N_{eff}}{2}\ln(\mathrm{MS}_{twin} /
+/// \mathrm{MS}_{me})$ — the mixture adds the variance $w(1 - w)\Delta_i^2$.
+fn widen_by_input(u: &mut Uncertainty, me: &StructureFit, twin: &StructureFit) {
+    let (Some(vm), Some(vt)) = (&me.validation, &twin.validation) else {
+        return;
+    };
+    let (ms_me, ms_twin) = (vm.freerun_rms.powi(2), vt.freerun_rms.powi(2));
+    if !(ms_me > 0.0 && ms_twin.is_finite()) {
+        return;
+    }
+    let n_eff = vm.samples as f64 / u.window_samples.max(1) as f64;
+    let log_odds = -0.5 * n_eff * (ms_twin / ms_me).ln();
+    let w = 1.0 / (1.0 + (-log_odds).exp());
+    let weight = (w * (1.0 - w)).sqrt();
+    let (Some(a), Some(b)) = (
+        me.refinement.uncertainty.as_ref(),
+        twin.refinement.uncertainty.as_ref(),
+    ) else {
+        return;
+    };
+    for p in &mut u.parameters {
+        if let (Some(x), Some(y)) = (a.get(p.name), b.get(p.name)) {
+            let d = weight * (x.value - y.value);
+            if d.is_finite() && p.std.is_finite() {
+                p.std = p.std.hypot(d);
+                p.input_std = d.abs();
+            }
+        }
+    }
+}
+
+/// The stretch of `trace` on which candidates are compared: all of it, or the
+/// [`SCREEN_SAMPLES`] (at half-window steps) with the longest reference path.
+fn screen_window(trace: &Trace) -> (usize, usize) {
+    let n = trace.len();
+    if n <= SCREEN_SAMPLES {
+        return (0, n);
+    }
+    let mut cum = Vec::with_capacity(n);
+    let mut acc = 0.0;
+    cum.push(0.0);
+    for w in trace.xr.windows(2) {
+        acc += (w[1] - w[0]).abs();
+        cum.push(acc);
+    }
+    let step = SCREEN_SAMPLES / 2;
+    let mut best = (0usize, f64::NEG_INFINITY);
+    let mut a = 0;
+    loop {
+        let b = (a + SCREEN_SAMPLES).min(n);
+        let p = cum[b - 1] - cum[a];
+        if p > best.1 {
+            best = (a, p);
+        }
+        if b == n {
+            break;
+        }
+        a = (a + step).min(n - SCREEN_SAMPLES);
+    }
+    (best.0, best.0 + SCREEN_SAMPLES)
+}
+
+/// Samples `r` of `trace` as a trace of their own (with the exact derivatives, if any).
+fn sub_trace(trace: &Trace, r: std::ops::Range<usize>) -> Result<Trace, Error> {
+    if r.start == 0 && r.end == trace.len() {
+        return Ok(trace.clone());
+    }
+    let t = Trace::new(
+        trace.ts,
+        trace.xr[r.clone()].to_vec(),
+        trace.x[r.clone()].to_vec(),
+    )?;
+    match &trace.reference_derivatives {
+        Some((v, a)) => t.with_reference_derivatives(v[r.clone()].to_vec(), a[r].to_vec()),
+        None => Ok(t),
+    }
+}
+
+/// Scores a compared model on the validation samples.
+type Validate<'a> = dyn Fn(&DriveModel) -> Result<FitMetrics, Error> + Sync + 'a;
+
+/// The compared fits of `cands` on `trace` and their validation scores (docs/identification.md,
+/// "Choosing a structure"): first the paper's structure with every input (in parallel), whose
+/// validation chooses the model input ([`choose`]); then every other structure with that input
+/// (in parallel). Starts: the swarm's distinct good particles (paper's structure), a grid of
+/// the extra parameter screened by the equation-error swarm (extended, found while the
+/// paper's structure is fitted); at most [`COMPARE_STARTS`] each. Candidates of another input
+/// than the chosen one with a structure other than the paper's are not fitted.
+fn compare(
+    trace: &Trace,
+    sw: &Swarm,
+    cands: &[Candidate],
+    opts: &IdentifyOptions,
+    validate: &Validate<'_>,
+) -> Result<(Vec<StructureFit>, Vec<FitMetrics>), Error> {
+    let k = opts.refine.starts.min(COMPARE_STARTS);
+    let mut structures: Vec<ModelStructure> = vec![];
+    for c in cands {
+        if c.structure != ModelStructure::Paper && !structures.contains(&c.structure) {
+            structures.push(c.structure);
+        }
+    }
+    let fit_scored =
+        |c: Candidate, starts: &[Start]| -> Result<(StructureFit, FitMetrics), Error> {
+            let f = fit_one(trace, sw, c, starts, opts, Stage::Compare)?;
+            let v = validate(&f.model)?;
+            Ok((f, v))
+        };
+    let papers: Vec<Candidate> = cands
+        .iter()
+        .copied()
+        .filter(|c| c.structure == ModelStructure::Paper)
+        .collect();
+    let paper_starts = distinct_starts(&sw.result.candidates, k, &[]);
+    let (paper_fits, extended_starts_found) = rayon::join(
+        || {
+            papers
+                .par_iter()
+                .map(|&c| fit_scored(c, &paper_starts))
+                .collect::<Result<Vec<_>, Error>>()
+        },
+        || {
+            structures
+                .par_iter()
+                .map(|&s| {
+                    let mut st = extended_starts(trace, s, opts)?;
+                    st.truncate(COMPARE_EXTENDED_STARTS.min(k));
+                    Ok(st)
+                })
+                .collect::<Result<Vec<_>, Error>>()
+        },
+    );
+    let (mut fits, mut vals): (Vec<StructureFit>, Vec<FitMetrics>) =
+        paper_fits?.into_iter().unzip();
+    let starts = extended_starts_found?;
+    let (best, _) = choose(&fits, &vals, opts);
+    let input = fits[best].input;
+    let rest: Vec<(StructureFit, FitMetrics)> = structures
+        .par_iter()
+        .zip(starts.par_iter())
+        .filter(|(s, _)| {
+            cands.contains(&Candidate {
+                structure: **s,
+                input,
+            })
+        })
+        .map(|(&s, st)| {
+            fit_scored(
+                Candidate {
+                    structure: s,
+                    input,
+                },
+                st,
+            )
+        })
+        .collect::<Result<_, _>>()?;
+    for (f, v) in rest {
+        fits.push(f);
+        vals.push(v);
+    }
+    Ok((fits, vals))
+}
+
+/// Index of the candidate chosen by validation free-run RMS, and the verdict on each
+/// (docs/identification.md, "Choosing a structure"): among the trusted candidates (no
+/// parameter on a bound or undetermined) the lowest error wins, unless one with fewer extra
+/// parameters comes within `selection_margin` (relative) of it — then the one with the fewest
+/// extra parameters among those within the margin (ties to the lower error). A candidate that
+/// is not trusted wins only when its error is below the trusted choice's by
+/// `degenerate_margin` (relative); when none is trusted, the rule runs over all.
+fn choose(
+    fits: &[StructureFit],
+    val: &[FitMetrics],
+    opts: &IdentifyOptions,
+) -> (usize, Vec<Verdict>) {
+    let rms: Vec<f64> = val
+        .iter()
+        .map(|v| {
+            if v.freerun_rms.is_finite() {
+                v.freerun_rms
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    let trusted: Vec<usize> = (0..fits.len())
+        .filter(|&i| fits[i].degenerate.is_empty())
+        .collect();
+    let parsimonious = |pool: &[usize]| -> Option<usize> {
+        let best = pool.iter().map(|&i| rms[i]).fold(f64::INFINITY, f64::min);
+        let mut chosen: Option<usize> = None;
+        for &i in pool {
+            if rms[i] <= best * (1.0 + opts.selection_margin) {
+                let key = (fits[i].structure.extra_parameters(), rms[i]);
+                let better = match chosen {
+                    None => true,
+                    Some(c) => {
+                        let ck = (fits[c].structure.extra_parameters(), rms[c]);
+                        key.0 < ck.0 || (key.0 == ck.0 && key.1 < ck.1)
+                    }
+                };
+                if better {
+                    chosen = Some(i);
+                }
+            }
+        }
+        chosen
+    };
+    let all: Vec<usize> = (0..fits.len()).collect();
+    let chosen = match parsimonious(&trusted) {
+        Some(t) => {
+            let degenerate_best = (0..fits.len())
+                .filter(|i| !trusted.contains(i))
+                .min_by(|&a, &b| rms[a].total_cmp(&rms[b]));
+            match degenerate_best {
+                Some(d) if rms[d] < (1.0 - opts.degenerate_margin) * rms[t] => d,
+                _ => t,
+            }
+        }
+        None => parsimonious(&all).unwrap_or(0),
+    };
+    let best = rms.iter().copied().fold(f64::INFINITY, f64::min);
+    let verdicts = (0..fits.len())
+        .map(|i| {
+            let (r, c) = (rms[i], rms[chosen]);
+            if i == chosen {
+                Verdict::Chosen
+            } else if !fits[i].degenerate.is_empty() && r < c {
+                Verdict::Degenerate {
+                    rms: r,
+                    chosen_rms: c,
+                    margin: opts.degenerate_margin,
+                }
+            } else if r <= c || r <= best * (1.0 + opts.selection_margin) {
+                Verdict::Simpler {
+                    rms: r,
+                    chosen_rms: c,
+                    margin: opts.selection_margin,
+                }
+            } else {
+                Verdict::HigherError {
+                    rms: r,
+                    chosen_rms: c,
+                }
+            }
+        })
+        .collect();
+    (chosen, verdicts)
+}
+
+/// Why a compared fit's parameters are not trusted: its bound hits, and its poles and own
+/// parameters whose deviation is undefined or above [`UNDETERMINED_RELATIVE`] (the friction
+/// $d_c$ only when undefined: it is often poorly determined by runs with few reversals and is
+/// not what a structure is chosen for).
+fn degeneracy(r: &RefineResult) -> Vec<Degeneracy> {
+    let mut out: Vec<Degeneracy> = r
+        .on_bounds
+        .iter()
+        .cloned()
+        .map(Degeneracy::OnBound)
+        .collect();
+    if let Some(u) = &r.uncertainty {
+        for p in &u.parameters {
+            let rel = p.relative();
+            let bad = if p.name == "dc" {
+                rel.is_nan()
+            } else {
+                rel.is_nan() || rel > UNDETERMINED_RELATIVE
+            };
+            if bad {
+                out.push(Degeneracy::Undetermined {
+                    parameter: p.name,
+                    value: p.value,
+                    relative_std: rel,
+                });
+            }
         }
     }
     out
 }
 
-/// Index of the structure chosen by validation free-run RMS: the lowest, unless a structure
-/// with fewer extra parameters comes within `margin` (relative) of it.
-fn choose(fits: &[StructureFit], val: &[FitMetrics], margin: f64) -> usize {
-    let best = val
-        .iter()
-        .map(|v| v.freerun_rms)
-        .fold(f64::INFINITY, f64::min);
-    let mut chosen = 0;
-    let mut chosen_key = (usize::MAX, f64::INFINITY);
-    for (i, (f, v)) in fits.iter().zip(val).enumerate() {
-        if v.freerun_rms <= best * (1.0 + margin) {
-            let key = (f.structure.extra_parameters(), v.freerun_rms);
-            if key.0 < chosen_key.0 || (key.0 == chosen_key.0 && key.1 < chosen_key.1) {
-                chosen = i;
-                chosen_key = key;
-            }
-        }
-    }
-    chosen
-}
-
-/// Refines each structure on `trace`. Starts: the swarm's distinct particles (paper), a grid
-/// of the extra parameter screened by the equation-error swarm (extended), plus the fits
-/// `previous` of the same structure (a refit).
-fn fit_structures(
-    trace: &Trace,
-    sw: &Swarm,
-    structures: &[ModelStructure],
-    opts: &IdentifyOptions,
-    previous: Option<&[StructureFit]>,
-) -> Result<Vec<StructureFit>, Error> {
-    structures
-        .iter()
-        .map(|&s| {
-            let mut starts = match previous.and_then(|p| p.iter().find(|f| f.structure == s)) {
-                Some(f) => vec![start_of(&f.model, s)],
-                None => vec![],
-            };
-            if s == ModelStructure::Paper {
-                starts.extend(distinct_starts(
-                    &sw.result.candidates,
-                    opts.refine.starts,
-                    &[],
-                ));
-            } else if previous.is_none() {
-                starts.extend(extended_starts(trace, s, opts)?);
-            }
-            fit_one(trace, sw, s, &starts, opts)
-        })
-        .collect()
+/// How thoroughly a candidate is fitted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stage {
+    /// Compared: at most two friction stages, the linearised uncertainty.
+    Compare,
+    /// Refined on the whole trace: every stage, the full uncertainty.
+    Whole,
 }
 
 /// A start from a model of structure `s`.
@@ -385,28 +880,36 @@ fn start_of(m: &DriveModel, s: ModelStructure) -> Start {
     }
 }
 
+/// Refines candidate `c` on `trace` from `starts` (or takes the swarm's model when the
+/// refinement is off), with its fit on `trace`.
 fn fit_one(
     trace: &Trace,
     sw: &Swarm,
-    s: ModelStructure,
+    c: Candidate,
     starts: &[Start],
     opts: &IdentifyOptions,
+    stage: Stage,
 ) -> Result<StructureFit, Error> {
     let refinement = if opts.refine.enabled {
-        refine(
-            trace,
-            &sw.regs,
-            starts,
-            RefineSetup {
-                structure: s,
-                bounds: &opts.bounds,
-                extended: &opts.extended_bounds,
-                opts: &opts.refine,
-            },
-        )?
+        let mut setup = RefineSetup::full(c.structure, c.input, opts);
+        let compare_opts;
+        if stage == Stage::Compare {
+            compare_opts = crate::options::RefineOptions {
+                sign_iterations: opts.refine.sign_iterations.min(COMPARE_SIGN_ITERATIONS),
+                max_iterations: opts.refine.max_iterations.min(COMPARE_ITERATIONS),
+                tolerance: opts.refine.tolerance.max(COMPARE_TOLERANCE),
+                ..opts.refine
+            };
+            setup.opts = &compare_opts;
+            setup.uncertainty = UncertaintyLevel::Linear;
+        }
+        refine(trace, &sw.regs, starts, setup)?
     } else {
         // No refinement: the swarm's model as it is.
-        let model = DriveModel::from(sw.paper_pso);
+        let model = DriveModel {
+            input: c.input,
+            ..DriveModel::from(sw.paper_pso)
+        };
         RefineResult {
             model,
             poles: sw.paper_pso_poles,
@@ -423,20 +926,35 @@ fn fit_one(
         }
     };
     let model = refinement.model;
-    let estimation = if model.is_core_only() {
-        fit_metrics_with(&model.core, trace, &sw.regs)?
+    let estimation = if c.structure == ModelStructure::Paper {
+        crate::metrics::score_paper(&model, trace, &sw.regs)?
     } else {
         score(&model, trace, None, opts)?
     };
     Ok(StructureFit {
-        structure: s,
+        structure: c.structure,
+        input: c.input,
         poles: refinement.poles,
         model,
+        degenerate: degeneracy(&refinement),
         refinement,
         estimation,
+        whole: stage == Stage::Whole,
         validation: None,
+        verdict: None,
     })
 }
+
+/// A compared fit (docs/identification.md, "Choosing a structure"): at most this many friction
+/// stages (stage B; the comparison needs the model near its fixed point, not at it), starts,
+/// Levenberg–Marquardt iterations per stage, and a relative cost decrease that ends a stage.
+const COMPARE_SIGN_ITERATIONS: usize = 1;
+const COMPARE_STARTS: usize = 2;
+/// Starts of a compared fit of an extended structure: the grid point with the lowest
+/// equation-error cost.
+const COMPARE_EXTENDED_STARTS: usize = 1;
+const COMPARE_ITERATIONS: usize = 20;
+const COMPARE_TOLERANCE: f64 = 1e-6;
 
 /// Starts of an extended structure: its extra parameter on a grid over its bounds; at each
 /// grid value the reference is shaped (dead time, filter) or the measured position freed of
@@ -532,7 +1050,12 @@ fn shaped_trace(trace: &Trace, s: ModelStructure, g: &[f64]) -> Result<Trace, Er
         b2: 0.0,
         dc: 0.0,
     };
-    let mut shaper = DriveModel::from(zero);
+    // Driven by the hold of the positions, whose acceleration impulses integrate back to the
+    // positions exactly.
+    let mut shaper = DriveModel {
+        input: ReferenceInput::Hold,
+        ..DriveModel::from(zero)
+    };
     match s {
         ModelStructure::Delay => shaper.delay_s = g[0],
         ModelStructure::FirstOrderFilter => {
@@ -568,19 +1091,23 @@ fn assemble(
     main: Swarm,
     fits: Vec<StructureFit>,
     validation: ValidationSource,
-    chosen: Option<ModelStructure>,
+    chosen: Option<Candidate>,
+    _opts: &IdentifyOptions,
 ) -> Result<Identification, Error> {
+    let chosen = chosen.unwrap_or(Candidate {
+        structure: ModelStructure::Paper,
+        input: fits.first().map_or(ReferenceInput::Smooth, |f| f.input),
+    });
     let paper = fits
         .iter()
-        .find(|f| f.structure == ModelStructure::Paper)
+        .find(|f| f.structure == ModelStructure::Paper && f.input == chosen.input && f.whole)
         .cloned()
         .ok_or(Error::RefinementFailed {
             structure: ModelStructure::Paper,
         })?;
-    let chosen = chosen.unwrap_or(ModelStructure::Paper);
     let sel = fits
         .iter()
-        .find(|f| f.structure == chosen)
+        .find(|f| f.structure == chosen.structure && f.input == chosen.input && f.whole)
         .cloned()
         .unwrap_or_else(|| paper.clone());
     let fit_estimation_paper = fit_metrics_with(&main.paper_pso, trace, &main.regs)?;
@@ -588,8 +1115,10 @@ fn assemble(
     Ok(Identification {
         identified: paper.model.core,
         identified_poles: paper.poles,
+        identified_model: paper.model,
         model: sel.model,
         structure: sel.structure,
+        input: sel.input,
         uncertainty: sel.refinement.uncertainty.clone(),
         on_bounds: sel.refinement.on_bounds.clone(),
         validation,

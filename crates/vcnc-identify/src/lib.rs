@@ -70,8 +70,8 @@ mod trace;
 
 pub use filter::Butterworth2;
 pub use identify::{
-    Identification, LsBaseline, StructureFit, ValidationSource, identify, identify_with_validation,
-    unconstrained_ls,
+    Degeneracy, Identification, LsBaseline, SCREEN_SAMPLES, StructureFit, UNDETERMINED_RELATIVE,
+    ValidationSource, Verdict, identify, identify_with_validation, unconstrained_ls,
 };
 pub use metrics::{FitMetrics, fit_metrics, fit_metrics_with, free_run, free_run_model, score};
 pub use options::{
@@ -80,11 +80,13 @@ pub use options::{
 };
 pub use pso::{CostFunction, DISTINCT, HistoryEntry, Pso, PsoResult};
 pub use refine::{
-    BoundHit, MOVING_START_SKIP_S, OutputErrorProblem, PROFILE_RELATIVE, ParameterStd,
-    RefineResult, RefineSetup, RefineStage, SignSource, Start, Uncertainty, refine,
+    BoundHit, Determination, OutputErrorProblem, POORLY_DETERMINED, PROFILE_RELATIVE, ParameterStd,
+    RefineResult, RefineSetup, RefineStage, SignSource, Start, Uncertainty, UncertaintyLevel,
+    refine,
 };
 pub use regress::{EquationErrorCost, Regressors, Theta};
 pub use trace::{MIN_MOTION, MIN_SAMPLES, REST_SPEED, TIME_JITTER, Timing, Trace};
+pub use vcnc_drive::drive_model::ReferenceInput;
 
 /// Errors of the identification crate. Every variant carries the values needed to act on it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

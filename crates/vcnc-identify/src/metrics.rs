@@ -1,8 +1,9 @@
 //! Fit metrics of a model on a trace (docs/identification.md, "Outputs"): one-step (equation-error)
 //! prediction, free-run simulation, and fit % of the tracking error.
 
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
-use vcnc_drive::{ClosedLoopModel, DriveModel, Reference, SimOptions};
+use vcnc_drive::{ClosedLoopModel, DriveModel, ModelInput, ModelRun, Reference, SimOptions};
 
 use crate::Error;
 use crate::options::IdentifyOptions;
@@ -28,6 +29,12 @@ pub struct FitMetrics {
     pub tracking_peak: f64,
     /// Samples compared.
     pub samples: usize,
+    /// For a trace that starts moving: the model's state at the first sample, estimated from
+    /// the samples not scored (docs/identification.md, "Traces that start moving"), as the
+    /// states of [`DriveModel::realisation`] in deviations from the first reference position;
+    /// `None` when the free run starts at rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_state: Option<Vec<f64>>,
     /// Free-run model position $\hat x_k$ at every sample, axis units (for plots; not
     /// serialised).
     #[serde(skip)]
@@ -50,15 +57,16 @@ pub fn free_run(model: &ClosedLoopModel, trace: &Trace) -> Result<Vec<f64>, Erro
 }
 
 /// Free run of a model of any structure ([`DriveModel`]) driven by the trace's reference,
-/// starting as [`free_run`] does. The reference drives it as the identification fits it:
-/// through its exact velocity and acceleration when the trace carries them and the model has
-/// the paper's structure ([`DriveModel::simulate`]), else through the first-order hold of the
-/// positions alone ([`DriveModel::simulate_positions`]: a measured trace's positions are used
-/// without differencing). Returns $\hat x_k$, axis units.
+/// starting as [`free_run`] does (at rest), with the model's input
+/// ([`vcnc_drive::drive_model::ReferenceInput`]): through the exact reference velocity and
+/// acceleration when the trace carries them and the model's input is smooth
+/// ([`DriveModel::simulate`]), else rebuilt from the positions alone
+/// ([`DriveModel::simulate_positions`]: their first-order hold, or their central differences).
+/// Returns $\hat x_k$, axis units.
 pub fn free_run_model(model: &DriveModel, trace: &Trace) -> Result<Vec<f64>, Error> {
     let (pos, vel, acc, prefixed) = trace.prefixed_reference();
     let opts = SimOptions::default();
-    let mut x = if trace.reference_derivatives.is_some() && model.is_core_only() {
+    let mut x = if trace.reference_derivatives.is_some() {
         let r = Reference {
             pos: &pos,
             vel: &vel,
@@ -74,23 +82,151 @@ pub fn free_run_model(model: &DriveModel, trace: &Trace) -> Result<Vec<f64>, Err
     Ok(x)
 }
 
-/// RMS free-run error of `model` on `trace`, axis units (∞ when not finite).
-pub(crate) fn freerun_rms(model: &DriveModel, trace: &Trace) -> Result<f64, Error> {
-    let xh = free_run_model(model, trace)?;
-    let s2: f64 = xh
-        .iter()
-        .zip(&trace.x)
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum();
-    let v = (s2 / trace.len().max(1) as f64).sqrt();
-    Ok(if v.is_finite() { v } else { f64::INFINITY })
+/// A free run of `model` through the trace's reference with the model's input, from the state
+/// `z0` at the first sample (empty: rest), with its friction levels.
+fn run_from(model: &DriveModel, trace: &Trace, z0: &[f64]) -> Result<ModelRun, Error> {
+    let opts = SimOptions::default();
+    match &trace.reference_derivatives {
+        Some((vel, acc)) if model.input == vcnc_drive::drive_model::ReferenceInput::Smooth => {
+            let r = Reference {
+                pos: &trace.xr,
+                vel,
+                acc,
+            };
+            Ok(model.simulate_run_from(ModelInput::Derivatives(r), trace.ts, &opts, z0)?)
+        }
+        _ => {
+            let input = model.input_of(&trace.xr, trace.ts);
+            Ok(model.simulate_run_from(input.as_input(), trace.ts, &opts, z0)?)
+        }
+    }
+}
+
+/// Free run of `model` through `trace` from the initial state that best explains the
+/// measured position over the samples `fit` (docs/identification.md, "Traces that start
+/// moving"): the run from rest at the first sample, its residual $x_k - \hat x_k$ regressed on
+/// the free responses $c_x \Phi^k e_j$ of the model's realisation (least squares over `fit`),
+/// the state corrected and the run repeated, as the friction of the run depends on the state ([`STATE_ROUNDS`] corrections). The samples within the dead time are left out of
+/// `fit` (the reference before the first sample is not known). Returns the run and the state.
+pub(crate) fn run_from_estimated_state(
+    model: &DriveModel,
+    trace: &Trace,
+    fit: std::ops::Range<usize>,
+) -> Result<(ModelRun, Vec<f64>), Error> {
+    /// Most states of a realisation: filter (2), core (3), extra pole (1).
+    const NS: usize = 6;
+    let real = model.realisation();
+    let ns = real.a.nrows();
+    let phi = (&real.a * trace.ts).exp();
+    let skip = (model.delay_s / trace.ts).ceil() as usize + 1;
+    let fit = fit.start.max(skip).min(trace.len())..fit.end.min(trace.len());
+    let mut z = vec![0.0; ns];
+    let mut run = run_from(model, trace, &[])?;
+    if fit.len() < 4 * ns || ns > NS {
+        return Ok((run, z));
+    }
+    let phi_t: [[f64; NS]; NS] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| if i < ns && j < ns { phi[(j, i)] } else { 0.0 })
+    });
+    for _ in 0..STATE_ROUNDS {
+        // Normal equations of the free responses over `fit`, rows propagated as c_x Phi^k.
+        let mut g = [[0.0; NS]; NS];
+        let mut b = [0.0; NS];
+        let mut row: [f64; NS] = std::array::from_fn(|i| if i < ns { real.cx[i] } else { 0.0 });
+        for k in 0..fit.end {
+            if k >= fit.start {
+                let r = trace.x[k] - run.position[k];
+                for i in 0..ns {
+                    b[i] += row[i] * r;
+                    for j in i..ns {
+                        g[i][j] += row[i] * row[j];
+                    }
+                }
+            }
+            let mut next = [0.0; NS];
+            for (i, v) in next.iter_mut().enumerate().take(ns) {
+                *v = (0..ns).map(|j| phi_t[i][j] * row[j]).sum();
+            }
+            row = next;
+        }
+        let gm = DMatrix::from_fn(ns, ns, |i, j| g[i.min(j)][i.max(j)]);
+        let bm = DVector::from_fn(ns, |i, _| b[i]);
+        let Some(dz) = solve_spd(&gm, &bm) else {
+            break;
+        };
+        for (zi, d) in z.iter_mut().zip(dz.iter()) {
+            *zi += d;
+        }
+        run = match run_from(model, trace, &z) {
+            Ok(r) => r,
+            Err(_) => break,
+        };
+    }
+    Ok((run, z))
+}
+
+/// Corrections of the estimated initial state ([`run_from_estimated_state`]): the friction of
+/// the run depends on the state, so the linear estimate is repeated once on the corrected run.
+const STATE_ROUNDS: usize = 2;
+
+/// Least squares on the upper triangle of a symmetric Gram matrix `g`: column-scaled, solved by
+/// a truncated SVD (directions the data do not determine, relative singular value below
+/// $10^{-10}$, are left at zero).
+fn solve_spd(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
+    let n = g.nrows();
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            let v = g[(i, i)];
+            if v > 0.0 && v.is_finite() {
+                1.0 / v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let a = DMatrix::from_fn(n, n, |i, j| {
+        let (lo, hi) = (i.min(j), i.max(j));
+        g[(lo, hi)] * d[i] * d[j]
+    });
+    let rhs = DVector::from_fn(n, |i, _| b[i] * d[i]);
+    let svd = a.svd(true, true);
+    let top = svd.singular_values.max();
+    let y = svd.solve(&rhs, 1e-10 * top).ok()?;
+    let x = DVector::from_fn(n, |i, _| y[i] * d[i]);
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// The free run that scores `model` on `trace` over the samples `range` (all: `None`): from
+/// rest ([`free_run_model`]) for a trace that starts at rest; for one that starts moving, from
+/// the state estimated on the samples before `range` (on all samples when `range` is `None`,
+/// as for an estimation run whose fit is its own; from rest when `range` starts at the first
+/// sample, the samples after it being the ones a model fitted on them has seen).
+pub(crate) fn scored_run(
+    model: &DriveModel,
+    trace: &Trace,
+    range: Option<&std::ops::Range<usize>>,
+) -> Result<(Vec<f64>, Option<Vec<f64>>), Error> {
+    let fit = match range {
+        _ if trace.starts_at_rest(crate::trace::REST_SPEED) => None,
+        None => Some(0..trace.len()),
+        Some(r) if r.start > 0 => Some(0..r.start),
+        Some(_) => None,
+    };
+    match fit {
+        Some(fit) => {
+            let (run, z) = run_from_estimated_state(model, trace, fit)?;
+            Ok((run.position, Some(z)))
+        }
+        None => Ok((free_run_model(model, trace)?, None)),
+    }
 }
 
 /// Scores a model of any structure on any trace (the validation of a model on a recording it
 /// was not fitted on): free-run RMS and largest error, one-step RMS, fit % and the tracking
 /// error ([`FitMetrics`]), over the samples `range` of the trace (all of them when `None`;
 /// the free run always starts at the trace's first sample, so a held-out tail is predicted
-/// from the reference alone). The one-step error is the equation error of the model's core
+/// from the reference alone). A trace that starts moving is run from the state estimated on
+/// the samples before `range` (all samples when `None`; [`FitMetrics::initial_state`]). The one-step error is the equation error of the model's core
 /// (paper eq. 7) with the reference shaped by the model's dead time and filter and the
 /// measured position freed of its extra pole, on the regressors of `opts`.
 pub fn score(
@@ -100,11 +236,13 @@ pub fn score(
     opts: &IdentifyOptions,
 ) -> Result<FitMetrics, Error> {
     model.validate()?;
-    let xhat = free_run_model(model, trace)?;
+    let (xhat, state) = scored_run(model, trace, range.as_ref())?;
     let range = range.unwrap_or(0..trace.len());
     let range = range.start.min(trace.len())..range.end.min(trace.len());
     let onestep = one_step_shaped(model, trace, &range, opts).unwrap_or(f64::NAN);
-    Ok(metrics_over(trace, xhat, range, onestep))
+    let mut m = metrics_over(trace, xhat, range, onestep);
+    m.initial_state = state;
+    Ok(m)
 }
 
 /// The one-step error of an extended model (see [`score`]).
@@ -115,7 +253,7 @@ fn one_step_shaped(
     opts: &IdentifyOptions,
 ) -> Result<f64, Error> {
     let sub = |v: &[f64]| v[range.clone()].to_vec();
-    if model.is_core_only() {
+    if model.delay_s == 0.0 && model.reference_filter.is_none() && model.extra_pole_hz.is_none() {
         let tr = Trace::new(trace.ts, sub(&trace.xr), sub(&trace.x))?;
         let regs = Regressors::build(&tr, opts)?;
         return Ok(regs.one_step_rms(&model.core));
@@ -151,10 +289,12 @@ fn one_step_shaped(
 
 /// The reference after a model's dead time and filter, at the samples, axis units: the
 /// filter's output, computed with the model's own exact scheme (a core that passes its
-/// reference through: $b_0 = 1$ with $a_i = 0$ gives $\ddot x = \ddot x_{r,f}$).
+/// reference through: $b_0 = 1$ with $a_i = 0$ gives $\ddot x = \ddot x_{r,f}$, driven by the
+/// hold of the positions, whose acceleration impulses integrate back to the positions exactly).
 fn shape_reference(unit: &DriveModel, trace: &Trace) -> Result<Vec<f64>, Error> {
     let mut m = *unit;
     m.core.b0 = 1.0;
+    m.input = vcnc_drive::drive_model::ReferenceInput::Hold;
     let (pos, _, _, prefixed) = trace.prefixed_reference();
     let mut x = m.simulate_positions(&pos, trace.ts, &SimOptions::default())?;
     if prefixed {
@@ -196,6 +336,7 @@ fn metrics_over(
         tracking_rms: (e.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
         tracking_peak: e.iter().fold(0.0, |a, v| a.max(v.abs())),
         samples: range.len(),
+        initial_state: None,
         predicted_x: xhat[range].to_vec(),
     }
 }
@@ -211,6 +352,20 @@ pub fn fit_metrics(
     fit_metrics_with(model, trace, &regs)
 }
 
+/// [`score`] of a model of the paper's structure (any input) over the whole trace, with the
+/// trace's regressors already built.
+pub(crate) fn score_paper(
+    model: &DriveModel,
+    trace: &Trace,
+    regs: &Regressors,
+) -> Result<FitMetrics, Error> {
+    model.validate()?;
+    let (xhat, state) = scored_run(model, trace, None)?;
+    let mut m = metrics_over(trace, xhat, 0..trace.len(), regs.one_step_rms(&model.core));
+    m.initial_state = state;
+    Ok(m)
+}
+
 /// [`fit_metrics`] with the trace's regressors already built (several models on one trace
 /// share the filter and Gram pass).
 pub fn fit_metrics_with(
@@ -218,11 +373,8 @@ pub fn fit_metrics_with(
     trace: &Trace,
     regs: &Regressors,
 ) -> Result<FitMetrics, Error> {
-    let xhat = free_run(model, trace)?;
-    Ok(metrics_over(
-        trace,
-        xhat,
-        0..trace.len(),
-        regs.one_step_rms(model),
-    ))
+    let (xhat, state) = scored_run(&DriveModel::from(*model), trace, None)?;
+    let mut m = metrics_over(trace, xhat, 0..trace.len(), regs.one_step_rms(model));
+    m.initial_state = state;
+    Ok(m)
 }

@@ -2,6 +2,7 @@
 //! (unknown keys are errors). Every field states its unit and default.
 
 use serde::{Deserialize, Serialize};
+use vcnc_drive::drive_model::ReferenceInput;
 
 use crate::Error;
 
@@ -41,6 +42,15 @@ pub struct IdentifyOptions {
     /// Relative margin by which a structure with more parameters must beat a simpler one's
     /// validation error to be chosen. Default 0.05.
     pub selection_margin: f64,
+    /// Model inputs to try ([`ReferenceInput`]: `"smooth"`, `"hold"`), chosen with the
+    /// structures by validation error (docs/identification.md, "The model input"). Default
+    /// none: the trace's own — smooth when it carries the interpolator's exact derivatives
+    /// (a simulated machine), else hold.
+    pub inputs: Vec<ReferenceInput>,
+    /// Relative margin by which a candidate whose parameters are on a bound or not determined
+    /// must beat the best trusted candidate's validation error to be chosen
+    /// (docs/identification.md, "Choosing a structure"). Default 0.3.
+    pub degenerate_margin: f64,
 }
 
 /// A model structure ([`vcnc_drive::DriveModel`], docs/identification.md): the paper's seven
@@ -76,6 +86,16 @@ impl ModelStructure {
             ModelStructure::Paper => 0,
             ModelStructure::SecondOrderFilter => 2,
             _ => 1,
+        }
+    }
+
+    /// Order of the tracking path's denominator (the core's three poles, the filter's and the
+    /// extra pole): the number of free responses of the model's output.
+    pub fn order(&self) -> usize {
+        match self {
+            ModelStructure::Paper | ModelStructure::Delay => 3,
+            ModelStructure::FirstOrderFilter | ModelStructure::ExtraPole => 4,
+            ModelStructure::SecondOrderFilter => 5,
         }
     }
 
@@ -172,6 +192,8 @@ impl Default for IdentifyOptions {
             extended_bounds: ExtendedBounds::default(),
             holdout_fraction: 0.3,
             selection_margin: 0.05,
+            inputs: vec![],
+            degenerate_margin: 0.3,
         }
     }
 }
@@ -215,6 +237,13 @@ impl IdentifyOptions {
             return Err(Error::InvalidOption {
                 name: "selection_margin",
                 value: self.selection_margin,
+                expected: "a relative margin in [0, 1)",
+            });
+        }
+        if !(self.degenerate_margin >= 0.0 && self.degenerate_margin < 1.0) {
+            return Err(Error::InvalidOption {
+                name: "degenerate_margin",
+                value: self.degenerate_margin,
                 expected: "a relative margin in [0, 1)",
             });
         }

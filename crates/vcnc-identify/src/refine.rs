@@ -83,6 +83,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use vcnc_drive::drive_model::ReferenceInput;
 use vcnc_drive::{ClosedLoopModel, DriveModel, ModelInput, Poles, ReferenceFilter, SimOptions};
 
 use crate::Error;
@@ -165,6 +166,11 @@ pub struct Uncertainty {
     /// structure's own (`delay_s`, `filter_tau_s`, `filter_wn_hz`, `filter_zeta`,
     /// `extra_pole_hz`).
     pub parameters: Vec<ParameterStd>,
+    /// When the pair is real ($\zeta \ge 1$): its two real poles, `pair_slow_hz` and
+    /// `pair_fast_hz` (Hz, the decay rates over $2\pi$), which is what the data determine
+    /// there; near $\zeta = 1$ the split of the pair into $\omega_n$ and $\zeta$ is itself
+    /// poorly determined.
+    pub real_pair: Option<[ParameterStd; 2]>,
     /// Window of the long-run covariance estimate, samples.
     pub window_samples: usize,
 }
@@ -182,6 +188,14 @@ pub struct ParameterStd {
     pub std: f64,
     /// Linearised (sandwich, delta-method) standard deviation, same unit.
     pub linear_std: f64,
+    /// The part of `std` due to the model input's reconstruction (the parameter's sensitivity
+    /// to it, weighed by how clearly validation chose the input; 0 when not assessed), same
+    /// unit: `std` is the root sum of squares of it, `friction_std` and the rest.
+    pub input_std: f64,
+    /// The part of `std` due to the friction input (half the parameter's larger first-order
+    /// change when the friction input moves by half a sample either way; 0 when not assessed,
+    /// and for $d_c$), same unit.
+    pub friction_std: f64,
 }
 
 impl ParameterStd {
@@ -192,6 +206,47 @@ impl ParameterStd {
         } else {
             self.std / self.value.abs()
         }
+    }
+
+    /// Whether the data determine the parameter: its relative deviation at most
+    /// [`POORLY_DETERMINED`] ([`Determination::Determined`]), above it
+    /// ([`Determination::Poor`]: print "poorly determined", not the number as if it were
+    /// known), or undefined ([`Determination::Undetermined`]).
+    pub fn determination(&self) -> Determination {
+        let r = self.relative();
+        if r.is_nan() {
+            Determination::Undetermined
+        } else if r <= POORLY_DETERMINED {
+            Determination::Determined
+        } else {
+            Determination::Poor
+        }
+    }
+}
+
+/// Relative standard deviation (10 %) above which a parameter is reported as poorly
+/// determined ([`ParameterStd::determination`]).
+pub const POORLY_DETERMINED: f64 = 0.1;
+
+/// How well the data determine a parameter ([`ParameterStd::determination`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Determination {
+    /// Relative deviation at most [`POORLY_DETERMINED`].
+    Determined,
+    /// Relative deviation above [`POORLY_DETERMINED`]: the number is not known.
+    Poor,
+    /// No deviation can be given: the data do not constrain the parameter at all.
+    Undetermined,
+}
+
+impl std::fmt::Display for Determination {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Determination::Determined => "determined",
+            Determination::Poor => "poorly determined",
+            Determination::Undetermined => "not determined by the data",
+        })
     }
 }
 
@@ -217,64 +272,50 @@ impl Uncertainty {
     }
 }
 
-/// How the reference drives the model in the fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Mode {
-    Positions,
-    Derivatives,
-}
-
-/// The output-error problem of one trace, in deviations from the first reference sample of the
-/// simulation (a trace that starts moving gets one rest sample at the measured $x_0$ prefixed,
-/// [`Trace::prefixed_reference`]), exactly as [`crate::free_run_model`] simulates.
+/// The output-error problem of one trace, in deviations from the first reference sample, with
+/// one model input ([`ReferenceInput`]) — exactly as [`crate::free_run_model`] simulates it. A
+/// trace that starts moving gets the model's initial state as further linear parameters (the
+/// free responses of the model's modes, docs/identification.md, "Traces that start moving").
 #[derive(Debug, Clone)]
 pub struct OutputErrorProblem {
     ts: f64,
     /// Reference deviation, axis units.
     u: Vec<f64>,
-    /// Exact reference velocity and acceleration (derivatives mode).
+    /// Reference velocity and acceleration of the smooth input (exact when the trace carries
+    /// them, else central differences of the positions); empty for the hold input.
     ud: Vec<f64>,
     udd: Vec<f64>,
     /// Measured deviation, axis units.
     x: Vec<f64>,
     /// Friction input over $[t_k, t_{k+1}]$.
     f: Vec<f64>,
-    has_derivatives: bool,
-    /// The trace starts moving: the fit estimates its initial state (free responses).
-    prefixed: bool,
-    /// Samples at the start left out of the fit (a trace that starts moving: the model's
-    /// guessed initial state dies out over them).
+    input: ReferenceInput,
+    /// The trace starts moving: the fit estimates the model's initial state (free responses).
+    moving: bool,
+    /// Samples at the start left out of the fit: those within the largest dead time searched,
+    /// for a trace that starts moving (the reference before its first sample is not known).
     skip: usize,
 }
 
 impl OutputErrorProblem {
-    /// The problem of `trace` with the measured friction sign (prefiltered displacement over
-    /// each sample with the deadband, from `regs`).
-    pub fn new(trace: &Trace, regs: &Regressors) -> OutputErrorProblem {
-        let (pos, ud, udd, prefixed) = trace.prefixed_reference();
-        let offset = pos.first().copied().unwrap_or(0.0);
-        let mut f = Vec::with_capacity(pos.len());
-        let mut x = Vec::with_capacity(pos.len());
-        if prefixed {
-            f.push(0.0);
-            x.push(0.0);
-        }
-        f.extend(regs.interval_signs());
-        x.extend(trace.x.iter().map(|v| v - offset));
+    /// The problem of `trace` with the model input `input` and the measured friction sign
+    /// (prefiltered displacement over each sample with the deadband, from `regs`).
+    pub fn new(trace: &Trace, regs: &Regressors, input: ReferenceInput) -> OutputErrorProblem {
+        let offset = trace.xr[0];
+        let (ud, udd) = match input {
+            ReferenceInput::Hold => (vec![], vec![]),
+            ReferenceInput::Smooth => trace.smooth_rates(),
+        };
         OutputErrorProblem {
             ts: trace.ts,
-            u: pos.iter().map(|v| v - offset).collect(),
+            u: trace.xr.iter().map(|v| v - offset).collect(),
             ud,
             udd,
-            x,
-            f,
-            has_derivatives: trace.reference_derivatives.is_some(),
-            prefixed,
-            skip: if prefixed {
-                ((MOVING_START_SKIP_S / trace.ts) as usize).min(trace.len() / 10)
-            } else {
-                0
-            },
+            x: trace.x.iter().map(|v| v - offset).collect(),
+            f: regs.interval_signs(),
+            input,
+            moving: !trace.starts_at_rest(crate::trace::REST_SPEED),
+            skip: 0,
         }
     }
 
@@ -282,27 +323,47 @@ impl OutputErrorProblem {
         self.u.len().min(self.x.len()).min(self.f.len())
     }
 
-    fn mode(&self, s: ModelStructure) -> Mode {
-        if self.has_derivatives && s == ModelStructure::Paper {
-            Mode::Derivatives
-        } else {
-            Mode::Positions
-        }
-    }
-
-    /// The friction input of `model`'s own free run (with sticking), sample by sample.
-    fn model_signs(&self, model: &DriveModel, s: ModelStructure) -> Result<Vec<f64>, Error> {
-        let n = self.n();
-        let input = match self.mode(s) {
-            Mode::Derivatives => ModelInput::Derivatives(vcnc_drive::Reference {
+    /// The reference as the model's input, over the first `n` samples.
+    fn model_input(&self, n: usize) -> ModelInput<'_> {
+        match self.input {
+            ReferenceInput::Smooth => ModelInput::Derivatives(vcnc_drive::Reference {
                 pos: &self.u[..n],
                 vel: &self.ud[..n],
                 acc: &self.udd[..n],
             }),
-            Mode::Positions => ModelInput::Positions(&self.u[..n]),
+            ReferenceInput::Hold => ModelInput::Positions(&self.u[..n]),
+        }
+    }
+
+    /// The free run of `model` through this problem's reference with the model's own friction
+    /// (with sticking): from rest, or, for a trace that starts moving, from the state that best
+    /// explains the measurement (the estimated state of [`crate::free_run_model`]'s scoring).
+    /// Returns its RMS error over every sample (∞ when not finite) and its friction level over
+    /// each sample.
+    fn own_run(&self, model: &DriveModel) -> Result<(f64, Vec<f64>), Error> {
+        let n = self.n();
+        let run = if self.moving {
+            let tr = Trace::new(self.ts, self.u[..n].to_vec(), self.x[..n].to_vec())?;
+            let tr = match self.input {
+                ReferenceInput::Smooth => {
+                    tr.with_reference_derivatives(self.ud[..n].to_vec(), self.udd[..n].to_vec())?
+                }
+                ReferenceInput::Hold => tr,
+            };
+            crate::metrics::run_from_estimated_state(model, &tr, self.skip..n)?.0
+        } else {
+            model.simulate_run(self.model_input(n), self.ts, &SimOptions::default())?
         };
-        let run = model.simulate_run(input, self.ts, &SimOptions::default())?;
-        Ok(run.friction)
+        let s2: f64 = run.position[..n]
+            .iter()
+            .zip(&self.x[..n])
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum();
+        let rms = (s2 / n.max(1) as f64).sqrt();
+        Ok((
+            if rms.is_finite() { rms } else { f64::INFINITY },
+            run.friction,
+        ))
     }
 }
 
@@ -310,6 +371,8 @@ impl OutputErrorProblem {
 #[derive(Debug, Clone)]
 struct Layout {
     structure: ModelStructure,
+    /// The model input (written into the models).
+    input: ReferenceInput,
     /// Core in pole coordinates (p Hz, ωn Hz, ζ) instead of the coefficient map.
     boxed_core: bool,
     lo: Vec<f64>,
@@ -317,7 +380,13 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(s: ModelStructure, boxed_core: bool, pb: &PoleBounds, eb: &ExtendedBounds) -> Layout {
+    fn new(
+        s: ModelStructure,
+        input: ReferenceInput,
+        boxed_core: bool,
+        pb: &PoleBounds,
+        eb: &ExtendedBounds,
+    ) -> Layout {
         let (mut lo, mut hi) = if boxed_core {
             (pb.lower().to_vec(), pb.upper().to_vec())
         } else {
@@ -340,6 +409,7 @@ impl Layout {
         }
         Layout {
             structure: s,
+            input,
             boxed_core,
             lo,
             hi,
@@ -396,7 +466,10 @@ impl Layout {
             b2: lin[0],
             dc: lin[3],
         };
-        let mut m = DriveModel::from(core);
+        let mut m = DriveModel {
+            input: self.input,
+            ..DriveModel::from(core)
+        };
         match self.structure {
             ModelStructure::Paper => {}
             ModelStructure::Delay => m.delay_s = eta[3],
@@ -590,22 +663,6 @@ impl Layout {
     }
 }
 
-/// Seconds at the start of a trace that starts moving left out of the output-error fit (at
-/// most a tenth of the trace). The model starts at rest at the measured position one sample
-/// before the first; the drive did not: the difference is a transient of the model's own
-/// modes that a drive with a slow real pole (3 Hz: 50 ms) carries for a few tenths of a
-/// second. Fitted, it bent the poles by 5–20 % on cut-out traces of the randomised suite;
-/// left out, they came within 1.5 %. The free run and its figures still cover every sample.
-pub const MOVING_START_SKIP_S: f64 = 0.5;
-
-/// Whether a trace that starts moving gets its initial state estimated by free-response
-/// columns. Off: on the EMPS benchmark it made the free run from rest worse (3.1 µm RMS
-/// against 2.2 µm), since the fit then serves a residual with the estimated initial state
-/// while the model is used from rest; and it did not cure the randomised suite's cut-out
-/// traces, where leaving out the start ([`MOVING_START_SKIP_S`]) did. Kept for the next
-/// round of work.
-const FREE_RESPONSES: bool = false;
-
 /// Stage B stops when a stage's cost comes within this fraction of the previous stage's: the
 /// friction input and the model have reached their fixed point
 /// ([`RefineOptions::sign_iterations`] bounds the number of stages).
@@ -625,9 +682,14 @@ struct Work {
 }
 
 impl Work {
-    fn new(n: usize) -> Work {
-        // Room for the free responses only when they are on.
-        let kmax = if FREE_RESPONSES { KMAX } else { 4 };
+    /// Buffers for `n` samples of the problem `prob` with the structure of `lay` (room for
+    /// the free responses of a trace that starts moving).
+    fn new(n: usize, prob: &OutputErrorProblem, lay: &Layout) -> Work {
+        let kmax = if prob.moving {
+            4 + lay.structure.order()
+        } else {
+            4
+        };
         Work {
             cols: vec![0.0; kmax * n],
             k: 4,
@@ -716,11 +778,7 @@ fn pass_positions<const NU: usize, const NF: usize>(
     let mut g = [[0.0; KMAX + 1]; KMAX + 1];
     let pw: [f64; 7] = std::array::from_fn(|k| om.powi(k as i32));
     // Free responses (a trace that starts moving): the first companion state of Phi^k e_j.
-    let nh = if prob.prefixed && FREE_RESPONSES {
-        NU
-    } else {
-        0
-    };
+    let nh = if prob.moving { NU } else { 0 };
     let kk = 4 + nh;
     w.k = kk;
     let mut rho = [0.0; NU];
@@ -781,9 +839,15 @@ fn pass_positions<const NU: usize, const NF: usize>(
     g
 }
 
-/// Derivatives-mode pass of the paper's structure: $x_r$, $\dot x_r$, $\ddot x_r$ each through
-/// $1/D$ (first-order hold), friction through $1/D$.
-fn pass_derivatives(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> Gram {
+/// Smooth-input pass: $x_r$, $\dot x_r$, $\ddot x_r$ each through $1/D_u$ (order `NU`, the
+/// delayed first-order hold of each), friction through $1/D_f$ (order `NF`):
+/// $\hat x = c_u (a_3 W_r + b_2 sW_r + b_1 sW_v + b_0 sW_a) - c_f d_c sW_F$. Fills the columns
+/// and the target $x - c_u a_3 W_r$ as [`pass_positions`] does.
+fn pass_derivatives<const NU: usize, const NF: usize>(
+    prob: &OutputErrorProblem,
+    d: &Disc,
+    w: &mut Work,
+) -> Gram {
     let n = prob.n();
     let (u, ud, udd, x, f) = (
         &prob.u[..n],
@@ -793,26 +857,42 @@ fn pass_derivatives(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> Gram {
         &prob.f[..n],
     );
     let om = d.om;
-    let p = Fixed::<3>::of(&d.pieces[0]);
-    let pf = Fixed::<3>::of(&d.fric);
-    let (mut yu, mut yv, mut ya, mut yf) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
-    let mut g = [[0.0; KMAX + 1]; KMAX + 1];
-    let nh = if prob.prefixed && FREE_RESPONSES {
-        3
-    } else {
-        0
+    let phi = d.phi;
+    // Input sample j as [position, velocity, acceleration]; at rest before the first.
+    let sample = |j: isize| -> [f64; 3] {
+        if j < 0 {
+            [0.0; 3]
+        } else {
+            let j = (j as usize).min(n - 1);
+            [u[j], ud[j], udd[j]]
+        }
     };
+    let between = |j: isize| -> [f64; 3] {
+        let (a, b) = (sample(j - 1), sample(j));
+        std::array::from_fn(|i| a[i] + (1.0 - phi) * (b[i] - a[i]))
+    };
+    let p0 = Fixed::<NU>::of(&d.pieces[0]);
+    let p1 = d.pieces.get(1).map(Fixed::<NU>::of);
+    let pf = Fixed::<NF>::of(&d.fric);
+    let mut y = [[0.0; NU]; 3];
+    let mut yf = [0.0; NF];
+    let mut g = [[0.0; KMAX + 1]; KMAX + 1];
+    let nh = if prob.moving { NU } else { 0 };
     let kk = 4 + nh;
     w.k = kk;
-    let mut rho = [1.0, 0.0, 0.0];
+    let mut rho = [0.0; NU];
+    rho[0] = 1.0;
+    let step_phi = d.step_phi();
+    let (cu, cf, a3) = (d.cu, d.cf, d.a3);
     for k in 0..n {
+        let j = k as isize - d.m as isize;
         let mut row = [0.0; KMAX + 1];
-        row[0] = om * yu[1];
-        row[1] = om * yv[1];
-        row[2] = om * ya[1];
-        row[3] = -om * yf[1];
+        row[0] = cu * om * y[0][1];
+        row[1] = cu * om * y[1][1];
+        row[2] = cu * om * y[2][1];
+        row[3] = -cf * om * yf[1];
         row[4..4 + nh].copy_from_slice(&rho[..nh]);
-        row[kk] = x[k] - d.a3 * yu[0];
+        row[kk] = x[k] - cu * a3 * y[0][0];
         if k < prob.skip {
             row = [0.0; KMAX + 1];
         }
@@ -823,15 +903,23 @@ fn pass_derivatives(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> Gram {
             break;
         }
         if nh > 0 {
-            let mut next = [0.0; 3];
+            let mut next = [0.0; NU];
             for (jj, v) in next.iter_mut().enumerate() {
-                *v = (0..3).map(|i| rho[i] * p.phi[i][jj]).sum();
+                *v = (0..NU).map(|i| rho[i] * step_phi[(i, jj)]).sum();
             }
             rho = next;
         }
-        yu = advance(&p, &yu, u[k], u[k + 1]);
-        yv = advance(&p, &yv, ud[k], ud[k + 1]);
-        ya = advance(&p, &ya, udd[k], udd[k + 1]);
+        let (s0, s1) = (sample(j), sample(j + 1));
+        for (c, yc) in y.iter_mut().enumerate() {
+            *yc = match &p1 {
+                None => advance(&p0, yc, s0[c], s1[c]),
+                Some(p1) => {
+                    let (b0, b1) = (between(j), between(j + 1));
+                    let mid = advance(&p0, yc, b0[c], s0[c]);
+                    advance(p1, &mid, s0[c], b1[c])
+                }
+            };
+        }
         yf = advance(&pf, &yf, f[k], f[k]);
     }
     g
@@ -873,12 +961,16 @@ impl OutputErrorProblem {
         let Some(d) = lay.discretize(eta, self.ts) else {
             return;
         };
-        let g = match (self.mode(lay.structure), d.du.len() - 1, d.fric.gamma.len()) {
-            (Mode::Derivatives, _, _) => pass_derivatives(self, &d, w),
-            (_, 3, 3) => pass_positions::<3, 3>(self, &d, w),
-            (_, 4, 3) => pass_positions::<4, 3>(self, &d, w),
-            (_, 5, 3) => pass_positions::<5, 3>(self, &d, w),
-            (_, 4, 4) => pass_positions::<4, 4>(self, &d, w),
+        use ReferenceInput::{Hold, Smooth};
+        let g = match (self.input, d.du.len() - 1, d.fric.gamma.len()) {
+            (Hold, 3, 3) => pass_positions::<3, 3>(self, &d, w),
+            (Hold, 4, 3) => pass_positions::<4, 3>(self, &d, w),
+            (Hold, 5, 3) => pass_positions::<5, 3>(self, &d, w),
+            (Hold, 4, 4) => pass_positions::<4, 4>(self, &d, w),
+            (Smooth, 3, 3) => pass_derivatives::<3, 3>(self, &d, w),
+            (Smooth, 4, 3) => pass_derivatives::<4, 3>(self, &d, w),
+            (Smooth, 5, 3) => pass_derivatives::<5, 3>(self, &d, w),
+            (Smooth, 4, 4) => pass_derivatives::<4, 4>(self, &d, w),
             _ => return,
         };
         let Some(lin) = solve_gram(&g, w.k) else {
@@ -926,9 +1018,9 @@ fn levenberg_marquardt(
     };
     let n = prob.n();
     let mut eta = clamp(eta0);
-    let mut base = Work::new(n);
-    let mut trial = Work::new(n);
-    let mut jac: Vec<Work> = (0..mdim).map(|_| Work::new(n)).collect();
+    let mut base = Work::new(n, prob, lay);
+    let mut trial = Work::new(n, prob, lay);
+    let mut jac: Vec<Work> = (0..mdim).map(|_| Work::new(n, prob, lay)).collect();
     prob.evaluate(lay, &eta, &mut base);
     let mut evaluations = 1;
     if !base.cost.is_finite() {
@@ -1084,13 +1176,56 @@ impl Start {
 pub struct RefineSetup<'a> {
     /// Model structure fitted.
     pub structure: ModelStructure,
+    /// How the reference drives the model ([`ReferenceInput`]).
+    pub input: ReferenceInput,
     /// Pole bounds (the core).
     pub bounds: &'a PoleBounds,
     /// Bounds of the extra parameters.
     pub extended: &'a ExtendedBounds,
     /// Iteration settings.
     pub opts: &'a RefineOptions,
+    /// How much of the uncertainty to compute.
+    pub uncertainty: UncertaintyLevel,
+    /// The friction fixed point (stage B) and its model-own friction input: off for a quick
+    /// screening fit (stage A only, the measured friction sign).
+    pub friction_stages: bool,
 }
+
+impl<'a> RefineSetup<'a> {
+    /// The full refinement of structure `s` with input `input` under the options `opts`:
+    /// every stage, the full uncertainty.
+    pub fn full(
+        s: ModelStructure,
+        input: ReferenceInput,
+        opts: &'a crate::IdentifyOptions,
+    ) -> RefineSetup<'a> {
+        RefineSetup {
+            structure: s,
+            input,
+            bounds: &opts.bounds,
+            extended: &opts.extended_bounds,
+            opts: &opts.refine,
+            uncertainty: UncertaintyLevel::Full,
+            friction_stages: true,
+        }
+    }
+}
+
+/// How much of a refined model's uncertainty [`refine`] computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UncertaintyLevel {
+    /// None (`RefineResult::uncertainty` is `None`).
+    None,
+    /// The linearised (sandwich) deviations only: enough to see a parameter the data do not
+    /// determine.
+    Linear,
+    /// The linearised deviations, widened by the cost profile of a weakly determined pole and
+    /// by the other local minima the starts found (module documentation).
+    Full,
+}
+
+/// A stage-A result: its cost and its core.
+type Alternative = (f64, ClosedLoopModel);
 
 /// Refines a model of `setup.structure` by output error from `starts` (see the module
 /// documentation): stage A from every start in parallel, stage B from the best, the candidate
@@ -1105,9 +1240,11 @@ pub fn refine(
     setup.extended.validate()?;
     setup.opts.validate()?;
     let s = setup.structure;
-    let mut prob = OutputErrorProblem::new(trace, regs);
-    let free_lay = Layout::new(s, false, setup.bounds, setup.extended);
-    let freerun = |m: &DriveModel| crate::metrics::freerun_rms(m, trace).unwrap_or(f64::INFINITY);
+    let mut prob = OutputErrorProblem::new(trace, regs, setup.input);
+    if prob.moving && s == ModelStructure::Delay {
+        prob.skip = ((setup.extended.delay_s[1] / trace.ts).ceil() as usize + 2).min(prob.n() / 10);
+    }
+    let free_lay = Layout::new(s, setup.input, false, setup.bounds, setup.extended);
     // Stage A from every start.
     let runs: Vec<Option<LmRun>> = starts
         .par_iter()
@@ -1128,10 +1265,20 @@ pub fn refine(
             }
         }
     }
+    // The other local minima the starts found (not the best's, the chosen model's own
+    // ancestor), for the uncertainty (module documentation).
+    let best_index = best.map(|(i, _)| i);
+    let alternatives: Vec<Alternative> = runs
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| Some(*i) != best_index)
+        .filter_map(|(_, r)| r.as_ref())
+        .map(|r| (r.cost, free_lay.model(&r.eta, &r.lin).core))
+        .collect();
     // No start usable in coefficient space: bounded pole coordinates from the starts.
     let boxed_runs: Vec<Option<LmRun>>;
     if best.is_none() {
-        let boxed = Layout::new(s, true, setup.bounds, setup.extended);
+        let boxed = Layout::new(s, setup.input, true, setup.bounds, setup.extended);
         boxed_runs = starts
             .par_iter()
             .map(|st| {
@@ -1160,10 +1307,11 @@ pub fn refine(
         iterations: 0,
         evaluations: 0,
     };
+    let stage_a_cost = run.cost;
     // Outside the pole bounds: again in bounded pole coordinates from the nearest point inside.
     let model = lay.model(&run.eta, &run.lin);
     if !inside(&model.core, setup.bounds) {
-        let boxed = Layout::new(s, true, setup.bounds, setup.extended);
+        let boxed = Layout::new(s, setup.input, true, setup.bounds, setup.extended);
         let (a1, a2, a3) = lay.core(&run.eta);
         let extra = run.eta[3..].to_vec();
         // From the nearest point inside, else from the best start.
@@ -1182,26 +1330,34 @@ pub fn refine(
         }
     }
     let m0 = lay.model(&run.eta, &run.lin);
+    // Each stage's own free run: its error chooses, its friction feeds the next stage.
+    let own = |prob: &OutputErrorProblem, m: &DriveModel| {
+        prob.own_run(m).unwrap_or((f64::INFINITY, vec![]))
+    };
+    let (fr0, mut f_prev) = own(&prob, &m0);
     stages.push(RefineStage {
         sign: SignSource::Measured(best_i),
         model: m0,
         cost: run.cost,
-        freerun_rms: freerun(&m0),
+        freerun_rms: fr0,
     });
     let mut chosen_run = (0usize, run.eta.clone(), run.history.clone(), run.cost);
+    // The friction input each stage was fitted with.
+    let mut stage_signs: Vec<Vec<f64>> = vec![prob.f.clone()];
     let start_cost = run.start_cost;
     // Stage B: the friction of the previous model's own free run.
-    let mut prev = m0;
     let mut eta = run.eta.clone();
-    for it in 1..=setup.opts.sign_iterations {
-        let Ok(f) = prob.model_signs(&prev, s) else {
-            break;
-        };
+    let sign_iterations = if setup.friction_stages {
+        setup.opts.sign_iterations
+    } else {
+        0
+    };
+    for it in 1..=sign_iterations {
         let n = prob.n();
-        if f[..n] == prob.f[..n] {
+        if f_prev.len() < n || f_prev[..n] == prob.f[..n] {
             break;
         }
-        prob.f[..n].copy_from_slice(&f[..n]);
+        prob.f[..n].copy_from_slice(&f_prev[..n]);
         let Some(r) = levenberg_marquardt(&prob, &lay, &eta, setup.opts) else {
             break;
         };
@@ -1212,13 +1368,14 @@ pub fn refine(
         if !lay.boxed_core && !inside(&m.core, setup.bounds) {
             break;
         }
-        let fr = freerun(&m);
+        let (fr, f_next) = own(&prob, &m);
         stages.push(RefineStage {
             sign: SignSource::Model(it),
             model: m,
             cost: r.cost,
             freerun_rms: fr,
         });
+        stage_signs.push(prob.f.clone());
         if fr < stages[chosen_run.0].freerun_rms {
             chosen_run = (stages.len() - 1, r.eta.clone(), r.history.clone(), r.cost);
         }
@@ -1228,21 +1385,13 @@ pub fn refine(
         if it > 1 && (last - r.cost).abs() <= SIGN_CONVERGED * r.cost {
             break;
         }
-        prev = m;
+        f_prev = f_next;
         eta = r.eta;
     }
     let (chosen, eta, history, cost) = chosen_run;
     let model = stages[chosen].model;
     // The friction input of the chosen stage, for the uncertainty's residual.
-    if chosen == 0 {
-        prob.f = OutputErrorProblem::new(trace, regs).f;
-    } else if let Some(SignSource::Model(_)) = stages.get(chosen).map(|s| s.sign) {
-        let prev_model = stages[chosen - 1].model;
-        if let Ok(f) = prob.model_signs(&prev_model, s) {
-            let n = prob.n();
-            prob.f[..n].copy_from_slice(&f[..n]);
-        }
-    }
+    prob.f = std::mem::take(&mut stage_signs[chosen]);
     let on_bounds = bound_hits(&lay, &eta, setup.bounds);
     // Poles as searched (exact on a bound) in pole coordinates; else the split inside the
     // bounds.
@@ -1257,7 +1406,16 @@ pub fn refine(
                 zeta: 0.0,
             })
     };
-    let uncertainty = uncertainty(&prob, &lay, &eta, &setup);
+    // Other local minima of stage A, their cost relative to stage A's best (same friction
+    // input), for the uncertainty.
+    let others: Vec<Alternative> = alternatives
+        .into_iter()
+        .map(|(c, v)| (c - stage_a_cost, v))
+        .collect();
+    let uncertainty = match setup.uncertainty {
+        UncertaintyLevel::None => None,
+        level => uncertainty(&prob, &lay, &eta, &setup, level, &others),
+    };
     let n = prob.n().max(1) as f64;
     Ok(RefineResult {
         poles,
@@ -1284,6 +1442,12 @@ fn poles_inside(core: &ClosedLoopModel, b: &PoleBounds) -> Option<Poles> {
         let (lo, hi) = (b.lower(), b.upper());
         (0..3).all(|j| v[j] >= lo[j] && v[j] <= hi[j])
     };
+    splits(core).into_iter().find(ok)
+}
+
+/// Every way of writing the core's poles as $(p, \omega_n, \zeta)$: the canonical split of
+/// [`ClosedLoopModel::poles`] first, then, with three real poles, each of them as $p$.
+fn splits(core: &ClosedLoopModel) -> Vec<Poles> {
     let mut cands: Vec<Poles> = core.poles().into_iter().collect();
     let roots = core.roots();
     if roots.iter().all(|r| r.im == 0.0) {
@@ -1300,7 +1464,7 @@ fn poles_inside(core: &ClosedLoopModel, b: &PoleBounds) -> Option<Poles> {
             }
         }
     }
-    cands.into_iter().find(ok)
+    cands
 }
 
 fn inside(core: &ClosedLoopModel, b: &PoleBounds) -> bool {
@@ -1354,10 +1518,12 @@ fn uncertainty(
     lay: &Layout,
     eta: &[f64],
     setup: &RefineSetup<'_>,
+    level: UncertaintyLevel,
+    others: &[Alternative],
 ) -> Option<Uncertainty> {
     let n = prob.n();
     let mdim = lay.m();
-    let mut base = Work::new(n);
+    let mut base = Work::new(n, prob, lay);
     prob.evaluate(lay, eta, &mut base);
     if !base.cost.is_finite() || n < 50 {
         return None;
@@ -1375,7 +1541,7 @@ fn uncertainty(
             let h = lay.step(j, eta[j], prob.ts);
             let mut e = eta.to_vec();
             e[j] += h;
-            let mut w = Work::new(n);
+            let mut w = Work::new(n, prob, lay);
             prob.evaluate(lay, &e, &mut w);
             // Unprojected residual at e with the base's linear parameters: target(e) - cols(e) lin.
             let mut c = vec![0.0; n];
@@ -1474,6 +1640,42 @@ fn uncertainty(
         }
     }
     let cp = &g * cov * g.transpose();
+    // The friction input's sensitivity (module documentation): the first-order change of the
+    // parameters, (J^T J)^-1 J^T Δr, when the friction input moves by half a sample either way
+    // (Δr = -d_c Δ(friction column)); half the larger change, in quadrature.
+    let friction: Vec<f64> = if level == UncertaintyLevel::Full {
+        let col = |w: &Work, i: usize| w.cols[w.k * i + 3];
+        let dc = lin[3];
+        let mut worst = vec![0.0f64; p0.len()];
+        for shift in [-1isize, 1] {
+            let mut shifted = prob.clone();
+            for k in 0..n {
+                let j = (k as isize + shift).clamp(0, n as isize - 1) as usize;
+                shifted.f[k] = 0.5 * (prob.f[k] + prob.f[j]);
+            }
+            let mut w = Work::new(n, &shifted, lay);
+            shifted.evaluate(lay, eta, &mut w);
+            if !w.cost.is_finite() {
+                continue;
+            }
+            // J^T Δr in scaled coordinates, then (J^T J)^-1.
+            let jtr = DVector::from_fn(np, |c, _| {
+                (0..n)
+                    .map(|t| jcols[c][t] * scale[c] * (-dc * (col(&w, t) - cols[kk * t + 3])))
+                    .sum::<f64>()
+            });
+            let dtheta = &bread * jtr;
+            let dphys = &g * DVector::from_fn(np, |c, _| dtheta[c] * scale[c]);
+            for (i, v) in worst.iter_mut().enumerate() {
+                if i != 3 && dphys[i].is_finite() {
+                    *v = v.max(0.5 * dphys[i].abs());
+                }
+            }
+        }
+        worst
+    } else {
+        vec![0.0; p0.len()]
+    };
     // (J^T J)^-1 on the physical parameters: the curvature that the profile is compared with.
     let bread_u = DMatrix::from_fn(np, np, |i, j| bread[(i, j)] * scale[i] * scale[j]);
     let hinv = &g * bread_u * g.transpose();
@@ -1490,10 +1692,11 @@ fn uncertainty(
         .collect();
     // Profiles of the weakly determined poles p, ωn, ζ (module documentation); 0 for the
     // others.
+    let full = level == UncertaintyLevel::Full;
     let profiled: Vec<f64> = (0..3usize)
         .into_par_iter()
         .map(|i| {
-            if linear[i].is_finite() && linear[i] > PROFILE_RELATIVE * p0[i].abs() {
+            if full && linear[i].is_finite() && linear[i] > PROFILE_RELATIVE * p0[i].abs() {
                 let level = 0.5 * cp[(i, i)] / hinv[(i, i)];
                 profile_std(prob, lay, eta, setup, base.cost, &p0, i, linear[i], level)
             } else {
@@ -1501,20 +1704,90 @@ fn uncertainty(
             }
         })
         .collect();
-    let parameters = names
+    // Other local minima that the data do not tell from this one (module documentation): a
+    // stage-A minimum whose cost is within the rise k^2 ΔC_1 of the best widens the pole's
+    // interval to reach it.
+    let branch: Vec<f64> = (0..p0.len())
+        .map(|i| {
+            if !full || i >= 3 || !(hinv[(i, i)] > 0.0) {
+                return 0.0;
+            }
+            let delta_c1 = 0.5 * cp[(i, i)] / hinv[(i, i)];
+            others
+                .iter()
+                .filter(|(rise, _)| *rise <= PROFILE_LEVEL * PROFILE_LEVEL * delta_c1)
+                .filter_map(|(_, core)| {
+                    // The alternative written in the split nearest to the estimate's (with
+                    // three real poles the split is a convention, not a second minimum).
+                    let d = |q: &Poles| {
+                        let v = [q.p_hz(), q.wn_hz(), q.zeta];
+                        (0..3)
+                            .map(|j| ((v[j] - p0[j]) / p0[j]).abs())
+                            .fold(0.0, f64::max)
+                    };
+                    let q = splits(core)
+                        .into_iter()
+                        .min_by(|a, b| d(a).total_cmp(&d(b)))?;
+                    let v = [q.p_hz(), q.wn_hz(), q.zeta];
+                    Some((v[i] - p0[i]).abs() / PROFILE_LEVEL)
+                })
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    let parameters: Vec<ParameterStd> = names
         .into_iter()
         .enumerate()
         .map(|(i, name)| ParameterStd {
             name,
             value: p0[i],
-            std: wider_std(linear[i], profiled.get(i).copied().unwrap_or(0.0)),
+            std: wider_std(
+                wider_std(linear[i], profiled.get(i).copied().unwrap_or(0.0)),
+                branch[i],
+            )
+            .hypot(friction[i]),
             linear_std: linear[i],
+            input_std: 0.0,
+            friction_std: friction[i],
         })
         .collect();
+    let real_pair = real_pair_std(&parameters, &cp);
     Some(Uncertainty {
         parameters,
+        real_pair,
         window_samples: window,
     })
+}
+
+/// The two real poles of the pair when $\zeta \ge 1$, Hz (decay rates over $2\pi$,
+/// $\omega_n(\zeta \mp \sqrt{\zeta^2 - 1})$), with their linearised deviations from the
+/// covariance `cp` of $(p, \omega_n, \zeta, \ldots)$ and, as for the poles, widened in
+/// proportion to the reported deviations of $\omega_n$ and $\zeta$.
+fn real_pair_std(parameters: &[ParameterStd], cp: &DMatrix<f64>) -> Option<[ParameterStd; 2]> {
+    let (wn, z) = (parameters.get(1)?, parameters.get(2)?);
+    if z.value < 1.0 {
+        return None;
+    }
+    let root = |w: f64, z: f64, sign: f64| w * (z + sign * (z * z - 1.0).max(0.0).sqrt());
+    let widen = |l: f64, r: f64| if l > 0.0 && r.is_finite() { r / l } else { 1.0 };
+    let scale = widen(wn.linear_std, wn.std).max(widen(z.linear_std, z.std));
+    let one = |name: &'static str, sign: f64| {
+        let v = root(wn.value, z.value, sign);
+        let hw = 1e-7 * wn.value;
+        let hz = 1e-7 * z.value;
+        let gw = (root(wn.value + hw, z.value, sign) - v) / hw;
+        let gz = (root(wn.value, z.value + hz, sign) - v) / hz;
+        let var = gw * gw * cp[(1, 1)] + 2.0 * gw * gz * cp[(1, 2)] + gz * gz * cp[(2, 2)];
+        let linear_std = var.max(0.0).sqrt();
+        ParameterStd {
+            name,
+            value: v,
+            std: linear_std * scale,
+            linear_std,
+            input_std: 0.0,
+            friction_std: 0.0,
+        }
+    };
+    Some([one("pair_slow_hz", -1.0), one("pair_fast_hz", 1.0)])
 }
 
 /// The reported deviation: the profile's when it is wider than the linearised one. An undefined
@@ -1559,7 +1832,7 @@ fn profile_std(
     if !(level > 0.0 && level.is_finite() && cost0.is_finite()) {
         return 0.0;
     }
-    let boxed = Layout::new(lay.structure, true, setup.bounds, setup.extended);
+    let boxed = Layout::new(lay.structure, lay.input, true, setup.bounds, setup.extended);
     let extra = eta[3..].to_vec();
     let start: Vec<f64> = phys[..3].iter().copied().chain(extra).collect();
     let target = PROFILE_LEVEL * PROFILE_LEVEL * level;
@@ -1652,13 +1925,12 @@ mod tests {
         (p, v, a)
     }
 
-    fn setup<'a>(opts: &'a IdentifyOptions, s: ModelStructure) -> RefineSetup<'a> {
-        RefineSetup {
-            structure: s,
-            bounds: &opts.bounds,
-            extended: &opts.extended_bounds,
-            opts: &opts.refine,
-        }
+    fn setup<'a>(
+        opts: &'a IdentifyOptions,
+        s: ModelStructure,
+        input: ReferenceInput,
+    ) -> RefineSetup<'a> {
+        RefineSetup::full(s, input, opts)
     }
 
     fn table1(dc: f64) -> ClosedLoopModel {
@@ -1697,7 +1969,13 @@ mod tests {
         let opts = IdentifyOptions::default();
         let regs = Regressors::build(&tr, &opts).unwrap();
         let start = Start::from_poles(&Poles::from_hz(36.3, 18.2, 1.2477));
-        let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Paper)).unwrap();
+        let r = refine(
+            &tr,
+            &regs,
+            &[start],
+            setup(&opts, ModelStructure::Paper, ReferenceInput::Smooth),
+        )
+        .unwrap();
         let (tp, rp) = (truth.poles().unwrap(), r.poles);
         let rel = |a: f64, b: f64| ((a - b) / b).abs();
         assert!(
@@ -1747,7 +2025,13 @@ mod tests {
         };
         let regs = Regressors::build(&tr, &opts).unwrap();
         let start = Start::from_poles(&Poles::from_hz(10.0, 30.0, 0.7));
-        let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Paper)).unwrap();
+        let r = refine(
+            &tr,
+            &regs,
+            &[start],
+            setup(&opts, ModelStructure::Paper, ReferenceInput::Smooth),
+        )
+        .unwrap();
         assert!(r.model.is_stable());
         let b = &opts.bounds;
         assert!(
@@ -1777,6 +2061,7 @@ mod tests {
         let core = table1(47.7);
         let m = DriveModel {
             delay_s: 0.0173,
+            input: ReferenceInput::Hold,
             ..DriveModel::from(core)
         };
         let (p, _, _) = reference(3000);
@@ -1806,7 +2091,13 @@ mod tests {
                 core: core.poles().unwrap().denominator(),
                 extra: vec![0.01],
             };
-            let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Delay)).unwrap();
+            let r = refine(
+                &tr,
+                &regs,
+                &[start],
+                setup(&opts, ModelStructure::Delay, ReferenceInput::Hold),
+            )
+            .unwrap();
             let u = r.uncertainty.expect("uncertainty");
             est.push([r.model.delay_s, r.poles.wn_hz()]);
             std.push([u.get("delay_s").unwrap().std, u.get("wn_hz").unwrap().std]);
@@ -1883,7 +2174,10 @@ mod tests {
             level += d;
             t0 += dur + 0.02 + 0.1 * moves.random::<f64>();
         }
-        let m = DriveModel::from(truth);
+        let m = DriveModel {
+            input: ReferenceInput::Hold,
+            ..DriveModel::from(truth)
+        };
         let clean = m
             .simulate_positions(&p, 1e-3, &SimOptions::default())
             .unwrap();
@@ -1906,7 +2200,13 @@ mod tests {
             let regs = Regressors::build(&tr, &opts).unwrap();
             let start =
                 Start::from_poles(&Poles::from_hz(0.8 * tp.p_hz(), 0.8 * tp.wn_hz(), tp.zeta));
-            let r = refine(&tr, &regs, &[start], setup(&opts, ModelStructure::Paper)).unwrap();
+            let r = refine(
+                &tr,
+                &regs,
+                &[start],
+                setup(&opts, ModelStructure::Paper, ReferenceInput::Hold),
+            )
+            .unwrap();
             let u = r.uncertainty.expect("uncertainty");
             let truth_v = [tp.p_hz(), tp.wn_hz(), tp.zeta];
             for (i, name) in ["p_hz", "wn_hz", "zeta"].iter().enumerate() {

@@ -152,6 +152,16 @@ impl Trace {
         }
     }
 
+    /// The reference velocity and acceleration of the smooth model input
+    /// ([`vcnc_drive::drive_model::ReferenceInput::Smooth`]): the exact ones when attached,
+    /// else the central differences of $x_r$ ([`vcnc_drive::model::central_differences`]).
+    pub fn smooth_rates(&self) -> (Vec<f64>, Vec<f64>) {
+        match &self.reference_derivatives {
+            Some((v, a)) => (v.clone(), a.clone()),
+            None => vcnc_drive::model::central_differences(&self.xr, self.ts),
+        }
+    }
+
     /// A trace from raw logged columns: time `t` (s), reference `xr` and measured position `x`
     /// (axis units). The period is the median step; every step must lie within
     /// [`TIME_JITTER`] (relative) of it, and time must increase strictly.

@@ -13,12 +13,14 @@
 //! b1 = 207.4
 //! b2 = 116085.0
 //! dc = 47.7
+//! input = "smooth"
 //! ```
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+use vcnc_drive::drive_model::ReferenceInput;
 use vcnc_drive::{ClosedLoopModel, DriveModel, MAX_ACTUAL_LATENCY_S, ReferenceFilter};
 
 use crate::file::Unit;
@@ -55,6 +57,12 @@ pub struct AxisModel {
     /// An extra real pole of the loop, Hz, if the model has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub extra_pole_hz: Option<f64>,
+    /// How the model's reference input is rebuilt from the nominal positions: `"smooth"` (the
+    /// interpolator's velocity and acceleration; absent: this) or `"hold"` (the first-order
+    /// hold of the positions), chosen by the identification (docs/identification.md, "The
+    /// model input") and honoured by every simulation of the model.
+    #[serde(default)]
+    pub input: ReferenceInput,
     /// The control's actual-value latency, s (0 or absent: none): the time by which the logged
     /// actual position — what the model predicts — trails the physical axis. Stated from the
     /// control's configuration, never identified (docs/drive-model.md#actual-value-latency);
@@ -90,6 +98,7 @@ impl AxisModel {
             reference_filter: self.reference_filter,
             extra_pole_hz: self.extra_pole_hz,
             actual_latency_s: self.actual_latency_s,
+            input: self.input,
         }
     }
 
@@ -108,6 +117,7 @@ impl AxisModel {
             delay_s: m.delay_s,
             reference_filter: m.reference_filter,
             extra_pole_hz: m.extra_pole_hz,
+            input: m.input,
             actual_latency_s: m.actual_latency_s,
         }
     }

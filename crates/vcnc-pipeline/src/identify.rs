@@ -27,8 +27,9 @@ use crate::summary::{FitSummary, ModelSummary, PoleErrors};
 /// `bounds.p_hz`, the real pole may approach 0 (lower bound 1e-4 Hz), so that drives without
 /// integral action ($a_3 = 0$, such as the EMPS benchmark) are identifiable; unless they set
 /// `structures`, every model structure is tried (the paper's, dead time, first- and
-/// second-order reference filter, extra pole) and the one with the smallest validation error is
-/// kept (docs/identification.md).
+/// second-order reference filter, extra pole), and unless they list `inputs`, both model inputs
+/// (smooth and hold); the candidate with the smallest validation error is kept
+/// (docs/identification.md).
 pub fn identifier_options(file: &OptionsFile, seed: Option<u64>) -> IdentifyOptions {
     let mut opts = file.options.clone();
     if let Some(s) = seed {
@@ -39,6 +40,12 @@ pub fn identifier_options(file: &OptionsFile, seed: Option<u64>) -> IdentifyOpti
     }
     if !file.sets_structures {
         opts.structures = vcnc_identify::ModelStructure::ALL.to_vec();
+    }
+    if opts.inputs.is_empty() {
+        opts.inputs = vec![
+            vcnc_identify::ReferenceInput::Smooth,
+            vcnc_identify::ReferenceInput::Hold,
+        ];
     }
     opts
 }

@@ -202,3 +202,12 @@ pub fn compare(name: &str, m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64
     );
     e
 }
+
+/// A seed drawn anew for every call from the operating system's entropy (the standard
+/// library's randomly keyed hasher), for test cases that must not be a fixed set.
+pub fn fresh_seed() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    std::collections::hash_map::RandomState::new()
+        .build_hasher()
+        .finish()
+}

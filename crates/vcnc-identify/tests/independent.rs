@@ -1,0 +1,530 @@
+//! Acceptance on drives from a simulator of its own (issue 30): random P-PI cascades written
+//! here, independently of `vcnc-drive` — own plant, own controller, own integrator, own
+//! excitation — identified through the library route of `vcnc identify --trace` (every
+//! structure and both model inputs, chosen on a held-out part), with the per-drive criteria of
+//! the randomised suite.
+//!
+//! # The simulated drive
+//!
+//! A rigid axis $\ddot x = k_p e_v + k_i \int e_v\,dt + f_a \ddot x_r + \beta f_b \dot x_r -
+//! \beta \dot x - d_c \operatorname{sgn}\dot x$ (acceleration units: the plant's torque per
+//! inertia), with the velocity error of the cascade $e_v = K_{pp}(x_r - x) + f_v \dot x_r -
+//! \dot x$: a position P loop around a velocity PI loop, feed-forward of velocity ($f_v$),
+//! acceleration ($f_a$) and viscous friction ($f_b$), Coulomb friction $d_c$ with sticking. Its
+//! closed loop, derived here from these equations (multiply by $s$ and collect $X$):
+//! $$ a_1 = \beta + k_p,\quad a_2 = k_p K_{pp} + k_i,\quad a_3 = k_i K_{pp}, \qquad
+//!    b_0 = f_a,\quad b_1 = k_p f_v + \beta f_b,\quad b_2 = k_p K_{pp} + k_i f_v. $$
+//! The gains are designed from random poles ($K_{pp}$ a root of
+//! $(a_1 - \beta)K^2 - a_2K + a_3 = 0$, either one). The loop runs at 200 kHz or more with
+//! the true position and velocity (a continuous loop to within the integration's accuracy,
+//! so the continuous model is the truth); the torque is held over each servo step and the
+//! plant integrated by RK4 with the friction sign of the step (a crossing of zero within the
+//! step ends at rest when the drive cannot break away).
+//!
+//! The feed-forward takes one of two conventions, drawn per drive:
+//! - **interpolator** (two drives in three): the trajectory's exact velocity and acceleration
+//!   at every servo tick, the position the exact trajectory: what a control whose
+//!   feed-forward comes from its interpolator sees; the truth is the continuous model driven
+//!   by the exact trajectory;
+//! - **setpoint**: the control interpolates its logged setpoints linearly and differentiates
+//!   them (the slope as velocity, the slope changes as acceleration pulses); the truth is the
+//!   continuous model driven by that first-order hold.
+//!
+//! The log holds $t$, $x_r$ (the trajectory at the log period $T_s$, 0.5–2 ms) and $x$
+//! quantised to 0.05–1 µm. Half the logs are cut out of a longer run in the middle of a fast
+//! move. Poles: $p$ 3–40 Hz, $\omega_n$ 15–90 Hz, $\zeta$ 0.25–1.3, four drives in ten with
+//! $\zeta$ in 0.9–1.1.
+//!
+//! # What is checked, per drive
+//!
+//! As the randomised suite (tests/suite.rs): $p$ and $\omega_n$ within 2 %, $\zeta$ within 5 %
+//! of the truth (with three real poles, the split that matches best) — or within three
+//! reported standard deviations where that deviation exceeds 1 %; the chosen model's free-run
+//! RMS error on a second program of the same drive (starting at rest) at most 1.2 × the true
+//! model's (simulated with the drive's own input convention); and at least 90 % of the drives
+//! within the fixed tolerances. The table prints every drive and the coverage of ±1σ and ±3σ.
+//!
+//! ```text
+//! VCNC_INDEPENDENT=48 cargo test --release -p vcnc-identify --test independent -- --nocapture
+//! ```
+//!
+//! runs 48 drives whose seeds are drawn anew and printed (`VCNC_INDEPENDENT_SEEDS=a,b,...`
+//! repeats given ones). Without it, two fresh drives run (the CI's share).
+
+mod support;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use vcnc_drive::drive_model::ReferenceInput;
+use vcnc_drive::{ClosedLoopModel, DriveModel, Poles};
+use vcnc_identify::{Identification, IdentifyOptions, ModelStructure, Trace, identify};
+
+/// One random drive of this simulator.
+#[derive(Debug, Clone)]
+struct Drive {
+    seed: u64,
+    /// β = B/J, 1/s.
+    beta: f64,
+    kpp: f64,
+    kp: f64,
+    ki: f64,
+    fv: f64,
+    fa: f64,
+    fb: f64,
+    /// Coulomb friction, axis units/s².
+    dc: f64,
+    /// Feed-forward from the interpolator (smooth) or the differentiated setpoints (hold).
+    input: ReferenceInput,
+    ts: f64,
+    resolution: f64,
+    moving: bool,
+    vmax: f64,
+    amax: f64,
+}
+
+impl Drive {
+    fn random(seed: u64) -> Drive {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
+        loop {
+            let beta = (u(0.5f64.ln(), 20f64.ln())).exp();
+            let p = (u(3f64.ln(), 40f64.ln())).exp();
+            let wn = (u(15f64.ln(), 90f64.ln())).exp();
+            let zeta = if u(0.0, 1.0) < 0.4 {
+                u(0.9, 1.1)
+            } else {
+                u(0.25, 1.3)
+            };
+            let tau = std::f64::consts::TAU;
+            let (p, wn) = (tau * p, tau * wn);
+            let (a1, a2, a3) = (
+                p + 2.0 * zeta * wn,
+                wn * wn + 2.0 * zeta * wn * p,
+                p * wn * wn,
+            );
+            let kp = a1 - beta;
+            let disc = a2 * a2 - 4.0 * kp * a3;
+            if kp <= 0.0 || disc < 0.0 {
+                continue;
+            }
+            let kpp = if u(0.0, 1.0) < 0.5 {
+                (a2 + disc.sqrt()) / (2.0 * kp)
+            } else {
+                2.0 * a3 / (a2 + disc.sqrt())
+            };
+            let ki = a3 / kpp;
+            if !(kpp > 0.0 && ki > 0.0) {
+                continue;
+            }
+            return Drive {
+                seed,
+                beta,
+                kpp,
+                kp,
+                ki,
+                // Strong feed-forward.
+                fv: u(0.7, 1.0),
+                fa: u(0.5, 1.0),
+                fb: u(0.5, 1.0),
+                dc: (u(20f64.ln(), 250f64.ln())).exp(),
+                input: if u(0.0, 1.0) < 2.0 / 3.0 {
+                    ReferenceInput::Smooth
+                } else {
+                    ReferenceInput::Hold
+                },
+                ts: (u(0.5, 2.0) * 1e3).round() * 1e-6,
+                resolution: (u(0.05e-3f64.ln(), 1e-3f64.ln())).exp(),
+                moving: u(0.0, 1.0) < 0.5,
+                vmax: u(100.0, 300.0),
+                amax: u(1000.0, 5000.0),
+            };
+        }
+    }
+
+    /// The closed loop of the equations above (module documentation).
+    fn truth(&self) -> ClosedLoopModel {
+        ClosedLoopModel {
+            a1: self.beta + self.kp,
+            a2: self.kp * self.kpp + self.ki,
+            a3: self.ki * self.kpp,
+            b0: self.fa,
+            b1: self.kp * self.fv + self.beta * self.fb,
+            b2: self.kp * self.kpp + self.ki * self.fv,
+            dc: self.dc,
+        }
+    }
+}
+
+/// A trajectory of rest-to-rest trapezoidal moves: exact position, velocity, acceleration at
+/// any time.
+struct Program {
+    /// (start time, start position, signed peak velocity, acceleration, accel time, cruise time)
+    moves: Vec<(f64, f64, f64, f64, f64, f64)>,
+    end: f64,
+}
+
+impl Program {
+    fn random(seed: u64, moves: usize, vmax: f64, amax: f64) -> Program {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (mut t, mut x) = (0.15, 0.0);
+        let mut list = vec![];
+        for _ in 0..moves {
+            let long = rng.random::<f64>() < 0.6;
+            let d = if long {
+                8.0 + 52.0 * rng.random::<f64>()
+            } else {
+                0.5 + 7.5 * rng.random::<f64>()
+            };
+            let mut dir = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            if (x + dir * d).abs() > 60.0 {
+                dir = -dir;
+            }
+            let v = (20.0 + (vmax - 20.0) * rng.random::<f64>()).min((d * amax).sqrt());
+            let ta = v / amax;
+            let tc = ((d - v * ta) / v).max(0.0);
+            list.push((t, x, dir * v, amax, ta, tc));
+            x += dir * (v * ta + v * tc);
+            t += 2.0 * ta + tc + 0.02 + 0.12 * rng.random::<f64>();
+        }
+        Program {
+            moves: list,
+            end: t + 0.25,
+        }
+    }
+
+    /// (x, v, a) at time `t`.
+    fn at(&self, t: f64) -> (f64, f64, f64) {
+        let i = self.moves.partition_point(|m| m.0 <= t);
+        if i == 0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let (t0, x0, v, a, ta, tc) = self.moves[i - 1];
+        let s = v.signum();
+        let tau = t - t0;
+        let vp = v.abs();
+        let (d, vel, acc) = if tau < ta {
+            (0.5 * a * tau * tau, a * tau, a)
+        } else if tau < ta + tc {
+            (0.5 * a * ta * ta + vp * (tau - ta), vp, 0.0)
+        } else if tau < 2.0 * ta + tc {
+            let w = tau - ta - tc;
+            (
+                0.5 * a * ta * ta + vp * tc + vp * w - 0.5 * a * w * w,
+                vp - a * w,
+                -a,
+            )
+        } else {
+            (vp * ta + vp * tc, 0.0, 0.0)
+        };
+        (x0 + s * d, s * vel, s * acc)
+    }
+}
+
+/// The log of one run: `t`, `xr`, `x` at the drive's period (the reference as logged, the
+/// position quantised), and the reference the control's feed-forward saw, as the model's input.
+struct Log {
+    xr: Vec<f64>,
+    x: Vec<f64>,
+    /// Exact velocity and acceleration at the log instants (smooth drives' truth input).
+    vr: Vec<f64>,
+    ar: Vec<f64>,
+}
+
+/// Runs drive `d` through program `prog` from rest at its start. The servo runs at the
+/// smallest multiple of the log rate at or above 200 kHz.
+fn run(d: &Drive, prog: &Program) -> Log {
+    let sub = (200_000.0 * d.ts).ceil() as usize;
+    let h = d.ts / sub as f64;
+    let n = (prog.end / d.ts).ceil() as usize + 1;
+    let logged: Vec<(f64, f64, f64)> = (0..n).map(|k| prog.at(k as f64 * d.ts)).collect();
+    // The reference the servo sees at time t (within log interval k).
+    let servo_ref = |k: usize, t: f64| -> (f64, f64, f64) {
+        match d.input {
+            ReferenceInput::Smooth => prog.at(t),
+            ReferenceInput::Hold => {
+                let (a, b) = (logged[k].0, logged[(k + 1).min(n - 1)].0);
+                let w = (t - k as f64 * d.ts) / d.ts;
+                (a + w * (b - a), (b - a) / d.ts, 0.0)
+            }
+        }
+    };
+    let (mut x, mut v, mut integ) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut xr_log, mut x_log) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let q = d.resolution;
+    let mut prev_slope = 0.0;
+    for k in 0..n {
+        xr_log.push(logged[k].0);
+        x_log.push(q * (x / q).round());
+        if k + 1 == n {
+            break;
+        }
+        // Setpoint differentiation: the slope change at the knot is an acceleration pulse of
+        // the same area, spread over the first servo step of the interval.
+        let slope = (logged[k + 1].0 - logged[k].0) / d.ts;
+        let pulse = (slope - prev_slope) / h;
+        prev_slope = slope;
+        for j in 0..sub {
+            let t = k as f64 * d.ts + j as f64 * h;
+            let (r, rv, mut ra) = servo_ref(k, t);
+            if d.input == ReferenceInput::Hold && j == 0 {
+                ra = pulse;
+            }
+            // Controller (held over the step): velocity error, PI, feed-forward.
+            let ev = d.kpp * (r - x) + d.fv * rv - v;
+            let u = d.kp * ev + d.ki * integ + d.fa * ra + d.beta * d.fb * rv;
+            // Integrator of the velocity error: its exact integral over the step would need
+            // x(t) and v(t) within it; the trapezoid of the step's ends is second order.
+            let ev0 = ev;
+            // Plant over the step: x'' = u - beta v - dc sgn(v), RK4 with the sign fixed.
+            let sgn = if v > 0.0 {
+                1.0
+            } else if v < 0.0 {
+                -1.0
+            } else if (u).abs() > d.dc {
+                u.signum()
+            } else {
+                0.0
+            };
+            let (x1, v1) = if sgn == 0.0 {
+                (x, 0.0)
+            } else {
+                let f = |_x: f64, v: f64| (v, u - d.beta * v - d.dc * sgn);
+                let (k1x, k1v) = f(x, v);
+                let (k2x, k2v) = f(x + 0.5 * h * k1x, v + 0.5 * h * k1v);
+                let (k3x, k3v) = f(x + 0.5 * h * k2x, v + 0.5 * h * k2v);
+                let (k4x, k4v) = f(x + h * k3x, v + h * k3v);
+                let x1 = x + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+                let v1 = v + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+                // Crossing zero within the step: rest, unless the drive breaks away.
+                if v1 * sgn < 0.0 && (u - d.beta * 0.0).abs() <= d.dc {
+                    (x1, 0.0)
+                } else {
+                    (x1, v1)
+                }
+            };
+            x = x1;
+            v = v1;
+            let (r1, rv1, _) = servo_ref(k, t + h);
+            let ev1 = d.kpp * (r1 - x) + d.fv * rv1 - v;
+            integ += 0.5 * h * (ev0 + ev1);
+        }
+    }
+    let vr = logged.iter().map(|s| s.1).collect();
+    let ar = logged.iter().map(|s| s.2).collect();
+    Log {
+        xr: xr_log,
+        x: x_log,
+        vr,
+        ar,
+    }
+}
+
+/// Cuts a log at the first sample after 1.5 s where the reference moves faster than half the
+/// drive's top feed (a cut-out of a longer log, mid fast move).
+fn cut_moving(d: &Drive, log: &mut Log) {
+    let k0 = (1.5 / d.ts) as usize;
+    let n = log.xr.len();
+    let k0 = (k0..n)
+        .find(|&k| log.vr[k].abs() > 0.5 * d.vmax.min(150.0))
+        .unwrap_or(k0)
+        .min(n / 4);
+    log.xr.drain(..k0);
+    log.x.drain(..k0);
+    log.vr.drain(..k0);
+    log.ar.drain(..k0);
+}
+
+/// The options of `vcnc identify --trace` (vcnc-pipeline's `identifier_options` without an
+/// options file): every structure, both inputs, the real pole allowed towards 0.
+fn command_options() -> IdentifyOptions {
+    let mut opts = IdentifyOptions {
+        structures: ModelStructure::ALL.to_vec(),
+        inputs: vec![ReferenceInput::Smooth, ReferenceInput::Hold],
+        ..IdentifyOptions::default()
+    };
+    opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    opts
+}
+
+/// Relative errors of the identified model's (p, ωn, ζ) as it reports them (the canonical
+/// split of `ClosedLoopModel::poles`, which its standard deviations refer to) against the
+/// truth written in the split nearest to them: with three real poles any of them may be p,
+/// a convention rather than a property of the drive, so the truth is split the same way.
+fn pole_errors(m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64; 3] {
+    let splits = |m: &ClosedLoopModel| -> Vec<Poles> {
+        let mut out: Vec<Poles> = m.poles().into_iter().collect();
+        let roots = m.roots();
+        if roots.iter().all(|r| r.im == 0.0) {
+            for i in 0..3 {
+                let o: Vec<f64> = (0..3).filter(|&k| k != i).map(|k| roots[k].re).collect();
+                if o[0] * o[1] > 0.0 {
+                    let wn = (o[0] * o[1]).sqrt();
+                    out.push(Poles {
+                        p: -roots[i].re,
+                        wn,
+                        zeta: -(o[0] + o[1]) / (2.0 * wn),
+                    });
+                }
+            }
+        }
+        out
+    };
+    let Some(p) = m.poles() else {
+        return [f64::INFINITY; 3];
+    };
+    let worst = |e: &[f64; 3]| e.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let mut best = [f64::INFINITY; 3];
+    for pt in splits(truth) {
+        let e = [
+            (p.p - pt.p) / pt.p,
+            (p.wn - pt.wn) / pt.wn,
+            (p.zeta - pt.zeta) / pt.zeta,
+        ];
+        if worst(&e) < worst(&best) {
+            best = e;
+        }
+    }
+    best
+}
+
+struct Row {
+    fixed_ok: bool,
+    ok: bool,
+    errs: [f64; 3],
+    /// |error| / reported σ of p, ωn, ζ.
+    z: [f64; 3],
+    ratio: f64,
+}
+
+fn one(seed: u64) -> Row {
+    let d = Drive::random(seed);
+    let truth = d.truth();
+    let tp = truth.poles().expect("poles");
+    let mut est = run(&d, &Program::random(seed ^ 0xe57, 60, d.vmax, d.amax));
+    if d.moving {
+        cut_moving(&d, &mut est);
+    }
+    let val = run(&d, &Program::random(seed ^ 0x7a1, 60, d.vmax, d.amax));
+    let trace = Trace::new(d.ts, est.xr.clone(), est.x.clone()).expect("trace");
+    let id: Identification = identify(&trace, &command_options()).expect("identifies");
+    let m = id.model.core;
+    let errs = pole_errors(&m, &truth);
+    let u = id.uncertainty.as_ref();
+    let rel_std: [f64; 3] = ["p_hz", "wn_hz", "zeta"]
+        .map(|n| u.and_then(|u| u.get(n)).map_or(f64::NAN, |q| q.relative()));
+    let tol = [0.02, 0.02, 0.05];
+    let fixed_ok = (0..3).all(|i| errs[i].abs() <= tol[i]);
+    let sigma_ok = (0..3).all(|i| {
+        errs[i].abs() <= tol[i] || (rel_std[i] > 0.01 && errs[i].abs() <= 3.0 * rel_std[i])
+    });
+    // Validation on a program from rest: the chosen model against the true one.
+    let vt = Trace::new(d.ts, val.xr.clone(), val.x.clone()).expect("trace");
+    let rms = |m: &DriveModel| {
+        let xh = vcnc_identify::free_run_model(m, &vt).expect("free run");
+        let s: f64 = xh.iter().zip(&vt.x).map(|(a, b)| (a - b) * (a - b)).sum();
+        (s / vt.len() as f64).sqrt()
+    };
+    let true_model = DriveModel {
+        input: d.input,
+        ..DriveModel::from(truth)
+    };
+    let (rv, rt) = (rms(&id.model), rms(&true_model));
+    let ratio = rv / rt;
+    let ok = id.model.is_stable() && sigma_ok && ratio <= 1.2;
+    let ip = m.poles();
+    println!(
+        "{:20} {:6} {:4.2} {:5.3} {:4} | {:6.2} {:6.2} {:5.3} | {:6.2} {:6.2} {:5.3} | {:+6.2} {:+6.2} {:+6.2} | {:5.2} {:5.2} {:5.2} | {:18} {:6} | {:6.3} {:6.3} {:5.2} {}",
+        d.seed,
+        d.input.name(),
+        1e3 * d.ts,
+        1e3 * d.resolution,
+        if d.moving { "mov" } else { "rest" },
+        tp.p_hz(),
+        tp.wn_hz(),
+        tp.zeta,
+        ip.map_or(f64::NAN, |p| p.p_hz()),
+        ip.map_or(f64::NAN, |p| p.wn_hz()),
+        ip.map_or(f64::NAN, |p| p.zeta),
+        100.0 * errs[0],
+        100.0 * errs[1],
+        100.0 * errs[2],
+        100.0 * rel_std[0],
+        100.0 * rel_std[1],
+        100.0 * rel_std[2],
+        id.structure.name(),
+        id.input.name(),
+        1e3 * rv,
+        1e3 * rt,
+        ratio,
+        if ok { "ok" } else { "FAIL" }
+    );
+    Row {
+        fixed_ok,
+        ok,
+        errs,
+        z: std::array::from_fn(|i| errs[i].abs() / rel_std[i]),
+        ratio,
+    }
+}
+
+#[test]
+fn drives_of_an_independent_simulator_are_identified_through_the_command_route() {
+    let seeds: Vec<u64> = match std::env::var("VCNC_INDEPENDENT_SEEDS") {
+        Ok(v) => v.split(',').filter_map(|s| s.trim().parse().ok()).collect(),
+        Err(_) => {
+            let count = std::env::var("VCNC_INDEPENDENT")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(2usize);
+            (0..count).map(|_| support::fresh_seed()).collect()
+        }
+    };
+    println!(
+        "independent drives, seeds (VCNC_INDEPENDENT_SEEDS={})",
+        seeds
+            .iter()
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    println!(
+        "seed                 ff     Ts_ms q_um start | true p_Hz wn_Hz zeta | ident p_Hz wn_Hz zeta | err% p wn zeta | std% p wn zeta | structure input | val_rms_um ident true ratio"
+    );
+    let rows: Vec<Row> = seeds.iter().map(|&s| one(s)).collect();
+    let n = rows.len();
+    let fixed = rows.iter().filter(|r| r.fixed_ok).count();
+    let ok = rows.iter().filter(|r| r.ok).count();
+    summary(&rows);
+    assert_eq!(ok, n, "{ok}/{n} drives pass");
+    assert!(
+        10 * fixed >= 9 * n,
+        "{fixed}/{n} within the fixed tolerances"
+    );
+}
+
+/// Worst and median |error| per parameter, ±1σ/±3σ coverage, validation ratio.
+fn summary(rows: &[Row]) {
+    let n = rows.len();
+    let fixed = rows.iter().filter(|r| r.fixed_ok).count();
+    let ok = rows.iter().filter(|r| r.ok).count();
+    let stat = |f: &dyn Fn(&Row) -> f64| {
+        let mut v: Vec<f64> = rows.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        (v[n - 1], v[n / 2])
+    };
+    let names = ["p", "wn", "zeta"];
+    let mut line = format!("{ok}/{n} pass, {fixed}/{n} within fixed tolerances;");
+    for (i, name) in names.iter().enumerate() {
+        let (w, m) = stat(&|r| r.errs[i].abs());
+        let c1 = rows.iter().filter(|r| r.z[i] <= 1.0).count();
+        let c3 = rows.iter().filter(|r| r.z[i] <= 3.0).count();
+        line += &format!(
+            " {name} |err| worst/median {:.2}/{:.2} %, within 1σ {c1}/{n}, 3σ {c3}/{n};",
+            100.0 * w,
+            100.0 * m
+        );
+    }
+    let (wr, mr) = stat(&|r| r.ratio);
+    line += &format!(" validation ratio worst/median {wr:.3}/{mr:.3}");
+    println!("{line}");
+}
