@@ -21,6 +21,7 @@ use std::f64::consts::TAU;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
+use crate::lane::{LANES, Lane};
 use crate::params::{Encoder, Plant};
 
 /// Two-mass transmission between motor and load (docs/machine-file.md#compliance), in the plant's motor-side units:
@@ -395,63 +396,168 @@ pub struct FrictionLaw {
 
 impl FrictionLaw {
     /// Sliding friction magnitude $T_c + (T_s - T_c)e^{-|v/v_s|^\delta}$ for motion in direction
-    /// `dir` (0 positive, 1 negative) at speed `speed` ≥ 0, N·m.
+    /// `dir` (0 positive, 1 negative) at speed `speed` ≥ 0, N·m: $T_s$ at rest; $T_c$ where
+    /// $T_s = T_c$ or for $|v/v_s|^\delta > 40$; else the law (the engine's evaluation of it, for
+    /// one drive).
     #[inline]
     pub fn level(&self, dir: usize, speed: f64) -> f64 {
-        let (tc, ts) = (self.coulomb[dir], self.static_[dir]);
-        if ts == tc || speed == 0.0 {
-            return if speed == 0.0 { ts } else { tc };
-        }
-        let r = speed / self.stribeck_velocity;
-        let p = if self.exponent == 2.0 {
-            r * r
-        } else if self.exponent == 1.0 {
-            r
-        } else {
-            r.powf(self.exponent)
-        };
-        // e^{-40} (T_s - T_c) is below the rounding of T_c, and for p < 1e-4 the series to p³
-        // is exact to rounding (next term p⁴/24 < 5e-18): skip the exponential.
-        if p > 40.0 {
-            tc
-        } else if p < 1e-4 {
-            tc + (ts - tc) * (1.0 - p * (1.0 - p * (0.5 - p / 6.0)))
-        } else {
-            tc + (ts - tc) * exp_neg(p)
-        }
+        Stribeck::<f64>::of(|_| self, false).level(dir == 0, speed)
     }
 
     /// Whether any level depends on the speed.
     pub fn has_stribeck(&self) -> bool {
         self.static_ != self.coulomb
     }
+
+    /// A speed above which [`FrictionLaw::level`] is the Coulomb level for certain:
+    /// $v_s\,40^{1/\delta}$ with a relative margin of $10^{-9}$, far above the rounding of the
+    /// power, so that beyond it the level takes its $|v/v_s|^\delta > 40$ branch (the same number
+    /// as evaluating the law, with no division, power or exponential).
+    pub(crate) fn flat_speed(&self) -> f64 {
+        self.stribeck_velocity * 40f64.powf(1.0 / self.exponent) * (1.0 + 1e-9)
+    }
+}
+
+/// The Stribeck levels of one [`FrictionLaw`] per lane ([`crate::lane`]): the law evaluated once
+/// for every lane, each lane by the scalar law's operations.
+#[derive(Clone, Copy)]
+pub(crate) struct Stribeck<T: Lane> {
+    /// $[T_c^+, T_c^-]$, $[T_s^+, T_s^-]$, N·m.
+    pub(crate) coulomb: [T; 2],
+    pub(crate) static_: [T; 2],
+    /// $v_s$, axis units/s.
+    vs: T,
+    /// Exponent 2; exponent neither 1 nor 2 (libm's power, per lane), and whether any lane has
+    /// such an exponent.
+    exp2: T::Mask,
+    exp_other: T::Mask,
+    any_other: bool,
+    exponent: [f64; LANES],
+    /// Some level depends on the speed.
+    stribeck: T::Mask,
+    /// Speed beyond which the level is $T_c$ ([`FrictionLaw::flat_speed`], or $+\infty$).
+    v_flat: T,
+}
+
+impl<T: Lane> Stribeck<T> {
+    /// Lane `l`'s law is `law(l)`; `flat`: skip the law beyond [`FrictionLaw::flat_speed`].
+    pub(crate) fn of<'a>(law: impl Fn(usize) -> &'a FrictionLaw, flat: bool) -> Stribeck<T> {
+        let f = |g: &dyn Fn(&FrictionLaw) -> f64| T::from_fn(|l| g(law(l)));
+        let m = |g: &dyn Fn(&FrictionLaw) -> bool| T::mask_from_fn(|l| g(law(l)));
+        let other = |f: &FrictionLaw| f.exponent != 2.0 && f.exponent != 1.0;
+        Stribeck {
+            coulomb: [f(&|f| f.coulomb[0]), f(&|f| f.coulomb[1])],
+            static_: [f(&|f| f.static_[0]), f(&|f| f.static_[1])],
+            vs: f(&|f| f.stribeck_velocity),
+            exp2: m(&|f| f.exponent == 2.0),
+            exp_other: m(&other),
+            any_other: (0..T::WIDTH).any(|l| other(law(l))),
+            exponent: std::array::from_fn(|l| law(l.min(T::WIDTH - 1)).exponent),
+            stribeck: m(&|f| f.has_stribeck()),
+            v_flat: f(&|f| if flat { f.flat_speed() } else { f64::INFINITY }),
+        }
+    }
+
+    /// Lane `l` is `lanes(l)`'s (for `l` below the lane width).
+    pub(crate) fn gather(lanes: &dyn Fn(usize) -> Stribeck<f64>) -> Stribeck<T> {
+        let f = |g: &dyn Fn(&Stribeck<f64>) -> f64| T::from_fn(|l| g(&lanes(l)));
+        let m = |g: &dyn Fn(&Stribeck<f64>) -> bool| T::mask_from_fn(|l| g(&lanes(l)));
+        Stribeck {
+            coulomb: [f(&|s| s.coulomb[0]), f(&|s| s.coulomb[1])],
+            static_: [f(&|s| s.static_[0]), f(&|s| s.static_[1])],
+            vs: f(&|s| s.vs),
+            exp2: m(&|s| s.exp2),
+            exp_other: m(&|s| s.exp_other),
+            any_other: (0..T::WIDTH).any(|l| lanes(l).any_other),
+            exponent: std::array::from_fn(|l| lanes(l.min(T::WIDTH - 1)).exponent[0]),
+            stribeck: m(&|s| s.stribeck),
+            v_flat: f(&|s| s.v_flat),
+        }
+    }
+
+    /// Whether some lane's level depends on the speed.
+    #[inline(always)]
+    pub(crate) fn any_stribeck(&self) -> bool {
+        T::any(self.stribeck)
+    }
+
+    /// The sliding level for motion in the positive direction (lanes of `pos`) or the negative
+    /// one at `speed` ≥ 0, N·m:
+    ///
+    /// $$ T(v) = T_c + (T_s - T_c)\,e^{-p},\qquad p = |v/v_s|^\delta, $$
+    ///
+    /// $T_s$ at rest; $T_c$ where $T_s = T_c$, beyond the flat speed, or for $p > 40$
+    /// ($e^{-40}(T_s - T_c)$ is below the rounding of $T_c$); for $p < 10^{-4}$ the series to
+    /// $p^3$, exact to rounding (next term $p^4/24 < 5 \cdot 10^{-18}$); else [`exp_neg`].
+    #[inline(always)]
+    pub(crate) fn level(&self, pos: T::Mask, speed: T) -> T {
+        let tc = T::select(pos, self.coulomb[0], self.coulomb[1]);
+        let flat = speed.gt(self.v_flat);
+        if T::all(flat) {
+            return tc;
+        }
+        let ts = T::select(pos, self.static_[0], self.static_[1]);
+        let zero = T::splat(0.0);
+        let at_rest = speed.eq(zero);
+        let trivial = ts.eq(tc) | at_rest;
+        let mut lev = T::select(trivial & !flat, T::select(at_rest, ts, tc), tc);
+        let general = !flat & !trivial;
+        if !T::any(general) {
+            return lev;
+        }
+        let r = speed / self.vs;
+        let mut p = T::select(self.exp2, r * r, r);
+        if self.any_other {
+            let other = general & self.exp_other;
+            p = T::from_fn(|l| {
+                if T::test(other, l) {
+                    r.at(l).powf(self.exponent[l])
+                } else {
+                    p.at(l)
+                }
+            });
+        }
+        let (big, small) = (p.gt(T::splat(40.0)), p.lt(T::splat(1e-4)));
+        let short = general & small;
+        if T::any(short) {
+            let one = T::splat(1.0);
+            let series =
+                tc + (ts - tc) * (one - p * (one - p * (T::splat(0.5) - p / T::splat(6.0))));
+            lev = T::select(short, series, lev);
+        }
+        let mid = general & !(big | small);
+        if T::any(mid) {
+            lev = T::select(mid, tc + (ts - tc) * exp_neg(p), lev);
+        }
+        lev
+    }
 }
 
 /// $e^{-p}$ for $0 \le p \le 700$, within 2 units in the last place, by the same IEEE operations
-/// on every platform (no libm): the friction level's exponential, which the drives in SIMD lanes
-/// evaluate with the same operations four at a time (`real_sim::lanes`), bit for bit.
+/// on every platform and in every lane (no libm): the friction level's exponential.
 ///
 /// Cody–Waite reduction $-p = n \ln 2 + r$, $n = \mathrm{round}(-p/\ln 2)$, $|r| \lesssim
 /// \ln 2 / 2$ ($\ln 2$ split in a high part with $n \ln 2_{hi}$ exact and a low part), then
 /// $e^{-p} = 2^n \sum_{i=0}^{13} r^i/i!$ (the Taylor remainder $r^{14}/14! < 5\cdot10^{-18}$),
 /// the sum in Estrin's order (short dependency chains), the scaling by $2^n$ exact.
 #[inline(always)]
-pub(crate) fn exp_neg(p: f64) -> f64 {
+pub(crate) fn exp_neg<T: Lane>(p: T) -> T {
+    use exp_neg_consts::{C, INV_LN2, LN2_HI, LN2_LO, ROUND};
     let x = -p;
-    let t = x * exp_neg_consts::INV_LN2 + exp_neg_consts::ROUND;
-    let n = t - exp_neg_consts::ROUND;
-    let r = (x - n * exp_neg_consts::LN2_HI) - n * exp_neg_consts::LN2_LO;
-    let c = &exp_neg_consts::C;
+    let t = x * T::splat(INV_LN2) + T::splat(ROUND);
+    let n = t - T::splat(ROUND);
+    let r = (x - n * T::splat(LN2_HI)) - n * T::splat(LN2_LO);
+    let c = |i: usize| T::splat(C[i]);
     let r2 = r * r;
     let r4 = r2 * r2;
     let r8 = r4 * r4;
-    let q0 = c[0] + c[1] * r;
-    let q1 = c[2] + c[3] * r;
-    let q2 = c[4] + c[5] * r;
-    let q3 = c[6] + c[7] * r;
-    let q4 = c[8] + c[9] * r;
-    let q5 = c[10] + c[11] * r;
-    let q6 = c[12] + c[13] * r;
+    let q0 = c(0) + c(1) * r;
+    let q1 = c(2) + c(3) * r;
+    let q2 = c(4) + c(5) * r;
+    let q3 = c(6) + c(7) * r;
+    let q4 = c(8) + c(9) * r;
+    let q5 = c(10) + c(11) * r;
+    let q6 = c(12) + c(13) * r;
     let s0 = q0 + q1 * r2;
     let s1 = q2 + q3 * r2;
     let s2 = q4 + q5 * r2;
@@ -459,8 +565,7 @@ pub(crate) fn exp_neg(p: f64) -> f64 {
     let u1 = s2 + q6 * r4;
     let poly = u0 + u1 * r8;
     // n from the rounding constant's low bits: t = ROUND + n exactly.
-    let k = t.to_bits() as i64 - exp_neg_consts::ROUND.to_bits() as i64;
-    poly * f64::from_bits(((k + 1023) as u64) << 52)
+    poly * T::pow2_of_rounded(t)
 }
 
 /// Constants of [`exp_neg`].
@@ -1207,7 +1312,7 @@ mod tests {
         // a log-spaced sweep of p from 1e-6 to 700 and on every multiple of ln 2 / 2 there (the
         // reduction's edges), and the exact values e^0 = 1 and e^{-n ln 2} = 2^{-n}.
         let ulps = |p: f64| {
-            let (a, b) = (exp_neg(p), (-p).exp());
+            let (a, b) = (exp_neg::<f64>(p), (-p).exp());
             (a.to_bits() as i64 - b.to_bits() as i64).abs()
         };
         let mut worst = (0, 0.0);
@@ -1220,10 +1325,10 @@ mod tests {
             }
         }
         assert!(worst.0 <= 2, "{} ulp at p = {}", worst.0, worst.1);
-        assert_eq!(exp_neg(0.0), 1.0);
+        assert_eq!(exp_neg::<f64>(0.0), 1.0);
         for n in [1, 2, 10, 57] {
             // p = n ln 2 rounded is not exactly n ln 2: compare within an ulp of 2^-n.
-            let v = exp_neg(n as f64 * std::f64::consts::LN_2);
+            let v = exp_neg::<f64>(n as f64 * std::f64::consts::LN_2);
             let exact = (0.5f64).powi(n);
             assert!(
                 (v - exact).abs() <= 2.0 * f64::EPSILON * exact,

@@ -34,9 +34,10 @@ use std::f64::consts::{PI, TAU};
 use nalgebra::Complex;
 
 use crate::Error;
-use crate::params::Drive;
-use crate::real_sim::{Build, Engine, Job, RLaw, Shaper, readers, with_engine};
-use crate::sim::RefSample;
+use crate::drive::Drive;
+use crate::engine::real::{Build, Real, RealJob, with_real};
+use crate::engine::{ReferenceShaper, Servo, real_noise};
+use crate::law::{Law, RefSample};
 
 /// Which frequency response to measure.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -267,12 +268,14 @@ struct FrfJob<'a> {
     h: f64,
 }
 
-impl Job for FrfJob<'_> {
+impl RealJob for FrfJob<'_> {
     type Out = Result<Measured, Error>;
 
-    fn run<L: RLaw, const N: usize, const TM: bool>(self, e: &Engine<L, N, TM>) -> Self::Out {
+    fn run<L: Law, const N: usize, const TM: bool>(self, e: Real<f64, L, N, TM>) -> Self::Out {
         let (o, plan, h) = (self.o, self.plan, self.h);
-        let (mut pr, mut mr) = readers(self.drive, false);
+        // The readings' noise, as the drive's simulation draws it.
+        let (mut pr, mut mr) = real_noise(self.drive);
+        let motor_noise = e.second_encoder();
         let n_per = plan.n_per;
         let vb = o.bias_velocity;
         let torque_kind = o.kind == FrfKind::Mechanical;
@@ -294,9 +297,10 @@ impl Job for FrfJob<'_> {
             }
         };
         let r0 = nominal(0);
-        let xm0 = pr.quantise(r0.xr);
+        let xm0 = e.quant().read(r0.xr, -0.0);
         let mut st = e.rest(r0.xr, xm0);
-        let mut shaper = Shaper::new(self.drive.effects().shaping, h, r0)?;
+        let mut shaper =
+            ReferenceShaper::new(&[self.drive.effects().shaping], h, r0)?.expect("one lane");
         let kakt = self.drive.plant().ka_kt();
         let rg = self.drive.plant().rg;
         let total = (o.settle_periods + o.periods) * n_per;
@@ -327,8 +331,8 @@ impl Job for FrfJob<'_> {
                 e.motor_velocity(&st),
             );
             let z_before = e.state(&st);
-            let noise = e.draw_noise(&mut pr, &mut mr);
-            let out = e.tick(&mut st, r, inject, &pr, &mr, noise);
+            let noise = (pr.draw(), if motor_noise { mr.draw() } else { 0.0 });
+            let out = e.tick_with(&mut st, &r, inject, noise);
             if i < first {
                 continue;
             }
@@ -369,7 +373,7 @@ impl Drive {
         });
         let plan = Plan::new(options, self.servo_rate_hz(), amplitude)?;
         let h = 1.0 / self.servo_rate_hz();
-        let m = with_engine(
+        let m = with_real(
             self,
             h,
             Build::Full,

@@ -1,12 +1,17 @@
 //! Feed drives for vcnc: the "true" machine (plant, controllers, encoder) whose dynamics vcnc
 //! identifies, and the 7-parameter closed-loop model the identifier fits (docs/drive-model.md).
 //!
-//! - [`params`]: plain parameter data as the machine file holds it ([`DriveParams`]: [`Plant`],
-//!   [`ControllerSpec`] with gains or desired poles, [`Encoder`], servo rate), checked into a
-//!   [`Drive`] by [`DriveParams::validate`] (raw → checked, like ripgrep's `LowArgs` → `HiArgs`).
+//! - [`params`]: the parts of a drive as plain data ([`Plant`], [`ControllerSpec`] with gains or
+//!   desired poles, [`Encoder`]); [`drive`]: a whole drive as the machine file holds it
+//!   ([`DriveParams`]), checked into a [`Drive`] by [`DriveParams::validate`] (raw → checked,
+//!   like ripgrep's `LowArgs` → `HiArgs`), with the stability of the sampled loop (the
+//!   private module `stability`: matrices from the law's and the plant step's constants, not a
+//!   run of the engine).
 //! - [`design`]: P-PI, PID and sliding-mode gains from desired poles.
-//! - [`sim`]: the drive in the time domain at the servo rate ([`Drive::simulate`] →
-//!   [`DriveTrace`]) and the effective poles of the sampled loop.
+//! - [`engine`]: the drive in the time domain at the servo rate ([`Drive::simulate`] →
+//!   [`DriveTrace`]): one engine for the ideal drive and the drives with effects, on one drive
+//!   or four in SIMD lanes (private modules: `law`, the control laws; `plant`, the plant's exact
+//!   step; `lane`, the number type of one drive or four).
 //! - [`model`]: the closed-loop model ([`ClosedLoopModel`]) with poles, FRFs and simulation.
 //! - [`effects`]: what real drives add to the rigid plant, each an optional table with physical
 //!   units (docs/machine-file.md#drive-effects): two-mass compliance and backlash ([`Compliance`]),
@@ -22,6 +27,8 @@
 //!   ([`Drive::stream`] → [`DriveStream`], [`DriveModel::stream`] → [`ModelStream`]): state
 //!   kept between pieces, memory O(piece), results the whole run's bit for bit for any split
 //!   (the whole-run simulations are these streams fed everything at once).
+//! - [`batch`]: drives that share a loop structure in SIMD lanes, streamed ([`GroupStream`]) or
+//!   whole ([`simulate_batch`]).
 //!
 //! ```
 //! use vcnc_drive::{Reference, SimOptions, table1_drive};
@@ -47,21 +54,24 @@
 //! ```
 
 pub mod batch;
-mod chacha;
 pub mod design;
+pub mod drive;
 pub mod drive_model;
 pub mod effects;
+pub mod engine;
 pub mod frf;
+mod lane;
+mod law;
 pub mod model;
-mod noise;
 pub mod params;
+mod plant;
 pub mod presets;
-mod real_sim;
-pub mod sim;
+mod stability;
 pub mod stream;
 
-pub use batch::{BATCH_LANES, batch_groups, simulate_batch, simulate_batch_into};
+pub use batch::{BATCH_LANES, GroupStream, batch_groups, simulate_batch, simulate_batch_into};
 pub use design::{design_pid, design_ppi, design_smc};
+pub use drive::{Drive, DriveParams};
 pub use drive_model::{
     DriveModel, MAX_ACTUAL_LATENCY_S, MAX_DELAY_S, ModelInput, ModelRun, Realisation,
     ReferenceFilter,
@@ -70,14 +80,13 @@ pub use effects::{
     Compliance, CurrentLoop, CurrentLoopOrder, Effects, Feedback, FeedbackSource, Friction,
     FrictionLocation, ReferenceShaping, ShapingFilter,
 };
+pub use engine::{DriveTrace, simulate_drive};
 pub use frf::{Frf, FrfKind, FrfOptions};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
 pub use params::{
-    Controller, ControllerSpec, Drive, DriveParams, Encoder, PPiGains, PidGains, Plant, PoleDesign,
-    SmcGains,
+    Controller, ControllerSpec, Encoder, PPiGains, PidGains, Plant, PoleDesign, SmcGains,
 };
 pub use presets::{NMV5000_TABLE3, TABLE1_MODEL, nmv5000_axis_design, table1_drive};
-pub use sim::{DriveTrace, simulate_drive};
 pub use stream::{Channels, DriveStream, ModelStream};
 pub use vcnc_axis::AxisName;
 
@@ -265,6 +274,27 @@ pub enum Error {
         /// Its growth rate $\Re \ln z / h$, 1/s.
         growth_per_s: f64,
     },
+    /// A drive of a [`GroupStream`] failed: which one (its index in the group) and why.
+    #[error("drive {drive} of the group: {source}")]
+    Group {
+        /// Index of the drive in the group.
+        drive: usize,
+        /// Its error.
+        #[source]
+        source: Box<Error>,
+    },
+    /// A piece fed to one drive of a [`GroupStream`] is not as long as the first drive's: the
+    /// drives of a group share the clock.
+    #[error(
+        "the piece has {samples} samples, the group's first piece {expected}: every drive of a \
+         group is fed the same number of samples at a time"
+    )]
+    PieceLength {
+        /// Samples of this piece.
+        samples: usize,
+        /// Samples of the first drive's piece.
+        expected: usize,
+    },
     /// No preset for this axis name.
     #[error("no NMV5000 design for axis {axis}: expected one of X, Y, Z, A, C")]
     UnknownAxis {
@@ -292,7 +322,9 @@ impl Error {
             | Error::UnknownAxis { .. }
             | Error::Alternatives { .. }
             | Error::EffectsUnstable { .. } => true,
+            Error::Group { source, .. } => source.is_bad_input(),
             Error::EmptySignal
+            | Error::PieceLength { .. }
             | Error::LengthMismatch { .. }
             | Error::NonFinite { .. }
             | Error::BadSamplePeriod { .. }

@@ -2,9 +2,8 @@
 
 use std::f64::consts::PI;
 
-use crate::params::{
-    ControllerSpec, DEFAULT_SERVO_RATE_HZ, DriveParams, Encoder, Plant, PoleDesign,
-};
+use crate::drive::DriveParams;
+use crate::params::{ControllerSpec, DEFAULT_SERVO_RATE_HZ, Encoder, Plant, PoleDesign};
 use crate::{AxisName, Error};
 
 /// The paper's Table 1 closed loop with the coefficients as the paper prints them

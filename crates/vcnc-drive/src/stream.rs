@@ -10,7 +10,7 @@
 //! are these streams fed the whole reference at once.
 //!
 //! There is no output lag: the servo loop logs sample $k$ at its first tick, and the ticks
-//! that follow interpolate towards sample $k + 1$ (module docs of [`crate::sim`], "Timing");
+//! that follow interpolate towards sample $k + 1$ (module docs of [`crate::engine`], "Timing");
 //! a stream receiving sample $k$ first runs those ticks of sample $k - 1$, then logs sample
 //! $k$. The model's step to sample $k + 1$ (first-order hold) likewise needs samples up to
 //! $k + 1$ only.
@@ -35,12 +35,11 @@
 //! ```
 
 use crate::Error;
+use crate::drive::Drive;
 use crate::drive_model::{DriveModel, ExtendedStream};
+use crate::engine::{DriveTrace, Feed, run_of};
 use crate::model::SimOptions;
 use crate::model::{ClosedLoopModel, Discretized, FohState, Integrator, Reference, Rk4Stream};
-use crate::params::Drive;
-use crate::real_sim::{EffectsFeed, effects_stream};
-use crate::sim::{DriveTrace, IdealStream};
 
 /// The channels a [`DriveStream`] logs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,23 +51,16 @@ pub enum Channels {
     TruePosition,
 }
 
-/// A true drive simulated a piece of the reference at a time ([`Drive::stream`]).
+/// A true drive simulated a piece of the reference at a time ([`Drive::stream`]): the engine's
+/// resumable run of the drive ([`crate::engine`]).
 pub struct DriveStream {
     ts: f64,
     channels: Channels,
     /// Samples fed so far.
     fed: usize,
-    engine: DriveEngine,
+    run: Box<dyn Feed>,
     /// The error a feed returned: the stream is spent.
     failed: Option<Error>,
-}
-
-/// The loop behind a [`DriveStream`].
-enum DriveEngine {
-    /// The rigid loop of [`crate::sim`].
-    Ideal(Box<IdealStream>),
-    /// The loop with effects, over its monomorphised engine.
-    Effects(Box<dyn EffectsFeed>),
 }
 
 impl Drive {
@@ -79,18 +71,11 @@ impl Drive {
     /// Errors: [`Error::BadSamplePeriod`], [`Error::ServoRate`], and the discretisation's
     /// ([`Error::TooStiff`], [`Error::NonFiniteModel`]).
     pub fn stream(&self, ts: f64, channels: Channels) -> Result<DriveStream, Error> {
-        let n_sub = self.ticks_per_sample(ts)?;
-        let h = ts / n_sub as f64;
-        let engine = if self.effects().is_ideal() {
-            DriveEngine::Ideal(Box::new(IdealStream::new(self, h, n_sub)?))
-        } else {
-            DriveEngine::Effects(effects_stream(self, n_sub, h)?)
-        };
         Ok(DriveStream {
             ts,
             channels,
             fed: 0,
-            engine,
+            run: run_of(self, ts)?,
             failed: None,
         })
     }
@@ -120,13 +105,7 @@ impl DriveStream {
 
     fn feed_checked(&mut self, piece: Reference<'_>, out: &mut DriveTrace) -> Result<(), Error> {
         out.ts = self.ts;
-        match &mut self.engine {
-            DriveEngine::Ideal(s) => {
-                s.feed(piece, self.channels, out);
-                Ok(())
-            }
-            DriveEngine::Effects(s) => s.feed(piece, self.channels, out),
-        }
+        self.run.feed(&[piece], self.channels, &mut [out])
     }
 
     /// Samples fed so far.
@@ -144,10 +123,7 @@ impl DriveStream {
         if self.fed == 0 {
             return Err(Error::EmptySignal);
         }
-        Ok(match &self.engine {
-            DriveEngine::Ideal(s) => s.saturated_ticks(),
-            DriveEngine::Effects(s) => s.saturated_ticks(),
-        })
+        Ok(self.run.saturated_ticks()[0])
     }
 }
 

@@ -203,6 +203,18 @@ pub fn realistic_nmv5000_x() -> vcnc_drive::DriveParams {
 /// and the effect tables) read as [`vcnc_drive::DriveParams`]; the machine-level keys (unit,
 /// travel, limits, identification range) are not the drive's and are left out.
 pub fn machine_drives(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
+    let axes = machine_axes(name);
+    assert_eq!(
+        axes.iter().map(|(a, _)| a.as_str()).collect::<Vec<_>>(),
+        ["X", "Y", "Z", "A", "C"],
+        "{name}: the five NMV5000 axes"
+    );
+    axes
+}
+
+/// The drives of every axis a machine file of the repository holds (X, Y, Z, A, B, C, those
+/// present), read as [`machine_drives`] reads them.
+pub fn machine_axes(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
     const DRIVE_KEYS: [&str; 9] = [
         "plant",
         "controller",
@@ -218,8 +230,9 @@ pub fn machine_drives(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
     let text = std::fs::read_to_string(&path).expect("machine file is readable");
     let file: toml::Table = text.parse().expect("machine file is TOML");
     let axes = file["axes"].as_table().expect("[axes]");
-    ["X", "Y", "Z", "A", "C"]
+    ["X", "Y", "Z", "A", "B", "C"]
         .iter()
+        .filter(|a| axes.contains_key(**a))
         .map(|a| {
             let mut t = axes[*a].as_table().expect("axis table").clone();
             t.retain(|k, _| DRIVE_KEYS.contains(&k));
@@ -227,4 +240,179 @@ pub fn machine_drives(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
             (a.to_string(), p)
         })
         .collect()
+}
+
+use vcnc_drive::{
+    Compliance, ControllerSpec, CurrentLoop, CurrentLoopOrder, DriveParams, Feedback,
+    FeedbackSource, Friction, FrictionLocation, PoleDesign, ReferenceShaping, ShapingFilter,
+};
+
+/// A random drive of a random structure: which effects it has and how its loop is built are
+/// drawn from `structure`'s generator, its numbers from `numbers`'s.
+pub fn random_drive(structure: &mut ChaCha8Rng, numbers: &mut ChaCha8Rng) -> DriveParams {
+    let s = structure;
+    let n = numbers;
+    let mut p = vcnc_drive::table1_drive();
+    let scale = |n: &mut ChaCha8Rng, v: f64| v * n.random_range(0.7..1.3);
+    p.plant.j = scale(n, p.plant.j);
+    p.plant.b = scale(n, p.plant.b);
+    p.plant.coulomb_torque = scale(n, 0.3);
+    p.encoder.seed = n.random_range(0..1000);
+    p.encoder.noise_std = if s.random_bool(0.7) {
+        scale(n, 5e-5)
+    } else {
+        0.0
+    };
+    p.encoder.resolution = if s.random_bool(0.8) { 1e-4 } else { 0.0 };
+    if s.random_bool(0.3) {
+        p.plant.u_max = Some(scale(n, 6.0));
+    }
+    let design = PoleDesign {
+        p_hz: scale(n, 10.0),
+        wn_hz: scale(n, 30.0),
+        zeta: n.random_range(0.4..0.8),
+    };
+    p.controller = match s.random_range(0..3) {
+        0 => ControllerSpec::PPi {
+            kv: None,
+            kp: None,
+            ki: None,
+            design: Some(design),
+            vff: n.random_range(0.0..1.0),
+            bff: n.random_range(0.0..1.0),
+            jff: n.random_range(0.0..1.0),
+        },
+        1 => ControllerSpec::Pid {
+            kp: None,
+            ki: None,
+            kd: None,
+            design: Some(design),
+            jff: n.random_range(0.0..1.0),
+            bff: n.random_range(0.0..1.0),
+        },
+        _ => ControllerSpec::Smc {
+            lambda: None,
+            ks: None,
+            rho: None,
+            je_hat: None,
+            be_hat: None,
+            design: Some(design),
+        },
+    };
+    let two_mass = s.random_bool(0.6);
+    if two_mass {
+        p.compliance = Some(Compliance {
+            j_motor: p.plant.j * n.random_range(0.3..0.7),
+            stiffness: None,
+            mode_hz: Some(scale(n, 150.0)),
+            damping: None,
+            mode_zeta: Some(n.random_range(0.02..0.1)),
+            // Backlash in some lanes only (a per-lane number).
+            backlash: if n.random_bool(0.5) {
+                scale(n, 3e-3)
+            } else {
+                0.0
+            },
+        });
+    }
+    let location = if two_mass && s.random_bool(0.3) {
+        FrictionLocation::Motor
+    } else {
+        FrictionLocation::Load
+    };
+    p.friction = match s.random_range(0..4) {
+        0 => None,
+        1 => Some(Friction::Coulomb {
+            coulomb_torque_negative: Some(scale(n, 0.25)),
+            location,
+        }),
+        2 => Some(Friction::Stribeck {
+            static_torque: scale(n, 0.45),
+            stribeck_velocity: scale(n, 2.0),
+            stribeck_exponent: n.random_range(0.5..3.0),
+            coulomb_torque_negative: None,
+            static_torque_negative: None,
+            location,
+        }),
+        _ => Some(Friction::MaxwellSlip {
+            presliding_displacement: scale(n, 2e-3),
+            elements: n.random_range(1..7),
+            static_torque: if n.random_bool(0.7) {
+                Some(scale(n, 0.45))
+            } else {
+                None
+            },
+            stribeck_velocity: Some(scale(n, 2.0)),
+            stribeck_exponent: if n.random_bool(0.5) {
+                2.0
+            } else {
+                n.random_range(0.5..3.0)
+            },
+            coulomb_torque_negative: Some(scale(n, 0.25)),
+            static_torque_negative: None,
+            location,
+        }),
+    };
+    if s.random_bool(0.6) {
+        let order = if s.random_bool(0.5) {
+            CurrentLoopOrder::FirstOrder
+        } else {
+            CurrentLoopOrder::SecondOrder
+        };
+        p.current_loop = Some(CurrentLoop {
+            order,
+            bandwidth_hz: Some(scale(n, 1500.0)),
+            zeta: (order == CurrentLoopOrder::SecondOrder).then(|| n.random_range(0.5..1.0)),
+            // Tight in some lanes: saturation.
+            torque_max: n.random_bool(0.5).then(|| scale(n, 3.0)),
+        });
+    } else if s.random_bool(0.3) {
+        p.current_loop = Some(CurrentLoop {
+            order: CurrentLoopOrder::FirstOrder,
+            bandwidth_hz: None,
+            zeta: None,
+            torque_max: Some(scale(n, 3.0)),
+        });
+    }
+    if s.random_bool(0.7) {
+        let source = if two_mass && s.random_bool(0.3) {
+            FeedbackSource::Motor
+        } else {
+            FeedbackSource::Load
+        };
+        let delayed = s.random_bool(0.6);
+        p.feedback = Some(Feedback {
+            source,
+            dead_time_cycles: if delayed { n.random_range(1..4) } else { 0 },
+            velocity_filter_hz: n.random_bool(0.7).then(|| scale(n, 1500.0)),
+            motor_resolution: (two_mass && source == FeedbackSource::Load)
+                .then(|| if n.random_bool(0.7) { 1e-5 } else { 0.0 }),
+            motor_noise_std: if two_mass && source == FeedbackSource::Load && n.random_bool(0.5) {
+                scale(n, 2e-5)
+            } else {
+                0.0
+            },
+        });
+    }
+    // Reference shaping: a per-lane choice (the shaper runs per lane).
+    if n.random_bool(0.7) {
+        let filter = match n.random_range(0..4) {
+            0 => None,
+            1 => Some(ShapingFilter::FirstOrder {
+                time_constant_s: scale(n, 2e-3),
+            }),
+            2 => Some(ShapingFilter::SecondOrder {
+                time_constant_s: scale(n, 2e-3),
+                zeta: n.random_range(0.4..1.2),
+            }),
+            _ => Some(ShapingFilter::MovingAverage {
+                window_s: n.random_range(1..80) as f64 * 5e-5,
+            }),
+        };
+        p.reference = Some(ReferenceShaping {
+            filter,
+            interpolation_delay_s: n.random_range(0..40) as f64 * 5e-5,
+        });
+    }
+    p
 }
