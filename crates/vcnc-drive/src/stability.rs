@@ -2,7 +2,7 @@
 //! the control law's constants ([`crate::law`]) and the plant's exact step ([`crate::plant`]),
 //! not by running the engine. The checked drive ([`crate::Drive`]) rejects gains and effects
 //! whose loop these matrices show unstable; the engine steps with the same constants (the test
-//! `engine_ticks_are_these_matrices` holds them to each other).
+//! `engine::real::tests::engine_ticks_are_the_stability_matrices` holds them to each other).
 //!
 //! Both maps are the servo tick at the servo period $h$ with the reference zero, friction,
 //! quantisation, noise and limits off (friction's viscous part kept), written as

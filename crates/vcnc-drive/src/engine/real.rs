@@ -878,3 +878,193 @@ pub(crate) fn with_real<J: RealJob>(
         },
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::{Compliance, CurrentLoop, CurrentLoopOrder, Feedback, Friction};
+    use crate::params::Plant;
+    use crate::presets::table1_drive;
+    use crate::{DriveParams, Encoder};
+    use nalgebra::DMatrix;
+
+    /// The loop's state as a vector: $z$, integrator, $e_1$, $x_{f1}$, $x_{f2}$, the pending
+    /// dead-time readings (oldest first): the state of `stability::effects_matrix`.
+    fn pack<const N: usize>(st: &RealState<f64, N>) -> Vec<f64> {
+        let mut v: Vec<f64> = st.z.to_vec();
+        v.extend([st.integ, st.e1, st.xf1, st.xf2]);
+        let d = st.delay.d[0];
+        v.extend((0..d).map(|i| st.delay.buf[(st.delay.pos + 128 - d + i) & 127]));
+        v
+    }
+
+    fn unpack<const N: usize>(st: &mut RealState<f64, N>, v: &[f64]) {
+        st.z.copy_from_slice(&v[..N]);
+        (st.integ, st.e1, st.xf1, st.xf2) = (v[N], v[N + 1], v[N + 2], v[N + 3]);
+        let d = st.delay.d[0];
+        for (i, x) in v[N + 4..].iter().enumerate() {
+            st.delay.buf[(st.delay.pos + 128 - d + i) & 127] = *x;
+        }
+    }
+
+    /// The linearised engine's tick applied to each unit state: the columns of its matrix.
+    fn tick_matrix(drive: &Drive) -> DMatrix<f64> {
+        struct T;
+        impl RealJob for T {
+            type Out = DMatrix<f64>;
+            fn run<L: Law, const N: usize, const TM: bool>(self, e: Real<f64, L, N, TM>) -> Self::Out {
+                let dim = N + 4 + e.dead_time[0];
+                let mut m = DMatrix::<f64>::zeros(dim, dim);
+                for col in 0..dim {
+                    let mut st = e.rest_state(0.0, 0.0);
+                    let mut unit = vec![0.0; dim];
+                    unit[col] = 1.0;
+                    unpack(&mut st, &unit);
+                    e.tick_with(&mut st, &RefSample::zero(), 0.0, (0.0, 0.0));
+                    for (row, x) in pack(&st).iter().enumerate() {
+                        m[(row, col)] = *x;
+                    }
+                }
+                m
+            }
+        }
+        let h = 1.0 / drive.servo_rate_hz();
+        with_real(drive, h, Build::Linear, T).expect("builds")
+    }
+
+    #[test]
+    fn engine_ticks_are_the_stability_matrices() {
+        // Truth: the engine itself. The stability analysis derives the linearised loop from the
+        // law's and the plant step's constants; the engine's tick (linearised: no friction, no
+        // backlash, ideal sensors, no limit) applied to unit states must give the same matrix,
+        // to rounding (the tick folds its terms in another order), for each law, rigid and
+        // two-mass drives, current loops of both orders, each feedback path with and without
+        // dead time and velocity filter.
+        let two_mass = |p: &mut DriveParams| {
+            p.compliance = Some(Compliance {
+                j_motor: 0.004,
+                stiffness: None,
+                mode_hz: Some(150.0),
+                damping: None,
+                mode_zeta: Some(0.05),
+                backlash: 0.002,
+            })
+        };
+        let mut cases: Vec<DriveParams> = Vec::new();
+        for law in 0..3 {
+            for variant in 0..6 {
+                let mut p = crate::presets::table1_drive();
+                if law > 0 {
+                    let poles = p.closed_loop_model().unwrap().poles().unwrap();
+                    let design = Some(crate::PoleDesign {
+                        p_hz: poles.p_hz(),
+                        wn_hz: poles.wn_hz(),
+                        zeta: poles.zeta,
+                    });
+                    p.controller = if law == 1 {
+                        crate::ControllerSpec::Pid {
+                            kp: None,
+                            ki: None,
+                            kd: None,
+                            design,
+                            jff: 0.1,
+                            bff: 0.2,
+                        }
+                    } else {
+                        crate::ControllerSpec::Smc {
+                            lambda: None,
+                            ks: None,
+                            rho: None,
+                            je_hat: None,
+                            be_hat: None,
+                            design,
+                        }
+                    };
+                }
+                p.encoder = Encoder::default();
+                match variant {
+                    0 => {}
+                    1 => two_mass(&mut p),
+                    2 => {
+                        two_mass(&mut p);
+                        p.feedback = Some(Feedback {
+                            dead_time_cycles: 2,
+                            velocity_filter_hz: Some(1500.0),
+                            ..Feedback::default()
+                        });
+                    }
+                    3 => {
+                        two_mass(&mut p);
+                        p.feedback = Some(Feedback {
+                            source: FeedbackSource::Motor,
+                            dead_time_cycles: 1,
+                            ..Feedback::default()
+                        });
+                        p.current_loop = Some(CurrentLoop {
+                            order: CurrentLoopOrder::SecondOrder,
+                            bandwidth_hz: Some(1200.0),
+                            zeta: Some(0.7),
+                            torque_max: None,
+                        });
+                    }
+                    4 => {
+                        p.feedback = Some(Feedback {
+                            dead_time_cycles: 3,
+                            ..Feedback::default()
+                        });
+                        p.current_loop = Some(CurrentLoop {
+                            order: CurrentLoopOrder::FirstOrder,
+                            bandwidth_hz: Some(1500.0),
+                            zeta: None,
+                            torque_max: Some(5.0),
+                        });
+                    }
+                    _ => {
+                        two_mass(&mut p);
+                        p.friction = Some(Friction::Coulomb {
+                            coulomb_torque_negative: None,
+                            location: FrictionLocation::Motor,
+                        });
+                    }
+                }
+                cases.push(p);
+            }
+        }
+        for (k, p) in cases.iter().enumerate() {
+            let d = p.validate().unwrap_or_else(|e| panic!("case {k}: {e}"));
+            let want = tick_matrix(&d);
+            let got = d.effects_transition_matrix().unwrap();
+            assert_eq!(got.shape(), want.shape(), "case {k}");
+            let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let diff = (&got - &want).iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(diff <= 1e-14 * scale, "case {k}: {diff:e} of {scale:e}");
+        }
+        // The ideal drive's matrix against its own tick (linear plant: no friction, no limit).
+        let d = table1_drive().validate().unwrap();
+        let m = d.sampled_transition_matrix().unwrap();
+        let h = 1.0 / d.servo_rate_hz();
+        let plant = Plant {
+            coulomb_torque: 0.0,
+            u_max: None,
+            ..d.plant().clone()
+        };
+        let law = crate::law::PPi::of(d.controller(), &plant, h).unwrap();
+        let ideal = crate::engine::ideal::Ideal::new(law, &plant, 0.0, h).unwrap();
+        for col in 0..5 {
+            let mut z = [0.0; 5];
+            z[col] = 1.0;
+            let mut st = crate::engine::ideal::IdealState {
+                x: z[0],
+                v: z[1],
+                integ: z[2],
+                xm1: z[3],
+                xm2: z[4],
+                xr1: 0.0,
+            };
+            crate::engine::Servo::tick(&ideal, &mut st, &RefSample::zero(), (-0.0, 0.0));
+            for (row, v) in [st.x, st.v, st.integ, st.xm1, st.xm2].iter().enumerate() {
+                assert_eq!(m[(row, col)].to_bits(), v.to_bits(), "({row}, {col})");
+            }
+        }
+    }
+}
