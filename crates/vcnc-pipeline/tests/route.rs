@@ -3,7 +3,8 @@
 //!
 //! Truth: the whole-array functions of the stage crates, called directly on the prepared
 //! program's references — [`vcnc_drive::Drive::simulate`] (every channel) for the true drives,
-//! [`vcnc_drive::DriveModel::simulate`] and [`latency::shifted`] for the models, the machine's
+//! [`vcnc_drive::DriveModel::stream`] fed the whole reference and [`latency::shifted`] for the
+//! models, the machine's
 //! forward kinematics sample by sample, [`vcnc_contour::contour_errors`] (the windowed search
 //! over the whole reference path, not the streamed one) for the contour errors, max and RMS
 //! over the masked arrays and [`predict::worst_blocks`] for the statistics. The route runs the
@@ -149,9 +150,13 @@ fn oracle(machine: &Machine, run: &Run, sets: &[&MachineModels]) -> Oracle {
                 .iter()
                 .zip(&run.axes)
                 .map(|(m, s)| {
-                    let x = m
-                        .simulate(s.reference(), ts, &SimOptions::default())
-                        .expect("model");
+                    // The model's stream fed the whole reference at once: the route cuts it
+                    // into pieces. (`DriveModel::simulate` of a model with no dead time, filter
+                    // or extra pole is the core's own recursion, equal only up to rounding.)
+                    let mut stream = m.stream(ts, &SimOptions::default()).expect("model");
+                    let mut x = Vec::new();
+                    stream.feed(s.reference(), &mut x).expect("model");
+                    stream.finish().expect("model");
                     latency::shifted(&x, m.actual_latency_s, ts)
                 })
                 .collect(),

@@ -912,7 +912,10 @@ mod tests {
         struct T;
         impl RealJob for T {
             type Out = DMatrix<f64>;
-            fn run<L: Law, const N: usize, const TM: bool>(self, e: Real<f64, L, N, TM>) -> Self::Out {
+            fn run<L: Law, const N: usize, const TM: bool>(
+                self,
+                e: Real<f64, L, N, TM>,
+            ) -> Self::Out {
                 let dim = N + 4 + e.dead_time[0];
                 let mut m = DMatrix::<f64>::zeros(dim, dim);
                 for col in 0..dim {
