@@ -139,7 +139,7 @@ impl Run {
         let kin = machine.require_kinematics()?;
         let pos = self.reference_positions();
         Ok(rows
-            .map(|k| kin.model.forward(&kin.axes.at(&pos, k)))
+            .map(|k| kin.pose_at(&pos, k))
             .collect())
     }
 
@@ -153,7 +153,7 @@ impl Run {
     pub fn reference_path(&self, machine: &Machine) -> Result<vcnc_contour::ContourPath, Error> {
         let kin = machine.require_kinematics()?;
         let pos = self.reference_positions();
-        let poses = (0..self.len()).map(|k| kin.model.forward(&kin.axes.at(&pos, k)));
+        let poses = (0..self.len()).map(|k| kin.pose_at(&pos, k));
         Ok(vcnc_contour::ContourPath::from_poses(poses)?)
     }
 
@@ -259,7 +259,7 @@ pub fn prepare_file(machine: &Machine, path: &Path, lenient: bool) -> Result<Run
 ///
 /// In TCP mode (G43.4) the trajectory carries the tool tip in the workpiece frame and the rotary
 /// angles; inverse kinematics turns every sample into X Y Z with analytic velocity and
-/// acceleration ([`vcnc_kinematics::TableTiltingAc::inverse_tcp_track`]). Every sample is
+/// acceleration ([`vcnc_kinematics::Kinematics::inverse_tcp_track`]). Every sample is
 /// checked against the axis travels.
 pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Result<Run, Error> {
     let interp = machine.interp_options(lenient);
@@ -292,7 +292,11 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
             take(|a| &mut a.vel),
             take(|a| &mut a.acc),
         );
-        kin.inverse_tcp(&mut pos, &mut vel, &mut acc, &traj.tcp);
+        kin.inverse_tcp(&mut pos, &mut vel, &mut acc, &traj.tcp)
+            .map_err(|source| Error::Kinematics {
+                context: file.to_string(),
+                source,
+            })?;
         for (a, ((p, v), ac)) in axes.iter_mut().zip(pos.into_iter().zip(vel).zip(acc)) {
             (a.pos, a.vel, a.acc) = (p, v, ac);
         }
@@ -469,7 +473,7 @@ pub fn forward_poses(machine: &Machine, axis_pos: &[&[f64]]) -> Result<Vec<Pose>
     let kin = machine.require_kinematics()?;
     let n = axis_pos.first().map_or(0, |p| p.len());
     Ok((0..n)
-        .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
+        .map(|k| kin.pose_at(axis_pos, k))
         .collect())
 }
 
