@@ -510,7 +510,11 @@ impl Checker<'_> {
         let kinematics = match &file.kinematics {
             Some(k) => Some(self.kinematics(k, &axes)?),
             // A plain X Y Z machine needs no section: its tool tip is its slides.
-            None if axes.iter().map(|a| a.name).eq([AxisName::X, AxisName::Y, AxisName::Z]) => {
+            None if axes
+                .iter()
+                .map(|a| a.name)
+                .eq([AxisName::X, AxisName::Y, AxisName::Z]) =>
+            {
                 let xyz = KinematicsFile {
                     family: Some(FamilyFile::Xyz),
                     tilt: None,
@@ -1024,7 +1028,13 @@ mod tests {
         assert_eq!(names, k.axis_names());
         assert_eq!(
             names,
-            [AxisName::X, AxisName::Y, AxisName::Z, AxisName::A, AxisName::C]
+            [
+                AxisName::X,
+                AxisName::Y,
+                AxisName::Z,
+                AxisName::A,
+                AxisName::C
+            ]
         );
         assert_eq!(k.branch, Branch::Minus);
     }
@@ -1136,10 +1146,8 @@ mod tests {
         .unwrap();
         assert_eq!(urdf.kinematics, params.kinematics);
         // The earlier key name still reads.
-        let old = nmv_with_kinematics(
-            "family = \"table-ac\"\na_offset_mm = [0.0, 0.0, -100.0]",
-        )
-        .unwrap();
+        let old =
+            nmv_with_kinematics("family = \"table-ac\"\na_offset_mm = [0.0, 0.0, -100.0]").unwrap();
         assert_eq!(urdf.kinematics, old.kinematics);
     }
 
@@ -1204,7 +1212,10 @@ mod tests {
             // workpiece frame is the machine frame at zero), along +Z.
             let zero = vec![0.0; names.len()];
             let p = k.pose_of(&zero);
-            assert!(p.p.norm() < 1e-12 && (p.o.z - 1.0).abs() < 1e-15, "{family}: {p:?}");
+            assert!(
+                p.p.norm() < 1e-12 && (p.o.z - 1.0).abs() < 1e-15,
+                "{family}: {p:?}"
+            );
         }
     }
 }

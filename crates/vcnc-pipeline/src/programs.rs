@@ -126,7 +126,10 @@ pub fn machine_spiral_program(
                 })?;
             previous = sol.joints;
             for axis in &rotary {
-                line.push_str(&format!(" {axis}{}", decimals5(previous[*axis].to_degrees())));
+                line.push_str(&format!(
+                    " {axis}{}",
+                    decimals5(previous[*axis].to_degrees())
+                ));
             }
         }
         if k == 1 {

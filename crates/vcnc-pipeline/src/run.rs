@@ -138,9 +138,7 @@ impl Run {
     ) -> Result<Vec<Pose>, Error> {
         let kin = machine.require_kinematics()?;
         let pos = self.reference_positions();
-        Ok(rows
-            .map(|k| kin.pose_at(&pos, k))
-            .collect())
+        Ok(rows.map(|k| kin.pose_at(&pos, k)).collect())
     }
 
     /// [`Run::reference_poses_at`] of every sample.
@@ -472,9 +470,7 @@ pub(crate) fn missing_axis(
 pub fn forward_poses(machine: &Machine, axis_pos: &[&[f64]]) -> Result<Vec<Pose>, Error> {
     let kin = machine.require_kinematics()?;
     let n = axis_pos.first().map_or(0, |p| p.len());
-    Ok((0..n)
-        .map(|k| kin.pose_at(axis_pos, k))
-        .collect())
+    Ok((0..n).map(|k| kin.pose_at(axis_pos, k)).collect())
 }
 
 #[cfg(test)]

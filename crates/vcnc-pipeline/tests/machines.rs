@@ -97,8 +97,7 @@ fn every_sample_machine_predicts_its_own_spiral_within_a_micrometre() {
         let kin = machine.require_kinematics().expect("kinematics");
         assert_eq!(kin.family(), family, "{file}");
         for feed in [75.0, fresh] {
-            let (true_tip, tip, orientation, true_orientation) =
-                spiral_discrepancy(&machine, feed);
+            let (true_tip, tip, orientation, true_orientation) = spiral_discrepancy(&machine, feed);
             println!(
                 "{file} at {feed} mm/s: true max {true_tip:.3} µm / {true_orientation:.4} mrad, |pred - true| max {tip:.4} µm / {orientation:.5} mrad"
             );
@@ -106,9 +105,15 @@ fn every_sample_machine_predicts_its_own_spiral_within_a_micrometre() {
             assert!(true_tip > 1.0, "{file}: true max {true_tip} µm");
             // ... and the models predict it.
             assert!(tip < 1.0, "{file} at {feed} mm/s: {tip} µm");
-            assert!(orientation < 0.01, "{file} at {feed} mm/s: {orientation} mrad");
+            assert!(
+                orientation < 0.01,
+                "{file} at {feed} mm/s: {orientation} mrad"
+            );
             if family == Family::Xyz {
-                assert_eq!(true_orientation, 0.0, "{file}: a 3-axis tool stays along +Z");
+                assert_eq!(
+                    true_orientation, 0.0,
+                    "{file}: a 3-axis tool stays along +Z"
+                );
             } else {
                 assert!(true_orientation > 0.0, "{file}: the rotary axes move");
             }
