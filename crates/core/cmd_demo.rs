@@ -255,7 +255,7 @@ fn demo_realistic(out: &Path, budget: bool, table: &TableOptions, ctx: &Ctx) -> 
     );
     // The figures show vcnc's models (no latency) and the paper's method.
     record.models.remove(set::MODEL_STATED);
-    let figures = [f[set::MODEL].clone(), f[set::PAPER].clone()];
+    let figures = [f[set::MODEL], f[set::PAPER]];
     let shown = PredictOutcome {
         figures: figures.to_vec(),
         ..e.outcome.clone()

@@ -301,7 +301,7 @@ fn ideal_cases() -> Vec<(String, DriveParams)> {
         let mut slowest = p.clone();
         slowest.servo_rate_hz = 1000.0;
         out.extend([
-            (format!("{kind}"), p),
+            (kind.to_string(), p),
             (format!("{kind}-noise"), noisy),
             (format!("{kind}-noise-umax"), limited),
             (format!("{kind}-unquantised"), unquantised),

@@ -1709,7 +1709,7 @@ fn uncertainty(
     // interval to reach it.
     let branch: Vec<f64> = (0..p0.len())
         .map(|i| {
-            if !full || i >= 3 || !(hinv[(i, i)] > 0.0) {
+            if !full || i >= 3 || hinv[(i, i)].is_nan() || hinv[(i, i)] <= 0.0 {
                 return 0.0;
             }
             let delta_c1 = 0.5 * cp[(i, i)] / hinv[(i, i)];

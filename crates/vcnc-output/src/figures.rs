@@ -632,9 +632,9 @@ pub fn prediction(
                 &PathErrors {
                     arc_length_mm: &s,
                     contour_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &tip_t),
-                    contour_models: series(&models, &s, &tip_m),
+                    contour_models: series(models, &s, &tip_m),
                     orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
-                    orientation_models: series(&models, &s, &or_m),
+                    orientation_models: series(models, &s, &or_m),
                     block_line: Some(lines),
                     worst_blocks: WORST_BLOCKS,
                     points_mm: Some(&true_tip),

@@ -674,6 +674,14 @@ impl Sink<PredictPiece> for ContourTable {
     }
 }
 
+/// A Parquet or Arrow encoding failure of the table at `path`.
+fn encode(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Encode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -861,13 +869,5 @@ mod tests {
         .unwrap();
         assert!(e.to_string().contains("--columns Q"), "{e}");
         assert!(e.is_bad_input());
-    }
-}
-
-/// A Parquet or Arrow encoding failure of the table at `path`.
-fn encode(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Encode {
-        path: path.to_path_buf(),
-        message: e.to_string(),
     }
 }
