@@ -444,7 +444,7 @@ impl StableInverse {
     }
 }
 
-/// Settings of [`compensate_run`]. Plain data; [`Default`] gives the documented defaults.
+/// Settings of the compensation (`vcnc_pipeline::compensate::compensate_run` and [`compensate_positions`]). Plain data; [`Default`] gives the documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CompensateOptions {
     /// Most iterations of the learning loop on the model. Default 30.
