@@ -424,7 +424,6 @@ fn bad_parameters_are_rejected() {
 
 // ---- the spiral (docs/contour.md) ------------------------------------------------------------
 
-
 #[test]
 fn spiral_axis_spans_match_spec() {
     // Truth: docs/contour.md (spans with the default offsets, branch −1): X −36…36 mm,

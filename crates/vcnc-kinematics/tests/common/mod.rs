@@ -3,8 +3,8 @@
 
 #![allow(dead_code)]
 
-use vcnc_kinematics::nalgebra::Vector3;
 use std::f64::consts::TAU;
+use vcnc_kinematics::nalgebra::Vector3;
 
 use vcnc_kinematics::{
     AxisLimits, Error, HeadHead, HeadTable, Kinematics, Pose, TableTilting, Tilt, Xyz,
