@@ -23,7 +23,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         out,
         table,
     } = args;
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let models = MachineModels::load(model, &machine)?;
     let opts = CompensateOptions {
         max_iterations: *iterations,

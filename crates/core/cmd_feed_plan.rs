@@ -67,7 +67,7 @@ pub fn feed_plan(
 ) -> Result<()> {
     let tolerance_mm = parse_length(tolerance)?;
     let orientation_tolerance_rad = orientation.map(parse_angle).transpose()?;
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let models = MachineModels::load(model, &machine)?;
     let opts = FeedPlanOptions {
         orientation_tolerance_rad,

@@ -22,7 +22,7 @@ pub fn interpolate(
     table: &TableOptions,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let plan = source::plan_file(&machine, program, ctx.lenient)?;
     print_warnings(&plan.warnings);
     let source = Source::Streamed(&plan);
@@ -90,7 +90,7 @@ pub fn simulate(
     stream: bool,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let bounded = bounded_outputs(program, stream);
     let plan = source::plan_file(&machine, program, ctx.lenient)?;
     print_warnings(&plan.warnings);
