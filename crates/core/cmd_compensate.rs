@@ -6,8 +6,8 @@ use anyhow::Result;
 use vcnc_output::compensation::{tables, write_figure, write_tables};
 use vcnc_output::files::{ensure_dir, write_atomic, write_json};
 use vcnc_output::report::RunReport;
+use vcnc_pipeline::MachineModels;
 use vcnc_pipeline::compensate::{self, CompensateOptions};
-use vcnc_pipeline::{Machine, MachineModels};
 
 use crate::cli::CompensateArgs;
 use crate::{Ctx, print_warnings};

@@ -8,8 +8,8 @@ use anyhow::Result;
 use vcnc_output::feed_plan::{tables, write_blocks, write_figure};
 use vcnc_output::files::{ensure_dir, write_atomic, write_json};
 use vcnc_output::report::RunReport;
+use vcnc_pipeline::MachineModels;
 use vcnc_pipeline::feed_plan::{self, FeedPlanOptions};
-use vcnc_pipeline::{Machine, MachineModels};
 
 use crate::{Ctx, bad_input, print_warnings};
 

@@ -9,7 +9,7 @@ use vcnc_output::runs::{TRACE_TABLE_NOTE, report_table_file, run_report};
 use vcnc_output::table::{ReferenceTable, TableOptions, TraceTable};
 use vcnc_output::text::table as text_table;
 use vcnc_pipeline::simulate::{self, simulate_summary_of};
-use vcnc_pipeline::{Machine, MachineModels, SimulationRecord, Source, Unit, source};
+use vcnc_pipeline::{MachineModels, SimulationRecord, Source, Unit, source};
 
 use crate::{Ctx, bounded_outputs, print_warnings};
 
