@@ -601,8 +601,8 @@ pub fn prediction(
                 .collect()
         };
         let (tip_t, or_t) = (masked(&tip_t), masked(&or_t));
-        let tip_m: Vec<Vec<f64>> = tip_m.iter().map(|v| masked(v.as_slice())).collect();
-        let or_m: Vec<Vec<f64>> = or_m.iter().map(|v| masked(v.as_slice())).collect();
+        let tip_m: Vec<Vec<f64>> = tip_m.iter().map(|v| masked(v)).collect();
+        let or_m: Vec<Vec<f64>> = or_m.iter().map(|v| masked(v)).collect();
         // The worst blocks are marked among the measured samples only, as summary.json's
         // worst_blocks; line 0 is left unmarked.
         let lines: Vec<u32> = record
