@@ -206,8 +206,8 @@ pub struct TableArgs {
     #[arg(long, value_enum, default_value_t = FormatArg::Auto)]
     pub format: FormatArg,
     /// Write every N-th sample only (summaries and statistics still use every sample). Default
-    /// 1; for `predict`, every sample up to 80 000 and beyond that the smallest N that keeps
-    /// the table, the path figures and toolpath.vtp to 80 000 samples (`--decimate 1`: all).
+    /// 1; for `predict`, every sample up to 50 000 and beyond that the smallest N that keeps
+    /// the table, the path figures and toolpath.vtp to 50 000 samples (`--decimate 1`: all).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub decimate: Option<u64>,
     /// Columns to write, comma-separated names or `prefix*` patterns (e.g. `t,X_*,true_contour_um`).

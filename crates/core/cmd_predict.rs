@@ -21,8 +21,8 @@ use crate::{Ctx, bounded_outputs, print_warnings};
 
 /// Samples a long program's table, path figures and `toolpath.vtp` keep by default: every
 /// sample up to this many, beyond it every N-th with the smallest N that stays within it
-/// (about 25 MB of Parquet, 10 MB of VTP and 20 MB of memory for the kept samples).
-pub const DEFAULT_OUTPUT_SAMPLES: usize = 80_000;
+/// (about 36 MB of CSV, 7 MB of VTP and 10 MB of memory for the kept samples).
+pub const DEFAULT_OUTPUT_SAMPLES: usize = 50_000;
 
 /// The files of `vcnc predict`.
 pub struct PredictInputs<'a> {
