@@ -59,7 +59,10 @@ fn worst_blocks_say_where_and_why_in_the_terminal_and_the_summary() {
     let planned = w["planned_feed_mm_min"].as_f64().unwrap();
     let achieved = w["achieved_feed_mm_min"].as_f64().unwrap();
     assert!((planned / 6000.0 - 1.0).abs() < 0.05, "{planned}");
-    assert!((achieved / planned - 1.0).abs() < 0.05, "{achieved} vs {planned}");
+    assert!(
+        (achieved / planned - 1.0).abs() < 0.05,
+        "{achieved} vs {planned}"
+    );
     let axis = w["axis"].as_str().unwrap();
     assert!(axis == "X" || axis == "Y", "{axis}");
     assert!(w["axis_share_um"].as_f64().unwrap() > 0.0);
@@ -70,10 +73,6 @@ fn worst_blocks_say_where_and_why_in_the_terminal_and_the_summary() {
         .as_f64()
         .unwrap();
     assert!(second < 0.5 * w["contour_max_um"].as_f64().unwrap());
-    // report.html shows them as a table, not as "[n values]".
-    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(html.contains("G1 X40 Y0 F6000"));
-    assert!(!html.contains("values]"));
     // The bytes written are reported, and match the files.
     let bytes = &summary["output_bytes"];
     let vtp = std::fs::metadata(out.join("toolpath.vtp")).unwrap().len();

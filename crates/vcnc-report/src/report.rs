@@ -321,35 +321,6 @@ fn flatten(prefix: &str, v: &Value, out: &mut Vec<(String, Value)>) {
     }
 }
 
-/// A non-empty array of objects whose leaves have the same names, as a table: the leaves'
-/// names ("a / b" for nested ones) as the header, one row per object.
-fn record_table(v: &Value) -> Option<(Vec<String>, Vec<Vec<String>>)> {
-    let Value::Array(a) = v else { return None };
-    let records: Vec<Vec<(String, Value)>> = a
-        .iter()
-        .map(|x| {
-            x.is_object().then(|| {
-                let mut leaves = Vec::new();
-                flatten("", x, &mut leaves);
-                leaves
-            })
-        })
-        .collect::<Option<_>>()?;
-    let first = records.first()?;
-    let same = records
-        .iter()
-        .all(|r| r.len() == first.len() && r.iter().zip(first).all(|(a, b)| a.0 == b.0));
-    if !same {
-        return None;
-    }
-    let header = first.iter().map(|(k, _)| k.clone()).collect();
-    let rows = records
-        .iter()
-        .map(|r| r.iter().map(|(_, x)| fmt_json(x).0).collect())
-        .collect();
-    Some((header, rows))
-}
-
 /// Tables of a summary JSON object: scalars of the top level in one table; each object either
 /// as a matrix (when its members are objects with the same leaves, e.g. one row per axis) or
 /// as a two-column table of its leaves.
@@ -360,7 +331,7 @@ fn summary_tables(v: &Value) -> Vec<Table> {
     };
     let scalars: Vec<Vec<String>> = top
         .iter()
-        .filter(|(_, x)| !x.is_object() && record_table(x).is_none())
+        .filter(|(_, x)| !x.is_object())
         .map(|(k, x)| vec![k.clone(), fmt_json(x).0])
         .collect();
     if !scalars.is_empty() {
@@ -370,17 +341,6 @@ fn summary_tables(v: &Value) -> Vec<Table> {
             rows: scalars,
             note: String::new(),
         });
-    }
-    // Lists of records (a prediction's worst blocks): one row per record.
-    for (k, x) in top {
-        if let Some((header, rows)) = record_table(x) {
-            out.push(Table {
-                title: k.clone(),
-                header,
-                rows,
-                note: String::new(),
-            });
-        }
     }
     for (k, x) in top {
         let Value::Object(m) = x else { continue };
@@ -640,25 +600,6 @@ mod tests {
         assert_eq!(id.rows[1], ["Y", "3.5", "4"]);
         let c = t.iter().find(|t| t.title == "contour_um").unwrap();
         assert_eq!(c.rows[0], ["true_max", "450.6"]);
-    }
-
-    #[test]
-    fn lists_of_records_become_a_table_with_a_row_each() {
-        // A prediction's worst blocks: a real table, not "[2 values]".
-        let v: Value = serde_json::json!({
-            "machine": "M",
-            "worst_blocks": [
-                {"line": 12, "text": "G1 X1", "flags": {"axis_limit": true}},
-                {"line": 7, "text": "G0 Z5", "flags": {"axis_limit": false}}
-            ],
-            "warnings": ["w"]
-        });
-        let t = summary_tables(&v);
-        assert!(t[0].rows.iter().all(|r| r[0] != "worst_blocks"));
-        let w = t.iter().find(|t| t.title == "worst_blocks").unwrap();
-        assert_eq!(w.header, ["line", "text", "flags / axis_limit"]);
-        assert_eq!(w.rows[0], ["12", "G1 X1", "yes"]);
-        assert_eq!(w.rows[1], ["7", "G0 Z5", "no"]);
     }
 
     #[test]
