@@ -1259,9 +1259,14 @@ mod tests {
         for pieces in [1, 7] {
             let flags = flags_of(&m, &c, pieces);
             let corners: Vec<usize> = (0..n).filter(|k| flags[*k].sharp_corner).collect();
-            // Two corners, each within about a chord (0.05 mm: 5 samples) after the turn.
-            assert_eq!(corners.len(), 2, "{corners:?}");
-            assert!((1000..1012).contains(&corners[0]) && (2000..2012).contains(&corners[1]));
+            // Corners at both turns only, within about two chords (0.05 mm: 5 samples) after
+            // each (a chord across the turn may split it into two turns of 45°).
+            let near = |k: &usize, at: usize| (at..at + 12).contains(k);
+            assert!(
+                corners.iter().all(|k| near(k, 1000) || near(k, 2000)),
+                "{corners:?}"
+            );
+            assert!(corners.iter().any(|k| near(k, 1000)) && corners.iter().any(|k| near(k, 2000)));
             // X reverses at 2000 (after standing still); Y never does.
             let rev: Vec<usize> = (0..n).filter(|k| flags[*k].axis_reversal).collect();
             assert_eq!(rev, vec![2000]);
