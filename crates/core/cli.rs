@@ -22,6 +22,10 @@ pub struct Cli {
     /// Print less: no tables, no progress bars.
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// LinuxCNC tool table (`.tbl`) for the programs' `G43 H` tool-length offsets (predict,
+    /// simulate, interpolate, feed-plan, compensate).
+    #[arg(long, global = true, value_name = "FILE")]
+    pub tool_table: Option<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -93,6 +97,11 @@ pub enum Command {
         /// (docs/performance.md).
         #[arg(long)]
         stream: bool,
+        /// Which outputs to write, comma-separated: `tables` (contour.csv/.parquet),
+        /// `figures` (the SVGs), `vtp` (toolpath.vtp), `report` (manifest.json, report.html).
+        /// Default: all. summary.json is always written.
+        #[arg(long, value_enum, value_delimiter = ',', value_name = "LIST")]
+        outputs: Option<Vec<OutputArg>>,
         #[command(flatten)]
         table: TableArgs,
     },
@@ -196,12 +205,27 @@ pub struct TableArgs {
     /// Table format: `csv`, `parquet`, or `auto` (CSV up to 200 000 rows, Parquet beyond).
     #[arg(long, value_enum, default_value_t = FormatArg::Auto)]
     pub format: FormatArg,
-    /// Write every N-th sample only (summaries and plots still use every sample).
-    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
-    pub decimate: u64,
+    /// Write every N-th sample only (summaries and statistics still use every sample). Default
+    /// 1; for `predict`, every sample up to 50 000 and beyond that the smallest N that keeps
+    /// the table, the path figures and toolpath.vtp to 50 000 samples (`--decimate 1`: all).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub decimate: Option<u64>,
     /// Columns to write, comma-separated names or `prefix*` patterns (e.g. `t,X_*,true_contour_um`).
     #[arg(long, value_name = "COLS")]
     pub columns: Option<String>,
+}
+
+/// One of `predict --outputs`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OutputArg {
+    /// The per-sample table (contour.csv or contour.parquet).
+    Tables,
+    /// The SVG figures.
+    Figures,
+    /// toolpath.vtp.
+    Vtp,
+    /// manifest.json and report.html.
+    Report,
 }
 
 /// `--format`.
@@ -225,7 +249,9 @@ impl TableArgs {
                 FormatArg::Csv => Format::Csv,
                 FormatArg::Parquet => Format::Parquet,
             },
-            decimate: usize::try_from(self.decimate).unwrap_or(usize::MAX),
+            decimate: self
+                .decimate
+                .map_or(1, |n| usize::try_from(n).unwrap_or(usize::MAX)),
             columns: self
                 .columns
                 .as_deref()
