@@ -24,7 +24,10 @@ pub(crate) fn array(py: Python<'_>, v: Vec<f64>) -> Py<PyArray1<f64>> {
 
 /// A serialisable summary as the Python object `json.loads` makes of its JSON (the same
 /// object `summary.json` holds).
-pub(crate) fn to_py<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn to_py<'py>(
+    py: Python<'py>,
+    value: &impl serde::Serialize,
+) -> PyResult<Bound<'py, PyAny>> {
     let text = serde_json::to_string(value).map_err(crate::error::internal)?;
     py.import("json")?.call_method1("loads", (text,))
 }

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use vcnc_pipeline::identify::{self, AxisIdentifySummary};
+use vcnc_pipeline::identify::{self as pipeline_identify, AxisIdentifySummary};
 use vcnc_pipeline::traces::{self, MeasuredTrace};
 use vcnc_pipeline::{AxisIdentification, MAX_ACTUAL_LATENCY_S, OptionsFile};
 use vcnc_trace::{Format, TraceArgs};
@@ -233,9 +233,13 @@ pub fn models_toml(
         (None, None) => return Err(error::bad_input("no identification given")),
     };
     let ids: Vec<AxisIdentification> = identifications.iter().map(|i| i.id.clone()).collect();
-    identify::model_set(&machine, description.as_deref().unwrap_or(TRACE_MODELS), &ids)
-        .to_toml_string()
-        .map_err(error::pipeline)
+    pipeline_identify::model_set(
+        &machine,
+        description.as_deref().unwrap_or(TRACE_MODELS),
+        &ids,
+    )
+    .to_toml_string()
+    .map_err(error::pipeline)
 }
 
 #[pymethods]
@@ -294,7 +298,7 @@ impl Identification {
     /// The warnings the command line prints for this axis.
     #[getter]
     fn warnings(&self) -> Vec<String> {
-        identify::axis_warnings(&self.id)
+        pipeline_identify::axis_warnings(&self.id)
     }
 
     /// The samples the fit is on and the model's free run, for plotting: a dict of numpy
@@ -313,7 +317,7 @@ impl Identification {
 
     /// `model.toml` of this axis, as `vcnc identify --trace` writes it.
     fn to_toml(&self) -> PyResult<String> {
-        identify::model_set(
+        pipeline_identify::model_set(
             &format!("trace {}", self.file),
             TRACE_MODELS,
             std::slice::from_ref(&self.id),

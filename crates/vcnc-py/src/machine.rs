@@ -138,10 +138,10 @@ impl Sink<PredictPiece> for ContourColumns {
 /// A program given as a path, or as G-code text (a `str` holding a line break).
 fn program(program: &Bound<'_, PyAny>) -> PyResult<Program> {
     if let Ok(s) = program.cast::<PyString>() {
-        let s = s.to_str()?;
+        let s: String = s.extract()?;
         if s.contains('\n') {
             return Ok(Program::Text {
-                text: s.to_string(),
+                text: s,
                 name: "<text>".to_string(),
             });
         }
@@ -183,15 +183,17 @@ impl Machine {
     /// The machine's axes, in its order (`"X"`, …).
     #[getter]
     fn axes(&self) -> Vec<String> {
-        self.machine.axes.iter().map(|a| a.name.to_string()).collect()
+        self.machine
+            .axes
+            .iter()
+            .map(|a| a.name.to_string())
+            .collect()
     }
 
     /// Forward and inverse kinematics (a `ValueError` when the file has none).
     #[getter]
     fn kinematics(&self) -> PyResult<Kinematics> {
-        self.machine
-            .require_kinematics()
-            .map_err(error::pipeline)?;
+        self.machine.require_kinematics().map_err(error::pipeline)?;
         Ok(Kinematics {
             machine: Arc::clone(&self.machine),
         })
@@ -249,9 +251,7 @@ impl Machine {
         let (cols, summary) = py
             .detach(|| {
                 let plan = source::plan(m, program, lenient)?;
-                let models = models
-                    .map(|p| MachineModels::load(&p, m))
-                    .transpose()?;
+                let models = models.map(|p| MachineModels::load(&p, m)).transpose()?;
                 let source = Source::Streamed(&plan);
                 let mut names = vec!["t".to_string()];
                 for a in &m.axes {
@@ -452,7 +452,12 @@ impl Kinematics {
             .transpose()?;
         let poses: Vec<Pose> = rows::<6>(&poses)?
             .into_iter()
-            .map(|r| Pose::new(Vector3::new(r[0], r[1], r[2]), Vector3::new(r[3], r[4], r[5])))
+            .map(|r| {
+                Pose::new(
+                    Vector3::new(r[0], r[1], r[2]),
+                    Vector3::new(r[3], r[4], r[5]),
+                )
+            })
             .collect();
         let kin = self.machine.require_kinematics().map_err(error::pipeline)?;
         let out = py

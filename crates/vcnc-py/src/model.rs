@@ -76,10 +76,9 @@ impl Model {
             Some(a) => {
                 let a = crate::trace::axis_name(&a)?;
                 let has = has();
-                models
-                    .into_iter()
-                    .find(|m| m.axis == a)
-                    .ok_or_else(|| error::bad_input(format!("{file}: no model of axis {a} (it has {has})")))
+                models.into_iter().find(|m| m.axis == a).ok_or_else(|| {
+                    error::bad_input(format!("{file}: no model of axis {a} (it has {has})"))
+                })
             }
             None if models.len() == 1 => Ok(models.remove(0)),
             None => Err(error::bad_input(format!(

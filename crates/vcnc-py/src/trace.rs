@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use numpy::PyArray1;
 use pyo3::prelude::*;
-use vcnc_pipeline::traces::{self, MeasuredTrace, PairOptions, ReadOptions};
 use vcnc_pipeline::AxisName;
+use vcnc_pipeline::traces::{self, MeasuredTrace, PairOptions, ReadOptions};
 use vcnc_trace::{GapPolicy, TraceArgs};
 
 use crate::convert::array;
