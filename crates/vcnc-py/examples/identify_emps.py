@@ -15,7 +15,7 @@ import numpy as np
 import vcnc
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
-data = np.genfromtxt(ROOT / "tests/data/emps/DATA_EMPS.csv", delimiter=",", names=True, comments="#")
+data = np.genfromtxt(ROOT / "tests/data/emps/DATA_EMPS.csv", delimiter=",", names=True, skip_header=3)
 ident = vcnc.identify(data["t"], data["qg"], data["qm"], units="m")
 m = ident.model
 print(f"structure {ident.structure}, poles {m.poles}, dc {m.dc:.1f} mm/s²")

@@ -18,7 +18,7 @@ import numpy as np
 import vcnc
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
-d = np.genfromtxt(ROOT / "tests/data/emps/DATA_EMPS.csv", delimiter=",", names=True, comments="#")
+d = np.genfromtxt(ROOT / "tests/data/emps/DATA_EMPS.csv", delimiter=",", names=True, skip_header=3)
 k = 26
 n = len(d["t"])
 t = np.arange(n * k) * 1e-3
