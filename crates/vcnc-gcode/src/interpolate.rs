@@ -66,7 +66,7 @@ pub(crate) mod profile;
 pub(crate) mod segment;
 pub mod stream;
 
-use chain::Out;
+use chain::{Out, TcpSwitch};
 use planner::{Decisions, Mode, Planner};
 use segment::{Cfg, check_limits};
 
@@ -484,11 +484,12 @@ pub fn interpolate(
         },
         last_index: None,
     };
+    let mut switch = TcpSwitch::new(&mut out);
     let mut second = Planner::new(
         &cfg,
         Mode::Sample {
             decisions: &mut decisions,
-            out: &mut out,
+            out: &mut switch,
         },
     );
     for m in &tp.moves {

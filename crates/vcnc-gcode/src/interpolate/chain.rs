@@ -326,6 +326,44 @@ pub(crate) trait Out {
     fn failed(&self) -> bool;
 }
 
+/// Tags the sample where TCP mode switches off as a TCP sample. The machine rests there
+/// (docs/gcode.md, "Path modes": it stops where TCP mode changes), on the end point of the
+/// TCP move: X Y Z are that move's tool-tip coordinates, reached under the tool-tip limits.
+/// The next move's first sample carries its own flag (off), so without this the last
+/// tool-tip step would read as an axis step; with it every switch matches the switch on
+/// (whose rest sample opens the TCP move) and the last sample of a program ending in TCP mode:
+/// the rest sample at a switch is a TCP sample.
+pub(crate) struct TcpSwitch<'o> {
+    out: &'o mut dyn Out,
+    /// The flag the previous sample was given by its move.
+    prev_tcp: bool,
+}
+
+impl<'o> TcpSwitch<'o> {
+    pub(crate) fn new(out: &'o mut dyn Out) -> TcpSwitch<'o> {
+        TcpSwitch {
+            out,
+            prev_tcp: false,
+        }
+    }
+}
+
+impl Out for TcpSwitch<'_> {
+    fn span(&mut self, first: usize, end: usize, t0: f64, t1: f64, index: usize, mv: &Move) {
+        self.out.span(first, end, t0, t1, index, mv);
+    }
+
+    fn sample(&mut self, p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], tcp: bool) {
+        let switch_off = self.prev_tcp && !tcp;
+        self.prev_tcp = tcp;
+        self.out.sample(p, v, a, tcp || switch_off);
+    }
+
+    fn failed(&self) -> bool {
+        self.out.failed()
+    }
+}
+
 /// Samples a planned chain (or a block on its own) as its pieces become final.
 #[derive(Debug, Clone)]
 pub(crate) struct Sampler {
