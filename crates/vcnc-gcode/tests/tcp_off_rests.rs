@@ -5,11 +5,14 @@
 //! The case proptest shrank `random_programs_respect_limits_points_and_durations` to
 //! (`properties.proptest-regressions`, seed 364efe2c…): `G43.4`, a Z feed at the tool-tip
 //! limits (acceleration 18270 mm/s², so the stop takes less than one sample), `G49`, a C feed.
-//! Truth: the axis limit (200 mm/s²) and the rest at the switch, by definition.
+//! And its mirror (seed c52b78fb…): an A feed in TCP mode, `G49`, a Y feed whose axis may
+//! accelerate faster (19002 mm/s²) than the tool tip (200 mm/s²): the rest sample, a TCP
+//! sample, must not carry the Y move's starting acceleration.
+//! Truth: the axis and tool-tip limits and the rest at the switch, by definition.
 
 use vcnc_gcode::{AxisName, InterpOptions, InterpolateOptions, Limits, Trajectory, load};
 
-fn limits() -> Limits {
+fn fast_tip() -> Limits {
     let mut l = Limits::uniform_with_jerk(20.0, 200.0, 1000.0);
     l.tcp_max_vel = 20.0;
     l.tcp_max_acc = 18269.672116538062;
@@ -17,12 +20,12 @@ fn limits() -> Limits {
     l
 }
 
-fn run(src: &str) -> Trajectory {
+fn run(src: &str, limits: &Limits) -> Trajectory {
     let opts = InterpolateOptions {
         axes: Some(AxisName::ALL.to_vec()),
         ..InterpolateOptions::default()
     };
-    load(src, &InterpOptions::default(), &limits(), &opts)
+    load(src, &InterpOptions::default(), limits, &opts)
         .unwrap()
         .trajectory
 }
@@ -55,8 +58,8 @@ const PROGRAM: &str = "G21 G90 G17 G94 G61.1\nG0 X5 Y-3 Z2 A10 B0 C-20\n\
 
 #[test]
 fn switching_tcp_off_keeps_axis_second_differences_within_the_limits() {
-    let t = run(PROGRAM);
-    assert!(check_axis_second_differences(&t, &limits()) > 0);
+    let t = run(PROGRAM, &fast_tip());
+    assert!(check_axis_second_differences(&t, &fast_tip()) > 0);
     // The TCP move stops within one sample (tip acceleration, 5 mm/s at 18270 mm/s²): the
     // rest sample on its end point is a TCP sample, the next one (the C move) is not.
     let b = &t.blocks[1];
@@ -72,6 +75,27 @@ fn switching_tcp_off_keeps_axis_second_differences_within_the_limits() {
 #[test]
 fn a_dwell_after_the_switch_off_is_tagged_the_same_way() {
     let src = PROGRAM.replace("G49\n", "G49\nG4 P0.1\n");
-    let t = run(&src);
-    check_axis_second_differences(&t, &limits());
+    let t = run(&src, &fast_tip());
+    check_axis_second_differences(&t, &fast_tip());
+}
+
+#[test]
+fn the_rest_sample_at_the_switch_off_carries_no_axis_acceleration() {
+    let mut l = Limits::uniform_with_jerk(20.0, 200.0, 1000.0);
+    l.axes[1].max_acc = 19002.385334467326;
+    l.axes[1].max_jerk = 95011.92667233663;
+    let src = "G21 G90 G17 G94 G61.1\nG0 X5 Y-3 Z2 A10 B0 C-20\n\
+        G43.4\nG1 A-58.1256547035395 F300\nG49\nG1 Y8.421573868666655 F300\nM2\n";
+    let t = run(src, &l);
+    check_axis_second_differences(&t, &l);
+    for k in 0..t.len() {
+        if t.tcp[k] {
+            let a = (0..3).map(|i| t.axes[i].acc[k].powi(2)).sum::<f64>().sqrt();
+            assert!(a <= l.tcp_max_acc * (1.0 + 1e-9), "tip acc {a} at k {k}");
+        }
+    }
+    let b = &t.blocks[1];
+    let k = (b.t_end_s / t.ts).round() as usize;
+    assert!(t.tcp[k] && !t.tcp[k + 1]);
+    assert!(t.axes.iter().all(|a| a.vel[k] == 0.0 && a.acc[k] == 0.0));
 }

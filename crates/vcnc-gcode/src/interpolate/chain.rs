@@ -326,13 +326,13 @@ pub(crate) trait Out {
     fn failed(&self) -> bool;
 }
 
-/// Tags the sample where TCP mode switches off as a TCP sample. The machine rests there
-/// (docs/gcode.md, "Path modes": it stops where TCP mode changes), on the end point of the
-/// TCP move: X Y Z are that move's tool-tip coordinates, reached under the tool-tip limits.
-/// The next move's first sample carries its own flag (off), so without this the last
-/// tool-tip step would read as an axis step; with it every switch matches the switch on
-/// (whose rest sample opens the TCP move) and the last sample of a program ending in TCP mode:
-/// the rest sample at a switch is a TCP sample.
+/// Writes the sample where TCP mode switches off as the TCP move's last sample. The machine
+/// rests there (docs/gcode.md, "Path modes": it stops where TCP mode changes), on the end point
+/// of the TCP move, whose X Y Z are tool-tip coordinates reached under the tool-tip limits. The
+/// next move would write that sample as its first one, with its own flag (off) and its starting
+/// acceleration (under the axis limits); instead it is written as the last sample of a program
+/// ending in TCP mode is (`Planner::final_sample`): on the point, TCP, velocity and acceleration
+/// 0. The switch on needs nothing: its rest sample opens the TCP move, which writes it.
 pub(crate) struct TcpSwitch<'o> {
     out: &'o mut dyn Out,
     /// The flag the previous sample was given by its move.
@@ -356,7 +356,11 @@ impl Out for TcpSwitch<'_> {
     fn sample(&mut self, p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], tcp: bool) {
         let switch_off = self.prev_tcp && !tcp;
         self.prev_tcp = tcp;
-        self.out.sample(p, v, a, tcp || switch_off);
+        if switch_off {
+            self.out.sample(p, &[0.0; 6], &[0.0; 6], true);
+        } else {
+            self.out.sample(p, v, a, tcp);
+        }
     }
 
     fn failed(&self) -> bool {
