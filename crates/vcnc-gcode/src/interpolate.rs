@@ -66,7 +66,7 @@ pub(crate) mod profile;
 pub(crate) mod segment;
 pub mod stream;
 
-use chain::Out;
+use chain::{Out, TcpSwitch};
 use planner::{Decisions, Mode, Planner};
 use segment::{Cfg, check_limits};
 
@@ -281,7 +281,8 @@ pub struct Trajectory {
     pub ts: f64,
     /// One track per output axis, in X Y Z A B C order.
     pub axes: Vec<AxisTrack>,
-    /// Per sample: `true` when X Y Z are tool-tip coordinates (TCP mode).
+    /// Per sample: `true` when X Y Z are tool-tip coordinates (TCP mode). The rest sample where
+    /// TCP mode switches on or off is a TCP sample (the TCP move's start or end point).
     pub tcp: Vec<bool>,
     /// The moves' time spans, in order (zero-length moves have none, nor have moves merged by
     /// `G64 Q`: the merged move's span names the last of them, as LinuxCNC does).
@@ -484,11 +485,12 @@ pub fn interpolate(
         },
         last_index: None,
     };
+    let mut switch = TcpSwitch::new(&mut out);
     let mut second = Planner::new(
         &cfg,
         Mode::Sample {
             decisions: &mut decisions,
-            out: &mut out,
+            out: &mut switch,
         },
     );
     for m in &tp.moves {
