@@ -105,32 +105,7 @@ impl Sink<PredictPiece> for ContourColumns {
         let Some(model) = p.models.first() else {
             return Ok(());
         };
-        let mut v = self.cols.values.iter_mut();
-        let mut next = || v.next().expect("one column per name");
-        next().extend((p.first..p.first + p.len()).map(|k| k as f64 * self.ts));
-        next().extend(p.lines.iter().map(|l| f64::from(*l)));
-        for i in 0..p.reference.len() {
-            for s in [&p.reference[i], &p.truth.positions[i], &model.positions[i]] {
-                next().extend_from_slice(s);
-            }
-        }
-        for poses in [&p.reference_poses, &p.truth.poses, &model.poses] {
-            for i in 0..6 {
-                next().extend(
-                    poses
-                        .iter()
-                        .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
-                );
-            }
-        }
-        for e in [
-            &p.truth.tip_mm,
-            &model.tip_mm,
-            &p.truth.orientation_rad,
-            &model.orientation_rad,
-        ] {
-            next().extend(e.iter().map(|x| x * 1000.0));
-        }
+        vcnc_output::table::append_contour_columns(p, model, self.ts, &mut self.cols.values);
         Ok(())
     }
 }
@@ -306,7 +281,9 @@ impl Machine {
                 let source = Source::Streamed(&plan);
                 let mut sink = ContourColumns {
                     ts: source.ts(),
-                    cols: Columns::new(contour_header(m)),
+                    cols: Columns::new(vcnc_output::table::contour_header(
+                        &m.axes.iter().map(|a| a.name).collect::<Vec<_>>(),
+                    )),
                 };
                 let opts = PredictOptions {
                     measured: if include_rapids {
@@ -356,31 +333,6 @@ fn reference_header(tcp: bool, axes: &[vcnc_pipeline::AxisName]) -> Vec<String> 
         header.push(format!("{a}_vel"));
         header.push(format!("{a}_acc"));
     }
-    header
-}
-
-/// The columns of `contour.csv`.
-fn contour_header(m: &MachineFile) -> Vec<String> {
-    let mut header = vec!["t".to_string(), "line".to_string()];
-    for a in &m.axes {
-        for s in ["ref", "true", "pred"] {
-            header.push(format!("{}_{s}", a.name));
-        }
-    }
-    for prefix in ["ref", "true", "pred"] {
-        for nm in ["px", "py", "pz", "ox", "oy", "oz"] {
-            header.push(format!("{prefix}_{nm}"));
-        }
-    }
-    header.extend(
-        [
-            "true_contour_um",
-            "pred_contour_um",
-            "true_orientation_mrad",
-            "pred_orientation_mrad",
-        ]
-        .map(String::from),
-    );
     header
 }
 
