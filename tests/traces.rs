@@ -421,7 +421,7 @@ fn multi_axis_tncscope_file_in_um_and_two_cycle_times() {
     let axes = [AxisName::X, AxisName::Y, AxisName::Z, AxisName::C];
     poles_match_truth("TNCscope", &s, &axes);
     let y_prov = &s["axes"]["Y"]["trace"];
-    assert_eq!(y_prov["nominal"]["unit"], "Um", "{y_prov}");
+    assert_eq!(y_prov["nominal"]["unit"], "µm", "{y_prov}");
     assert_eq!(y_prov["nominal"]["unit_source"], "File", "{y_prov}");
     assert_eq!(y_prov["nominal"]["factor"], 1e-3, "{y_prov}");
     let c_trace = &s["axes"]["C"]["trace"];

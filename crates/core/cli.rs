@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use vcnc_pipeline::AxisName;
-use vcnc_pipeline::traces::{AxisMap, ChannelRef, GapPolicy, PairOptions, ReadOptions};
+use vcnc_pipeline::traces::{GapPolicy, PairOptions, ReadOptions, TraceArgs};
 
 /// vcnc — a virtual 5-axis CNC: identify the closed-loop dynamics of each feed drive from an
 /// air-cutting run, then predict the contour errors a 5-axis toolpath will leave on the part.
@@ -22,6 +22,10 @@ pub struct Cli {
     /// Print less: no tables, no progress bars.
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// LinuxCNC tool table (`.tbl`) for the programs' `G43 H` tool-length offsets (predict,
+    /// simulate, interpolate, feed-plan, compensate).
+    #[arg(long, global = true, value_name = "FILE")]
+    pub tool_table: Option<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -93,6 +97,11 @@ pub enum Command {
         /// (docs/performance.md).
         #[arg(long)]
         stream: bool,
+        /// Which outputs to write, comma-separated: `tables` (contour.csv/.parquet),
+        /// `figures` (the SVGs), `vtp` (toolpath.vtp), `report` (manifest.json, report.html).
+        /// Default: all. summary.json is always written.
+        #[arg(long, value_enum, value_delimiter = ',', value_name = "LIST")]
+        outputs: Option<Vec<OutputArg>>,
         #[command(flatten)]
         table: TableArgs,
     },
@@ -196,12 +205,27 @@ pub struct TableArgs {
     /// Table format: `csv`, `parquet`, or `auto` (CSV up to 200 000 rows, Parquet beyond).
     #[arg(long, value_enum, default_value_t = FormatArg::Auto)]
     pub format: FormatArg,
-    /// Write every N-th sample only (summaries and plots still use every sample).
-    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
-    pub decimate: u64,
+    /// Write every N-th sample only (summaries and statistics still use every sample). Default
+    /// 1; for `predict`, every sample up to 50 000 and beyond that the smallest N that keeps
+    /// the table, the path figures and toolpath.vtp to 50 000 samples (`--decimate 1`: all).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub decimate: Option<u64>,
     /// Columns to write, comma-separated names or `prefix*` patterns (e.g. `t,X_*,true_contour_um`).
     #[arg(long, value_name = "COLS")]
     pub columns: Option<String>,
+}
+
+/// One of `predict --outputs`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OutputArg {
+    /// The per-sample table (contour.csv or contour.parquet).
+    Tables,
+    /// The SVG figures.
+    Figures,
+    /// toolpath.vtp.
+    Vtp,
+    /// manifest.json and report.html.
+    Report,
 }
 
 /// `--format`.
@@ -225,7 +249,9 @@ impl TableArgs {
                 FormatArg::Csv => Format::Csv,
                 FormatArg::Parquet => Format::Parquet,
             },
-            decimate: usize::try_from(self.decimate).unwrap_or(usize::MAX),
+            decimate: self
+                .decimate
+                .map_or(1, |n| usize::try_from(n).unwrap_or(usize::MAX)),
             columns: self
                 .columns
                 .as_deref()
@@ -330,8 +356,9 @@ pub struct TraceReadArgs {
     /// a different --ts is an error.
     #[arg(long)]
     pub ts: Option<f64>,
-    /// Unit of positions where the file states none: m, mm, um, inch (linear axes), deg, rad
-    /// (rotary axes). A file that states a unit keeps it [default: mm, deg].
+    /// Unit of positions where the file states none, or states one vcnc does not know: nm, um,
+    /// mm, cm, m, inch (linear axes), deg, mdeg, rad (rotary axes). A file that states a known
+    /// unit keeps it [default: mm, deg].
     #[arg(long, value_name = "UNIT")]
     pub units: Option<String>,
     /// Read as this format instead of detecting it: sinumerik, tncscope, halscope,
@@ -341,19 +368,26 @@ pub struct TraceReadArgs {
     /// LinuxCNC joint-to-axis map, e.g. XYZAC for a table-tilting machine [default: XYZABC].
     #[arg(long, value_name = "AXES")]
     pub joints: Option<String>,
+    /// The file's axis numbers as axes, e.g. 1=X,2=Y,3=Z: a Sinumerik trace names its channels
+    /// by axis number (`[u1, 1]`), not by letter.
+    #[arg(long, value_name = "N=A,...")]
+    pub axis_map: Option<String>,
 }
 
 /// Which columns and stretch of a trace to pair (`identify --trace`, `validate`). No clap
 /// defaults, so that `identify` can refuse them next to a machine file instead of ignoring them.
 #[derive(Debug, Clone, Args)]
 pub struct TraceColumnArgs {
-    /// Delimited text: name of the time column [default: t, time, zeit or timestamp].
+    /// The time column (delimited text, halsampler): a name or a 0-based column number
+    /// [default: t, time, zeit or timestamp].
     #[arg(long)]
     pub t_col: Option<String>,
-    /// Delimited text: the reference (nominal) position column of the (first) --axis.
+    /// The nominal position channel of the (first) --axis, X by default, in any format: a name
+    /// as `trace info` lists it (exactly, else ignoring case, else by description) or a 0-based
+    /// column number.
     #[arg(long)]
     pub xr_col: Option<String>,
-    /// Delimited text: the actual position column of the (first) --axis.
+    /// The actual position channel of the same axis (as --xr-col).
     #[arg(long)]
     pub x_col: Option<String>,
     /// Lost samples in the trace (halsampler overruns, jumps in time): refuse to use a trace
@@ -368,47 +402,14 @@ impl TraceColumnArgs {
         self.t_col.is_some() || self.xr_col.is_some() || self.x_col.is_some() || self.gaps.is_some()
     }
 
-    /// The read options (`read` with `--t-col`) and the pairing (the axes, `--xr-col`/`--x-col`
-    /// as one axis' nominal and actual columns, for the first of `axes` or X, and `--gaps`).
+    /// The checked read and pairing options of `read`, these columns and `axes`.
     pub fn pairing(
         &self,
         read: &TraceReadArgs,
         axes: &[AxisName],
-    ) -> anyhow::Result<(ReadOptions, PairOptions)> {
-        let (mut options, unit) = read.options()?;
-        if let Some(t) = &self.t_col {
-            options.time_column = Some(ChannelRef::Name(t.clone()));
-        }
-        let mut pair = PairOptions {
-            axes: axes.to_vec(),
-            gaps: match self.gaps {
-                Some(GapsArg::Longest) => GapPolicy::LongestSegment,
-                _ => GapPolicy::Refuse,
-            },
-            ..PairOptions::default()
-        };
-        if let Some(u) = unit
-            && !pair.set_unit(u)
-        {
-            return Err(crate::bad_input(format!(
-                "--units {}: not a position unit",
-                read.units.as_deref().unwrap_or_default()
-            )));
-        }
-        match (&self.xr_col, &self.x_col) {
-            (Some(xr), Some(x)) => pair.map.push(AxisMap {
-                axis: axes.first().copied().unwrap_or(AxisName::X),
-                nominal: ChannelRef::Name(xr.clone()),
-                actual: ChannelRef::Name(x.clone()),
-            }),
-            (None, None) => {}
-            _ => {
-                return Err(crate::bad_input(
-                    "--xr-col and --x-col go together: they name one axis' nominal and actual columns",
-                ));
-            }
-        }
-        Ok((options, pair))
+    ) -> Result<(ReadOptions, PairOptions), vcnc_pipeline::Error> {
+        let args = read.trace_args(Some(self), axes);
+        Ok((args.read_options()?, args.pair_options()?))
     }
 }
 
@@ -419,6 +420,15 @@ pub enum GapsArg {
     Refuse,
     /// Identify on the longest stretch without lost samples.
     Longest,
+}
+
+impl GapsArg {
+    fn policy(self) -> GapPolicy {
+        match self {
+            GapsArg::Refuse => GapPolicy::Refuse,
+            GapsArg::Longest => GapPolicy::LongestSegment,
+        }
+    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -507,57 +517,20 @@ pub enum GenCommand {
 }
 
 impl TraceReadArgs {
-    /// The reader's options and the caller's position unit.
-    pub fn options(
-        &self,
-    ) -> anyhow::Result<(
-        vcnc_pipeline::traces::ReadOptions,
-        Option<vcnc_pipeline::traces::TraceUnit>,
-    )> {
-        let mut read = vcnc_pipeline::traces::ReadOptions::default();
-        if let Some(ts) = self.ts {
-            if !(ts.is_finite() && ts > 0.0) {
-                return Err(crate::bad_input(format!(
-                    "--ts {ts}: the sample period must be a positive number of seconds"
-                )));
-            }
-            read.period_s = Some(ts);
+    /// The options as typed, with the columns and axes of a command that pairs positions
+    /// (checked by [`TraceArgs::read_options`] and [`TraceArgs::pair_options`]).
+    pub fn trace_args(&self, columns: Option<&TraceColumnArgs>, axes: &[AxisName]) -> TraceArgs {
+        TraceArgs {
+            ts: self.ts,
+            units: self.units.clone(),
+            trace_format: self.trace_format.clone(),
+            joints: self.joints.clone(),
+            axis_map: self.axis_map.clone(),
+            axes: axes.to_vec(),
+            t_col: columns.and_then(|c| c.t_col.clone()),
+            xr_col: columns.and_then(|c| c.xr_col.clone()),
+            x_col: columns.and_then(|c| c.x_col.clone()),
+            gaps: columns.and_then(|c| c.gaps).map(GapsArg::policy),
         }
-        if let Some(f) = &self.trace_format {
-            read.format = Some(vcnc_pipeline::traces::Format::from_key(f).ok_or_else(|| {
-                crate::bad_input(format!(
-                    "--trace-format {f}: expected one of {}",
-                    vcnc_pipeline::traces::Format::ALL
-                        .map(|f| f.key())
-                        .join(", ")
-                ))
-            })?);
-        }
-        if let Some(j) = &self.joints {
-            read.joints = j
-                .chars()
-                .map(|c| {
-                    vcnc_pipeline::AxisName::from_letter(c).ok_or_else(|| {
-                        crate::bad_input(format!(
-                            "--joints {j}: '{c}' is not an axis letter (X Y Z A B C)"
-                        ))
-                    })
-                })
-                .collect::<anyhow::Result<_>>()?;
-        }
-        let unit = self
-            .units
-            .as_deref()
-            .map(|u| {
-                vcnc_pipeline::traces::TraceUnit::parse(u)
-                    .filter(|t| t.to_base().is_some())
-                    .ok_or_else(|| {
-                        crate::bad_input(format!(
-                            "--units {u}: expected a length (m, mm, um, inch) or an angle (deg, rad)"
-                        ))
-                    })
-            })
-            .transpose()?;
-        Ok((read, unit))
     }
 }

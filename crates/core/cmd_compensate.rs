@@ -6,8 +6,8 @@ use anyhow::Result;
 use vcnc_output::compensation::{tables, write_figure, write_tables};
 use vcnc_output::files::{ensure_dir, write_atomic, write_json};
 use vcnc_output::report::RunReport;
+use vcnc_pipeline::MachineModels;
 use vcnc_pipeline::compensate::{self, CompensateOptions};
-use vcnc_pipeline::{Machine, MachineModels};
 
 use crate::cli::CompensateArgs;
 use crate::{Ctx, print_warnings};
@@ -23,7 +23,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         out,
         table,
     } = args;
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let models = MachineModels::load(model, &machine)?;
     let opts = CompensateOptions {
         max_iterations: *iterations,

@@ -222,6 +222,7 @@ fn demo_report(
         p.record,
         &mask,
         &labels,
+        &figures::PredictionDrawing::default(),
     )?;
     report.include(&id_report, "identify");
     Ok(report)

@@ -8,8 +8,8 @@ use anyhow::Result;
 use vcnc_output::feed_plan::{tables, write_blocks, write_figure};
 use vcnc_output::files::{ensure_dir, write_atomic, write_json};
 use vcnc_output::report::RunReport;
+use vcnc_pipeline::MachineModels;
 use vcnc_pipeline::feed_plan::{self, FeedPlanOptions};
-use vcnc_pipeline::{Machine, MachineModels};
 
 use crate::{Ctx, bad_input, print_warnings};
 
@@ -67,7 +67,7 @@ pub fn feed_plan(
 ) -> Result<()> {
     let tolerance_mm = parse_length(tolerance)?;
     let orientation_tolerance_rad = orientation.map(parse_angle).transpose()?;
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let models = MachineModels::load(model, &machine)?;
     let opts = FeedPlanOptions {
         orientation_tolerance_rad,

@@ -9,7 +9,7 @@ use vcnc_output::runs::{TRACE_TABLE_NOTE, report_table_file, run_report};
 use vcnc_output::table::{ReferenceTable, TableOptions, TraceTable};
 use vcnc_output::text::table as text_table;
 use vcnc_pipeline::simulate::{self, simulate_summary_of};
-use vcnc_pipeline::{Machine, MachineModels, SimulationRecord, Source, Unit, source};
+use vcnc_pipeline::{MachineModels, SimulationRecord, Source, Unit, source};
 
 use crate::{Ctx, bounded_outputs, print_warnings};
 
@@ -22,7 +22,7 @@ pub fn interpolate(
     table: &TableOptions,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let plan = source::plan_file(&machine, program, ctx.lenient)?;
     print_warnings(&plan.warnings);
     let source = Source::Streamed(&plan);
@@ -90,7 +90,7 @@ pub fn simulate(
     stream: bool,
     ctx: &Ctx,
 ) -> Result<()> {
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let bounded = bounded_outputs(program, stream);
     let plan = source::plan_file(&machine, program, ctx.lenient)?;
     print_warnings(&plan.warnings);

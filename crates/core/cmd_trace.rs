@@ -15,7 +15,10 @@ pub fn trace(what: &TraceCommand, _ctx: &Ctx) -> Result<()> {
                      where positions are paired (identify --trace, validate)"
                 )));
             }
-            let (opts, _) = read.options()?;
+            let opts = read
+                .trace_args(None, &[])
+                .read_options()
+                .map_err(vcnc_pipeline::Error::from)?;
             let info = vcnc_pipeline::traces::read_path(file, &opts)
                 .map_err(vcnc_pipeline::Error::from)?
                 .info();

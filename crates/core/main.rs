@@ -66,6 +66,19 @@ pub fn bounded_outputs(program: &std::path::Path, stream: bool) -> bool {
 pub struct Ctx {
     pub lenient: bool,
     pub quiet: bool,
+    /// `--tool-table`: the LinuxCNC tool table the programs' `G43 H` read.
+    pub tool_table: Option<std::path::PathBuf>,
+}
+
+impl Ctx {
+    /// The machine file at `path`, with the tools of `--tool-table` when given.
+    pub fn machine(&self, path: &std::path::Path) -> anyhow::Result<vcnc_pipeline::Machine> {
+        let mut machine = vcnc_pipeline::Machine::load(path)?;
+        if let Some(t) = &self.tool_table {
+            machine.tools = vcnc_pipeline::run::load_tool_table(t)?;
+        }
+        Ok(machine)
+    }
 }
 
 /// Allocations of at least this many bytes are mapped from the system and returned to it when
@@ -112,7 +125,23 @@ fn main() -> ExitCode {
     let ctx = Ctx {
         lenient: cli.lenient,
         quiet: cli.quiet,
+        tool_table: cli.tool_table,
     };
+    let reads_tools = matches!(
+        cli.command,
+        Command::Predict { .. }
+            | Command::Simulate { .. }
+            | Command::Interpolate { .. }
+            | Command::FeedPlan { .. }
+            | Command::Compensate(_)
+    );
+    if ctx.tool_table.is_some() && !reads_tools {
+        eprintln!(
+            "vcnc: --tool-table is for the commands that read a program on a machine: predict, \
+             simulate, interpolate, feed-plan, compensate"
+        );
+        return ExitCode::from(2);
+    }
     match run(cli.command, &ctx) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -156,18 +185,22 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
             out,
             include_rapids,
             stream,
+            outputs,
             table,
         } => cmd_predict::predict(
-            &machine,
-            &program,
-            model.as_deref(),
-            &out,
+            &cmd_predict::PredictInputs {
+                machine: &machine,
+                program: &program,
+                model: model.as_deref(),
+                out: &out,
+            },
             if include_rapids {
                 vcnc_pipeline::Measured::All
             } else {
                 vcnc_pipeline::Measured::Feed
             },
-            &table.options(),
+            &table,
+            &cmd_predict::Outputs::from_args(&outputs),
             stream,
             ctx,
         ),

@@ -444,7 +444,7 @@ impl StableInverse {
     }
 }
 
-/// Settings of [`compensate_run`]. Plain data; [`Default`] gives the documented defaults.
+/// Settings of the compensation (`vcnc_pipeline::compensate::compensate_run` and [`compensate_positions`]). Plain data; [`Default`] gives the documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CompensateOptions {
     /// Most iterations of the learning loop on the model. Default 30.
@@ -602,18 +602,24 @@ mod tests {
         }
     }
 
-    fn simulate(m: &ClosedLoopModel, pos: &[f64], ts: f64) -> Vec<f64> {
+    /// What `run` (a model's `simulate`) gives for `pos` with its time-exact rates at period
+    /// `ts`, default options.
+    fn with_rates(
+        pos: &[f64],
+        ts: f64,
+        run: impl FnOnce(Reference<'_>, f64, &SimOptions) -> Result<Vec<f64>, vcnc_drive::Error>,
+    ) -> Vec<f64> {
         let (vel, acc) = time_exact_rates(pos, ts);
-        m.simulate(
-            Reference {
-                pos,
-                vel: &vel,
-                acc: &acc,
-            },
-            ts,
-            &SimOptions::default(),
-        )
-        .unwrap()
+        let r = Reference {
+            pos,
+            vel: &vel,
+            acc: &acc,
+        };
+        run(r, ts, &SimOptions::default()).unwrap()
+    }
+
+    fn simulate(m: &ClosedLoopModel, pos: &[f64], ts: f64) -> Vec<f64> {
+        with_rates(pos, ts, |r, ts, o| m.simulate(r, ts, o))
     }
 
     fn max_diff(a: &[f64], b: &[f64]) -> f64 {
@@ -714,19 +720,8 @@ mod tests {
                 ..DriveModel::from(core)
             },
         ];
-        let sim = |m: &DriveModel, pos: &[f64]| {
-            let (vel, acc) = time_exact_rates(pos, ts);
-            m.simulate(
-                Reference {
-                    pos,
-                    vel: &vel,
-                    acc: &acc,
-                },
-                ts,
-                &SimOptions::default(),
-            )
-            .unwrap()
-        };
+        let sim =
+            |m: &DriveModel, pos: &[f64]| with_rates(pos, ts, |r, ts, o| m.simulate(r, ts, o));
         for m in cases {
             let h = SampledModel::of_drive(&m, ts).unwrap();
             let inv = StableInverse::of(&h).unwrap();

@@ -5,7 +5,7 @@ mod common;
 
 use std::f64::consts::TAU;
 
-use common::{Spiral, TS, actual, low_pass, reference};
+use common::{Spiral, TS, actual, low_pass, raster_passes, reference};
 use proptest::prelude::*;
 use vcnc_contour::{
     ContourReport, Error, SearchWindow, Sequence, contour_errors, contour_errors_brute_force,
@@ -143,31 +143,8 @@ fn windowed_equals_brute_force_on_raster_passes_that_turn_back() {
     // foot could stay on that pass (a distance growing to the pass spacing) while the true
     // foot lies on the new pass, whose start leaves the window's ball at the corner. The
     // brute force is the oracle.
-    let mut knots = Vec::new();
-    for pass in 0..6 {
-        let y0 = 3.0 * pass as f64;
-        let (xa, xb) = if pass % 2 == 0 {
-            (-30.0, 30.0)
-        } else {
-            (30.0, -30.0)
-        };
-        knots.push(Vector3::new(xa, y0, 0.0));
-        knots.push(Vector3::new(xb, y0 + 2.9, -0.5));
-    }
-    let mut r = Vec::new();
-    for w in knots.windows(2) {
-        let n = ((w[1] - w[0]).norm() / 0.075).ceil() as usize;
-        for k in 0..n {
-            r.push(Pose::new(
-                w[0] + (w[1] - w[0]) * (k as f64 / n as f64),
-                Vector3::z(),
-            ));
-        }
-    }
-    r.extend(std::iter::repeat_n(
-        Pose::new(*knots.last().unwrap(), Vector3::z()),
-        100,
-    ));
+    let (mut r, end) = raster_passes();
+    r.extend(std::iter::repeat_n(Pose::new(end, Vector3::z()), 100));
     let a = low_pass(&r, 0.05);
     let (w, _) = assert_same_as_oracle(&r, &a);
     // The lag cuts each reversal: errors of a fraction of a mm there, far below the 3 mm

@@ -210,27 +210,7 @@ fn path_with_rests_streams_bit_for_bit() {
 /// A CAM raster (tests/contour.rs): 60 mm passes in alternating directions 3 mm apart, at
 /// 75 mm/s (1 kHz), 100 samples at rest at the end.
 fn raster() -> Vec<Pose> {
-    let mut knots = Vec::new();
-    for pass in 0..6 {
-        let y0 = 3.0 * pass as f64;
-        let (xa, xb) = if pass % 2 == 0 {
-            (-30.0, 30.0)
-        } else {
-            (30.0, -30.0)
-        };
-        knots.push(Vector3::new(xa, y0, 0.0));
-        knots.push(Vector3::new(xb, y0 + 2.9, -0.5));
-    }
-    let mut r = Vec::new();
-    for w in knots.windows(2) {
-        let n = ((w[1] - w[0]).norm() / 0.075).ceil() as usize;
-        for k in 0..n {
-            r.push(Pose::new(
-                w[0] + (w[1] - w[0]) * (k as f64 / n as f64),
-                Vector3::z(),
-            ));
-        }
-    }
+    let (mut r, _) = common::raster_passes();
     let last = r[r.len() - 1];
     r.extend(std::iter::repeat_n(last, 100));
     r

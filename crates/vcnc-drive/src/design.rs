@@ -151,15 +151,7 @@ mod tests {
 
     /// Table 1 plant (docs/reference-numbers.md), friction as docs/reference-numbers.md recommends.
     fn plant() -> Plant {
-        Plant {
-            j: 0.01,
-            b: 0.0418572,
-            ka: 1.0,
-            kt: 1.0,
-            rg: 1.5915,
-            coulomb_torque: 0.3,
-            u_max: None,
-        }
+        crate::presets::TABLE1_PLANT
     }
 
     #[test]

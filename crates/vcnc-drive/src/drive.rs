@@ -421,51 +421,17 @@ mod tests {
     use crate::presets::table1_drive;
 
     #[test]
-    fn bad_physical_parameters_are_rejected_with_their_key_and_value() {
-        type Mutation = fn(&mut DriveParams);
-        let cases: [(Mutation, &str); 8] = [
-            (|p| p.plant.j = 0.0, "plant.j"),
-            (|p| p.plant.j = f64::NAN, "plant.j"),
-            (|p| p.plant.b = -1.0, "plant.b"),
-            (|p| p.plant.rg = f64::INFINITY, "plant.rg"),
-            (|p| p.plant.coulomb_torque = -0.1, "plant.coulomb_torque"),
-            (|p| p.plant.u_max = Some(0.0), "plant.u_max"),
-            (|p| p.encoder.resolution = -1e-4, "encoder.resolution"),
-            (|p| p.servo_rate_hz = 0.0, "servo_rate_hz"),
-        ];
-        for (mutate, key) in cases {
-            let mut p = table1_drive();
-            mutate(&mut p);
-            match p.validate() {
-                Err(Error::BadParameter { name, .. }) => assert_eq!(name, key),
-                other => panic!("{key}: expected BadParameter, got {other:?}"),
-            }
-        }
-        let mut p = table1_drive();
-        p.plant.j = -0.01;
-        let msg = p.validate().unwrap_err().to_string();
-        assert!(msg.contains("plant.j = -0.01"), "{msg}");
-    }
-
-    #[test]
     fn gains_and_design_are_exclusive_and_gains_complete() {
         let d = PoleDesign {
             p_hz: 10.0,
             wn_hz: 30.0,
             zeta: 0.5,
         };
-        let mut p = table1_drive();
-        if let ControllerSpec::PPi { design, .. } = &mut p.controller {
+        let mut ppi_with_design = table1_drive().controller;
+        if let ControllerSpec::PPi { design, .. } = &mut ppi_with_design {
             *design = Some(d);
         }
-        assert_eq!(
-            p.validate().unwrap_err(),
-            Error::GainsAndDesign {
-                kind: "p-pi",
-                gain: "kv"
-            }
-        );
-        p.controller = ControllerSpec::Pid {
+        let pid_without_ki = ControllerSpec::Pid {
             kp: Some(1.0),
             ki: None,
             kd: Some(0.1),
@@ -473,14 +439,7 @@ mod tests {
             jff: 0.0,
             bff: 0.0,
         };
-        assert_eq!(
-            p.validate().unwrap_err(),
-            Error::MissingGain {
-                kind: "pid",
-                gain: "ki"
-            }
-        );
-        p.controller = ControllerSpec::Smc {
+        let smc_with_je_hat_and_design = ControllerSpec::Smc {
             lambda: None,
             ks: None,
             rho: None,
@@ -488,36 +447,36 @@ mod tests {
             be_hat: None,
             design: Some(d),
         };
-        assert!(matches!(
-            p.validate(),
-            Err(Error::GainsAndDesign { gain: "je_hat", .. })
-        ));
-    }
-
-    #[test]
-    fn drive_without_integral_action_is_accepted_and_kv_must_be_positive() {
-        let mut p = table1_drive();
-        p.controller = ControllerSpec::PPi {
-            kv: Some(70.0),
-            kp: Some(2.342478),
-            ki: Some(0.0),
-            design: None,
-            vff: 0.0,
-            bff: 0.0,
-            jff: 0.0,
-        };
-        let m = p.closed_loop_model().unwrap();
-        assert_eq!(m.a3, 0.0);
-        if let ControllerSpec::PPi { kv, .. } = &mut p.controller {
-            *kv = Some(0.0);
+        let cases = [
+            (
+                ppi_with_design,
+                Error::GainsAndDesign {
+                    kind: "p-pi",
+                    gain: "kv",
+                },
+            ),
+            (
+                pid_without_ki,
+                Error::MissingGain {
+                    kind: "pid",
+                    gain: "ki",
+                },
+            ),
+            (
+                smc_with_je_hat_and_design,
+                Error::GainsAndDesign {
+                    kind: "smc",
+                    gain: "je_hat",
+                },
+            ),
+        ];
+        for (controller, want) in cases {
+            let p = DriveParams {
+                controller,
+                ..table1_drive()
+            };
+            assert_eq!(p.validate().unwrap_err(), want);
         }
-        assert!(matches!(
-            p.validate(),
-            Err(Error::BadParameter {
-                name: "controller.kv",
-                ..
-            })
-        ));
     }
 
     #[test]

@@ -54,7 +54,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::model::{
-    ClosedLoopModel, MAX_EXP_NORM, Reference, SimOptions, friction_sign, implicit_friction_level,
+    ClosedLoopModel, Reference, SimOptions, check_exp_norm, friction_sign, implicit_friction_level,
 };
 
 /// Largest dead time accepted, s.
@@ -1034,15 +1034,7 @@ fn piece(r: &Realisation, h: f64) -> Result<Piece, Error> {
     for j in 0..3 {
         m[(n + j, n + 4 + j)] = h;
     }
-    let norm = (0..size)
-        .map(|j| m.column(j).iter().map(|v| v.abs()).sum::<f64>())
-        .fold(0.0, f64::max);
-    if !(norm.is_finite() && norm <= MAX_EXP_NORM) {
-        return Err(Error::TooStiff {
-            norm,
-            limit: MAX_EXP_NORM,
-        });
-    }
+    check_exp_norm(&m)?;
     let e = m.exp();
     if e.iter().any(|v| !v.is_finite()) {
         return Err(Error::NonFiniteModel);
@@ -1096,6 +1088,11 @@ mod tests {
         }
     }
 
+    /// `m`'s positions following `p`, `v`, `a` at period `ts`, default options.
+    fn run(m: &DriveModel, p: &[f64], v: &[f64], a: &[f64], ts: f64) -> Vec<f64> {
+        crate::test_util::follow(|r, ts, o| m.simulate(r, ts, o), (p, v, a), ts)
+    }
+
     fn sampled(ts: f64, n: usize, shift: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let f = moves();
         let (mut p, mut v, mut a) = (vec![], vec![], vec![]);
@@ -1120,11 +1117,7 @@ mod tests {
         let o = SimOptions::default();
         let x0 = table1().simulate(r, 1e-3, &o).unwrap();
         let x1 = DriveModel::from(table1()).simulate(r, 1e-3, &o).unwrap();
-        let d = x0
-            .iter()
-            .zip(&x1)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let d = crate::test_util::max_abs_diff(&x0, &x1);
         assert!(d < 1e-9, "{d}");
     }
 
@@ -1138,38 +1131,13 @@ mod tests {
                 .collect()
         };
         let (ps, vs, as_) = (shift(&p, p[0]), shift(&v, 0.0), shift(&a, 0.0));
-        let o = SimOptions::default();
         let m = DriveModel {
             delay_s: 7e-3,
             ..DriveModel::from(table1())
         };
-        let x = m
-            .simulate(
-                Reference {
-                    pos: &p,
-                    vel: &v,
-                    acc: &a,
-                },
-                1e-3,
-                &o,
-            )
-            .unwrap();
-        let xs = DriveModel::from(table1())
-            .simulate(
-                Reference {
-                    pos: &ps,
-                    vel: &vs,
-                    acc: &as_,
-                },
-                1e-3,
-                &o,
-            )
-            .unwrap();
-        let d = x
-            .iter()
-            .zip(&xs)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let x = run(&m, &p, &v, &a, 1e-3);
+        let xs = run(&DriveModel::from(table1()), &ps, &vs, &as_, 1e-3);
+        let d = crate::test_util::max_abs_diff(&x, &xs);
         assert!(d < 1e-9, "{d}");
     }
 
@@ -1223,29 +1191,8 @@ mod tests {
                 .map(|k| if t(k) < 0.0 { 0.0 } else { interp(&a, t(k)) })
                 .collect();
             let undelayed = DriveModel { delay_s: 0.0, ..m };
-            let o = SimOptions::default();
-            let xf = undelayed
-                .simulate(
-                    Reference {
-                        pos: &pf,
-                        vel: &vf,
-                        acc: &af,
-                    },
-                    h,
-                    &o,
-                )
-                .unwrap();
-            let x = m
-                .simulate(
-                    Reference {
-                        pos: &p,
-                        vel: &v,
-                        acc: &a,
-                    },
-                    ts,
-                    &o,
-                )
-                .unwrap();
+            let xf = run(&undelayed, &pf, &vf, &af, h);
+            let x = run(&m, &p, &v, &a, ts);
             let d = (0..p.len())
                 .map(|k| (x[k] - xf[k * fine]).abs())
                 .fold(0.0, f64::max);
@@ -1340,17 +1287,7 @@ mod tests {
             // Smooth: positions alone are their central differences.
             let (cv, ca) = crate::model::central_differences(&p, 1.3e-3);
             let smooth = base;
-            let want = smooth
-                .simulate(
-                    Reference {
-                        pos: &p,
-                        vel: &cv,
-                        acc: &ca,
-                    },
-                    1.3e-3,
-                    &o,
-                )
-                .unwrap();
+            let want = run(&smooth, &p, &cv, &ca, 1.3e-3);
             assert_eq!(smooth.simulate_positions(&p, 1.3e-3, &o).unwrap(), want);
             // The two differ: by about half a sample of velocity through b1.
             let d = want

@@ -1,13 +1,13 @@
 //! The drive engine: the "true" drive in the time domain at the servo rate, one implementation
 //! for every drive and every route (docs/drive-model.md, docs/machine-file.md#drive-effects).
 //!
-//! - The servo tick: of the ideal drive ([`ideal`]: rigid plant with Coulomb friction, one
-//!   encoder reading) or of a drive with effects ([`real`]: two-mass mechanics, friction
-//!   models, current loop, feedback path), with the control laws of [`crate::law`] and the
-//!   plant steps of [`crate::plant`].
-//! - The run ([`Run`]): samples into servo ticks (fine interpolation, reference shaping,
+//! - The servo tick: of the ideal drive (`ideal`: rigid plant with Coulomb friction, one
+//!   encoder reading) or of a drive with effects (`real`: two-mass mechanics, friction
+//!   models, current loop, feedback path), with the control laws of `crate::law` and the
+//!   plant steps of `crate::plant`.
+//! - The run (`Run`): samples into servo ticks (fine interpolation, reference shaping,
 //!   readings' noise), logging, saturation count; resumable between pieces of the reference,
-//!   on one drive (`f64`) or on four drives in SIMD lanes ([`crate::lane`]).
+//!   on one drive (`f64`) or on four drives in SIMD lanes (`crate::lane`).
 //!
 //! Every whole-run and streamed entry is this run: [`Drive::simulate`],
 //! [`Drive::simulate_true_position`], [`crate::DriveStream`] (one drive),
@@ -763,8 +763,8 @@ impl Drive {
     /// Simulates the drive through `reference` (samples at period `ts`, s), with the controller
     /// at the servo rate, which must be an integer multiple of $1/T_s$. The drive starts at rest
     /// at `reference.pos[0]` with every controller state zero. See the module documentation of
-    /// [`crate::engine`] for the timing, [`crate::plant`] for the plant step and
-    /// [`crate::law`] for the controllers. This is [`Drive::stream`] fed the whole reference at
+    /// [`crate::engine`] for the timing, `crate::plant` for the plant step and
+    /// `crate::law` for the controllers. This is [`Drive::stream`] fed the whole reference at
     /// once: a stream fed the same samples in pieces gives the same trace bit for bit.
     ///
     /// Errors: the reference's ([`Reference::check`]: empty, lengths, non-finite),

@@ -68,6 +68,8 @@ mod plant;
 pub mod presets;
 mod stability;
 pub mod stream;
+#[cfg(test)]
+mod test_util;
 
 pub use batch::{BATCH_LANES, GroupStream, batch_groups, simulate_batch, simulate_batch_into};
 pub use design::{design_pid, design_ppi, design_smc};

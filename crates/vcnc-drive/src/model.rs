@@ -16,7 +16,7 @@
 //! friction sign held over each sample. Zero-order hold on $x_r$ would add half a sample of lag
 //! (about 124 µm at 250 mm/s, docs/drive-model.md).
 
-use nalgebra::{Complex, SMatrix, SVector};
+use nalgebra::{Complex, Dim, Matrix, RawStorage, SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
@@ -624,9 +624,12 @@ pub const MAX_EXP_NORM: f64 = 1e15;
 
 /// Refuses ([`Error::TooStiff`]) a matrix whose exponential must not be computed: $\|M\|_1$
 /// not finite or above [`MAX_EXP_NORM`]. Call it before every `Matrix::exp`.
-pub fn check_exp_norm<const N: usize>(m: &SMatrix<f64, N, N>) -> Result<(), Error> {
-    let norm = (0..N)
-        .map(|j| m.column(j).iter().map(|v| v.abs()).sum::<f64>())
+pub fn check_exp_norm<R: Dim, C: Dim, S: RawStorage<f64, R, C>>(
+    m: &Matrix<f64, R, C, S>,
+) -> Result<(), Error> {
+    let norm = m
+        .column_iter()
+        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
         .fold(0.0, f64::max);
     if !(norm.is_finite() && norm <= MAX_EXP_NORM) {
         return Err(Error::TooStiff {
@@ -779,6 +782,11 @@ mod tests {
         }
     }
 
+    /// `m`'s positions following `p`, `v`, `a` at period `ts`, default options.
+    fn run(m: &ClosedLoopModel, p: &[f64], v: &[f64], a: &[f64], ts: f64) -> Vec<f64> {
+        crate::test_util::follow(|r, ts, o| m.simulate(r, ts, o), (p, v, a), ts)
+    }
+
     #[test]
     fn table1_poles_match_published_exact_values() {
         // Truth: docs/reference-numbers.md, exact poles of the Table 1 drive.
@@ -902,11 +910,7 @@ mod tests {
                 },
             )
             .unwrap();
-        let max = exact
-            .iter()
-            .zip(&rk)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let max = crate::test_util::max_abs_diff(&exact, &rk);
         assert!(max < 1e-7, "exact vs RK4 differ by {max} mm");
         assert_relative_eq!(exact[0], 10.0);
     }
@@ -921,17 +925,7 @@ mod tests {
         let pos: Vec<f64> = (0..n).map(|k| 5.0 + v * k as f64 * ts).collect();
         let vel = vec![v; n];
         let acc = vec![0.0; n];
-        let x = m
-            .simulate(
-                Reference {
-                    pos: &pos,
-                    vel: &vel,
-                    acc: &acc,
-                },
-                ts,
-                &SimOptions::default(),
-            )
-            .unwrap();
+        let x = run(&m, &pos, &vel, &acc, ts);
         let e = pos[n - 1] - x[n - 1];
         assert_relative_eq!(e, m.ramp_following_error(v), max_relative = 1e-6);
     }
@@ -942,50 +936,28 @@ mod tests {
         let n = 100;
         let pos = vec![123.4; n];
         let z = vec![0.0; n];
-        let x = m
-            .simulate(
-                Reference {
-                    pos: &pos,
-                    vel: &z,
-                    acc: &z,
-                },
-                1e-3,
-                &SimOptions::default(),
-            )
-            .unwrap();
+        let x = run(&m, &pos, &z, &z, 1e-3);
         assert!(x.iter().all(|v| *v == 123.4));
     }
 
     #[test]
     fn bad_inputs_are_errors() {
         let m = table1();
-        let p = vec![0.0, f64::NAN];
         let z = vec![0.0; 2];
+        let run = |p: &[f64]| {
+            let r = Reference {
+                pos: p,
+                vel: &z,
+                acc: &z,
+            };
+            m.simulate(r, 1e-3, &SimOptions::default())
+        };
         assert!(matches!(
-            m.simulate(
-                Reference {
-                    pos: &p,
-                    vel: &z,
-                    acc: &z
-                },
-                1e-3,
-                &SimOptions::default()
-            ),
+            run(&[0.0, f64::NAN]),
             Err(Error::NonFinite { .. })
         ));
-        let p = vec![0.0; 3];
-        assert!(
-            m.simulate(
-                Reference {
-                    pos: &p,
-                    vel: &z,
-                    acc: &z
-                },
-                1e-3,
-                &SimOptions::default()
-            )
-            .is_err()
-        );
+        // Three positions against two velocities and accelerations.
+        assert!(run(&[0.0; 3]).is_err());
         assert!(m.discretize(0.0).is_err());
     }
 }

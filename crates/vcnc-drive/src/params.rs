@@ -222,7 +222,7 @@ impl Controller {
     /// $a_3 = \lambda\rho/J_e$, $b_0 = \hat J_e/J_e$, $b_1 = (\hat J_e\lambda + K_s)/J_e$, $b_2 = a_2$.
     ///
     /// All kinds: $d_c = T_c r_g / J$. Pure arithmetic: an unstable or non-finite result is
-    /// returned as is (see [`DriveParams::validate`] for the checks).
+    /// returned as is (see [`DriveParams::validate`](crate::DriveParams::validate) for the checks).
     pub fn closed_loop_model(&self, plant: &Plant) -> ClosedLoopModel {
         let Plant { j, b, rg, .. } = *plant;
         let k = plant.ka_kt();

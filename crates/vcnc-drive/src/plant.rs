@@ -358,15 +358,11 @@ mod tests {
     use nalgebra::Complex;
     use std::f64::consts::TAU;
 
+    /// The Table 1 plant with Coulomb torque `tc`, N·m.
     fn plant(tc: f64) -> Plant {
         Plant {
-            j: 0.01,
-            b: 0.0418572,
-            ka: 1.0,
-            kt: 1.0,
-            rg: 1.5915,
             coulomb_torque: tc,
-            u_max: None,
+            ..crate::presets::TABLE1_PLANT
         }
     }
 

@@ -28,21 +28,41 @@ pub const TABLE1_MODEL: crate::ClosedLoopModel = crate::ClosedLoopModel {
 /// Coulomb friction: the realistic $T_c = 0.3$ N·m ($d_c = 47.7$ mm/s²) instead of the
 /// table's $d_c = 2.68$, which is too small to matter. Default encoder and servo rate.
 pub fn table1_drive() -> DriveParams {
+    table1_feed_forward_drive(
+        TABLE1_PLANT,
+        [Some(70.0), Some(2.342478), Some(223.252126)],
+        None,
+    )
+}
+
+/// The plant of the paper's Table 1 drive ([`table1_drive`]): $r_g = 1.5915$ mm/rad,
+/// $J = 0.01$ kg·m², $B = 0.0418572$ N·m·s/rad, $K_a = K_t = 1$, the realistic
+/// $T_c = 0.3$ N·m, no current limit.
+pub const TABLE1_PLANT: Plant = Plant {
+    j: 0.01,
+    b: 0.0418572,
+    ka: 1.0,
+    kt: 1.0,
+    rg: 1.5915,
+    coulomb_torque: 0.3,
+    u_max: None,
+};
+
+/// A P-PI drive of `plant` with gains `[kv, kp, ki]` or a pole `design`, Table 1's feed-forward
+/// ($V_{ff} = 0.5$, $B_{ff} = 0.1$, $J_{ff} = 0$), the default encoder and servo rate, and none
+/// of the realistic effects: the shape of every reference drive here.
+fn table1_feed_forward_drive(
+    plant: Plant,
+    [kv, kp, ki]: [Option<f64>; 3],
+    design: Option<PoleDesign>,
+) -> DriveParams {
     DriveParams {
-        plant: Plant {
-            j: 0.01,
-            b: 0.0418572,
-            ka: 1.0,
-            kt: 1.0,
-            rg: 1.5915,
-            coulomb_torque: 0.3,
-            u_max: None,
-        },
+        plant,
         controller: ControllerSpec::PPi {
-            kv: Some(70.0),
-            kp: Some(2.342478),
-            ki: Some(223.252126),
-            design: None,
+            kv,
+            kp,
+            ki,
+            design,
             vff: 0.5,
             bff: 0.1,
             jff: 0.0,
@@ -136,31 +156,18 @@ pub fn nmv5000_axis_design(axis: AxisName) -> Result<DriveParams, Error> {
         AxisName::A => (direct, 0.5, 1.5),
         _ => (direct, 0.2, 0.8),
     };
-    Ok(DriveParams {
-        plant: Plant {
-            j,
-            b: NMV5000_B_OVER_J * j,
-            ka: 1.0,
-            kt: 1.0,
-            rg,
-            coulomb_torque: tc,
-            u_max: None,
-        },
-        controller: ControllerSpec::PPi {
-            kv: None,
-            kp: None,
-            ki: None,
-            design: Some(*design),
-            vff: 0.5,
-            bff: 0.1,
-            jff: 0.0,
-        },
-        encoder: Encoder::default(),
-        servo_rate_hz: DEFAULT_SERVO_RATE_HZ,
-        compliance: None,
-        friction: None,
-        current_loop: None,
-        feedback: None,
-        reference: None,
-    })
+    let plant = Plant {
+        j,
+        b: NMV5000_B_OVER_J * j,
+        ka: 1.0,
+        kt: 1.0,
+        rg,
+        coulomb_torque: tc,
+        u_max: None,
+    };
+    Ok(table1_feed_forward_drive(
+        plant,
+        [None, None, None],
+        Some(*design),
+    ))
 }

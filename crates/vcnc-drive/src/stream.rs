@@ -94,13 +94,9 @@ impl DriveStream {
     /// whole-run simulation gives), and a reference filter's discretisation at the first
     /// sample. After an error the stream is spent: every later call returns that error.
     pub fn feed(&mut self, piece: Reference<'_>, out: &mut DriveTrace) -> Result<(), Error> {
-        if let Some(e) = &self.failed {
-            return Err(e.clone());
-        }
-        let result = piece
-            .check_piece(self.fed)
-            .and_then(|n| self.feed_checked(piece, out).map(|()| n));
-        latch(result, &mut self.fed, &mut self.failed)
+        let n = admit(piece, self.fed, &mut self.failed)?;
+        let result = self.feed_checked(piece, out);
+        latch(result.map(|()| n), &mut self.fed, &mut self.failed)
     }
 
     fn feed_checked(&mut self, piece: Reference<'_>, out: &mut DriveTrace) -> Result<(), Error> {
@@ -219,13 +215,9 @@ impl ModelStream {
     /// [`DriveModel::simulate`]; the piece's positions are appended). After an error the
     /// stream is spent: every later call returns that error.
     pub fn feed(&mut self, piece: Reference<'_>, out: &mut Vec<f64>) -> Result<(), Error> {
-        if let Some(e) = &self.failed {
-            return Err(e.clone());
-        }
-        let result = piece
-            .check_piece(self.fed)
-            .and_then(|n| self.feed_checked(piece, out).map(|()| n));
-        latch(result, &mut self.fed, &mut self.failed)
+        let n = admit(piece, self.fed, &mut self.failed)?;
+        let result = self.feed_checked(piece, out);
+        latch(result.map(|()| n), &mut self.fed, &mut self.failed)
     }
 
     fn feed_checked(&mut self, piece: Reference<'_>, out: &mut Vec<f64>) -> Result<(), Error> {
@@ -270,6 +262,17 @@ impl ModelStream {
         }
         Ok(())
     }
+}
+
+/// Whether a stream takes `piece`: the error it is spent on, if any, else the piece's checks
+/// against the `fed` samples before it (an error is kept in `failed`), else the piece's length.
+fn admit(piece: Reference<'_>, fed: usize, failed: &mut Option<Error>) -> Result<usize, Error> {
+    if let Some(e) = failed {
+        return Err(e.clone());
+    }
+    piece
+        .check_piece(fed)
+        .inspect_err(|e| *failed = Some(e.clone()))
 }
 
 /// A piece's outcome in a stream: its samples counted (`fed`), or its error kept (`failed`) so

@@ -203,20 +203,7 @@ fn realistic_variants_in_lanes_are_bit_identical_to_each_alone() {
     let prog = common::identification_program(3, 6.0, 1e-3, 0.0, 20.0, 250.0, 2500.0);
     let x = common::realistic_nmv5000_x();
     let t1 = common::realistic_table1();
-    let mut with_backlash = x.clone();
-    with_backlash.compliance.as_mut().unwrap().backlash = 0.004;
-    let mut other_noise = x.clone();
-    other_noise.encoder.seed = 99;
-    other_noise.encoder.noise_std = 1e-4;
-    let mut slow = x.clone();
-    if let Some(Friction::MaxwellSlip { elements, .. }) = slow.friction.as_mut() {
-        *elements = 7;
-    }
-    slow.feedback.as_mut().unwrap().dead_time_cycles = 5;
-    slow.feedback.as_mut().unwrap().motor_noise_std = 3e-5;
-    let mut limited = t1.clone();
-    limited.current_loop.as_mut().unwrap().torque_max = Some(1.5);
-    limited.feedback.as_mut().unwrap().motor_resolution = Some(1e-5);
+    let [with_backlash, other_noise, slow, limited] = common::realistic_lane_variants();
     let drives: Vec<Drive> = [x, with_backlash, other_noise, slow, t1, limited]
         .into_iter()
         .map(|p| p.validate().expect("valid"))

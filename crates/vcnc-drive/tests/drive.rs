@@ -8,7 +8,7 @@ use std::f64::consts::TAU;
 use approx::assert_relative_eq;
 use vcnc_drive::{
     AxisName, ClosedLoopModel, Controller, ControllerSpec, Drive, DriveParams, Encoder, Error,
-    NMV5000_TABLE3, PoleDesign, Reference, SimOptions, SmcGains, nmv5000_axis_design, table1_drive,
+    NMV5000_TABLE3, Reference, SimOptions, SmcGains, nmv5000_axis_design, table1_drive,
 };
 
 const TS: f64 = 1e-3;
@@ -20,42 +20,12 @@ fn linear(mut p: DriveParams) -> DriveParams {
     p
 }
 
-/// The Table 1 poles as a design.
-fn table1_design() -> PoleDesign {
-    let poles = table1_drive().closed_loop_model().unwrap().poles().unwrap();
-    PoleDesign {
-        p_hz: poles.p_hz(),
-        wn_hz: poles.wn_hz(),
-        zeta: poles.zeta,
-    }
-}
-
 fn pid_drive() -> DriveParams {
-    DriveParams {
-        controller: ControllerSpec::Pid {
-            kp: None,
-            ki: None,
-            kd: None,
-            design: Some(table1_design()),
-            jff: 0.0,
-            bff: 0.1,
-        },
-        ..table1_drive()
-    }
+    common::pid(table1_drive(), 0.0)
 }
 
 fn smc_drive() -> DriveParams {
-    DriveParams {
-        controller: ControllerSpec::Smc {
-            lambda: None,
-            ks: None,
-            rho: None,
-            je_hat: None,
-            be_hat: None,
-            design: Some(table1_design()),
-        },
-        ..table1_drive()
-    }
+    common::smc(table1_drive())
 }
 
 /// SMC with the estimates a real one has: inertia 30 % low, viscous friction 50 % low.
@@ -76,13 +46,6 @@ fn smc_mismatched_drive() -> DriveParams {
         .into(),
         ..table1_drive()
     }
-}
-
-fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max)
 }
 
 #[test]
@@ -110,7 +73,7 @@ fn convergence(params: &DriveParams, prog: &common::Program, rates: &[f64]) -> (
     let x_model = model
         .simulate(prog.reference(), TS, &SimOptions::default())
         .unwrap();
-    let peak_tracking = max_abs_diff(&prog.pos, &x_model);
+    let peak_tracking = common::max_abs_diff(&prog.pos, &x_model);
     let diffs = rates
         .iter()
         .map(|&rate| {
@@ -119,7 +82,7 @@ fn convergence(params: &DriveParams, prog: &common::Program, rates: &[f64]) -> (
                 .unwrap()
                 .simulate(prog.reference(), TS)
                 .unwrap();
-            max_abs_diff(&trace.position, &x_model)
+            common::max_abs_diff(&trace.position, &x_model)
         })
         .collect();
     (peak_tracking, diffs)
@@ -267,7 +230,7 @@ fn smc_with_exact_estimates_tracks_the_reference_up_to_discretisation() {
             .unwrap()
             .simulate(prog.reference(), ts)
             .unwrap();
-        let err = max_abs_diff(&trace.position, &prog.pos);
+        let err = common::max_abs_diff(&trace.position, &prog.pos);
         eprintln!(
             "SMC exact: ts = {ts} s, servo {rate} Hz: max |x - x_r| = {:.3} um",
             err * 1e3
@@ -296,18 +259,7 @@ fn p_pi_steady_following_error_is_one_minus_vff_v_over_kv_rg() {
         let pos: Vec<f64> = (0..n).map(|k| 20.0 + v * k as f64 * TS).collect();
         let vel = vec![v; n];
         let acc = vec![0.0; n];
-        let trace = p
-            .validate()
-            .unwrap()
-            .simulate(
-                Reference {
-                    pos: &pos,
-                    vel: &vel,
-                    acc: &acc,
-                },
-                TS,
-            )
-            .unwrap();
+        let trace = common::simulate(&p, &pos, &vel, &acc, TS);
         // Mean over the last 0.5 s (transient: slowest pole 10.7 Hz, gone after 3 s).
         let tail = n - 500..n;
         let e: f64 = tail
@@ -332,19 +284,7 @@ fn drive_at_rest_below_breakaway_stays_exactly_at_rest() {
     //
     // 1. P-P cascade (Ki = 0): a constant position error delta gives the constant
     //    u = Kp Kv delta; with Kp Kv delta = 0.9 Tc the axis never moves, with 1.1 Tc it does.
-    let base = DriveParams {
-        controller: ControllerSpec::PPi {
-            kv: Some(70.0),
-            kp: Some(2.342478),
-            ki: Some(0.0),
-            design: None,
-            vff: 0.0,
-            bff: 0.0,
-            jff: 0.0,
-        },
-        encoder: Encoder::ideal(),
-        ..table1_drive()
-    };
+    let base = common::p_p_cascade();
     let tc = base.plant.coulomb_torque;
     let x0 = 12.5;
     for (fraction, moves) in [(0.9, false), (1.1, true)] {
@@ -353,18 +293,7 @@ fn drive_at_rest_below_breakaway_stays_exactly_at_rest() {
         let mut pos = vec![x0 + delta; n];
         pos[0] = x0;
         let z = vec![0.0; n];
-        let trace = base
-            .validate()
-            .unwrap()
-            .simulate(
-                Reference {
-                    pos: &pos,
-                    vel: &z,
-                    acc: &z,
-                },
-                TS,
-            )
-            .unwrap();
+        let trace = common::simulate(&base, &pos, &z, &z, TS);
         let still = trace.true_position.iter().all(|&x| x == x0)
             && trace.velocity.iter().all(|&v| v == 0.0);
         assert_eq!(still, !moves, "torque {fraction} Tc");
@@ -390,18 +319,7 @@ fn drive_at_rest_below_breakaway_stays_exactly_at_rest() {
     let mut pos = vec![x0 + delta; n];
     pos[0] = x0;
     let z = vec![0.0; n];
-    let trace = p
-        .validate()
-        .unwrap()
-        .simulate(
-            Reference {
-                pos: &pos,
-                vel: &z,
-                acc: &z,
-            },
-            TS,
-        )
-        .unwrap();
+    let trace = common::simulate(&p, &pos, &z, &z, TS);
     let first_move = trace.true_position.iter().position(|&x| x != x0).unwrap();
     eprintln!(
         "breakaway: predicted t* = {:.4} ms, first sample moved at {} ms",
@@ -646,20 +564,12 @@ fn saturation_limits_u_and_the_axis_still_settles() {
         .fold(0.0f64, |m, u| m.max(u.abs()));
     let mut loose = table1_drive();
     loose.plant.u_max = Some(10.0 * u_peak);
-    let loose_trace = loose
-        .validate()
-        .unwrap()
-        .simulate(prog.reference(), TS)
-        .unwrap();
+    let loose_trace = common::simulate(&loose, &prog.pos, &prog.vel, &prog.acc, TS);
     assert_eq!(loose_trace, free_trace);
 
     let mut tight = table1_drive();
     tight.plant.u_max = Some(0.5 * u_peak);
-    let trace = tight
-        .validate()
-        .unwrap()
-        .simulate(prog.reference(), TS)
-        .unwrap();
+    let trace = common::simulate(&tight, &prog.pos, &prog.vel, &prog.acc, TS);
     assert!(trace.saturated_ticks > 0);
     assert!(trace.control.iter().all(|u| u.abs() <= 0.5 * u_peak));
     // After the last move (the program ends with a dwell of >= 50 ms) the error is small, and
@@ -672,18 +582,7 @@ fn saturation_limits_u_and_the_axis_still_settles() {
     pos.extend(std::iter::repeat_n(x_end, 500));
     vel.extend(std::iter::repeat_n(0.0, 500));
     acc.extend(std::iter::repeat_n(0.0, 500));
-    let trace = tight
-        .validate()
-        .unwrap()
-        .simulate(
-            Reference {
-                pos: &pos,
-                vel: &vel,
-                acc: &acc,
-            },
-            TS,
-        )
-        .unwrap();
+    let trace = common::simulate(&tight, &pos, &vel, &acc, TS);
     let e_end = (trace.position[pos.len() - 1] - x_end).abs();
     eprintln!(
         "saturation at {:.2} V (half the peak): {} saturated ticks, final error {:.3} um",
@@ -720,8 +619,8 @@ fn model_with_sticking_follows_the_true_drive_through_friction_events() {
             },
         )
         .unwrap();
-    let e_stick = max_abs_diff(&sticking, &trace.true_position) * 1e3;
-    let e_explicit = max_abs_diff(&explicit, &trace.true_position) * 1e3;
+    let e_stick = common::max_abs_diff(&sticking, &trace.true_position) * 1e3;
+    let e_explicit = common::max_abs_diff(&explicit, &trace.true_position) * 1e3;
     eprintln!("model vs true drive: sticking {e_stick:.3} µm, explicit sign {e_explicit:.3} µm");
     assert!(e_stick < 0.6, "{e_stick} µm");
     assert!(
@@ -829,4 +728,40 @@ fn true_position_alone_is_the_full_simulation_bit_for_bit() {
             assert_eq!(a.to_bits(), b.to_bits());
         }
     }
+}
+
+#[test]
+fn bad_physical_parameters_are_rejected_with_their_key_and_value() {
+    let cases: [(common::Mutation, &str); 8] = [
+        (|p| p.plant.j = 0.0, "plant.j"),
+        (|p| p.plant.j = f64::NAN, "plant.j"),
+        (|p| p.plant.b = -1.0, "plant.b"),
+        (|p| p.plant.rg = f64::INFINITY, "plant.rg"),
+        (|p| p.plant.coulomb_torque = -0.1, "plant.coulomb_torque"),
+        (|p| p.plant.u_max = Some(0.0), "plant.u_max"),
+        (|p| p.encoder.resolution = -1e-4, "encoder.resolution"),
+        (|p| p.servo_rate_hz = 0.0, "servo_rate_hz"),
+    ];
+    common::assert_rejected_with_key(&cases);
+    let mut p = table1_drive();
+    p.plant.j = -0.01;
+    let msg = p.validate().unwrap_err().to_string();
+    assert!(msg.contains("plant.j = -0.01"), "{msg}");
+}
+
+#[test]
+fn drive_without_integral_action_is_accepted_and_kv_must_be_positive() {
+    let mut p = common::p_p_cascade();
+    let m = p.closed_loop_model().unwrap();
+    assert_eq!(m.a3, 0.0);
+    if let ControllerSpec::PPi { kv, .. } = &mut p.controller {
+        *kv = Some(0.0);
+    }
+    assert!(matches!(
+        p.validate(),
+        Err(Error::BadParameter {
+            name: "controller.kv",
+            ..
+        })
+    ));
 }

@@ -30,9 +30,9 @@ use std::ops::Range;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use vcnc_drive::{
-    AxisName, Channels, ControllerSpec, Drive, DriveParams, DriveTrace, FeedbackSource, FrfKind,
-    FrfOptions, Friction, FrictionLocation, GroupStream, PoleDesign, Reference, ShapingFilter,
-    batch_groups, nmv5000_axis_design, simulate_batch, simulate_batch_into, table1_drive,
+    Channels, Drive, DriveParams, DriveTrace, FrfKind, FrfOptions, Friction, FrictionLocation,
+    GroupStream, NMV5000_TABLE3, Reference, batch_groups, nmv5000_axis_design, simulate_batch,
+    simulate_batch_into, table1_drive,
 };
 
 const TS: f64 = 1e-3;
@@ -206,14 +206,6 @@ fn pieces(n: usize, every: Option<usize>, seed: u64, max: usize) -> Vec<Range<us
     out
 }
 
-fn slice<'a>(r: Reference<'a>, p: &Range<usize>) -> Reference<'a> {
-    Reference {
-        pos: &r.pos[p.clone()],
-        vel: &r.vel[p.clone()],
-        acc: &r.acc[p.clone()],
-    }
-}
-
 /// The splits every drive is streamed in.
 const SPLITS: [(Option<usize>, u64); 3] = [(Some(7), 0), (None, 1), (Some(1), 0)];
 
@@ -243,50 +235,13 @@ fn negative_zero_program() -> common::Program {
 // ---------------------------------------------------------------------------------------------
 // Drives.
 
-fn table1_design() -> PoleDesign {
-    let p = table1_drive().closed_loop_model().unwrap().poles().unwrap();
-    PoleDesign {
-        p_hz: p.p_hz(),
-        wn_hz: p.wn_hz(),
-        zeta: p.zeta,
-    }
-}
-
-fn pid(p: DriveParams) -> DriveParams {
-    DriveParams {
-        controller: ControllerSpec::Pid {
-            kp: None,
-            ki: None,
-            kd: None,
-            design: Some(table1_design()),
-            jff: 0.2,
-            bff: 0.1,
-        },
-        ..p
-    }
-}
-
-fn smc(p: DriveParams) -> DriveParams {
-    DriveParams {
-        controller: ControllerSpec::Smc {
-            lambda: None,
-            ks: None,
-            rho: None,
-            je_hat: None,
-            be_hat: None,
-            design: Some(table1_design()),
-        },
-        ..p
-    }
-}
-
 /// Drives without effects.
 fn ideal_cases() -> Vec<(String, DriveParams)> {
     let mut out = Vec::new();
     for (kind, p) in [
         ("ppi", table1_drive()),
-        ("pid", pid(table1_drive())),
-        ("smc", smc(table1_drive())),
+        ("pid", common::pid(table1_drive(), 0.2)),
+        ("smc", common::smc(table1_drive())),
     ] {
         let mut noisy = p.clone();
         noisy.encoder.noise_std = 2e-4;
@@ -301,7 +256,7 @@ fn ideal_cases() -> Vec<(String, DriveParams)> {
         let mut slowest = p.clone();
         slowest.servo_rate_hz = 1000.0;
         out.extend([
-            (format!("{kind}"), p),
+            (kind.to_string(), p),
             (format!("{kind}-noise"), noisy),
             (format!("{kind}-noise-umax"), limited),
             (format!("{kind}-unquantised"), unquantised),
@@ -309,13 +264,7 @@ fn ideal_cases() -> Vec<(String, DriveParams)> {
             (format!("{kind}-1kHz"), slowest),
         ]);
     }
-    for a in [
-        AxisName::X,
-        AxisName::Y,
-        AxisName::Z,
-        AxisName::A,
-        AxisName::C,
-    ] {
+    for (a, _) in NMV5000_TABLE3 {
         out.push((format!("preset-{a}"), nmv5000_axis_design(a).unwrap()));
     }
     for file in [
@@ -337,37 +286,7 @@ fn effects_cases() -> Vec<(String, DriveParams)> {
         .into_iter()
         .map(|(a, p)| (format!("realistic-{a}"), p))
         .collect();
-    let base = common::realistic_table1();
-    let mut v1 = pid(base.clone());
-    if let Some(s) = v1.reference.as_mut() {
-        s.filter = Some(ShapingFilter::SecondOrder {
-            time_constant_s: 0.002,
-            zeta: 0.7,
-        });
-    }
-    if let Some(c) = v1.current_loop.as_mut() {
-        c.torque_max = Some(0.6);
-    }
-    let mut v2 = smc(base.clone());
-    if let Some(s) = v2.reference.as_mut() {
-        s.filter = Some(ShapingFilter::FirstOrder {
-            time_constant_s: 0.003,
-        });
-    }
-    if let Some(f) = v2.feedback.as_mut() {
-        f.source = FeedbackSource::Motor;
-    }
-    let mut v3 = base.clone();
-    v3.compliance = None;
-    v3.feedback = None;
-    v3.friction = Some(Friction::Stribeck {
-        static_torque: 0.4,
-        stribeck_velocity: 2.0,
-        stribeck_exponent: 2.0,
-        coulomb_torque_negative: None,
-        static_torque_negative: None,
-        location: FrictionLocation::Load,
-    });
+    let [base, v1, v2, v3] = common::realistic_table1_variants(0.2);
     let mut v4 = base.clone();
     v4.friction = Some(Friction::Stribeck {
         static_torque: 0.45,
@@ -391,21 +310,7 @@ fn effects_cases() -> Vec<(String, DriveParams)> {
     if let Some(s) = v6.reference.as_mut() {
         s.interpolation_delay_s = 0.0;
     }
-    let x = common::realistic_nmv5000_x();
-    let mut with_backlash = x.clone();
-    with_backlash.compliance.as_mut().unwrap().backlash = 0.004;
-    let mut other_noise = x.clone();
-    other_noise.encoder.seed = 99;
-    other_noise.encoder.noise_std = 1e-4;
-    let mut slow = x.clone();
-    if let Some(Friction::MaxwellSlip { elements, .. }) = slow.friction.as_mut() {
-        *elements = 7;
-    }
-    slow.feedback.as_mut().unwrap().dead_time_cycles = 5;
-    slow.feedback.as_mut().unwrap().motor_noise_std = 3e-5;
-    let mut limited = base.clone();
-    limited.current_loop.as_mut().unwrap().torque_max = Some(1.5);
-    limited.feedback.as_mut().unwrap().motor_resolution = Some(1e-5);
+    let [with_backlash, other_noise, slow, limited] = common::realistic_lane_variants();
     let mut unquantised = v3.clone();
     unquantised.encoder.resolution = 0.0;
     unquantised.encoder.noise_std = 0.0;
@@ -464,7 +369,7 @@ fn single_routes(book: &mut Book, key: &str, d: &Drive, r: Reference<'_>) {
         } else {
             r.pos.len()
         };
-        let r = slice(r, &(0..n));
+        let r = common::slice(r, &(0..n));
         let (sk, tk) = if n == whole.len() {
             (sim_key.clone(), tp_key.clone())
         } else {
@@ -481,7 +386,7 @@ fn single_routes(book: &mut Book, key: &str, d: &Drive, r: Reference<'_>) {
             let mut s = d.stream(TS, channels).expect("stream");
             let mut t = DriveTrace::default();
             for p in pieces(n, every, seed + i as u64, 997) {
-                s.feed(slice(r, &p), &mut t).expect("feeds");
+                s.feed(common::slice(r, &p), &mut t).expect("feeds");
             }
             t.saturated_ticks = s.finish().expect("finishes");
             match channels {
@@ -566,8 +471,10 @@ fn batch_routes(book: &mut Book, name: &str, jobs: &[(&Drive, Reference<'_>)], k
             let mut out = vec![DriveTrace::default(); group.len()];
             let mut failed = false;
             for p in pieces(n, None, 40 + gi as u64, 1500) {
-                let refs: Vec<Reference<'_>> =
-                    group.iter().map(|i| slice(jobs[*i].1, &p)).collect();
+                let refs: Vec<Reference<'_>> = group
+                    .iter()
+                    .map(|i| common::slice(jobs[*i].1, &p))
+                    .collect();
                 if s.feed(&refs, &mut out).is_err() {
                     failed = true;
                     break;

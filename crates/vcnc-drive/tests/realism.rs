@@ -10,13 +10,6 @@ use vcnc_drive::{
 
 const TS: f64 = 1e-3;
 
-fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn neutral_effects_reproduce_the_ideal_drive() {
     // Truth: the ideal simulator (its own tests pin it to the analytic closed loop). A friction
@@ -35,17 +28,9 @@ fn neutral_effects_reproduce_the_ideal_drive() {
             }),
             ..ideal.clone()
         };
-        let a = ideal
-            .validate()
-            .unwrap()
-            .simulate(prog.reference(), TS)
-            .unwrap();
-        let b = neutral
-            .validate()
-            .unwrap()
-            .simulate(prog.reference(), TS)
-            .unwrap();
-        let d = max_abs_diff(&a.true_position, &b.true_position);
+        let a = common::simulate(&ideal, &prog.pos, &prog.vel, &prog.acc, TS);
+        let b = common::simulate(&neutral, &prog.pos, &prog.vel, &prog.acc, TS);
+        let d = common::max_abs_diff(&a.true_position, &b.true_position);
         eprintln!(
             "neutral effects vs ideal (encoder step {} mm): max |dx| = {d:e} mm",
             enc.resolution
@@ -447,18 +432,8 @@ fn axis_sticks_below_the_static_level_even_above_coulomb() {
     // position error delta applies the torque Kp Kv delta: 1.2 Tc (above Coulomb, below the
     // static 1.5 Tc) leaves the axis exactly at rest; 1.1 Ts breaks it away.
     let base = DriveParams {
-        controller: ControllerSpec::PPi {
-            kv: Some(70.0),
-            kp: Some(2.342478),
-            ki: Some(0.0),
-            design: None,
-            vff: 0.0,
-            bff: 0.0,
-            jff: 0.0,
-        },
-        encoder: Encoder::ideal(),
         friction: Some(stribeck()),
-        ..table1_drive()
+        ..common::p_p_cascade()
     };
     let x0 = 12.5;
     for (torque, moves) in [(1.2 * 0.3, false), (1.1 * 0.45, true)] {
@@ -467,18 +442,7 @@ fn axis_sticks_below_the_static_level_even_above_coulomb() {
         let mut pos = vec![x0 + delta; n];
         pos[0] = x0;
         let z = vec![0.0; n];
-        let t = base
-            .validate()
-            .unwrap()
-            .simulate(
-                vcnc_drive::Reference {
-                    pos: &pos,
-                    vel: &z,
-                    acc: &z,
-                },
-                TS,
-            )
-            .unwrap();
+        let t = common::simulate(&base, &pos, &z, &z, TS);
         let still = t.true_position.iter().all(|&x| x == x0);
         assert_eq!(still, !moves, "torque {torque} N m");
     }
@@ -508,11 +472,7 @@ fn presliding_after_a_reversal_follows_masings_rule() {
     };
     let v = 0.02;
     let prog = velocity_profile(1.0, &[(0.05, 0.0), (1.5, v), (1.5, -v)], 0.2);
-    let t = p
-        .validate()
-        .unwrap()
-        .simulate(prog.reference(), TS)
-        .unwrap();
+    let t = common::simulate(&p, &prog.pos, &prog.vel, &prog.acc, TS);
     let virgin = |x: f64| {
         (1..=n_el)
             .map(|i| {
@@ -573,11 +533,7 @@ fn torque_limit_is_respected_and_the_axis_still_settles() {
         prog.vel.push(0.0);
         prog.acc.push(0.0);
     }
-    let t = p
-        .validate()
-        .unwrap()
-        .simulate(prog.reference(), TS)
-        .unwrap();
+    let t = common::simulate(&p, &prog.pos, &prog.vel, &prog.acc, TS);
     let peak_cmd = t.control.iter().fold(0.0f64, |m, u| m.max(u.abs()));
     let peak_torque = t.motor_torque.iter().fold(0.0f64, |m, u| m.max(u.abs()));
     let n = t.len();
@@ -620,18 +576,7 @@ fn standstill_encoder_noise_has_its_standard_deviation() {
             let n = 20_000;
             let pos = vec![3.0; n];
             let z = vec![0.0; n];
-            let t = p
-                .validate()
-                .unwrap()
-                .simulate(
-                    vcnc_drive::Reference {
-                        pos: &pos,
-                        vel: &z,
-                        acc: &z,
-                    },
-                    TS,
-                )
-                .unwrap();
+            let t = common::simulate(&p, &pos, &z, &z, TS);
             let err: Vec<f64> = t
                 .position
                 .iter()
@@ -658,10 +603,7 @@ fn same_seed_same_trace_and_another_seed_another() {
     let run = |seed: u64| {
         let mut p = common::realistic_table1();
         p.encoder.seed = seed;
-        p.validate()
-            .unwrap()
-            .simulate(prog.reference(), TS)
-            .unwrap()
+        common::simulate(&p, &prog.pos, &prog.vel, &prog.acc, TS)
     };
     let (a, b, c) = (run(1), run(1), run(2));
     assert_eq!(a, b);
@@ -683,11 +625,7 @@ fn interpolation_delay_of_whole_samples_shifts_the_response_exactly() {
         }),
         ..table1_drive()
     };
-    let t0 = base
-        .validate()
-        .unwrap()
-        .simulate(prog.reference(), TS)
-        .unwrap();
+    let t0 = common::simulate(&base, &prog.pos, &prog.vel, &prog.acc, TS);
     for samples in [1usize, 2] {
         let p = DriveParams {
             reference: Some(ReferenceShaping {
@@ -696,11 +634,7 @@ fn interpolation_delay_of_whole_samples_shifts_the_response_exactly() {
             }),
             ..base.clone()
         };
-        let t = p
-            .validate()
-            .unwrap()
-            .simulate(prog.reference(), TS)
-            .unwrap();
+        let t = common::simulate(&p, &prog.pos, &prog.vel, &prog.acc, TS);
         let n = t.len();
         assert_eq!(t.true_position[samples..], t0.true_position[..n - samples]);
         assert_eq!(t.position[samples..], t0.position[..n - samples]);
@@ -727,11 +661,7 @@ fn dead_time_and_velocity_filter_match_a_plainly_written_loop() {
         ..Feedback::default()
     });
     let prog = common::identification_program(8, 2.0, TS, 10.0, 20.0, 150.0, 2500.0);
-    let t = p
-        .validate()
-        .unwrap()
-        .simulate(prog.reference(), TS)
-        .unwrap();
+    let t = common::simulate(&p, &prog.pos, &prog.vel, &prog.acc, TS);
 
     let (kv, kp, ki, vff, bff) = (70.0, 2.342478, 223.252126, 0.5, 0.1);
     let (j, b, rg) = (p.plant.j, p.plant.b, p.plant.rg);
@@ -778,8 +708,8 @@ fn dead_time_and_velocity_filter_match_a_plainly_written_loop() {
             xf1 = xf;
         }
     }
-    let worst = max_abs_diff(&t.true_position, &oracle);
-    let peak_error = max_abs_diff(&t.true_position, &prog.pos);
+    let worst = common::max_abs_diff(&t.true_position, &oracle);
+    let peak_error = common::max_abs_diff(&t.true_position, &prog.pos);
     eprintln!(
         "dead time {d} ticks + {fc} Hz velocity filter: engine vs oracle {worst:e} mm (tracking error up to {peak_error:.3} mm)"
     );
@@ -873,11 +803,7 @@ fn the_loop_sees_the_shaped_reference_but_the_trace_logs_the_nominal() {
             }),
             ..base.clone()
         };
-        let t = p
-            .validate()
-            .unwrap()
-            .simulate(prog.reference(), TS)
-            .unwrap();
+        let t = common::simulate(&p, &prog.pos, &prog.vel, &prog.acc, TS);
         let n = t.len();
         let e = prog.pos[n - 1] - t.true_position[n - 1];
         let expect = follow + (lag + td) * v;
@@ -943,7 +869,6 @@ fn loops_destabilised_by_their_effects_are_rejected() {
 
 #[test]
 fn bad_effect_parameters_are_rejected_with_their_key_and_value() {
-    type Mutation = fn(&mut DriveParams);
     let with_compliance = |p: &mut DriveParams| {
         p.compliance = Some(Compliance {
             j_motor: 0.004,
@@ -954,7 +879,7 @@ fn bad_effect_parameters_are_rejected_with_their_key_and_value() {
             backlash: 0.0,
         })
     };
-    let cases: Vec<(Mutation, &str)> = vec![
+    let cases: Vec<(common::Mutation, &str)> = vec![
         (
             |p| {
                 p.compliance = Some(Compliance {
@@ -1153,14 +1078,7 @@ fn bad_effect_parameters_are_rejected_with_their_key_and_value() {
             "reference.filter.time_constant_s",
         ),
     ];
-    for (mutate, key) in cases {
-        let mut p = table1_drive();
-        mutate(&mut p);
-        match p.validate() {
-            Err(Error::BadParameter { name, .. }) => assert_eq!(name, key),
-            other => panic!("{key}: expected BadParameter, got {other:?}"),
-        }
-    }
+    common::assert_rejected_with_key(&cases);
     // Alternatives: both or neither.
     let mut p = table1_drive();
     with_compliance(&mut p);

@@ -17,9 +17,8 @@ use std::ops::Range;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use vcnc_drive::{
-    Channels, ClosedLoopModel, ControllerSpec, Drive, DriveModel, DriveParams, DriveTrace, Error,
-    FeedbackSource, Friction, FrictionLocation, Integrator, Reference, ReferenceFilter,
-    ShapingFilter, SimOptions, table1_drive,
+    Channels, ClosedLoopModel, Drive, DriveModel, DriveTrace, Error, Integrator, Reference,
+    ReferenceFilter, SimOptions, table1_drive,
 };
 
 const TS: f64 = 1e-3;
@@ -61,21 +60,13 @@ fn pieces(n: usize, split: Split) -> Vec<Range<usize>> {
     out
 }
 
-fn slice<'a>(r: Reference<'a>, p: &Range<usize>) -> Reference<'a> {
-    Reference {
-        pos: &r.pos[p.clone()],
-        vel: &r.vel[p.clone()],
-        acc: &r.acc[p.clone()],
-    }
-}
-
 /// The drive streamed through `r` in the pieces of `split`: the trace (channels asked for),
 /// with the saturated ticks from `finish`.
 fn stream_drive(d: &Drive, r: Reference<'_>, channels: Channels, split: Split) -> DriveTrace {
     let mut s = d.stream(TS, channels).expect("stream");
     let mut t = DriveTrace::default();
     for p in pieces(r.pos.len(), split) {
-        s.feed(slice(r, &p), &mut t).expect("feeds");
+        s.feed(common::slice(r, &p), &mut t).expect("feeds");
     }
     assert_eq!(s.samples(), r.pos.len());
     t.saturated_ticks = s.finish().expect("finishes");
@@ -86,7 +77,7 @@ fn stream_model(m: &DriveModel, r: Reference<'_>, opts: &SimOptions, split: Spli
     let mut s = m.stream(TS, opts).expect("stream");
     let mut x = Vec::new();
     for p in pieces(r.pos.len(), split) {
-        s.feed(slice(r, &p), &mut x).expect("feeds");
+        s.feed(common::slice(r, &p), &mut x).expect("feeds");
     }
     s.finish().expect("finishes");
     x
@@ -147,43 +138,6 @@ fn check_drive(name: &str, d: &Drive, r: Reference<'_>) -> u64 {
     whole.saturated_ticks
 }
 
-fn table1_design() -> vcnc_drive::PoleDesign {
-    let poles = table1_drive().closed_loop_model().unwrap().poles().unwrap();
-    vcnc_drive::PoleDesign {
-        p_hz: poles.p_hz(),
-        wn_hz: poles.wn_hz(),
-        zeta: poles.zeta,
-    }
-}
-
-fn pid(p: DriveParams) -> DriveParams {
-    DriveParams {
-        controller: ControllerSpec::Pid {
-            kp: None,
-            ki: None,
-            kd: None,
-            design: Some(table1_design()),
-            jff: 0.0,
-            bff: 0.1,
-        },
-        ..p
-    }
-}
-
-fn smc(p: DriveParams) -> DriveParams {
-    DriveParams {
-        controller: ControllerSpec::Smc {
-            lambda: None,
-            ks: None,
-            rho: None,
-            je_hat: None,
-            be_hat: None,
-            design: Some(table1_design()),
-        },
-        ..p
-    }
-}
-
 #[test]
 fn ideal_drives_streamed_in_pieces_are_the_whole_run_bit_for_bit() {
     let prog = common::standard_program();
@@ -191,8 +145,8 @@ fn ideal_drives_streamed_in_pieces_are_the_whole_run_bit_for_bit() {
     let mut saturated = 0;
     for (kind, p) in [
         ("P-PI", table1_drive()),
-        ("PID", pid(table1_drive())),
-        ("SMC", smc(table1_drive())),
+        ("PID", common::pid(table1_drive(), 0.0)),
+        ("SMC", common::smc(table1_drive())),
     ] {
         assert!(p.encoder.resolution > 0.0, "quantised encoder");
         let mut noisy = p.clone();
@@ -226,41 +180,8 @@ fn realistic_drives_streamed_in_pieces_are_the_whole_run_bit_for_bit() {
         let d = p.validate().expect("valid");
         check_drive(&format!("NMV5000 realistic {axis}"), &d, r);
     }
-    // Variants for the other paths of the effects engine: PID with a second-order shaping
-    // filter and a torque limit low enough to saturate; SMC with a first-order filter and
-    // semi-closed feedback; a rigid P-PI with set-valued Stribeck friction and no dead time
-    // (one reading for both loops).
-    let base = common::realistic_table1();
-    let mut v1 = pid(base.clone());
-    if let Some(s) = v1.reference.as_mut() {
-        s.filter = Some(ShapingFilter::SecondOrder {
-            time_constant_s: 0.002,
-            zeta: 0.7,
-        });
-    }
-    if let Some(c) = v1.current_loop.as_mut() {
-        c.torque_max = Some(0.6);
-    }
-    let mut v2 = smc(base.clone());
-    if let Some(s) = v2.reference.as_mut() {
-        s.filter = Some(ShapingFilter::FirstOrder {
-            time_constant_s: 0.003,
-        });
-    }
-    if let Some(f) = v2.feedback.as_mut() {
-        f.source = FeedbackSource::Motor;
-    }
-    let mut v3 = base.clone();
-    v3.compliance = None;
-    v3.feedback = None;
-    v3.friction = Some(Friction::Stribeck {
-        static_torque: 0.4,
-        stribeck_velocity: 2.0,
-        stribeck_exponent: 2.0,
-        coulomb_torque_negative: None,
-        static_torque_negative: None,
-        location: FrictionLocation::Load,
-    });
+    // Variants for the other paths of the effects engine (see the helper).
+    let [base, v1, v2, v3] = common::realistic_table1_variants(0.0);
     let mut saturated = 0;
     for (name, p) in [
         ("realistic Table 1", base),
@@ -357,7 +278,7 @@ fn a_stream_restarted_at_a_piece_border_is_caught() {
     for p in pieces(r.pos.len(), Split::Every(1000)) {
         let mut s = drive.stream(TS, Channels::TruePosition).expect("stream");
         let mut t = DriveTrace::default();
-        s.feed(slice(r, &p), &mut t).expect("feeds");
+        s.feed(common::slice(r, &p), &mut t).expect("feeds");
         restarted.extend(t.true_position);
     }
     let differ = restarted
@@ -371,7 +292,7 @@ fn a_stream_restarted_at_a_piece_border_is_caught() {
     let mut restarted = Vec::new();
     for p in pieces(r.pos.len(), Split::Every(1000)) {
         let mut s = m.stream(TS, &SimOptions::default()).expect("stream");
-        s.feed(slice(r, &p), &mut restarted).expect("feeds");
+        s.feed(common::slice(r, &p), &mut restarted).expect("feeds");
     }
     assert!(restarted.iter().zip(&whole).any(|(a, b)| a != b));
 }
@@ -406,7 +327,7 @@ fn bad_pieces_give_the_whole_runs_errors() {
             let mut s = d.stream(TS, Channels::All).expect("stream");
             let mut t = DriveTrace::default();
             for (i, piece) in pieces(n, Split::Every(1000)).iter().enumerate() {
-                let got = s.feed(slice(r, piece), &mut t);
+                let got = s.feed(common::slice(r, piece), &mut t);
                 if i < 2 {
                     assert_eq!(got, Ok(()));
                 } else {
@@ -419,8 +340,11 @@ fn bad_pieces_give_the_whole_runs_errors() {
         assert_eq!(model.simulate(r, TS, &opts), Err(want.clone()));
         let mut s = model.stream(TS, &opts).expect("stream");
         let mut x = Vec::new();
-        s.feed(slice(r, &(0..2000)), &mut x).expect("feeds");
-        assert_eq!(s.feed(slice(r, &(2000..n)), &mut x), Err(want.clone()));
+        s.feed(common::slice(r, &(0..2000)), &mut x).expect("feeds");
+        assert_eq!(
+            s.feed(common::slice(r, &(2000..n)), &mut x),
+            Err(want.clone())
+        );
         assert_eq!(x.len(), 2000);
         assert_eq!(s.finish(), Err(want));
     }
@@ -444,7 +368,7 @@ fn bad_pieces_give_the_whole_runs_errors() {
         // An empty piece after the first is nothing to do.
         let mut s = d.stream(TS, Channels::All).expect("stream");
         let mut t = DriveTrace::default();
-        s.feed(slice(r, &(0..10)), &mut t).expect("feeds");
+        s.feed(common::slice(r, &(0..10)), &mut t).expect("feeds");
         s.feed(empty, &mut t).expect("an empty later piece");
         assert_eq!(t.len(), 10);
         assert!(s.finish().is_ok());

@@ -13,7 +13,7 @@
 //! pure rotary move); a `G93` block runs at $L F / 60$ along $s$, so that it lasts $1/F$ plus its
 //! ramps (LinuxCNC's inverse-time rule). Rapids run at the limits.
 //!
-//! **Limits along the path** ([`segment`](self::segment)): for a straight move
+//! **Limits along the path** (`segment`): for a straight move
 //! $\mathbf{g}' = \mathbf{u} = \Delta\mathbf{x}/L$ is constant, so axis $i$ stays within its
 //! limits when
 //! $$ \dot s \le V = \min\Big(\tfrac{F}{60}, \min_i \tfrac{v_{\max,i}}{|u_i|}\Big), \qquad
@@ -23,8 +23,8 @@
 //! centripetal acceleration takes the fraction $\beta$
 //! ([`InterpolateOptions::arc_centripetal_fraction`]) of the acceleration limit.
 //!
-//! **How moves join** ([`planner`](self::planner), [`corner`](self::corner),
-//! [`chain`](self::chain)): a `G61.1` block stops at its end; `G61` (exact path) runs through
+//! **How moves join** (`planner`, `corner`,
+//! `chain`): a `G61.1` block stops at its end; `G61` (exact path) runs through
 //! where the next block continues in the same direction and stops at corners; `G64` blends
 //! corners with arcs within its tolerance `P` and merges straight feeds within `Q`. Moves joined
 //! without a stop form a chain, planned with an exact, bounded look-ahead: a backward pass from
@@ -34,7 +34,7 @@
 //! **Profiles** ([`Profile`]): trapezoidal (acceleration-limited, unbounded jerk), or
 //! jerk-limited: a block on its own runs the time-optimal seven-phase profile (checked against
 //! Ruckig), a chain its trapezoid smoothed by a moving average of the path position
-//! ([`chain`](self::chain)).
+//! (`chain`).
 //!
 //! **Time-exact chains of fine blocks** (`G93` + `G64`, every block's $1/F$ exactly one sample
 //! period $T_s$, `G1` only): such a program is a stream of set-points, one per interpolation
@@ -66,7 +66,7 @@ pub(crate) mod profile;
 pub(crate) mod segment;
 pub mod stream;
 
-use chain::Out;
+use chain::{Out, TcpSwitch};
 use planner::{Decisions, Mode, Planner};
 use segment::{Cfg, check_limits};
 
@@ -281,7 +281,8 @@ pub struct Trajectory {
     pub ts: f64,
     /// One track per output axis, in X Y Z A B C order.
     pub axes: Vec<AxisTrack>,
-    /// Per sample: `true` when X Y Z are tool-tip coordinates (TCP mode).
+    /// Per sample: `true` when X Y Z are tool-tip coordinates (TCP mode). The rest sample where
+    /// TCP mode switches on or off is a TCP sample (the TCP move's start or end point).
     pub tcp: Vec<bool>,
     /// The moves' time spans, in order (zero-length moves have none, nor have moves merged by
     /// `G64 Q`: the merged move's span names the last of them, as LinuxCNC does).
@@ -437,7 +438,7 @@ impl Out for Collector<'_> {
 }
 
 /// Interpolate a toolpath into samples (module doc): the planner's two passes
-/// ([`planner`](self::planner)) over the moves in memory.
+/// (`planner`) over the moves in memory.
 pub fn interpolate(
     tp: &Toolpath,
     limits: &Limits,
@@ -484,11 +485,12 @@ pub fn interpolate(
         },
         last_index: None,
     };
+    let mut switch = TcpSwitch::new(&mut out);
     let mut second = Planner::new(
         &cfg,
         Mode::Sample {
             decisions: &mut decisions,
-            out: &mut out,
+            out: &mut switch,
         },
     );
     for m in &tp.moves {

@@ -1,9 +1,23 @@
 //! The generators checked through this crate's own parser, interpreter and interpolator.
 
 use vcnc_gcode::{
-    AxisName, Feed, IdentificationOptions, InterpOptions, InterpolateOptions, Limits, MoveKind,
-    SpiralOptions, TcpProgramOptions, TipPose, identification, load, spiral_points, tcp_program,
+    AxisName, Feed, IdentificationOptions, InterpOptions, InterpolateOptions, Limits, Loaded,
+    MoveKind, SpiralOptions, TcpProgramOptions, TipPose, identification, load, spiral_points,
+    tcp_program,
 };
+
+/// `text` loaded with the default options under the paper's identification limits (250 mm/s,
+/// 2500 mm/s² on every axis).
+fn load_at_paper_limits(text: &str) -> Loaded {
+    let limits = Limits::uniform(250.0, 2500.0);
+    load(
+        text,
+        &InterpOptions::default(),
+        &limits,
+        &InterpolateOptions::default(),
+    )
+    .unwrap()
+}
 
 /// Direction reversals between consecutive moves of axis `i`.
 fn reversals(points: &[[f64; 6]], i: usize) -> usize {
@@ -19,20 +33,13 @@ fn reversals(points: &[[f64; 6]], i: usize) -> usize {
 fn identification_takes_20_to_60_s_and_reverses_30_times() {
     // Acceptance figures from issue 2 ("Done means"): 20–60 s at the defaults with
     // 250 mm/s and 2500 mm/s² (the paper's identification settings), ≥ 30 reversals.
-    let limits = Limits::uniform(250.0, 2500.0);
     for seed in 1..=8u64 {
         let opts = IdentificationOptions {
             seed,
             ..IdentificationOptions::default()
         };
         let text = identification(AxisName::X, &opts).unwrap();
-        let run = load(
-            &text,
-            &InterpOptions::default(),
-            &limits,
-            &InterpolateOptions::default(),
-        )
-        .unwrap();
+        let run = load_at_paper_limits(&text);
         let t = run.trajectory.duration_s();
         let pts = run.toolpath.points();
         let rev = reversals(&pts, 0);
@@ -89,14 +96,7 @@ fn identification_for_a_rotary_axis_is_in_degrees() {
     let x = identification(AxisName::X, &IdentificationOptions::default()).unwrap();
     // Same numbers, only the letter differs (F is then deg/min).
     assert_eq!(text.replace('C', "X").replace("deg", "mm"), x);
-    let limits = Limits::uniform(250.0, 2500.0);
-    let run = load(
-        &text,
-        &InterpOptions::default(),
-        &limits,
-        &InterpolateOptions::default(),
-    )
-    .unwrap();
+    let run = load_at_paper_limits(&text);
     assert_eq!(run.toolpath.axis_names(), vec![AxisName::C]);
     let t = run.trajectory.duration_s();
     assert!((20.0..=60.0).contains(&t), "{t}");

@@ -413,9 +413,7 @@ pub fn identify(trace: &Trace, opts: &IdentifyOptions) -> Result<Identification,
     let cands = candidates(trace, opts);
     let main = swarm(trace, opts)?;
     if cands.len() == 1 || !opts.refine.enabled {
-        let c = cands[0];
-        let starts = distinct_starts(&main.result.candidates, opts.refine.starts, &[]);
-        let fit = fit_one(trace, &main, c, &starts, opts, Stage::Whole)?;
+        let fit = sole_fit(trace, &main, cands[0], opts)?;
         return assemble(trace, main, vec![fit], ValidationSource::None, None, opts);
     }
     // The stretch the candidates are compared on, and its held-out part.
@@ -467,8 +465,7 @@ pub fn identify_with_validation(
     let main = swarm(trace, opts)?;
     if cands.len() == 1 || !opts.refine.enabled {
         let c = cands[0];
-        let starts = distinct_starts(&main.result.candidates, opts.refine.starts, &[]);
-        let mut fit = fit_one(trace, &main, c, &starts, opts, Stage::Whole)?;
+        let mut fit = sole_fit(trace, &main, c, opts)?;
         fit.validation = Some(score(&fit.model, validation, None, opts)?);
         return assemble(
             trace,
@@ -489,6 +486,18 @@ pub fn identify_with_validation(
         ValidationSource::Trace,
         opts,
     )
+}
+
+/// The whole-trace fit of the one candidate when there is nothing to compare (one candidate,
+/// or refinement off), from the swarm's distinct starts.
+fn sole_fit(
+    trace: &Trace,
+    main: &Swarm,
+    c: Candidate,
+    opts: &IdentifyOptions,
+) -> Result<StructureFit, Error> {
+    let starts = distinct_starts(&main.result.candidates, opts.refine.starts, &[]);
+    fit_one(trace, main, c, &starts, opts, Stage::Whole)
 }
 
 /// The choice among the compared candidates, then the whole-trace refinement of the chosen one

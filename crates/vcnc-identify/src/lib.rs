@@ -66,6 +66,8 @@ mod options;
 mod pso;
 mod refine;
 mod regress;
+#[cfg(test)]
+mod test_support;
 mod trace;
 
 pub use filter::Butterworth2;

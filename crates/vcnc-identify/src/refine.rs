@@ -1709,7 +1709,7 @@ fn uncertainty(
     // interval to reach it.
     let branch: Vec<f64> = (0..p0.len())
         .map(|i| {
-            if !full || i >= 3 || !(hinv[(i, i)] > 0.0) {
+            if !full || i >= 3 || hinv[(i, i)].is_nan() || hinv[(i, i)] <= 0.0 {
                 return 0.0;
             }
             let delta_c1 = 0.5 * cp[(i, i)] / hinv[(i, i)];
@@ -1897,32 +1897,12 @@ fn andrews_window(r: &[f64]) -> usize {
 mod tests {
     use super::*;
     use crate::options::IdentifyOptions;
-    use vcnc_drive::{Reference, SimOptions};
+    use crate::test_support;
+    use vcnc_drive::SimOptions;
 
     /// Rest-to-rest smooth moves with reversals, 1 ms.
     fn reference(n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let ts = 1e-3;
-        let moves = [
-            (0.1, 0.25, 20.0),
-            (0.5, 0.3, -35.0),
-            (0.95, 0.12, 4.0),
-            (1.2, 0.4, 30.0),
-            (1.8, 0.2, -25.0),
-            (2.2, 0.5, 12.0),
-        ];
-        let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for k in 0..n {
-            let t = k as f64 * ts;
-            for &(t0, dur, d) in &moves {
-                let s = ((t - t0) / dur).clamp(0.0, 1.0);
-                p[k] += d * (3.0 * s * s - 2.0 * s * s * s);
-                if (0.0..1.0).contains(&s) && t > t0 {
-                    v[k] += d * (6.0 * s - 6.0 * s * s) / dur;
-                    a[k] += d * (6.0 - 12.0 * s) / (dur * dur);
-                }
-            }
-        }
-        (p, v, a)
+        test_support::smooth_moves(n, &test_support::MOVES)
     }
 
     fn setup<'a>(
@@ -1951,17 +1931,7 @@ mod tests {
         // such point.
         let truth = table1(47.7);
         let (p, v, a) = reference(3000);
-        let x = truth
-            .simulate(
-                Reference {
-                    pos: &p,
-                    vel: &v,
-                    acc: &a,
-                },
-                1e-3,
-                &SimOptions::default(),
-            )
-            .unwrap();
+        let x = test_support::follow(&truth, &p, &v, &a);
         let tr = Trace::new(1e-3, p, x)
             .unwrap()
             .with_reference_derivatives(v, a)
@@ -2003,17 +1973,7 @@ mod tests {
             30.0,
         );
         let (p, v, a) = reference(3000);
-        let x = truth
-            .simulate(
-                Reference {
-                    pos: &p,
-                    vel: &v,
-                    acc: &a,
-                },
-                1e-3,
-                &SimOptions::default(),
-            )
-            .unwrap();
+        let x = test_support::follow(&truth, &p, &v, &a);
         let tr = Trace::new(1e-3, p, x).unwrap();
         let opts = IdentifyOptions {
             bounds: PoleBounds {

@@ -677,32 +677,12 @@ impl CostFunction for EquationErrorCost {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support;
     use nalgebra::DMatrix;
-    use vcnc_drive::{Reference, SimOptions};
 
-    /// A rest-to-rest sequence of smooth moves (cubic blends) sampled at 1 ms.
+    /// Rest-to-rest smooth moves with reversals, 1 ms.
     fn reference(n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let ts = 1e-3;
-        let moves = [
-            (0.1, 0.25, 20.0),
-            (0.5, 0.3, -35.0),
-            (0.95, 0.12, 4.0),
-            (1.2, 0.4, 30.0),
-            (1.8, 0.2, -25.0),
-        ];
-        let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        for k in 0..n {
-            let t = k as f64 * ts;
-            for &(t0, dur, d) in &moves {
-                let s = ((t - t0) / dur).clamp(0.0, 1.0);
-                p[k] += d * (3.0 * s * s - 2.0 * s * s * s);
-                if (0.0..1.0).contains(&s) && t > t0 {
-                    v[k] += d * (6.0 * s - 6.0 * s * s) / dur;
-                    a[k] += d * (6.0 - 12.0 * s) / (dur * dur);
-                }
-            }
-        }
-        (p, v, a)
+        test_support::smooth_moves(n, &test_support::MOVES[..5])
     }
 
     fn table1() -> ClosedLoopModel {
@@ -711,17 +691,7 @@ mod tests {
 
     fn model_trace(m: &ClosedLoopModel, n: usize) -> Trace {
         let (p, v, a) = reference(n);
-        let x = m
-            .simulate(
-                Reference {
-                    pos: &p,
-                    vel: &v,
-                    acc: &a,
-                },
-                1e-3,
-                &SimOptions::default(),
-            )
-            .unwrap();
+        let x = test_support::follow(m, &p, &v, &a);
         Trace::new(1e-3, p, x).unwrap()
     }
 

@@ -85,18 +85,20 @@ fn assert_within(name: &str, m: &ClosedLoopModel, truth: &ClosedLoopModel, tol: 
     }
 }
 
+/// [`run_case`] on axis X, its identified poles and $d_c$ within `tol` of the truth
+/// ([`assert_within`]).
+fn case_within(name: &str, params: &DriveParams, seed: u64, tol: [f64; 4]) -> Case {
+    let c = run_case(name, params, AxisName::X, seed);
+    assert_within(name, &c.id.identified, &c.truth, tol);
+    c
+}
+
 #[test]
 fn table1_drive_fine_encoder_poles_within_1_percent() {
     // Issue 4: 0.1 µm encoder → ωn, p within 1 %, ζ within 3 %, dc within 5 %.
     let params = vcnc_drive::table1_drive();
     assert_eq!(params.encoder.resolution, 1e-4);
-    let c = run_case("Table 1, 0.1 µm", &params, AxisName::X, 7);
-    assert_within(
-        "Table 1 0.1 µm",
-        &c.id.identified,
-        &c.truth,
-        [0.01, 0.01, 0.03, 0.05],
-    );
+    let c = case_within("Table 1, 0.1 µm", &params, 7, [0.01, 0.01, 0.03, 0.05]);
     assert!(c.id.identified.is_stable() && c.id.paper_pso.is_stable());
     // Against the published values (docs/reference-numbers.md) as well (the truth itself).
     let pt = c.truth.poles().expect("poles");
@@ -110,21 +112,10 @@ fn table1_drive_coarse_encoder_poles_within_2_percent() {
     // Issue 4: 1 µm encoder → ωn, p within 2 %, ζ within 5 %, dc within 10 %.
     let mut params = vcnc_drive::table1_drive();
     params.encoder.resolution = 1e-3;
-    let c = run_case("Table 1, 1 µm", &params, AxisName::X, 7);
-    assert_within(
-        "Table 1 1 µm",
-        &c.id.identified,
-        &c.truth,
-        [0.02, 0.02, 0.05, 0.10],
-    );
-    // A second program seed, to make sure the first is not a lucky draw.
-    let c2 = run_case("Table 1, 1 µm, seed 3", &params, AxisName::X, 3);
-    assert_within(
-        "Table 1 1 µm seed 3",
-        &c2.id.identified,
-        &c2.truth,
-        [0.02, 0.02, 0.05, 0.10],
-    );
+    // Program seed 7, and a second seed to make sure the first is not a lucky draw.
+    for seed in [7, 3] {
+        case_within("Table 1, 1 µm", &params, seed, [0.02, 0.02, 0.05, 0.10]);
+    }
 }
 
 #[test]
@@ -394,36 +385,29 @@ fn invalid_options_are_rejected_before_any_work() {
         identify(&tr, &opts),
         Err(Error::PsoDivergent { .. })
     ));
-    let opts = IdentifyOptions {
-        bounds: PoleBounds {
-            p_hz: [-1.0, 500.0],
-            ..Default::default()
-        },
+    // A negative pole, and an upper bound far beyond any servo loop, which would overflow the
+    // discretisation (fuzz finding 1 in fuzz/README.md): refused up front.
+    let negative = PoleBounds {
+        p_hz: [-1.0, 500.0],
         ..Default::default()
     };
-    assert!(matches!(
-        identify(&tr, &opts),
-        Err(Error::InvalidBounds {
-            name: "bounds.p_hz",
-            ..
-        })
-    ));
-    // An upper bound far beyond any servo loop would overflow the discretisation (fuzz
-    // finding 1 in fuzz/README.md): refused up front.
-    let opts = IdentifyOptions {
-        bounds: PoleBounds {
-            wn_hz: [1.0, 1e300],
-            ..Default::default()
-        },
+    let huge = PoleBounds {
+        wn_hz: [1.0, 1e300],
         ..Default::default()
     };
-    assert!(matches!(
-        identify(&tr, &opts),
-        Err(Error::InvalidBounds {
-            name: "bounds.wn_hz",
-            ..
-        })
-    ));
+    for (bounds, key) in [(negative, "bounds.p_hz"), (huge, "bounds.wn_hz")] {
+        let opts = IdentifyOptions {
+            bounds,
+            ..Default::default()
+        };
+        assert!(
+            matches!(
+                identify(&tr, &opts),
+                Err(Error::InvalidBounds { name, .. }) if name == key
+            ),
+            "{key}"
+        );
+    }
     let opts = IdentifyOptions {
         prefilter: Prefilter {
             enabled: true,

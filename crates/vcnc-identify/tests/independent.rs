@@ -56,8 +56,8 @@ mod support;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use vcnc_drive::drive_model::ReferenceInput;
-use vcnc_drive::{ClosedLoopModel, DriveModel, Poles};
-use vcnc_identify::{Identification, IdentifyOptions, ModelStructure, Trace, identify};
+use vcnc_drive::{ClosedLoopModel, DriveModel};
+use vcnc_identify::{Identification, Trace, identify};
 
 /// One random drive of this simulator.
 #[derive(Debug, Clone)]
@@ -334,67 +334,8 @@ fn cut_moving(d: &Drive, log: &mut Log) {
     log.ar.drain(..k0);
 }
 
-/// The options of `vcnc identify --trace` (vcnc-pipeline's `identifier_options` without an
-/// options file): every structure, both inputs, the real pole allowed towards 0.
-fn command_options() -> IdentifyOptions {
-    let mut opts = IdentifyOptions {
-        structures: ModelStructure::ALL.to_vec(),
-        inputs: vec![ReferenceInput::Smooth, ReferenceInput::Hold],
-        ..IdentifyOptions::default()
-    };
-    opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
-    opts
-}
-
-/// Relative errors of the identified model's (p, ωn, ζ) as it reports them (the canonical
-/// split of `ClosedLoopModel::poles`, which its standard deviations refer to) against the
-/// truth written in the split nearest to them: with three real poles any of them may be p,
-/// a convention rather than a property of the drive, so the truth is split the same way.
-fn pole_errors(m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64; 3] {
-    let splits = |m: &ClosedLoopModel| -> Vec<Poles> {
-        let mut out: Vec<Poles> = m.poles().into_iter().collect();
-        let roots = m.roots();
-        if roots.iter().all(|r| r.im == 0.0) {
-            for i in 0..3 {
-                let o: Vec<f64> = (0..3).filter(|&k| k != i).map(|k| roots[k].re).collect();
-                if o[0] * o[1] > 0.0 {
-                    let wn = (o[0] * o[1]).sqrt();
-                    out.push(Poles {
-                        p: -roots[i].re,
-                        wn,
-                        zeta: -(o[0] + o[1]) / (2.0 * wn),
-                    });
-                }
-            }
-        }
-        out
-    };
-    let Some(p) = m.poles() else {
-        return [f64::INFINITY; 3];
-    };
-    let worst = |e: &[f64; 3]| e.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let mut best = [f64::INFINITY; 3];
-    for pt in splits(truth) {
-        let e = [
-            (p.p - pt.p) / pt.p,
-            (p.wn - pt.wn) / pt.wn,
-            (p.zeta - pt.zeta) / pt.zeta,
-        ];
-        if worst(&e) < worst(&best) {
-            best = e;
-        }
-    }
-    best
-}
-
-struct Row {
-    fixed_ok: bool,
-    ok: bool,
-    errs: [f64; 3],
-    /// |error| / reported σ of p, ωn, ζ.
-    z: [f64; 3],
-    ratio: f64,
-}
+/// A drive's row: its verdict.
+type Row = support::Score;
 
 fn one(seed: u64) -> Row {
     let d = Drive::random(seed);
@@ -406,9 +347,9 @@ fn one(seed: u64) -> Row {
     }
     let val = run(&d, &Program::random(seed ^ 0x7a1, 60, d.vmax, d.amax));
     let trace = Trace::new(d.ts, est.xr.clone(), est.x.clone()).expect("trace");
-    let id: Identification = identify(&trace, &command_options()).expect("identifies");
+    let id: Identification = identify(&trace, &support::command_options()).expect("identifies");
     let m = id.model.core;
-    let errs = pole_errors(&m, &truth);
+    let errs = support::pole_errors(&m, &truth);
     let u = id.uncertainty.as_ref();
     let rel_std: [f64; 3] = ["p_hz", "wn_hz", "zeta"]
         .map(|n| u.and_then(|u| u.get(n)).map_or(f64::NAN, |q| q.relative()));
@@ -419,11 +360,7 @@ fn one(seed: u64) -> Row {
     });
     // Validation on a program from rest: the chosen model against the true one.
     let vt = Trace::new(d.ts, val.xr.clone(), val.x.clone()).expect("trace");
-    let rms = |m: &DriveModel| {
-        let xh = vcnc_identify::free_run_model(m, &vt).expect("free run");
-        let s: f64 = xh.iter().zip(&vt.x).map(|(a, b)| (a - b) * (a - b)).sum();
-        (s / vt.len() as f64).sqrt()
-    };
+    let rms = |m: &DriveModel| support::freerun_rms(m, &vt);
     let true_model = DriveModel {
         input: d.input,
         ..DriveModel::from(truth)
@@ -431,40 +368,17 @@ fn one(seed: u64) -> Row {
     let (rv, rt) = (rms(&id.model), rms(&true_model));
     let ratio = rv / rt;
     let ok = id.model.is_stable() && sigma_ok && ratio <= 1.2;
-    let ip = m.poles();
     println!(
-        "{:20} {:6} {:4.2} {:5.3} {:4} | {:6.2} {:6.2} {:5.3} | {:6.2} {:6.2} {:5.3} | {:+6.2} {:+6.2} {:+6.2} | {:5.2} {:5.2} {:5.2} | {:18} {:6} | {:6.3} {:6.3} {:5.2} {}",
+        "{:20} {:6} {} | {:6.3} {:6.3} {:5.2} {}",
         d.seed,
         d.input.name(),
-        1e3 * d.ts,
-        1e3 * d.resolution,
-        if d.moving { "mov" } else { "rest" },
-        tp.p_hz(),
-        tp.wn_hz(),
-        tp.zeta,
-        ip.map_or(f64::NAN, |p| p.p_hz()),
-        ip.map_or(f64::NAN, |p| p.wn_hz()),
-        ip.map_or(f64::NAN, |p| p.zeta),
-        100.0 * errs[0],
-        100.0 * errs[1],
-        100.0 * errs[2],
-        100.0 * rel_std[0],
-        100.0 * rel_std[1],
-        100.0 * rel_std[2],
-        id.structure.name(),
-        id.input.name(),
+        support::fit_columns(d.ts, d.resolution, d.moving, &tp, &id, &errs, &rel_std),
         1e3 * rv,
         1e3 * rt,
         ratio,
         if ok { "ok" } else { "FAIL" }
     );
-    Row {
-        fixed_ok,
-        ok,
-        errs,
-        z: std::array::from_fn(|i| errs[i].abs() / rel_std[i]),
-        ratio,
-    }
+    support::Score::new(fixed_ok, ok, errs, &rel_std, ratio)
 }
 
 #[test]
@@ -504,27 +418,8 @@ fn drives_of_an_independent_simulator_are_identified_through_the_command_route()
 
 /// Worst and median |error| per parameter, ±1σ/±3σ coverage, validation ratio.
 fn summary(rows: &[Row]) {
-    let n = rows.len();
-    let fixed = rows.iter().filter(|r| r.fixed_ok).count();
-    let ok = rows.iter().filter(|r| r.ok).count();
-    let stat = |f: &dyn Fn(&Row) -> f64| {
-        let mut v: Vec<f64> = rows.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        (v[n - 1], v[n / 2])
-    };
-    let names = ["p", "wn", "zeta"];
-    let mut line = format!("{ok}/{n} pass, {fixed}/{n} within fixed tolerances;");
-    for (i, name) in names.iter().enumerate() {
-        let (w, m) = stat(&|r| r.errs[i].abs());
-        let c1 = rows.iter().filter(|r| r.z[i] <= 1.0).count();
-        let c3 = rows.iter().filter(|r| r.z[i] <= 3.0).count();
-        line += &format!(
-            " {name} |err| worst/median {:.2}/{:.2} %, within 1σ {c1}/{n}, 3σ {c3}/{n};",
-            100.0 * w,
-            100.0 * m
-        );
-    }
-    let (wr, mr) = stat(&|r| r.ratio);
-    line += &format!(" validation ratio worst/median {wr:.3}/{mr:.3}");
-    println!("{line}");
+    println!(
+        "{}",
+        support::summary_line(&rows.iter().collect::<Vec<_>>(), "")
+    );
 }

@@ -115,33 +115,41 @@ impl Axes {
     }
 }
 
-impl Index<AxisName> for Axes {
-    type Output = f64;
+/// `Index<AxisName>` and `IndexMut<AxisName>` for a struct with one field per axis, `x` to `c`:
+/// the one place that maps an axis name to its field.
+macro_rules! index_by_axis_name {
+    ($t:ty, $out:ty) => {
+        impl Index<AxisName> for $t {
+            type Output = $out;
 
-    fn index(&self, axis: AxisName) -> &f64 {
-        match axis {
-            AxisName::X => &self.x,
-            AxisName::Y => &self.y,
-            AxisName::Z => &self.z,
-            AxisName::A => &self.a,
-            AxisName::B => &self.b,
-            AxisName::C => &self.c,
+            fn index(&self, axis: AxisName) -> &$out {
+                match axis {
+                    AxisName::X => &self.x,
+                    AxisName::Y => &self.y,
+                    AxisName::Z => &self.z,
+                    AxisName::A => &self.a,
+                    AxisName::B => &self.b,
+                    AxisName::C => &self.c,
+                }
+            }
         }
-    }
+
+        impl IndexMut<AxisName> for $t {
+            fn index_mut(&mut self, axis: AxisName) -> &mut $out {
+                match axis {
+                    AxisName::X => &mut self.x,
+                    AxisName::Y => &mut self.y,
+                    AxisName::Z => &mut self.z,
+                    AxisName::A => &mut self.a,
+                    AxisName::B => &mut self.b,
+                    AxisName::C => &mut self.c,
+                }
+            }
+        }
+    };
 }
 
-impl IndexMut<AxisName> for Axes {
-    fn index_mut(&mut self, axis: AxisName) -> &mut f64 {
-        match axis {
-            AxisName::X => &mut self.x,
-            AxisName::Y => &mut self.y,
-            AxisName::Z => &mut self.z,
-            AxisName::A => &mut self.a,
-            AxisName::B => &mut self.b,
-            AxisName::C => &mut self.c,
-        }
-    }
-}
+index_by_axis_name!(Axes, f64);
 
 /// What a rotary axis turns: the spindle head (the tool) or the table (the workpiece).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -378,33 +386,7 @@ impl AxisLimits {
     }
 }
 
-impl Index<AxisName> for AxisLimits {
-    type Output = Travel;
-
-    fn index(&self, axis: AxisName) -> &Travel {
-        match axis {
-            AxisName::X => &self.x,
-            AxisName::Y => &self.y,
-            AxisName::Z => &self.z,
-            AxisName::A => &self.a,
-            AxisName::B => &self.b,
-            AxisName::C => &self.c,
-        }
-    }
-}
-
-impl IndexMut<AxisName> for AxisLimits {
-    fn index_mut(&mut self, axis: AxisName) -> &mut Travel {
-        match axis {
-            AxisName::X => &mut self.x,
-            AxisName::Y => &mut self.y,
-            AxisName::Z => &mut self.z,
-            AxisName::A => &mut self.a,
-            AxisName::B => &mut self.b,
-            AxisName::C => &mut self.c,
-        }
-    }
-}
+index_by_axis_name!(AxisLimits, Travel);
 
 /// A point's position, velocity and acceleration (mm, mm/s, mm/s²): the tool tip in the
 /// workpiece frame as a tool-centre-point interpolator produces it, or the slides' motion.

@@ -4,6 +4,9 @@
 //! `Kinematics`. The hashes (FNV-1a over the outputs' bits) were recorded by running the same
 //! inputs through the code of that commit.
 
+mod common;
+
+use common::{ok, spiral};
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
     Axes, AxisLimits, Branch, IkOptions, Kinematics, Pose, TableTiltingAc, Track,
@@ -39,10 +42,6 @@ impl Fnv {
             self.0 = self.0.wrapping_mul(0x100000001b3);
         }
     }
-}
-
-fn ok<T>(r: Result<T, vcnc_kinematics::Error>) -> T {
-    r.unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The hashes of 13c6b18, per model: forward, TCP track, inverse +1, inverse −1.
@@ -169,22 +168,7 @@ fn spiral_sequence_is_bit_identical_to_before_the_families() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../machines/nmv5000.urdf");
     let m = ok(TableTiltingAc::from_urdf_file(path));
     let n = 20_000;
-    let tau = std::f64::consts::TAU;
-    let poses: Vec<Pose> = (0..=n)
-        .map(|i| {
-            let theta = 3.0 * tau * i as f64 / n as f64;
-            let rho = 20.0 + 40.0 * theta / (3.0 * tau);
-            let h = (100.0f64 * 100.0 - rho * rho).sqrt();
-            Pose::new(
-                Vector3::new(
-                    30.0 + rho * theta.cos(),
-                    20.0 + rho * theta.sin(),
-                    -50.0 + h,
-                ),
-                Vector3::new(rho * theta.cos(), rho * theta.sin(), h) / 100.0,
-            )
-        })
-        .collect();
+    let poses = spiral(n);
     let via_urdf = ok(Kinematics::from_urdf_file(path));
     for kin in [m.kinematics(), via_urdf] {
         let sol = ok(kin.inverse_sequence(&poses, &IkOptions::default()));

@@ -2,7 +2,11 @@
 //! `xyzac-trt` kinematics (transcribed, fresh random cases every run), sequence inverse kinematics.
 //! The derivatives of the TCP inverse are checked for every family in tests/families.rs.
 
+mod common;
+
 use std::f64::consts::{PI, TAU};
+
+use common::{ok, spiral};
 
 use proptest::prelude::*;
 use vcnc_kinematics::nalgebra::Vector3;
@@ -23,13 +27,6 @@ fn nmv5000() -> TableTiltingAc {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../machines/nmv5000.urdf");
     match TableTiltingAc::from_urdf_file(path) {
         Ok(m) => m,
-        Err(e) => panic!("{e}"),
-    }
-}
-
-fn ok<T>(r: Result<T, Error>) -> T {
-    match r {
-        Ok(v) => v,
         Err(e) => panic!("{e}"),
     }
 }
@@ -426,26 +423,6 @@ fn bad_parameters_are_rejected() {
 }
 
 // ---- the spiral (docs/contour.md) ------------------------------------------------------------
-
-/// docs/contour.md: 3 turns, radius 20 → 60 mm, tip on a dome of radius 100 mm centred at
-/// (30, 20) in the workpiece frame, tool axis = dome normal.
-fn spiral(n: usize) -> Vec<Pose> {
-    (0..=n)
-        .map(|i| {
-            let theta = 3.0 * TAU * i as f64 / n as f64;
-            let rho = 20.0 + 40.0 * theta / (3.0 * TAU);
-            let h = (100.0f64 * 100.0 - rho * rho).sqrt();
-            Pose::new(
-                Vector3::new(
-                    30.0 + rho * theta.cos(),
-                    20.0 + rho * theta.sin(),
-                    -50.0 + h,
-                ),
-                Vector3::new(rho * theta.cos(), rho * theta.sin(), h) / 100.0,
-            )
-        })
-        .collect()
-}
 
 #[test]
 fn spiral_axis_spans_match_spec() {

@@ -13,7 +13,7 @@ use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
 use vcnc_gcode::{
     AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits, PathMode,
-    PlannerRules, Profile,
+    PlannerRules, Profile, ToolTable,
 };
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
@@ -256,6 +256,8 @@ pub struct Machine {
     pub startup_path_mode: PathMode,
     /// Identification program and identifier settings.
     pub identification: IdentificationSettings,
+    /// Tools for `G43 H` (a LinuxCNC `.tbl` given on the command line; empty by default).
+    pub tools: ToolTable,
 }
 
 /// Where relative paths of a machine file resolve.
@@ -440,6 +442,7 @@ impl Machine {
             tcp_on_mcodes: self.tcp_mcodes.0.clone(),
             tcp_off_mcodes: self.tcp_mcodes.1.clone(),
             path_mode: self.startup_path_mode,
+            tools: self.tools.clone(),
             ..InterpOptions::default()
         }
     }
@@ -551,6 +554,7 @@ impl Checker<'_> {
             tcp_mcodes: (file.gcode.tcp_on_mcodes, file.gcode.tcp_off_mcodes),
             startup_path_mode,
             identification,
+            tools: ToolTable::default(),
         })
     }
 

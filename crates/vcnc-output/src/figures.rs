@@ -13,7 +13,7 @@ use vcnc_pipeline::stats::{scaled_diff, scaled_diff_max_rms};
 use vcnc_pipeline::sweep::SweepOutcome;
 use vcnc_pipeline::{
     AxisIdentification, AxisName, AxisTracking, DriveModel, Frf, IdentificationSource, Machine,
-    PredictPiece, PredictionRecord, ReferenceChunk, SimulatePiece, Sink, Unit,
+    Measured, PredictPiece, PredictionRecord, ReferenceChunk, SimulatePiece, Sink, Unit,
 };
 pub use vcnc_report::Role;
 use vcnc_report::style::units;
@@ -526,6 +526,28 @@ pub struct ModelLabel<'a> {
     pub role: Role,
 }
 
+/// Which of a prediction's outputs [`prediction`] makes from its record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PredictionDrawing {
+    /// The SVG figures (`toolpath_contour.svg`, `tracking_errors.svg`).
+    pub figures: bool,
+    /// `contour_error.svg` from the record (off where [`ContourEnvelopes`] draw it from every
+    /// sample while the record keeps every N-th).
+    pub along_path: bool,
+    /// `toolpath.vtp`.
+    pub vtp: bool,
+}
+
+impl Default for PredictionDrawing {
+    fn default() -> PredictionDrawing {
+        PredictionDrawing {
+            figures: true,
+            along_path: true,
+            vtp: true,
+        }
+    }
+}
+
 /// The figures and the 3-D export of a prediction, models first to last as given (the first
 /// is the vcnc model; the demo adds the paper's method):
 /// - `toolpath_contour.svg`: the true machine's tool-tip path in 3-D (isometric view and the
@@ -547,6 +569,7 @@ pub fn prediction(
     mut record: PredictionRecord,
     measured: &[bool],
     labels: &[ModelLabel<'_>],
+    draw: &PredictionDrawing,
 ) -> Result<()> {
     if record.models.is_empty() {
         return Ok(());
@@ -569,8 +592,19 @@ pub fn prediction(
         })
         .unzip();
     {
-        // The worst blocks are marked among the measured samples only (feed moves unless
-        // --include-rapids), as summary.json's worst_blocks; line 0 is left unmarked.
+        // The figures draw the samples the statistics cover (feed moves unless
+        // --include-rapids): the others are gaps, so a figure's peak is the table's maximum.
+        let masked = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(measured)
+                .map(|(x, m)| if *m { *x } else { f64::NAN })
+                .collect()
+        };
+        let (tip_t, or_t) = (masked(&tip_t), masked(&or_t));
+        let tip_m: Vec<Vec<f64>> = tip_m.iter().map(|v| masked(v)).collect();
+        let or_m: Vec<Vec<f64>> = or_m.iter().map(|v| masked(v)).collect();
+        // The worst blocks are marked among the measured samples only, as summary.json's
+        // worst_blocks; line 0 is left unmarked.
         let lines: Vec<u32> = record
             .lines
             .iter()
@@ -582,76 +616,79 @@ pub fn prediction(
             worst_blocks: WORST_BLOCKS,
             ..PathViewOptions::default()
         };
-        report.figure(
-            "toolpath_contour.svg",
-            vr::contour_path_views(
-                &format!("{name}: tool-tip path coloured by the true machine's contour error"),
-                &ColouredPath {
-                    points_mm: &true_tip,
-                    values: &tip_t,
-                    value: Quantity::new("contour error", units::UM),
-                    block_line: Some(lines),
-                },
-                &opts,
-            ),
-            &format!(
-                "The true machine's tool-tip path in the workpiece frame (isometric view and the \
-                 two projections that show it best), coloured by its contour error; the colour \
-                 scale ends at the {}th percentile so that one spike does not darken the part \
-                 (larger values take the top colour). The {} worst blocks are marked with their \
-                 G-code line numbers.",
-                opts.clip_percentile, opts.worst_blocks
-            ),
-            section::CONTOUR,
-        )?;
-
-        // The arc length of the reference tool-tip path, its poses computed one at a time.
-        let kin = machine.require_kinematics()?;
-        let ref_pos = record.reference_positions();
-        let s = vr::arc_length_mm_of((0..n).map(|k| {
-            let q = kin.pose_at(&ref_pos, k);
-            [q.p.x, q.p.y, q.p.z]
-        }));
-        fn series<'a>(
-            models: &[ModelLabel<'a>],
-            s: &'a [f64],
-            v: &'a [Vec<f64>],
-        ) -> Vec<Series<'a>> {
-            models
-                .iter()
-                .zip(v)
-                .map(|(m, y)| Series::line(m.label, m.role, s, y))
-                .collect()
+        if draw.figures {
+            report.figure(
+                "toolpath_contour.svg",
+                vr::contour_path_views(
+                    &format!("{name}: tool-tip path coloured by the true machine's contour error"),
+                    &ColouredPath {
+                        points_mm: &true_tip,
+                        values: &tip_t,
+                        value: Quantity::new("contour error", units::UM),
+                        block_line: Some(lines),
+                    },
+                    &opts,
+                ),
+                &format!(
+                    "The true machine's tool-tip path in the workpiece frame (isometric view and the \
+                     two projections that show it best), coloured by its contour error; the colour \
+                     scale ends at the {}th percentile so that one spike does not darken the part \
+                     (larger values take the top colour). The {} worst blocks are marked with their \
+                     G-code line numbers.",
+                    opts.clip_percentile, opts.worst_blocks
+                ),
+                section::CONTOUR,
+            )?;
         }
-        let models = labels;
-        let labels: Vec<&str> = models.iter().map(|m| m.label).collect();
-        report.figure(
-            "contour_error.svg",
-            vr::error_along_path(
-                &format!("{name}: contour and orientation errors along the path"),
-                &PathErrors {
-                    arc_length_mm: &s,
-                    contour_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &tip_t),
-                    contour_models: series(&models, &s, &tip_m),
-                    orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
-                    orientation_models: series(&models, &s, &or_m),
-                    block_line: Some(lines),
-                    worst_blocks: WORST_BLOCKS,
-                    points_mm: Some(&true_tip),
-                },
-            ),
-            &format!(
-                "Tool-tip contour error (µm) and tool-orientation error (mrad) against the arc \
+        if draw.figures && draw.along_path {
+            // The arc length of the reference tool-tip path, its poses computed one at a time.
+            let kin = machine.require_kinematics()?;
+            let ref_pos = record.reference_positions();
+            let s = vr::arc_length_mm_of((0..n).map(|k| {
+                let q = kin.pose_at(&ref_pos, k);
+                [q.p.x, q.p.y, q.p.z]
+            }));
+            fn series<'a>(
+                models: &[ModelLabel<'a>],
+                s: &'a [f64],
+                v: &'a [Vec<f64>],
+            ) -> Vec<Series<'a>> {
+                models
+                    .iter()
+                    .zip(v)
+                    .map(|(m, y)| Series::line(m.label, m.role, s, y))
+                    .collect()
+            }
+            let models = labels;
+            let labels: Vec<&str> = models.iter().map(|m| m.label).collect();
+            report.figure(
+                "contour_error.svg",
+                vr::error_along_path(
+                    &format!("{name}: contour and orientation errors along the path"),
+                    &PathErrors {
+                        arc_length_mm: &s,
+                        contour_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &tip_t),
+                        contour_models: series(models, &s, &tip_m),
+                        orientation_truth: Series::line(TRUE_MACHINE, Role::TrueMachine, &s, &or_t),
+                        orientation_models: series(models, &s, &or_m),
+                        block_line: Some(lines),
+                        worst_blocks: WORST_BLOCKS,
+                        points_mm: Some(&true_tip),
+                    },
+                ),
+                &format!(
+                    "Tool-tip contour error (µm) and tool-orientation error (mrad) against the arc \
                  length of the reference tool-tip path, of the true machine and as predicted by \
                  the {}; under each, model − true machine. Dashed lines mark the {WORST_BLOCKS} \
                  worst blocks by their G-code line numbers.",
-                labels.join(" and the ")
-            ),
-            section::CONTOUR,
-        )?;
+                    labels.join(" and the ")
+                ),
+                section::CONTOUR,
+            )?;
+        }
     }
 
-    {
+    if draw.vtp {
         // The 3-D export: the true machine's path with its errors, the models' errors beside
         // them. Written before the tracking figure (the file list keeps its order), which
         // takes the axis positions' memory; the tool axes are computed per point as written.
@@ -681,8 +718,17 @@ pub fn prediction(
             });
         }
         write_vtp(&report.dir().join(TOOLPATH_VTP), &vtp, VtpEncoding::Base64)?;
+        report.file(
+            TOOLPATH_VTP,
+            "VTK PolyData (ParaView): the true machine's tool-tip path (mm, workpiece frame) with \
+             contour_error_um, orientation_error_mrad, the tool_axis vectors and block_line per \
+             point, and each model's errors",
+        );
     }
     drop((true_tip, tip_t, or_t, tip_m, or_m));
+    if !draw.figures {
+        return Ok(());
+    }
 
     // Tracking errors: each model set's axis positions become its errors in place.
     let tracks = prediction_tracking(machine, &mut record);
@@ -700,12 +746,6 @@ pub fn prediction(
         "Tracking error x_r − x of each axis the program moves (axes it leaves still are left \
          out): the true drives and the models; below each, model − true machine.",
     )?;
-    report.file(
-        TOOLPATH_VTP,
-        "VTK PolyData (ParaView): the true machine's tool-tip path (mm, workpiece frame) with \
-         contour_error_um, orientation_error_mrad, the tool_axis vectors and block_line per \
-         point, and each model's errors",
-    );
     Ok(())
 }
 
@@ -983,13 +1023,17 @@ impl Sink<ReferenceChunk> for ReferenceEnvelopes {
 pub struct ContourEnvelopes {
     /// True tip, model tip, |Δ tip|, true orientation, model orientation, |Δ orientation|.
     env: [Envelope; 6],
+    /// The samples drawn: those the statistics cover.
+    measured: Measured,
 }
 
 impl ContourEnvelopes {
-    /// Envelopes over `samples` samples.
-    pub fn new(samples: usize) -> ContourEnvelopes {
+    /// Envelopes over `samples` samples, of the samples `measured` selects (those the
+    /// statistics cover: the figure's peak is the table's maximum).
+    pub fn new(samples: usize, measured: Measured) -> ContourEnvelopes {
         ContourEnvelopes {
             env: std::array::from_fn(|_| Envelope::new(samples, ENVELOPE_COLUMNS)),
+            measured,
         }
     }
 
@@ -1006,26 +1050,27 @@ impl Sink<PredictPiece> for ContourEnvelopes {
         let Some(m) = p.models.first() else {
             return Ok(());
         };
+        let mask = self.measured.mask(&p.classes);
         let [tt, pt, dt, to, po, dor] = &mut self.env;
         let t = &p.truth;
-        let k = 1e3;
-        tt.add(p.first, t.tip_mm.iter().map(|x| x * k));
-        pt.add(p.first, m.tip_mm.iter().map(|x| x * k));
-        dt.add(
-            p.first,
-            t.tip_mm
-                .iter()
-                .zip(&m.tip_mm)
-                .map(|(x, y)| (y - x).abs() * k),
-        );
-        to.add(p.first, t.orientation_rad.iter().map(|x| x * k));
-        po.add(p.first, m.orientation_rad.iter().map(|x| x * k));
+        // µm or mrad of the measured samples; NaN (left out of the envelope) elsewhere.
+        let scaled = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(&mask)
+                .map(|(x, m)| if *m { x * 1e3 } else { f64::NAN })
+                .collect()
+        };
+        let diff = |a: &[f64], b: &[f64]| -> Vec<f64> {
+            a.iter().zip(b).map(|(x, y)| (y - x).abs()).collect()
+        };
+        tt.add(p.first, scaled(&t.tip_mm));
+        pt.add(p.first, scaled(&m.tip_mm));
+        dt.add(p.first, scaled(&diff(&t.tip_mm, &m.tip_mm)));
+        to.add(p.first, scaled(&t.orientation_rad));
+        po.add(p.first, scaled(&m.orientation_rad));
         dor.add(
             p.first,
-            t.orientation_rad
-                .iter()
-                .zip(&m.orientation_rad)
-                .map(|(x, y)| (y - x).abs() * k),
+            scaled(&diff(&t.orientation_rad, &m.orientation_rad)),
         );
         Ok(())
     }

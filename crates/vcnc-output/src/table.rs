@@ -20,6 +20,7 @@ use parquet::arrow::ArrowWriter;
 use parquet::basic::Compression;
 use parquet::file::properties::WriterProperties;
 
+use vcnc_pipeline::predict::ActualPiece;
 use vcnc_pipeline::{AxisName, Machine, PredictPiece, ReferenceChunk, SimulatePiece, Sink, Source};
 
 use crate::files::{format_num, persist, temp_file};
@@ -605,6 +606,43 @@ pub fn contour_header(axes: &[AxisName]) -> Vec<String> {
     header
 }
 
+/// Appends the columns of [`contour_header`] for piece `p` with the model sequence `model`
+/// (sample period `ts`) to `cols`, one buffer per header column: the layout of `contour.csv`,
+/// shared by the table and the Python binding.
+pub fn append_contour_columns(
+    p: &PredictPiece,
+    model: &ActualPiece,
+    ts: f64,
+    cols: &mut [Vec<f64>],
+) {
+    let mut c = cols.iter_mut();
+    let mut next = || c.next().expect("one buffer per header column");
+    next().extend((p.first..p.first + p.len()).map(|k| k as f64 * ts));
+    next().extend(p.lines.iter().map(|l| f64::from(*l)));
+    for i in 0..p.reference.len() {
+        for s in [&p.reference[i], &p.truth.positions[i], &model.positions[i]] {
+            next().extend_from_slice(s);
+        }
+    }
+    for poses in [&p.reference_poses, &p.truth.poses, &model.poses] {
+        for i in 0..6 {
+            next().extend(
+                poses
+                    .iter()
+                    .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
+            );
+        }
+    }
+    for e in [
+        &p.truth.tip_mm,
+        &model.tip_mm,
+        &p.truth.orientation_rad,
+        &model.orientation_rad,
+    ] {
+        next().extend(e.iter().map(|x| x * 1000.0));
+    }
+}
+
 /// The `contour` table of `vcnc predict` (the first model set), written piece by piece.
 pub struct ContourTable {
     writer: TableWriter,
@@ -643,34 +681,17 @@ impl Sink<PredictPiece> for ContourTable {
             return Ok(());
         };
         self.cols.iter_mut().for_each(Vec::clear);
-        let mut c = self.cols.iter_mut();
-        let mut next = || c.next().expect("one buffer per header column");
-        next().extend((p.first..p.first + p.len()).map(|k| k as f64 * self.ts));
-        next().extend(p.lines.iter().map(|l| f64::from(*l)));
-        for i in 0..p.reference.len() {
-            for s in [&p.reference[i], &p.truth.positions[i], &model.positions[i]] {
-                next().extend_from_slice(s);
-            }
-        }
-        for poses in [&p.reference_poses, &p.truth.poses, &model.poses] {
-            for i in 0..6 {
-                next().extend(
-                    poses
-                        .iter()
-                        .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
-                );
-            }
-        }
-        for e in [
-            &p.truth.tip_mm,
-            &model.tip_mm,
-            &p.truth.orientation_rad,
-            &model.orientation_rad,
-        ] {
-            next().extend(e.iter().map(|x| x * 1000.0));
-        }
+        append_contour_columns(p, model, self.ts, &mut self.cols);
         let refs: Vec<&[f64]> = self.cols.iter().map(Vec::as_slice).collect();
         self.writer.write(&refs)
+    }
+}
+
+/// A Parquet or Arrow encoding failure of the table at `path`.
+fn encode(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Encode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
     }
 }
 
@@ -861,13 +882,5 @@ mod tests {
         .unwrap();
         assert!(e.to_string().contains("--columns Q"), "{e}");
         assert!(e.is_bad_input());
-    }
-}
-
-/// A Parquet or Arrow encoding failure of the table at `path`.
-fn encode(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Encode {
-        path: path.to_path_buf(),
-        message: e.to_string(),
     }
 }

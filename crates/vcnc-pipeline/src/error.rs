@@ -35,6 +35,19 @@ pub enum Error {
         /// The interpolator's error.
         source: vcnc_gcode::Error,
     },
+    /// A LinuxCNC tool table (`.tbl`) has a wrong line (its file and line are in the message).
+    #[error("{0}")]
+    ToolTable(vcnc_gcode::Error),
+    /// A program without motion where a run needs some.
+    #[error(
+        "{file}: the program moves no axis ({samples} samples at rest); nothing to predict: give a program with G0/G1/G2/G3 moves"
+    )]
+    NoMotion {
+        /// The program's path.
+        file: String,
+        /// Samples of its reference.
+        samples: usize,
+    },
     /// An axis leaves its travel.
     #[error(
         "{file}:{line}: axis {axis} reaches {value:.4} {unit}, beyond its travel {lower} ..= {upper} {unit} (at t = {t_s:.3} s){}",
@@ -419,6 +432,8 @@ impl Error {
             Error::Contour(e) => e.is_bad_input(),
             Error::Compensate { source, .. } => source.is_bad_input(),
             Error::Io { .. }
+            | Error::ToolTable(_)
+            | Error::NoMotion { .. }
             | Error::Program { .. }
             | Error::Travel { .. }
             | Error::Table { .. }

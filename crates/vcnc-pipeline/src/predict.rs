@@ -18,6 +18,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use rayon::prelude::*;
 use serde::Serialize;
+use vcnc_axis::Unit;
 use vcnc_contour::{ContourStream, SearchWindow, StreamLimits};
 use vcnc_drive::Channels;
 use vcnc_gcode::MoveClass;
@@ -64,6 +65,8 @@ pub struct PredictPiece {
     pub lines: Vec<u32>,
     /// Per sample: the kind of move running.
     pub classes: Vec<Option<MoveClass>>,
+    /// Per sample: what the reference does there ([`BlockFlags`]).
+    pub flags: Vec<BlockFlags>,
     /// Per machine axis: the reference position, mm or deg.
     pub reference: Vec<Vec<f64>>,
     /// Reference tool poses.
@@ -88,6 +91,7 @@ impl PredictPiece {
     fn clear(&mut self) {
         self.lines.clear();
         self.classes.clear();
+        self.flags.clear();
         self.reference.iter_mut().for_each(Vec::clear);
         self.reference_poses.clear();
         self.truth.clear();
@@ -127,7 +131,8 @@ pub struct PredictOutcome {
 
 /// Runs the reference of `source` through the true drives and through each model set of
 /// `models`, evaluates every contour error, and hands each piece of finished samples to `sink`
-/// in order (module documentation).
+/// in order (module documentation). A program that moves no axis is refused
+/// ([`Error::NoMotion`]): there is no contour to measure.
 pub fn predict<S: Sink<PredictPiece>>(
     machine: &Machine,
     source: Source<'_>,
@@ -135,6 +140,13 @@ pub fn predict<S: Sink<PredictPiece>>(
     opts: &PredictOptions,
     sink: &mut S,
 ) -> Result<PredictOutcome, S::Error> {
+    if !source.has_motion() {
+        return Err(Error::NoMotion {
+            file: source.file().to_string(),
+            samples: source.len(),
+        }
+        .into());
+    }
     let axes = machine.axes.len();
     let which = opts.measured;
     let kin = machine.require_kinematics().map_err(Error::from)?;
@@ -148,8 +160,9 @@ pub fn predict<S: Sink<PredictPiece>>(
     let mut tracking = vec![MaxRms::default(); if opts.tracking { axes } else { 0 }];
     let mut model_runs = ModelRuns::new(machine, models, ts, true)?;
     let mut pending = Pending::new(axes, 1 + models.len())?;
-    let mut stats = Statistics::new(models.len());
+    let mut stats = Statistics::new(models.len(), ts, machine);
     let mut piece = PredictPiece::default();
+    let mut flagger = Flagger::new(machine);
 
     let mut on_chunk = |c: &ReferenceChunk| -> Result<(), S::Error> {
         let n = c.len();
@@ -165,6 +178,10 @@ pub fn predict<S: Sink<PredictPiece>>(
         }
         pending.lines.extend(&c.line);
         pending.classes.extend(&c.class);
+        // The reference poses, to every search.
+        let pos = c.positions();
+        let poses: Vec<Pose> = (0..n).map(|k| kin.pose_at(&pos, k)).collect();
+        flagger.flag(machine, c, &poses, &mut pending.flags);
         for i in 0..axes {
             pending.reference[i].extend(&c.pos[i]);
             pending.actual[0].positions[i].extend(&drives.traces[i].true_position);
@@ -172,9 +189,6 @@ pub fn predict<S: Sink<PredictPiece>>(
                 set.positions[i].extend(&out[i]);
             }
         }
-        // The reference poses, to every search.
-        let pos = c.positions();
-        let poses: Vec<Pose> = (0..n).map(|k| kin.pose_at(&pos, k)).collect();
         for a in &mut pending.actual {
             a.search
                 .push_reference(poses.iter().copied())
@@ -216,7 +230,8 @@ pub fn predict<S: Sink<PredictPiece>>(
         }
         .into());
     }
-    let (truth, summaries, figures) = stats.finish(which);
+    let texts = block_texts(&source, &stats.worst.lines());
+    let (truth, summaries, figures) = stats.finish(which, machine, kin, &texts);
     let mut warnings = source.warnings().to_vec();
     warnings.extend(reference.warnings.iter().cloned());
     Ok(PredictOutcome {
@@ -288,6 +303,7 @@ struct Pending {
     base: usize,
     lines: VecDeque<u32>,
     classes: VecDeque<Option<MoveClass>>,
+    flags: VecDeque<BlockFlags>,
     reference: Vec<VecDeque<f64>>,
     reference_poses: VecDeque<Pose>,
     /// The true machine first, then each model set.
@@ -300,6 +316,7 @@ impl Pending {
             base: 0,
             lines: VecDeque::new(),
             classes: VecDeque::new(),
+            flags: VecDeque::new(),
             reference: vec![VecDeque::new(); axes],
             reference_poses: VecDeque::new(),
             actual: (0..actual)
@@ -353,6 +370,7 @@ impl Pending {
         piece.first = self.base;
         piece.lines.extend(self.lines.drain(..n));
         piece.classes.extend(self.classes.drain(..n));
+        piece.flags.extend(self.flags.drain(..n));
         piece.reference.resize_with(self.reference.len(), Vec::new);
         for (d, s) in piece.reference.iter_mut().zip(&mut self.reference) {
             d.extend(s.drain(..n));
@@ -373,7 +391,7 @@ impl Pending {
 }
 
 /// The statistics of `summary.json`, accumulated sample by sample: per model set the six
-/// contour figures, and the worst lines of the true machine.
+/// contour figures, and the worst lines of the true machine with what happens in them.
 struct Statistics {
     /// True tip, true orientation.
     truth: [MaxRms; 2],
@@ -382,21 +400,32 @@ struct Statistics {
     sets: Vec<[MaxRms; 6]>,
     samples: usize,
     worst: WorstLines,
+    /// Sample period, s.
+    ts: f64,
+    /// Per machine axis: rotary (deg).
+    rotary: Vec<bool>,
+    /// The previous sample's reference and true tool tips, mm.
+    last_tips: Option<([f64; 3], [f64; 3])>,
 }
 
 impl Statistics {
-    fn new(sets: usize) -> Statistics {
+    fn new(sets: usize, ts: f64, machine: &Machine) -> Statistics {
         Statistics {
             truth: [MaxRms::default(); 2],
             sets: vec![[MaxRms::default(); 6]; sets],
             samples: 0,
             worst: WorstLines::default(),
+            ts,
+            rotary: machine.axes.iter().map(|a| a.unit == Unit::Deg).collect(),
+            last_tips: None,
         }
     }
 
     fn add(&mut self, p: &PredictPiece, which: Measured) {
         self.samples += p.len();
         for k in 0..p.len() {
+            let tips = (tip(&p.reference_poses[k]), tip(&p.truth.poses[k]));
+            let (last_ref, last_true) = self.last_tips.replace(tips).unwrap_or(tips);
             if which == Measured::Feed && p.classes[k] != Some(MoveClass::Feed) {
                 continue;
             }
@@ -413,7 +442,24 @@ impl Statistics {
                 }
             }
             if p.lines[k] != 0 {
-                self.worst.add(p.lines[k], tt, to);
+                let mut s = LineSample {
+                    class: p.classes[k],
+                    flags: p.flags.get(k).copied().unwrap_or_default(),
+                    tangent: sub(tips.0, last_ref),
+                    planned_mm_s: norm(sub(tips.0, last_ref)) / self.ts,
+                    achieved_mm_s: norm(sub(tips.1, last_true)) / self.ts,
+                    ..LineSample::default()
+                };
+                for (i, rotary) in self.rotary.iter().enumerate().take(MAX_AXES) {
+                    s.reference[i] = p.reference[i][k];
+                    s.actual[i] = p.truth.positions[i][k];
+                    s.rotary_range[i] = if *rotary {
+                        [p.reference[i][k]; 2]
+                    } else {
+                        [0.0; 2]
+                    };
+                }
+                self.worst.add(p.lines[k], tt, to, &s);
             }
         }
     }
@@ -422,8 +468,21 @@ impl Statistics {
     fn finish(
         self,
         which: Measured,
+        machine: &Machine,
+        kin: &Kinematics,
+        texts: &BTreeMap<u32, String>,
     ) -> ((Figure, Figure), Vec<ContourSummary>, Vec<ContourFigures>) {
-        let worst = ranked_blocks(self.worst.finish(), WORST_BLOCKS);
+        let details = self.worst.finish_detailed();
+        let per_line = details
+            .iter()
+            .map(|(l, (t, o, _))| (*l, (*t, *o)))
+            .collect();
+        let mut worst = ranked_blocks(per_line, WORST_BLOCKS);
+        for b in &mut worst {
+            if let Some((_, _, d)) = details.get(&b.line) {
+                b.cause = Some(d.cause(machine, kin, texts.get(&b.line)));
+            }
+        }
         let samples = self.samples;
         let [(tmax, trms), (omax, orms)] = self.truth.map(|a| a.max_rms());
         let truth = (
@@ -475,8 +534,281 @@ impl Statistics {
     }
 }
 
+fn tip(q: &Pose) -> [f64; 3] {
+    [q.p.x, q.p.y, q.p.z]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// Most machine axes (X Y Z A B C).
+const MAX_AXES: usize = 6;
+
+/// A reference velocity or acceleration at least this share of the axis' limit counts as
+/// running at the limit.
+pub const LIMIT_SHARE: f64 = 0.99;
+
+/// The tool-tip path's direction is taken over chords of this length, mm, for
+/// [`BlockFlags::sharp_corner`] (short enough for a corner's blend, long enough that the
+/// sample period and the feed do not matter).
+pub const CORNER_CHORD_MM: f64 = 0.05;
+
+/// A turn of the path direction of more than this between consecutive chords is a sharp
+/// corner, deg.
+pub const CORNER_DEG: f64 = 30.0;
+
+/// A block that turns a rotary axis by more than this is unwinding it, deg: the same
+/// orientation lay less than half a turn away.
+pub const UNWIND_DEG: f64 = 180.0;
+
+/// What the reference does in a block, the usual causes of a large contour error
+/// (docs/contour.md#why-a-block-is-bad).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct BlockFlags {
+    /// Some axis' reference velocity or acceleration reaches [`LIMIT_SHARE`] of its limit:
+    /// the planner ran the block at the machine's limits.
+    pub axis_limit: bool,
+    /// Some axis' reference velocity changes sign (after standing still or not): friction
+    /// and backlash act there.
+    pub axis_reversal: bool,
+    /// The tool-tip path turns by more than [`CORNER_DEG`] between two chords of
+    /// [`CORNER_CHORD_MM`].
+    pub sharp_corner: bool,
+    /// A rotary axis turns by more than [`UNWIND_DEG`] within the block.
+    pub rotary_unwinding: bool,
+}
+
+impl BlockFlags {
+    fn or(self, o: BlockFlags) -> BlockFlags {
+        BlockFlags {
+            axis_limit: self.axis_limit || o.axis_limit,
+            axis_reversal: self.axis_reversal || o.axis_reversal,
+            sharp_corner: self.sharp_corner || o.sharp_corner,
+            rotary_unwinding: self.rotary_unwinding || o.rotary_unwinding,
+        }
+    }
+
+    /// The flags set, as words: `axis limit`, `reversal`, `sharp corner`, `unwinding`.
+    pub fn words(&self) -> Vec<&'static str> {
+        [
+            (self.axis_limit, "axis limit"),
+            (self.axis_reversal, "reversal"),
+            (self.sharp_corner, "sharp corner"),
+            (self.rotary_unwinding, "unwinding"),
+        ]
+        .into_iter()
+        .filter_map(|(on, w)| on.then_some(w))
+        .collect()
+    }
+}
+
+/// Per-sample [`BlockFlags`] of the reference, piece by piece: keeps each axis' last moving
+/// direction and the path's last chord between pieces, so any split gives the same flags.
+struct Flagger {
+    /// Per machine axis: the sign of its last velocity that was not still (0: none yet).
+    sign: Vec<f64>,
+    /// The start of the current chord and the previous chord's unit direction.
+    anchor: Option<[f64; 3]>,
+    direction: Option<[f64; 3]>,
+}
+
+impl Flagger {
+    fn new(machine: &Machine) -> Flagger {
+        Flagger {
+            sign: vec![0.0; machine.axes.len()],
+            anchor: None,
+            direction: None,
+        }
+    }
+
+    fn flag(
+        &mut self,
+        machine: &Machine,
+        c: &ReferenceChunk,
+        poses: &[Pose],
+        out: &mut VecDeque<BlockFlags>,
+    ) {
+        let cos_corner = CORNER_DEG.to_radians().cos();
+        for (k, pose) in poses.iter().enumerate().take(c.len()) {
+            let mut f = BlockFlags::default();
+            for (i, a) in machine.axes.iter().enumerate() {
+                let (v, acc) = (c.vel[i][k], c.acc[i][k]);
+                f.axis_limit |= v.abs() >= LIMIT_SHARE * a.max_velocity
+                    || acc.abs() >= LIMIT_SHARE * a.max_acceleration;
+                // Still: below a millionth of the velocity limit (the rounding of the inverse
+                // kinematics stays far below it).
+                if v.abs() > 1e-6 * a.max_velocity {
+                    let s = v.signum();
+                    f.axis_reversal |= self.sign[i] != 0.0 && s != self.sign[i];
+                    self.sign[i] = s;
+                }
+            }
+            let p = tip(pose);
+            let anchor = *self.anchor.get_or_insert(p);
+            let chord = sub(p, anchor);
+            let len = norm(chord);
+            if len >= CORNER_CHORD_MM {
+                let d = chord.map(|x| x / len);
+                if let Some(prev) = self.direction {
+                    f.sharp_corner = dot(prev, d) < cos_corner;
+                }
+                self.direction = Some(d);
+                self.anchor = Some(p);
+            }
+            out.push_back(f);
+        }
+    }
+}
+
+/// What the worst-ranked sample of a line and the line's run show.
+#[derive(Debug, Clone, Copy, Default)]
+struct LineSample {
+    class: Option<MoveClass>,
+    /// Flags, or-ed over the line.
+    flags: BlockFlags,
+    /// At the worst sample: per machine axis, reference and true position.
+    reference: [f64; MAX_AXES],
+    actual: [f64; MAX_AXES],
+    /// At the worst sample: the reference tool tip's step, mm (its direction).
+    tangent: [f64; 3],
+    /// Largest reference / true tool-tip speed over the line, mm/s.
+    planned_mm_s: f64,
+    achieved_mm_s: f64,
+    /// Per rotary machine axis: the reference's range over the line, deg.
+    rotary_range: [[f64; 2]; MAX_AXES],
+}
+
+impl LineSample {
+    /// Takes `o` (a later sample or run of the same line) in; `o_worse`: its error is the
+    /// larger, so its worst sample becomes the line's.
+    fn merge(&mut self, o: &LineSample, o_worse: bool) {
+        if o_worse {
+            self.class = o.class;
+            self.reference = o.reference;
+            self.actual = o.actual;
+            self.tangent = o.tangent;
+        }
+        self.flags = self.flags.or(o.flags);
+        self.planned_mm_s = self.planned_mm_s.max(o.planned_mm_s);
+        self.achieved_mm_s = self.achieved_mm_s.max(o.achieved_mm_s);
+        for (r, x) in self.rotary_range.iter_mut().zip(&o.rotary_range) {
+            *r = [r[0].min(x[0]), r[1].max(x[1])];
+        }
+    }
+
+    /// Why the line is bad: its flags, speeds and the axis whose following error moves the
+    /// tool tip most across the path at the worst sample.
+    fn cause(&self, machine: &Machine, kin: &Kinematics, text: Option<&String>) -> BlockCause {
+        let axes = machine.axes.len().min(MAX_AXES);
+        let column =
+            |q: &[f64; MAX_AXES]| -> Vec<[f64; 1]> { q[..axes].iter().map(|x| [*x]).collect() };
+        let pose_of = |cols: &[[f64; 1]]| {
+            let s: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
+            tip(&kin.pose_at(&s, 0))
+        };
+        let base = column(&self.reference);
+        let p0 = pose_of(&base);
+        let t = norm(self.tangent);
+        let across = |d: [f64; 3]| {
+            if t > 0.0 {
+                let u = self.tangent.map(|x| x / t);
+                let along = dot(d, u);
+                norm([
+                    d[0] - along * u[0],
+                    d[1] - along * u[1],
+                    d[2] - along * u[2],
+                ])
+            } else {
+                norm(d)
+            }
+        };
+        let mut best: Option<(usize, f64)> = None;
+        for i in 0..axes {
+            let mut q = base.clone();
+            q[i] = [self.actual[i]];
+            let share = across(sub(pose_of(&q), p0));
+            if best.is_none_or(|(_, b)| share > b) {
+                best = Some((i, share));
+            }
+        }
+        let mut flags = self.flags;
+        flags.rotary_unwinding = self
+            .rotary_range
+            .iter()
+            .any(|[lo, hi]| hi - lo > UNWIND_DEG);
+        BlockCause {
+            text: text.cloned().unwrap_or_default(),
+            kind: match self.class {
+                Some(MoveClass::Feed) => "cutting",
+                Some(MoveClass::Rapid) => "link",
+                Some(MoveClass::Dwell) => "dwell",
+                None => "",
+            },
+            planned_feed_mm_min: self.planned_mm_s * 60.0,
+            achieved_feed_mm_min: self.achieved_mm_s * 60.0,
+            axis: best.map_or(String::new(), |(i, _)| machine.axes[i].name.to_string()),
+            axis_share_um: best.map_or(0.0, |(_, s)| s * 1e3),
+            flags,
+        }
+    }
+}
+
+/// The G-code text of `lines` (trimmed, at most [`TEXT_CHARS`] characters), read from the
+/// program of `source` again (a prepared run's file where it is on disk).
+fn block_texts(source: &Source<'_>, lines: &[u32]) -> BTreeMap<u32, String> {
+    let wanted: std::collections::BTreeSet<u32> = lines.iter().copied().collect();
+    let mut out = BTreeMap::new();
+    let Some(&last) = wanted.last() else {
+        return out;
+    };
+    let mut take = |n: usize, l: &str| {
+        let n = u32::try_from(n + 1).unwrap_or(u32::MAX);
+        if wanted.contains(&n) {
+            out.insert(n, l.trim().chars().take(TEXT_CHARS).collect());
+        }
+        n < last
+    };
+    let path = match source {
+        Source::Streamed(s) => match &s.program {
+            crate::source::Program::Text { text, .. } => {
+                for (n, l) in text.lines().enumerate() {
+                    if !take(n, l) {
+                        break;
+                    }
+                }
+                return out;
+            }
+            crate::source::Program::File(p) => p.clone(),
+        },
+        Source::Prepared(r) => std::path::PathBuf::from(&r.file),
+    };
+    // The texts are a courtesy of the table: a file gone since the run leaves them empty.
+    if let Ok(f) = std::fs::File::open(path) {
+        use std::io::BufRead;
+        for (n, l) in std::io::BufReader::new(f).split(b'\n').enumerate() {
+            let Ok(l) = l else { break };
+            if !take(n, &String::from_utf8_lossy(&l)) {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// Characters of a block's G-code text kept in [`BlockCause::text`].
+pub const TEXT_CHARS: usize = 120;
+
 /// A block of the program and its largest contour errors.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct WorstBlock {
     /// Source line of the block.
     pub line: u32,
@@ -484,6 +816,30 @@ pub struct WorstBlock {
     pub contour_max_um: f64,
     /// Its largest orientation contour error, mrad.
     pub orientation_max_mrad: f64,
+    /// Where and why (a prediction's worst blocks; `None` from [`worst_blocks`]).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub cause: Option<BlockCause>,
+}
+
+/// Where a worst block is and what happens in it (docs/contour.md#why-a-block-is-bad).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlockCause {
+    /// The block's G-code text (trimmed; empty when the program cannot be read again).
+    pub text: String,
+    /// `cutting` (a feed move), `link` (a rapid), `dwell`, at the worst sample.
+    pub kind: &'static str,
+    /// The reference's largest tool-tip speed over the block (the feed the planner gave it
+    /// within the machine's limits), mm/min.
+    pub planned_feed_mm_min: f64,
+    /// The true machine's largest tool-tip speed over the block, mm/min.
+    pub achieved_feed_mm_min: f64,
+    /// The machine axis whose following error alone moves the tool tip farthest across the
+    /// path at the worst sample (its reference with that one axis at its true position).
+    pub axis: String,
+    /// That axis' share: the tool tip's move across the path, µm.
+    pub axis_share_um: f64,
+    /// What the reference does in the block.
+    pub flags: BlockFlags,
 }
 
 /// The `n` source lines with the largest tool-tip error (mm) among the samples `mask` selects,
@@ -516,6 +872,7 @@ pub(crate) fn ranked_blocks(per_line: BTreeMap<u32, (f64, f64)>, n: usize) -> Ve
             line,
             contour_max_um: t * 1e3,
             orientation_max_mrad: o * 1e3,
+            cause: None,
         })
         .collect();
     v.sort_by(|a, b| {
@@ -606,6 +963,10 @@ pub struct PredictSummary {
     pub actual_latency_s: BTreeMap<String, f64>,
     /// Warnings of the run.
     pub warnings: Vec<String>,
+    /// The per-sample outputs keep every `decimate`-th sample (1: all).
+    pub decimate: usize,
+    /// Bytes of each per-sample output written before the summary (table, figures, VTP).
+    pub output_bytes: BTreeMap<String, u64>,
 }
 
 impl PredictSummary {
@@ -629,6 +990,8 @@ impl PredictSummary {
                 .map(|(a, l)| (a.name.to_string(), l))
                 .collect(),
             warnings,
+            decimate: 1,
+            output_bytes: BTreeMap::new(),
         }
     }
 }
@@ -639,45 +1002,52 @@ impl PredictSummary {
 /// [`WORST_BLOCKS`] lines so far, ranked as [`worst_blocks`] ranks them (larger error first,
 /// then the smaller line). The list and every line's largest tool-tip error in it are exactly
 /// the whole run's: a line outside the list at some time had a smaller error than all of it,
-/// and the list's last error only grows. So is each listed line's orientation error, unless the
-/// line ran more than once (O-word loops and calls) and left the list between its runs: its
-/// orientation maximum then covers the runs since it came back (docs/performance.md).
+/// and the list's last error only grows. So is each listed line's orientation error (and what
+/// [`BlockCause`] says of it), unless the line ran more than once (O-word loops and calls) and
+/// left the list between its runs: it then covers the runs since it came back
+/// (docs/performance.md).
 #[derive(Debug, Default)]
 pub struct WorstLines {
-    /// The run being read: line, largest tool-tip and orientation errors.
-    run: Option<(u32, f64, f64)>,
-    /// The best lines so far: line → (tool tip, orientation).
-    best: BTreeMap<u32, (f64, f64)>,
+    /// The run being read: line, largest tool-tip and orientation errors, what it shows.
+    run: Option<(u32, f64, f64, LineSample)>,
+    /// The best lines so far: line → (tool tip, orientation, what it shows).
+    best: BTreeMap<u32, (f64, f64, LineSample)>,
 }
 
 impl WorstLines {
     /// The next measured sample: its line (not 0) and its errors (mm, rad).
-    pub fn add(&mut self, line: u32, tip: f64, orientation: f64) {
+    pub fn add_errors(&mut self, line: u32, tip: f64, orientation: f64) {
+        self.add(line, tip, orientation, &LineSample::default());
+    }
+
+    fn add(&mut self, line: u32, tip: f64, orientation: f64, s: &LineSample) {
         match &mut self.run {
-            Some((l, t, o)) if *l == line => {
+            Some((l, t, o, d)) if *l == line => {
+                d.merge(s, tip > *t);
                 *t = t.max(tip);
                 *o = o.max(orientation);
             }
             run => {
-                if let Some(r) = run.replace((line, tip, orientation)) {
+                if let Some(r) = run.replace((line, tip, orientation, *s)) {
                     self.offer(r);
                 }
             }
         }
     }
 
-    fn offer(&mut self, (line, tip, orientation): (u32, f64, f64)) {
+    fn offer(&mut self, (line, tip, orientation, s): (u32, f64, f64, LineSample)) {
         if let Some(e) = self.best.get_mut(&line) {
+            e.2.merge(&s, tip > e.0);
             e.0 = e.0.max(tip);
             e.1 = e.1.max(orientation);
             return;
         }
         if self.best.len() < WORST_BLOCKS {
-            self.best.insert(line, (tip, orientation));
+            self.best.insert(line, (tip, orientation, s));
             return;
         }
         // The last of the list: the smallest error, of equal ones the largest line.
-        let Some((&last, &(t_last, _))) = self
+        let Some((&last, &(t_last, _, _))) = self
             .best
             .iter()
             .min_by(|a, b| (a.1.0 * 1e3).total_cmp(&(b.1.0 * 1e3)).then(b.0.cmp(a.0)))
@@ -691,16 +1061,30 @@ impl WorstLines {
             .is_gt()
         {
             self.best.remove(&last);
-            self.best.insert(line, (tip, orientation));
+            self.best.insert(line, (tip, orientation, s));
         }
     }
 
-    /// The best lines: line → (largest tool-tip error mm, orientation error rad).
-    pub fn finish(mut self) -> BTreeMap<u32, (f64, f64)> {
+    /// The lines in the list so far (the run being read included).
+    fn lines(&self) -> Vec<u32> {
+        let mut v: Vec<u32> = self.best.keys().copied().collect();
+        v.extend(self.run.map(|r| r.0));
+        v
+    }
+
+    fn finish_detailed(mut self) -> BTreeMap<u32, (f64, f64, LineSample)> {
         if let Some(r) = self.run.take() {
             self.offer(r);
         }
         self.best
+    }
+
+    /// The best lines: line → (largest tool-tip error mm, orientation error rad).
+    pub fn finish(self) -> BTreeMap<u32, (f64, f64)> {
+        self.finish_detailed()
+            .into_iter()
+            .map(|(l, (t, o, _))| (l, (t, o)))
+            .collect()
     }
 }
 
@@ -708,6 +1092,9 @@ impl WorstLines {
 /// (poses excepted: they are the forward kinematics of the positions, recomputed where drawn).
 #[derive(Debug, Clone, Default)]
 pub struct PredictionRecord {
+    /// Keep every `every`-th sample only (samples 0, N, 2N, …; 0 or 1 keeps every one): a
+    /// long program's figures and `.vtp` in bounded memory.
+    pub every: usize,
     /// Per sample: the source line of the block running.
     pub lines: Vec<u32>,
     /// Per sample: the kind of move running.
@@ -732,15 +1119,6 @@ pub struct ActualRecord {
 }
 
 impl ActualRecord {
-    fn extend(&mut self, p: &ActualPiece) {
-        self.positions.resize_with(p.positions.len(), Vec::new);
-        for (d, s) in self.positions.iter_mut().zip(&p.positions) {
-            d.extend_from_slice(s);
-        }
-        self.tip_mm.extend_from_slice(&p.tip_mm);
-        self.orientation_rad.extend_from_slice(&p.orientation_rad);
-    }
-
     /// The positions per machine axis.
     pub fn positions(&self) -> Vec<&[f64]> {
         self.positions.iter().map(Vec::as_slice).collect()
@@ -769,21 +1147,178 @@ impl PredictionRecord {
     }
 }
 
+impl PredictionRecord {
+    /// A record of every `every`-th sample.
+    pub fn every(every: usize) -> PredictionRecord {
+        PredictionRecord {
+            every,
+            ..PredictionRecord::default()
+        }
+    }
+}
+
 impl Sink<PredictPiece> for PredictionRecord {
     type Error = Error;
     fn piece(&mut self, p: &PredictPiece) -> Result<(), Error> {
-        self.lines.extend_from_slice(&p.lines);
-        self.classes.extend_from_slice(&p.classes);
+        let every = self.every.max(1);
+        // The piece's samples kept: those whose index is a multiple of `every`.
+        let start = (every - p.first % every) % every;
+        let keep = |v: &[f64], out: &mut Vec<f64>| {
+            out.extend(v.iter().skip(start).step_by(every));
+        };
+        self.lines.extend(p.lines.iter().skip(start).step_by(every));
+        self.classes
+            .extend(p.classes.iter().skip(start).step_by(every));
         self.reference.resize_with(p.reference.len(), Vec::new);
         for (d, s) in self.reference.iter_mut().zip(&p.reference) {
-            d.extend_from_slice(s);
+            keep(s, d);
         }
-        self.truth.extend(&p.truth);
         self.models
             .resize_with(p.models.len(), ActualRecord::default);
-        for (d, s) in self.models.iter_mut().zip(&p.models) {
-            d.extend(s);
+        for (d, s) in std::iter::once(&mut self.truth)
+            .chain(self.models.iter_mut())
+            .zip(std::iter::once(&p.truth).chain(&p.models))
+        {
+            d.positions.resize_with(s.positions.len(), Vec::new);
+            for (dp, sp) in d.positions.iter_mut().zip(&s.positions) {
+                keep(sp, dp);
+            }
+            keep(&s.tip_mm, &mut d.tip_mm);
+            keep(&s.orientation_rad, &mut d.orientation_rad);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A reference of `n` samples per axis from `f(k) -> (position, velocity)` of X and Y (the
+    /// other axes at rest).
+    fn chunk(machine: &Machine, n: usize, f: impl Fn(usize) -> [(f64, f64); 2]) -> ReferenceChunk {
+        let axes = machine.axes.len();
+        let mut c = ReferenceChunk {
+            pos: vec![vec![0.0; n]; axes],
+            vel: vec![vec![0.0; n]; axes],
+            acc: vec![vec![0.0; n]; axes],
+            class: vec![Some(MoveClass::Feed); n],
+            line: vec![1; n],
+            ..ReferenceChunk::default()
+        };
+        for k in 0..n {
+            for (i, (p, v)) in f(k).into_iter().enumerate() {
+                c.pos[i][k] = p;
+                c.vel[i][k] = v;
+            }
+        }
+        c
+    }
+
+    fn flags_of(machine: &Machine, c: &ReferenceChunk, pieces: usize) -> Vec<BlockFlags> {
+        let kin = machine.require_kinematics().unwrap();
+        let pos = c.positions();
+        let poses: Vec<Pose> = (0..c.len()).map(|k| kin.pose_at(&pos, k)).collect();
+        let mut flagger = Flagger::new(machine);
+        let mut out = VecDeque::new();
+        // Cut into `pieces`: the flags do not depend on where.
+        let step = c.len().div_ceil(pieces);
+        for start in (0..c.len()).step_by(step) {
+            let end = (start + step).min(c.len());
+            let part = ReferenceChunk {
+                first: start,
+                pos: c.pos.iter().map(|v| v[start..end].to_vec()).collect(),
+                vel: c.vel.iter().map(|v| v[start..end].to_vec()).collect(),
+                acc: c.acc.iter().map(|v| v[start..end].to_vec()).collect(),
+                class: c.class[start..end].to_vec(),
+                line: c.line[start..end].to_vec(),
+            };
+            flagger.flag(machine, &part, &poses[start..end], &mut out);
+        }
+        out.into()
+    }
+
+    #[test]
+    fn a_right_angle_turn_is_a_sharp_corner_and_a_reversal_is_flagged_once() {
+        let m = Machine::embedded_nmv5000().unwrap();
+        // X out 10 mm at 10 mm/s (10 µm per sample), then Y out, then X back.
+        let v = 10.0;
+        let d = v * m.ts;
+        let n = 3000;
+        let f = |k: usize| {
+            let k = k as f64;
+            if k < 1000.0 {
+                [(k * d, v), (0.0, 0.0)]
+            } else if k < 2000.0 {
+                [(1000.0 * d, 0.0), ((k - 1000.0) * d, v)]
+            } else {
+                [((3000.0 - k) * d, -v), (1000.0 * d, 0.0)]
+            }
+        };
+        let c = chunk(&m, n, f);
+        for pieces in [1, 7] {
+            let flags = flags_of(&m, &c, pieces);
+            let corners: Vec<usize> = (0..n).filter(|k| flags[*k].sharp_corner).collect();
+            // Corners at both turns only, within about two chords (0.05 mm: 5 samples) after
+            // each (a chord across the turn may split it into two turns of 45°).
+            let near = |k: &usize, at: usize| (at..at + 12).contains(k);
+            assert!(
+                corners.iter().all(|k| near(k, 1000) || near(k, 2000)),
+                "{corners:?}"
+            );
+            assert!(corners.iter().any(|k| near(k, 1000)) && corners.iter().any(|k| near(k, 2000)));
+            // X reverses at 2000 (after standing still); Y never does.
+            let rev: Vec<usize> = (0..n).filter(|k| flags[*k].axis_reversal).collect();
+            assert_eq!(rev, vec![2000]);
+            assert!(flags.iter().all(|f| !f.axis_limit && !f.rotary_unwinding));
+        }
+    }
+
+    #[test]
+    fn a_reference_at_the_velocity_limit_is_flagged() {
+        let m = Machine::embedded_nmv5000().unwrap();
+        let vmax = m.axes[0].max_velocity;
+        let c = chunk(&m, 10, |k| {
+            let v = if k < 5 { 0.5 * vmax } else { vmax };
+            [(k as f64 * 1e-3, v), (0.0, 0.0)]
+        });
+        let flags = flags_of(&m, &c, 1);
+        let at: Vec<bool> = flags.iter().map(|f| f.axis_limit).collect();
+        assert_eq!(at, [[false; 5], [true; 5]].concat());
+    }
+
+    #[test]
+    fn a_decimated_record_keeps_every_nth_sample_whatever_the_pieces() {
+        let piece = |first: usize, n: usize| PredictPiece {
+            first,
+            lines: (first..first + n).map(|k| k as u32).collect(),
+            classes: vec![Some(MoveClass::Feed); n],
+            flags: vec![BlockFlags::default(); n],
+            reference: vec![(first..first + n).map(|k| k as f64).collect()],
+            reference_poses: Vec::new(),
+            truth: ActualPiece {
+                positions: vec![(first..first + n).map(|k| -(k as f64)).collect()],
+                poses: Vec::new(),
+                tip_mm: (first..first + n).map(|k| k as f64 * 2.0).collect(),
+                orientation_rad: vec![0.0; n],
+            },
+            models: Vec::new(),
+        };
+        for cuts in [vec![100], vec![3, 40, 57], vec![1; 100]] {
+            let mut r = PredictionRecord::every(7);
+            let mut first = 0;
+            for n in cuts {
+                r.piece(&piece(first, n)).unwrap();
+                first += n;
+            }
+            let kept: Vec<u32> = (0..100).step_by(7).collect();
+            assert_eq!(r.lines, kept);
+            assert_eq!(
+                r.reference[0],
+                kept.iter().map(|k| *k as f64).collect::<Vec<_>>()
+            );
+            assert_eq!(r.truth.positions[0][1], -7.0);
+            assert_eq!(r.truth.tip_mm[2], 28.0);
+        }
     }
 }

@@ -313,7 +313,7 @@ pub struct BudgetRow {
     /// vcnc's chosen models.
     pub model: Discrepancy,
     /// vcnc's chosen models with the stated actual-value latency
-    /// ([`set::MODEL_STATED`]).
+    /// (set [`set::MODEL_STATED`] of [`Evaluation::outcome`]).
     pub model_stated_latency: Discrepancy,
     /// The paper's method.
     pub paper_pso: Discrepancy,

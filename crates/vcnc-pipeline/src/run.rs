@@ -97,6 +97,11 @@ impl Run {
     pub fn measured(&self, which: Measured) -> Vec<bool> {
         which.mask(&self.classes)
     }
+    /// Whether the program moves at all (a feed move or a rapid of some length).
+    pub fn has_motion(&self) -> bool {
+        moves(&self.loaded.trajectory.cycle)
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.axes.first().map_or(0, |a| a.pos.len())
@@ -253,6 +258,29 @@ pub fn prepare_file(machine: &Machine, path: &Path, lenient: bool) -> Result<Run
     prepare(machine, &src, &path.display().to_string(), lenient)
 }
 
+/// Whether a program with this cycle time moves at all (a feed move or a rapid of some length).
+pub(crate) fn moves(cycle: &vcnc_gcode::CycleTime) -> bool {
+    cycle.feed_s + cycle.rapid_s > 0.0
+}
+
+/// The warning of a program that moves no axis (empty, or only modal codes and dwells).
+pub(crate) fn no_motion_warning(file: &str) -> String {
+    format!(
+        "{file}: warning: the program moves no axis (empty, or no G0/G1/G2/G3 move of any length)"
+    )
+}
+
+/// Reads the LinuxCNC tool table (`.tbl`) at `path`, for [`Machine::tools`]: every line
+/// checked, an error names the file and line ([`vcnc_gcode::parse_tool_table`]).
+pub fn load_tool_table(path: &Path) -> Result<vcnc_gcode::ToolTable, Error> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+        file: file.clone(),
+        message: e.to_string(),
+    })?;
+    vcnc_gcode::parse_tool_table(&text, &file).map_err(Error::ToolTable)
+}
+
 /// Interpolates `src` (the program at `file`) on `machine` and prepares the axis references.
 ///
 /// In TCP mode (G43.4) the trajectory carries the tool tip in the workpiece frame and the rotary
@@ -277,6 +305,9 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
         .iter()
         .map(|d| format!("{file}:{}:{}: warning: {}", d.line, d.col, d.message))
         .collect();
+    if !moves(&loaded.trajectory.cycle) {
+        warnings.push(no_motion_warning(file));
+    }
     let mut axes = take_axis_signals(machine, &mut loaded.trajectory);
     let traj = &loaded.trajectory;
     let any_tcp = traj.tcp.iter().any(|t| *t);

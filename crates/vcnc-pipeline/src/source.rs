@@ -23,7 +23,7 @@ use vcnc_gcode::{MoveClass, SampleChunk, StreamOptions, StreamPlan};
 use vcnc_machine::Machine;
 
 use crate::error::Error;
-use crate::run::{Run, missing_axis, peak_warnings};
+use crate::run::{Run, missing_axis, moves, no_motion_warning, peak_warnings};
 
 /// Most samples of a streamed reference: 2^40 (35 years at 1 ms).
 pub const STREAM_MAX_SAMPLES: usize = 1 << 40;
@@ -245,6 +245,14 @@ impl Source<'_> {
         }
     }
 
+    /// Whether the program moves at all (a feed move or a rapid of some length).
+    pub fn has_motion(&self) -> bool {
+        match self {
+            Source::Prepared(r) => r.has_motion(),
+            Source::Streamed(s) => moves(&s.plan.cycle),
+        }
+    }
+
     /// The warnings known before the reference is handed on.
     pub fn warnings(&self) -> &[String] {
         match self {
@@ -356,11 +364,14 @@ pub fn plan_pieces(
     if plan.any_tcp {
         machine.require_kinematics()?;
     }
-    let warnings = plan
+    let mut warnings: Vec<String> = plan
         .warnings
         .iter()
         .map(|d| format!("{file}:{}:{}: warning: {}", d.line, d.col, d.message))
         .collect();
+    if !moves(&plan.cycle) {
+        warnings.push(no_motion_warning(&file));
+    }
     Ok(ReferenceStream {
         file,
         program,

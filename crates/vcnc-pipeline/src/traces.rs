@@ -13,7 +13,8 @@ use crate::identify::{AxisIdentification, identify_trace};
 
 // The reading and pairing options the command line builds.
 pub use vcnc_trace::{
-    AxisMap, ChannelRef, Format, GapPolicy, PairOptions, ReadOptions, TraceUnit, read_path,
+    AxisMap, ChannelRef, Format, GapPolicy, PairOptions, ReadOptions, TraceArgs, TraceUnit,
+    read_path,
 };
 
 /// A trace file read and paired.

@@ -289,8 +289,17 @@ fn check_prediction(machine: &Machine, label: &str, sets: &[&MachineModels]) {
                     mask.iter().filter(|m| **m).count(),
                     "{case}"
                 );
+                let ranked: Vec<_> = summary
+                    .worst_blocks
+                    .iter()
+                    .map(|b| predict::WorstBlock {
+                        cause: None,
+                        ..b.clone()
+                    })
+                    .collect();
+                assert!(summary.worst_blocks.iter().all(|b| b.cause.is_some()));
                 assert_eq!(
-                    summary.worst_blocks,
+                    ranked,
                     predict::worst_blocks(&run.lines, t, &o.orientation_rad[0], &mask, 10),
                     "{case}: worst blocks"
                 );

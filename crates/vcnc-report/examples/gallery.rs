@@ -116,34 +116,26 @@ pub fn build_gallery(dir: &Path) -> Result<Gallery, Error> {
             (m, p, dm, dp)
         })
         .collect();
-    let track = BodeGroup {
-        name: "tracking x/x_r".into(),
+    // One group per response: tracking (magnitude, phase in resp.0, resp.1), disturbance (2, 3).
+    let group = |name: &str, pick: fn(&Response) -> (&[f64], &[f64])| BodeGroup {
+        name: name.into(),
         curves: curves
             .iter()
             .zip(&resp)
-            .map(|(c, r)| BodeCurve {
-                label: c.0.into(),
-                role: c.1,
-                freq_hz: &f,
-                mag_db: &r.0,
-                phase_deg: &r.1,
+            .map(|(c, r)| {
+                let (mag_db, phase_deg) = pick(r);
+                BodeCurve {
+                    label: c.0.into(),
+                    role: c.1,
+                    freq_hz: &f,
+                    mag_db,
+                    phase_deg,
+                }
             })
             .collect(),
     };
-    let dist = BodeGroup {
-        name: "disturbance x/d (d: acceleration)".into(),
-        curves: curves
-            .iter()
-            .zip(&resp)
-            .map(|(c, r)| BodeCurve {
-                label: c.0.into(),
-                role: c.1,
-                freq_hz: &f,
-                mag_db: &r.2,
-                phase_deg: &r.3,
-            })
-            .collect(),
-    };
+    let track = group("tracking x/x_r", |r| (&r.0, &r.1));
+    let dist = group("disturbance x/d (d: acceleration)", |r| (&r.2, &r.3));
     add(
         bode("axis X: closed-loop frequency responses", &[track, dist])?,
         "frf_X.svg",

@@ -203,6 +203,11 @@ impl Svg {
             num(w),
             num(h)
         );
+        self.close_shape(fill, stroke);
+    }
+
+    /// Ends a shape's element opened by the caller: its fill and its optional stroke.
+    fn close_shape(&mut self, fill: &str, stroke: Option<&Stroke>) {
         let _ = write!(self.body, " fill=\"{fill}\"");
         if let Some(s) = stroke {
             let _ = write!(
@@ -261,16 +266,7 @@ impl Svg {
             num(cy),
             num(r)
         );
-        let _ = write!(self.body, " fill=\"{fill}\"");
-        if let Some(s) = stroke {
-            let _ = write!(
-                self.body,
-                " stroke=\"{}\" stroke-width=\"{}\"",
-                s.colour,
-                num(s.width_px)
-            );
-        }
-        self.body.push_str("/>");
+        self.close_shape(fill, stroke);
     }
 
     /// Plain text; `rotate_deg` turns it about its anchor point (−90: reads bottom to top).

@@ -73,6 +73,33 @@ impl<'a> Iterator for Lines<'a> {
     }
 }
 
+/// The first line of `bytes` that is neither blank, a `#` comment nor a line `skip` accepts
+/// (given trimmed), and the number of the last line read. Each comment before it goes to
+/// `comment` with its text (after the `#`, trimmed) and its line number.
+pub(crate) fn first_content_line<'a>(
+    bytes: &'a [u8],
+    skip: impl Fn(&[u8]) -> bool,
+    mut comment: impl FnMut(String, usize),
+) -> (Option<Line<'a>>, usize) {
+    let mut last_line = 1;
+    for l in Lines::new(bytes) {
+        last_line = l.no;
+        let t = trim(l.text);
+        if t.is_empty() {
+            continue;
+        }
+        if t[0] == b'#' {
+            comment(decode(&t[1..]).trim().to_string(), l.no);
+            continue;
+        }
+        if skip(t) {
+            continue;
+        }
+        return (Some(l), last_line);
+    }
+    (None, last_line)
+}
+
 /// The bytes without leading and trailing ASCII white space.
 pub(crate) fn trim(mut s: &[u8]) -> &[u8] {
     while let [first, rest @ ..] = s {

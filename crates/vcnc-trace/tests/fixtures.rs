@@ -6,6 +6,8 @@
 //! same motion independently of the readers. Tolerances are half the last digit each format
 //! printed (halscope `%.14f`, halsampler `%f`, TNCscope `%.4f`, …), converted to mm or deg.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use approx::assert_abs_diff_eq;
@@ -82,16 +84,7 @@ fn check(got: &[f64], want: &[f64], tol: f64, what: &str) {
 
 #[test]
 fn halscope_table_log_of_a_five_axis_machine() {
-    let opts = ReadOptions {
-        joints: vec![
-            AxisName::X,
-            AxisName::Y,
-            AxisName::Z,
-            AxisName::A,
-            AxisName::C,
-        ],
-        ..ReadOptions::default()
-    };
+    let opts = common::xyzac_options();
     let trace = read_path(&data("halscope/xyzac-2.9.log"), &opts).unwrap();
     assert_eq!(trace.format, Format::HalscopeTable);
     assert_eq!(trace.channels.len(), 12);

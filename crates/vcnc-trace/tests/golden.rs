@@ -7,6 +7,8 @@
 //! The values themselves are checked against the motion the files were written from in
 //! `tests/fixtures.rs`; these files pin everything else.
 
+mod common;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -26,16 +28,7 @@ fn axis_map(m: &str) -> ReadOptions {
 
 /// Sample files and the options they are read with.
 fn corpus() -> Vec<(&'static str, ReadOptions, PairOptions)> {
-    let xyzac = ReadOptions {
-        joints: vec![
-            AxisName::X,
-            AxisName::Y,
-            AxisName::Z,
-            AxisName::A,
-            AxisName::C,
-        ],
-        ..ReadOptions::default()
-    };
+    let xyzac = common::xyzac_options();
     let one_ms = ReadOptions {
         period_s: Some(1e-3),
         ..ReadOptions::default()

@@ -173,3 +173,32 @@ pub fn low_pass(reference: &[Pose], alpha: f64) -> Vec<Pose> {
     }
     out
 }
+
+/// A CAM raster as in LinuxCNC's 5-axis "boat" demo: six 60 mm passes in alternating
+/// directions, each 3 mm over from the last and slanted towards the next one, sampled at
+/// 75 mm/s (1 kHz), tool along +Z. Returns the samples (the last knot excluded) and the last
+/// knot, mm.
+pub fn raster_passes() -> (Vec<Pose>, Vector3<f64>) {
+    let mut knots = Vec::new();
+    for pass in 0..6 {
+        let y0 = 3.0 * pass as f64;
+        let (xa, xb) = if pass % 2 == 0 {
+            (-30.0, 30.0)
+        } else {
+            (30.0, -30.0)
+        };
+        knots.push(Vector3::new(xa, y0, 0.0));
+        knots.push(Vector3::new(xb, y0 + 2.9, -0.5));
+    }
+    let mut r = Vec::new();
+    for w in knots.windows(2) {
+        let n = ((w[1] - w[0]).norm() / 0.075).ceil() as usize;
+        for k in 0..n {
+            r.push(Pose::new(
+                w[0] + (w[1] - w[0]) * (k as f64 / n as f64),
+                Vector3::z(),
+            ));
+        }
+    }
+    (r, knots[knots.len() - 1])
+}

@@ -137,7 +137,7 @@ impl<T: Lane> Shaper<T> {
             fill(out);
         } else {
             fill(self.inputs(b));
-            self.from_buffer(out);
+            self.delayed_into(out);
         }
         self.filter_in_place(out);
     }
@@ -149,7 +149,7 @@ impl<T: Lane> Shaper<T> {
         } else {
             let b = buf.len();
             self.inputs(b).copy_from_slice(buf);
-            self.from_buffer(buf);
+            self.delayed_into(buf);
             self.filter_in_place(buf);
         }
     }
@@ -173,7 +173,7 @@ impl<T: Lane> Shaper<T> {
 
     /// The delayed (and averaged) references of the `out.len()` inputs just written.
     #[inline(always)]
-    fn from_buffer(&mut self, out: &mut [RefSample<T>]) {
+    fn delayed_into(&mut self, out: &mut [RefSample<T>]) {
         let (b, keep) = (out.len(), self.keep);
         let s0 = self.start;
         let ext = &self.ext[s0..s0 + keep + b];

@@ -243,9 +243,178 @@ pub fn machine_axes(name: &str) -> Vec<(String, vcnc_drive::DriveParams)> {
 }
 
 use vcnc_drive::{
-    Compliance, ControllerSpec, CurrentLoop, CurrentLoopOrder, DriveParams, Feedback,
-    FeedbackSource, Friction, FrictionLocation, PoleDesign, ReferenceShaping, ShapingFilter,
+    Compliance, ControllerSpec, CurrentLoop, CurrentLoopOrder, DriveParams, DriveTrace, Feedback,
+    FeedbackSource, Friction, FrictionLocation, PoleDesign, Reference, ReferenceShaping,
+    ShapingFilter,
 };
+
+/// The Table 1 poles (docs/reference-numbers.md, from [`vcnc_drive::table1_drive`]'s gains) as a
+/// design, for the PID and SMC drives that share them.
+pub fn table1_design() -> PoleDesign {
+    let poles = vcnc_drive::table1_drive()
+        .closed_loop_model()
+        .unwrap()
+        .poles()
+        .unwrap();
+    PoleDesign {
+        p_hz: poles.p_hz(),
+        wn_hz: poles.wn_hz(),
+        zeta: poles.zeta,
+    }
+}
+
+/// `p` with a PID law designed for the Table 1 poles, $B_{ff} = 0.1$ and the given $J_{ff}$.
+pub fn pid(p: DriveParams, jff: f64) -> DriveParams {
+    DriveParams {
+        controller: ControllerSpec::Pid {
+            kp: None,
+            ki: None,
+            kd: None,
+            design: Some(table1_design()),
+            jff,
+            bff: 0.1,
+        },
+        ..p
+    }
+}
+
+/// `p` with an SMC law designed for the Table 1 poles, with exact estimates.
+pub fn smc(p: DriveParams) -> DriveParams {
+    DriveParams {
+        controller: ControllerSpec::Smc {
+            lambda: None,
+            ks: None,
+            rho: None,
+            je_hat: None,
+            be_hat: None,
+            design: Some(table1_design()),
+        },
+        ..p
+    }
+}
+
+/// [`realistic_table1`] and three variants for the other paths of the effects engine, in this
+/// order: the realistic drive; PID (with `pid_jff`) with a second-order shaping filter and a
+/// torque limit low enough to saturate; SMC with a first-order filter and semi-closed feedback;
+/// a rigid P-PI with set-valued Stribeck friction and no dead time (one reading for both loops).
+pub fn realistic_table1_variants(pid_jff: f64) -> [DriveParams; 4] {
+    let base = realistic_table1();
+    let mut v1 = pid(base.clone(), pid_jff);
+    if let Some(s) = v1.reference.as_mut() {
+        s.filter = Some(ShapingFilter::SecondOrder {
+            time_constant_s: 0.002,
+            zeta: 0.7,
+        });
+    }
+    if let Some(c) = v1.current_loop.as_mut() {
+        c.torque_max = Some(0.6);
+    }
+    let mut v2 = smc(base.clone());
+    if let Some(s) = v2.reference.as_mut() {
+        s.filter = Some(ShapingFilter::FirstOrder {
+            time_constant_s: 0.003,
+        });
+    }
+    if let Some(f) = v2.feedback.as_mut() {
+        f.source = FeedbackSource::Motor;
+    }
+    let mut v3 = base.clone();
+    v3.compliance = None;
+    v3.feedback = None;
+    v3.friction = Some(Friction::Stribeck {
+        static_torque: 0.4,
+        stribeck_velocity: 2.0,
+        stribeck_exponent: 2.0,
+        coulomb_torque_negative: None,
+        static_torque_negative: None,
+        location: FrictionLocation::Load,
+    });
+    [base, v1, v2, v3]
+}
+
+/// Variants of the realistic drives for the SIMD lanes, in this order: [`realistic_nmv5000_x`]
+/// with backlash (a lane in the gap while the others are in contact), with another seed and
+/// noise, with 7 Maxwell-slip elements and 5 cycles of dead time; [`realistic_table1`] with a
+/// tight torque limit (saturation in some lanes) and a motor encoder of 10 nm steps.
+pub fn realistic_lane_variants() -> [DriveParams; 4] {
+    let x = realistic_nmv5000_x();
+    let mut with_backlash = x.clone();
+    with_backlash.compliance.as_mut().unwrap().backlash = 0.004;
+    let mut other_noise = x.clone();
+    other_noise.encoder.seed = 99;
+    other_noise.encoder.noise_std = 1e-4;
+    let mut slow = x;
+    if let Some(Friction::MaxwellSlip { elements, .. }) = slow.friction.as_mut() {
+        *elements = 7;
+    }
+    slow.feedback.as_mut().unwrap().dead_time_cycles = 5;
+    slow.feedback.as_mut().unwrap().motor_noise_std = 3e-5;
+    let mut limited = realistic_table1();
+    limited.current_loop.as_mut().unwrap().torque_max = Some(1.5);
+    limited.feedback.as_mut().unwrap().motor_resolution = Some(1e-5);
+    [with_backlash, other_noise, slow, limited]
+}
+
+/// The trace of the drive `p` following `pos`, `vel`, `acc` (axis units, /s, /s²) at period
+/// `ts`, s; a test failure when `p` is invalid or the run fails.
+pub fn simulate(p: &DriveParams, pos: &[f64], vel: &[f64], acc: &[f64], ts: f64) -> DriveTrace {
+    p.validate()
+        .expect("a valid drive")
+        .simulate(Reference { pos, vel, acc }, ts)
+        .expect("the run succeeds")
+}
+
+/// The samples `p` of the reference `r`: a piece to feed a stream.
+pub fn slice<'a>(r: Reference<'a>, p: &std::ops::Range<usize>) -> Reference<'a> {
+    Reference {
+        pos: &r.pos[p.clone()],
+        vel: &r.vel[p.clone()],
+        acc: &r.acc[p.clone()],
+    }
+}
+
+/// A change made to a drive's parameters.
+pub type Mutation = fn(&mut DriveParams);
+
+/// Each case mutates the Table 1 drive so that its validation must fail with
+/// `Error::BadParameter` naming the case's key.
+pub fn assert_rejected_with_key(cases: &[(Mutation, &str)]) {
+    for (mutate, key) in cases {
+        let mut p = vcnc_drive::table1_drive();
+        mutate(&mut p);
+        match p.validate() {
+            Err(vcnc_drive::Error::BadParameter { name, .. }) => assert_eq!(name, *key),
+            other => panic!("{key}: expected BadParameter, got {other:?}"),
+        }
+    }
+}
+
+/// The largest absolute difference between two series of equal length.
+pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+/// The Table 1 drive as a P-P cascade: $K_v$ and $K_p$ of Table 1, $K_i = 0$, no feed-forward,
+/// an ideal encoder. A constant position error $\delta$ gives the constant torque
+/// $K_p K_v \delta$.
+pub fn p_p_cascade() -> DriveParams {
+    DriveParams {
+        controller: ControllerSpec::PPi {
+            kv: Some(70.0),
+            kp: Some(2.342478),
+            ki: Some(0.0),
+            design: None,
+            vff: 0.0,
+            bff: 0.0,
+            jff: 0.0,
+        },
+        encoder: vcnc_drive::Encoder::ideal(),
+        ..vcnc_drive::table1_drive()
+    }
+}
 
 /// A random drive of a random structure: which effects it has and how its loop is built are
 /// drawn from `structure`'s generator, its numbers from `numbers`'s.

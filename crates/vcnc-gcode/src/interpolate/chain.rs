@@ -326,6 +326,48 @@ pub(crate) trait Out {
     fn failed(&self) -> bool;
 }
 
+/// Writes the sample where TCP mode switches off as the TCP move's last sample. The machine
+/// rests there (docs/gcode.md, "Path modes": it stops where TCP mode changes), on the end point
+/// of the TCP move, whose X Y Z are tool-tip coordinates reached under the tool-tip limits. The
+/// next move would write that sample as its first one, with its own flag (off) and its starting
+/// acceleration (under the axis limits); instead it is written as the last sample of a program
+/// ending in TCP mode is (`Planner::final_sample`): on the point, TCP, velocity and acceleration
+/// 0. The switch on needs nothing: its rest sample opens the TCP move, which writes it.
+pub(crate) struct TcpSwitch<'o> {
+    out: &'o mut dyn Out,
+    /// The flag the previous sample was given by its move.
+    prev_tcp: bool,
+}
+
+impl<'o> TcpSwitch<'o> {
+    pub(crate) fn new(out: &'o mut dyn Out) -> TcpSwitch<'o> {
+        TcpSwitch {
+            out,
+            prev_tcp: false,
+        }
+    }
+}
+
+impl Out for TcpSwitch<'_> {
+    fn span(&mut self, first: usize, end: usize, t0: f64, t1: f64, index: usize, mv: &Move) {
+        self.out.span(first, end, t0, t1, index, mv);
+    }
+
+    fn sample(&mut self, p: &[f64; 6], v: &[f64; 6], a: &[f64; 6], tcp: bool) {
+        let switch_off = self.prev_tcp && !tcp;
+        self.prev_tcp = tcp;
+        if switch_off {
+            self.out.sample(p, &[0.0; 6], &[0.0; 6], true);
+        } else {
+            self.out.sample(p, v, a, tcp);
+        }
+    }
+
+    fn failed(&self) -> bool {
+        self.out.failed()
+    }
+}
+
 /// Samples a planned chain (or a block on its own) as its pieces become final.
 #[derive(Debug, Clone)]
 pub(crate) struct Sampler {

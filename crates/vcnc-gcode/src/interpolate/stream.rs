@@ -28,7 +28,7 @@
 
 use std::collections::VecDeque;
 
-use super::chain::Out;
+use super::chain::{Out, TcpSwitch};
 use super::planner::{Decisions, Mode, Planner};
 use super::segment::{Cfg, check_limits};
 use super::{CycleTime, Limits, Move, MoveClass, Slowdown, output_axes};
@@ -235,11 +235,12 @@ impl StreamPlan {
             sink,
             failure: &mut failure,
         };
+        let mut switch = TcpSwitch::new(&mut emitter);
         let mut planner = Planner::new(
             &self.cfg,
             Mode::Sample {
                 decisions: &mut decisions,
-                out: &mut emitter,
+                out: &mut switch,
             },
         );
         let run = run_source(src, &self.interp, &self.stream, &mut planner);

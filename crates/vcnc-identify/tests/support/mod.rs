@@ -6,8 +6,9 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use vcnc_drive::{ClosedLoopModel, DriveParams, Reference};
-use vcnc_identify::Trace;
+use vcnc_drive::drive_model::ReferenceInput;
+use vcnc_drive::{ClosedLoopModel, DriveModel, DriveParams, Poles, Reference};
+use vcnc_identify::{Identification, IdentifyOptions, ModelStructure, Trace};
 
 /// A sampled reference: position, velocity, acceleration (axis units, /s, /s²).
 pub struct RefSignal {
@@ -210,4 +211,157 @@ pub fn fresh_seed() -> u64 {
     std::collections::hash_map::RandomState::new()
         .build_hasher()
         .finish()
+}
+
+/// The identification options of `vcnc identify --trace` without an options file
+/// (vcnc-pipeline's `identifier_options`): every model structure and both model inputs, chosen
+/// on a held-out part, and the real pole allowed towards 0 (a measured drive may lack integral
+/// action).
+pub fn command_options() -> IdentifyOptions {
+    let mut opts = IdentifyOptions {
+        structures: ModelStructure::ALL.to_vec(),
+        inputs: vec![ReferenceInput::Smooth, ReferenceInput::Hold],
+        ..IdentifyOptions::default()
+    };
+    opts.bounds.p_hz[0] = opts.bounds.p_hz[0].min(1e-4);
+    opts
+}
+
+/// Relative errors of the identified model's (p, ωn, ζ) as it reports them (the canonical
+/// split of `ClosedLoopModel::poles`, which its standard deviations refer to) against the
+/// truth written in the split nearest to them: with three real poles any of them may be p,
+/// a convention rather than a property of the drive, so the truth is split the same way.
+pub fn pole_errors(m: &ClosedLoopModel, truth: &ClosedLoopModel) -> [f64; 3] {
+    let splits = |m: &ClosedLoopModel| -> Vec<Poles> {
+        let mut out: Vec<Poles> = m.poles().into_iter().collect();
+        let roots = m.roots();
+        if roots.iter().all(|r| r.im == 0.0) {
+            for i in 0..3 {
+                let o: Vec<f64> = (0..3).filter(|&k| k != i).map(|k| roots[k].re).collect();
+                if o[0] * o[1] > 0.0 {
+                    let wn = (o[0] * o[1]).sqrt();
+                    out.push(Poles {
+                        p: -roots[i].re,
+                        wn,
+                        zeta: -(o[0] + o[1]) / (2.0 * wn),
+                    });
+                }
+            }
+        }
+        out
+    };
+    let Some(p) = m.poles() else {
+        return [f64::INFINITY; 3];
+    };
+    let worst = |e: &[f64; 3]| e.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let mut best = [f64::INFINITY; 3];
+    for pt in splits(truth) {
+        let e = [
+            (p.p - pt.p) / pt.p,
+            (p.wn - pt.wn) / pt.wn,
+            (p.zeta - pt.zeta) / pt.zeta,
+        ];
+        if worst(&e) < worst(&best) {
+            best = e;
+        }
+    }
+    best
+}
+
+/// Free-run RMS error of `model` on a trace (from rest), axis units.
+pub fn freerun_rms(model: &DriveModel, tr: &Trace) -> f64 {
+    let xh = vcnc_identify::free_run_model(model, tr).expect("free run");
+    let s: f64 = xh.iter().zip(&tr.x).map(|(a, b)| (a - b) * (a - b)).sum();
+    (s / tr.len() as f64).sqrt()
+}
+
+/// The middle columns of a drive's row in a suite's table: sample period (ms), encoder step
+/// (µm), whether the trace starts moving; the true (p, ωn, ζ) in Hz, Hz and 1, the identified
+/// ones (NaN when the model has none), the relative errors `errs` and the reported relative
+/// deviations `rel_std`, both in %; the chosen structure and input.
+pub fn fit_columns(
+    ts: f64,
+    resolution: f64,
+    moving: bool,
+    tp: &Poles,
+    id: &Identification,
+    errs: &[f64; 3],
+    rel_std: &[f64; 3],
+) -> String {
+    let ip = id.model.core.poles();
+    format!(
+        "{:4.2} {:5.3} {:4} | {:6.2} {:6.2} {:5.3} | {:6.2} {:6.2} {:5.3} | {:+6.2} {:+6.2} {:+6.2} | {:5.2} {:5.2} {:5.2} | {:19} {:6}",
+        1e3 * ts,
+        1e3 * resolution,
+        if moving { "mov" } else { "rest" },
+        tp.p_hz(),
+        tp.wn_hz(),
+        tp.zeta,
+        ip.map_or(f64::NAN, |p| p.p_hz()),
+        ip.map_or(f64::NAN, |p| p.wn_hz()),
+        ip.map_or(f64::NAN, |p| p.zeta),
+        100.0 * errs[0],
+        100.0 * errs[1],
+        100.0 * errs[2],
+        100.0 * rel_std[0],
+        100.0 * rel_std[1],
+        100.0 * rel_std[2],
+        id.structure.name(),
+        id.input.name(),
+    )
+}
+
+/// A drive's verdict in a suite.
+pub struct Score {
+    /// Every pole within the fixed tolerances.
+    pub fixed_ok: bool,
+    /// The drive passes.
+    pub ok: bool,
+    /// Relative errors of p, ωn, ζ.
+    pub errs: [f64; 3],
+    /// |error| / reported relative deviation of p, ωn, ζ.
+    pub z: [f64; 3],
+    /// Validation ratio: the identified model's free-run RMS over the true model's.
+    pub ratio: f64,
+}
+
+impl Score {
+    pub fn new(fixed_ok: bool, ok: bool, errs: [f64; 3], rel_std: &[f64; 3], ratio: f64) -> Score {
+        Score {
+            fixed_ok,
+            ok,
+            errs,
+            z: std::array::from_fn(|i| errs[i].abs() / rel_std[i]),
+            ratio,
+        }
+    }
+}
+
+/// The statistics line of a suite: how many drives pass and how many are within the fixed
+/// tolerances (then `note`); per parameter (p, ωn, ζ) the worst and median |relative error|
+/// and how many are within ±1σ and ±3σ of their reported deviation; the worst and median
+/// validation ratio.
+pub fn summary_line(rows: &[&Score], note: &str) -> String {
+    let n = rows.len();
+    let fixed = rows.iter().filter(|r| r.fixed_ok).count();
+    let ok = rows.iter().filter(|r| r.ok).count();
+    let stat = |f: &dyn Fn(&Score) -> f64| {
+        let mut v: Vec<f64> = rows.iter().map(|r| f(r)).collect();
+        v.sort_by(f64::total_cmp);
+        (v[n - 1], v[n / 2])
+    };
+    let mut line = format!("{ok}/{n} pass, {fixed}/{n} within fixed tolerances{note};");
+    for (i, name) in ["p", "wn", "zeta"].iter().enumerate() {
+        let (w, m) = stat(&|r| r.errs[i].abs());
+        let c1 = rows.iter().filter(|r| r.z[i] <= 1.0).count();
+        let c3 = rows.iter().filter(|r| r.z[i] <= 3.0).count();
+        line += &format!(
+            " {name} |err| worst/median {:.2}/{:.2} %, within ±1σ {c1}/{n}, ±3σ {c3}/{n};",
+            100.0 * w,
+            100.0 * m
+        );
+    }
+    let (wr, mr) = stat(&|r| r.ratio);
+    line += &format!(" validation ratio worst/median {wr:.3}/{mr:.3}");
+    line
 }

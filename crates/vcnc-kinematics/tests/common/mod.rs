@@ -3,10 +3,32 @@
 
 #![allow(dead_code)]
 
+use std::f64::consts::TAU;
 use vcnc_kinematics::nalgebra::Vector3;
+
 use vcnc_kinematics::{
-    AxisLimits, Error, HeadHead, HeadTable, Kinematics, TableTilting, Tilt, Xyz,
+    AxisLimits, Error, HeadHead, HeadTable, Kinematics, Pose, TableTilting, Tilt, Xyz,
 };
+
+/// docs/contour.md: 3 turns, radius 20 → 60 mm, tip on a dome of radius 100 mm centred at
+/// (30, 20) in the workpiece frame, tool axis = dome normal.
+pub fn spiral(n: usize) -> Vec<Pose> {
+    (0..=n)
+        .map(|i| {
+            let theta = 3.0 * TAU * i as f64 / n as f64;
+            let rho = 20.0 + 40.0 * theta / (3.0 * TAU);
+            let h = (100.0f64 * 100.0 - rho * rho).sqrt();
+            Pose::new(
+                Vector3::new(
+                    30.0 + rho * theta.cos(),
+                    20.0 + rho * theta.sin(),
+                    -50.0 + h,
+                ),
+                Vector3::new(rho * theta.cos(), rho * theta.sin(), h) / 100.0,
+            )
+        })
+        .collect()
+}
 
 pub fn ok<T>(r: Result<T, Error>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))

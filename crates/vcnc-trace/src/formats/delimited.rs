@@ -16,7 +16,7 @@
 use crate::error::Error;
 use crate::formats::{self, Delim, Start};
 use crate::model::{Channel, ChannelRef, Format, ReadOptions, Trace};
-use crate::text::{self, Lines};
+use crate::text;
 use crate::timebase;
 use crate::units::{BaseUnit, TraceUnit};
 
@@ -80,24 +80,11 @@ fn time_name(name: &str) -> Option<Option<TraceUnit>> {
 
 pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
     let mut metadata = Vec::new();
-    let mut first = None;
-    let mut last_line = 1;
-    for l in Lines::new(bytes) {
-        last_line = l.no;
-        let t = text::trim(l.text);
-        if t.is_empty() {
-            continue;
-        }
-        if t[0] == b'#' {
-            metadata.push((
-                "comment".to_string(),
-                text::decode(&t[1..]).trim().to_string(),
-            ));
-            continue;
-        }
-        first = Some(l);
-        break;
-    }
+    let (first, last_line) = text::first_content_line(
+        bytes,
+        |_| false,
+        |c, _| metadata.push(("comment".to_string(), c)),
+    );
     let Some(first) = first else {
         return Err(Error::Truncated {
             file: file.to_string(),

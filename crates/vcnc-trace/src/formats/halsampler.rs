@@ -82,22 +82,7 @@ fn tagged(bytes: &[u8], start: usize, line: usize) -> bool {
 
 pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace, Error> {
     let mut comments: Vec<(String, usize)> = Vec::new();
-    let mut first = None;
-    for l in Lines::new(bytes) {
-        let t = text::trim(l.text);
-        if t.is_empty() {
-            continue;
-        }
-        if t[0] == b'#' {
-            comments.push((text::decode(&t[1..]).trim().to_string(), l.no));
-            continue;
-        }
-        if is_overrun(t) {
-            continue;
-        }
-        first = Some(l);
-        break;
-    }
+    let (first, _) = text::first_content_line(bytes, is_overrun, |c, no| comments.push((c, no)));
     let Some(first) = first else {
         return Err(Error::Truncated {
             file: file.to_string(),
