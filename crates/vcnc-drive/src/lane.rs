@@ -9,9 +9,9 @@
 //! that no lane takes ([`Lane::any`], [`Lane::all`]), which for one `f64` is the branch itself.
 //!
 //! [`F4`] is `wide::f64x4` (a maintained portable SIMD crate: SSE2, AVX, NEON or plain arrays,
-//! by target). The engine's lane loops are compiled for AVX2 and for AVX-512VL and chosen at run
-//! time (`crate::engine`), so that `wide`'s operations become single 256-bit instructions where
-//! the processor has them.
+//! by target). The engine's lane loop is compiled for AVX2 and chosen at run time
+//! (`crate::engine`), so that `wide`'s operations become single 256-bit instructions where the
+//! processor has them.
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
