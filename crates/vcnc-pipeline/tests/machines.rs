@@ -3,12 +3,10 @@
 //! kinematics (`vcnc gen spiral --machine M`, [`programs::machine_spiral_program`]), and the
 //! prediction with a model set is compared with the true virtual machine.
 //!
-//! The model set is the true drives' closed-loop models ([`vcnc_machine::Axis::true_model`],
-//! the analytic model of each P-PI drive, docs/drive-model.md), not models identified per
-//! machine (a full identification of five axes per machine is too slow for a test; the
-//! identifier is held to the true model in vcnc-identify's tests). Truth: the true machine's
-//! simulated drives (Coulomb friction, encoder quantisation, servo rate) through the same
-//! forward kinematics. Tolerances: 1 µm and 0.01 mrad, issue 28's acceptance figures (the
+//! The model set is identified per machine, as `vcnc predict` does without `--model`: every
+//! axis from the machine's own excitation runs ([`identify::models_for`]). Truth: the true
+//! machine's simulated drives (Coulomb friction, encoder quantisation, servo rate) through the
+//! same forward kinematics. Tolerances: 1 µm and 0.01 mrad, issue 28's acceptance figures (the
 //! NMV5000's identified models give 0.157 µm).
 //!
 //! Fixed case: the default feed 75 mm/s. Fresh case: a feed drawn from the clock each run
@@ -16,13 +14,12 @@
 
 use std::path::{Path, PathBuf};
 
-use vcnc_drive::DriveModel;
 use vcnc_kinematics::Family;
 use vcnc_machine::{Machine, MachineModels};
 use vcnc_pipeline::predict::{self, PredictOptions};
 use vcnc_pipeline::sink::Discard;
 use vcnc_pipeline::source::{self, Program};
-use vcnc_pipeline::{Source, programs};
+use vcnc_pipeline::{Source, identify, programs};
 
 fn repo(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -45,9 +42,13 @@ fn samples() -> Vec<(&'static str, Family)> {
     ]
 }
 
-/// Predicts the machine's own spiral at `feed` with the true drives' models: (true max tip µm,
-/// |pred − true| max tip µm, |pred − true| max orientation mrad, true max orientation mrad).
-fn spiral_discrepancy(machine: &Machine, feed: f64) -> (f64, f64, f64, f64) {
+/// Predicts the machine's own spiral at `feed` with `models`: (true max tip µm, |pred − true|
+/// max tip µm, |pred − true| max orientation mrad, true max orientation mrad).
+fn spiral_discrepancy(
+    machine: &Machine,
+    models: &MachineModels,
+    feed: f64,
+) -> (f64, f64, f64, f64) {
     let text = programs::machine_spiral_program(machine, feed, 0.5).expect("spiral");
     let plan = source::plan(
         machine,
@@ -58,20 +59,10 @@ fn spiral_discrepancy(machine: &Machine, feed: f64) -> (f64, f64, f64, f64) {
         false,
     )
     .unwrap_or_else(|e| panic!("{}: {e}", machine.name));
-    let models = MachineModels::new(
-        machine,
-        machine
-            .axes
-            .iter()
-            .map(|a| DriveModel::from(a.true_model()))
-            .collect(),
-        "true drives' models",
-    )
-    .expect("models");
     let out = predict::predict(
         machine,
         Source::Streamed(&plan),
-        &[&models],
+        &[models],
         &PredictOptions::default(),
         &mut Discard,
     )
@@ -96,8 +87,10 @@ fn every_sample_machine_predicts_its_own_spiral_within_a_micrometre() {
         let machine = Machine::load(&repo(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
         let kin = machine.require_kinematics().expect("kinematics");
         assert_eq!(kin.family(), family, "{file}");
+        let models = identify::models_for(&machine, None).unwrap_or_else(|e| panic!("{file}: {e}"));
         for feed in [75.0, fresh] {
-            let (true_tip, tip, orientation, true_orientation) = spiral_discrepancy(&machine, feed);
+            let (true_tip, tip, orientation, true_orientation) =
+                spiral_discrepancy(&machine, &models, feed);
             println!(
                 "{file} at {feed} mm/s: true max {true_tip:.3} µm / {true_orientation:.4} mrad, |pred - true| max {tip:.4} µm / {orientation:.5} mrad"
             );
