@@ -496,6 +496,10 @@ pub enum GenCommand {
         /// Segment length along the tip path, mm.
         #[arg(long, default_value_t = 0.5)]
         segment: f64,
+        /// Write the spiral for this machine's kinematics (its rotary axes and branch, or a
+        /// 3-axis contour) instead of the NMV5000's A/C program.
+        #[arg(long)]
+        machine: Option<std::path::PathBuf>,
     },
     /// A long 5-axis program for speed and memory measurements (docs/performance.md): TCP
     /// switched on by M428, inverse-time feeds (G93), short segments round a wavy band.

@@ -3,7 +3,10 @@
 use std::io::Write;
 
 use anyhow::Result;
-use vcnc_pipeline::programs::{identification_program, spiral_program, write_long_tcp_program};
+use vcnc_pipeline::Machine;
+use vcnc_pipeline::programs::{
+    identification_program, machine_spiral_program, spiral_program, write_long_tcp_program,
+};
 
 use crate::bad_input;
 use crate::cli::GenCommand;
@@ -18,7 +21,16 @@ pub fn generate(what: &GenCommand) -> Result<()> {
             seed,
         } => identification_program(*axis, *moves, *range, *max_feed, *seed)
             .map_err(|e| bad_input(e.to_string()))?,
-        GenCommand::Spiral { feed, segment } => spiral_program(*feed, *segment)?,
+        GenCommand::Spiral {
+            feed,
+            segment,
+            machine: None,
+        } => spiral_program(*feed, *segment)?,
+        GenCommand::Spiral {
+            feed,
+            segment,
+            machine: Some(path),
+        } => machine_spiral_program(&Machine::load(path)?, *feed, *segment)?,
         GenCommand::Long {
             segments,
             segment,

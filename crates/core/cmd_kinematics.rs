@@ -1,13 +1,13 @@
 //! `vcnc kinematics MACHINE forward|inverse --input CSV [--out CSV] [--branch 1|-1]`.
-//! Forward: columns X Y Z (mm) A C (deg) → px py pz (mm) ox oy oz (workpiece frame).
-//! Inverse: px py pz ox oy oz → X Y Z A C, C unwrapped continuously from row to row, on the
+//! Forward: columns X Y Z (mm) and the machine's rotary axes, e.g. A C or B C (deg) → px py pz
+//! (mm) ox oy oz (workpiece frame). Inverse: px py pz ox oy oz → those axes, C unwrapped continuously from row to row, on the
 //! machine file's branch unless `--branch` is given.
 
 use std::path::Path;
 
 use anyhow::Result;
 use vcnc_pipeline::Machine;
-use vcnc_pipeline::kinematics::{AXES_COLUMNS, Branch, POSE_COLUMNS, forward_file, inverse_file};
+use vcnc_pipeline::kinematics::{Branch, POSE_COLUMNS, axes_columns, forward_file, inverse_file};
 
 use crate::bad_input;
 use crate::cli::Direction;
@@ -27,20 +27,17 @@ pub fn kinematics(
                 .map_err(|_| bad_input(format!("--branch {b}: expected 1 or -1")))
         })
         .transpose()?;
-    let (header, rows): (&[&str], Vec<Vec<f64>>) = match direction {
+    let (header, rows): (Vec<&str>, Vec<Vec<f64>>) = match direction {
         Direction::Forward => (
-            &POSE_COLUMNS,
+            POSE_COLUMNS.to_vec(),
             forward_file(&machine, input)?
                 .into_iter()
                 .map(Vec::from)
                 .collect(),
         ),
         Direction::Inverse => (
-            &AXES_COLUMNS,
-            inverse_file(&machine, input, branch)?
-                .into_iter()
-                .map(Vec::from)
-                .collect(),
+            axes_columns(&machine)?,
+            inverse_file(&machine, input, branch)?,
         ),
     };
     let mut text = header.join(",");

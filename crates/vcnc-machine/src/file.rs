@@ -7,7 +7,7 @@
 //! sample_period_s = 0.001
 //!
 //! [kinematics]
-//! urdf = "nmv5000.urdf"          # relative to this file
+//! urdf = "nmv5000.urdf"          # relative to this file (or family = "table-ac", ...)
 //!
 //! [trajectory]                  # tool-tip path limits in TCP mode (LinuxCNC [TRAJ])
 //! max_linear_velocity = 250.0
@@ -63,22 +63,76 @@ fn default_ts() -> f64 {
     0.001
 }
 
-/// `[kinematics]`: the URDF chain, with optional offset overrides.
+/// `[kinematics]`: the machine's kinematic family with its offsets, or a URDF chain
+/// (docs/machine-file.md#kinematics, docs/kinematics.md). Give `family` or `urdf`, not both.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct KinematicsFile {
-    /// URDF file, relative to the machine file.
-    pub urdf: PathBuf,
-    /// Override of the C-axis centre r (machine frame), mm.
+    /// The closed-form family: `"xyz"`, `"table-ac"`, `"table-bc"`, `"head-head"` or
+    /// `"head-table"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub family: Option<FamilyFile>,
+    /// Head-head and head-table: the tilting axis in the head, `"A"` or `"B"`. Default: the one
+    /// of A and B the machine has.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt: Option<TiltFile>,
+    /// URDF file, relative to the machine file: any serial machine (mapped onto its
+    /// closed-form family where it matches one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub urdf: Option<PathBuf>,
+    /// Table-tilting and head-table: the C-axis centre $r$ (machine frame), mm (with a URDF:
+    /// an override of a table-tilting chain's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub c_centre_mm: Option<[f64; 3]>,
-    /// Override of the A-axis centre relative to the C-axis centre, d = (0, Ly, Lz), mm.
+    /// Table-tilting: the tilt-axis (A or B) centre relative to the C-axis centre,
+    /// $d = (d_x, d_y, d_z)$, mm (with a URDF: an override). `a_offset_mm` is its earlier name.
+    #[serde(
+        default,
+        alias = "a_offset_mm",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub tilt_offset_mm: Option<[f64; 3]>,
+    /// Head-head and head-table: the pivot length $L$, mm (the tilt axis $L$ above the tool
+    /// tip at zero rotation, tool length included). Give this or `pivot_mm`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub a_offset_mm: Option<[f64; 3]>,
-    /// Inverse-kinematics branch (sign of A) used when a pose must be turned into axes
-    /// (`vcnc kinematics inverse`, the spiral generator). Default −1.
+    pub pivot_length_mm: Option<f64>,
+    /// Head-head and head-table: a point of the tilt axis relative to the tool tip at zero
+    /// rotation, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pivot_mm: Option<[f64; 3]>,
+    /// Head-head: a point of the C axis relative to the tool tip at zero rotation, mm.
+    /// Default: the pivot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c_axis_mm: Option<[f64; 3]>,
+    /// Inverse-kinematics branch (sign of the tilt, A or B) used when a pose must be turned
+    /// into axes (`vcnc kinematics inverse`, the spiral generator). Default −1.
     #[serde(default = "default_branch")]
     pub branch: i8,
+}
+
+/// `kinematics.family`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FamilyFile {
+    /// Three slides, the tool along +Z.
+    Xyz,
+    /// Table-tilting: A (a cradle about X) carrying C.
+    TableAc,
+    /// Table-tilting: B (a trunnion about Y) carrying C.
+    TableBc,
+    /// Head-head: C then A or B in the spindle head.
+    HeadHead,
+    /// Head-table: A or B in the head, C in the table.
+    HeadTable,
+}
+
+/// `kinematics.tilt`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum TiltFile {
+    /// About X.
+    A,
+    /// About Y.
+    B,
 }
 
 fn default_branch() -> i8 {

@@ -20,11 +20,11 @@ mod options_file;
 mod sweep;
 
 pub use file::{
-    AxisFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile, ProfileFile,
-    ProgramFile, TrajectoryFile, Unit,
+    AxisFile, FamilyFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile,
+    ProfileFile, ProgramFile, TiltFile, TrajectoryFile, Unit,
 };
 pub use locate::{LineCol, line_col, locate_key};
-pub use machine::{AcAxes, Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};
+pub use machine::{Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};
 pub use models::{AxisModel, MachineModels, ModelSet};
 pub use options_file::OptionsFile;
 

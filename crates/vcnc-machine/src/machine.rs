@@ -17,13 +17,13 @@ use vcnc_gcode::{
 };
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
-    Axes, AxisLimits as Travels, Branch, IkOptions, KinematicChain, Pose, TableTiltingAc, Track,
-    Travel,
+    Axes, AxisLimits as Travels, AxisMap, Branch, Family, IkOptions, KinematicChain,
+    KinematicsParams, Pose, TableTilting, Tilt, Track, Travel,
 };
 
 use crate::file::{
-    AxisFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile, ProfileFile,
-    ProgramFile, TrajectoryFile,
+    AxisFile, FamilyFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile,
+    ProfileFile, ProgramFile, TiltFile, TrajectoryFile,
 };
 use crate::locate::{error_offset, line_col, locate_key};
 use crate::options_file::OptionsFile;
@@ -80,61 +80,65 @@ impl Axis {
     }
 }
 
-/// Which of a machine's axes (indices into [`Machine::axes`]) play the five roles of the
-/// table-tilting A/C kinematics. Resolved when the machine is checked.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct AcAxes {
-    /// Index of X.
-    pub x: usize,
-    /// Index of Y.
-    pub y: usize,
-    /// Index of Z.
-    pub z: usize,
-    /// Index of A.
-    pub a: usize,
-    /// Index of C.
-    pub c: usize,
-}
-
-impl AcAxes {
-    /// The kinematics' axes (mm, rad) at sample `k` of per-machine-axis position series (mm,
-    /// deg).
-    pub fn at(&self, positions: &[&[f64]], k: usize) -> Axes {
-        Axes::new(
-            positions[self.x][k],
-            positions[self.y][k],
-            positions[self.z][k],
-            positions[self.a][k].to_radians(),
-            positions[self.c][k].to_radians(),
-        )
-    }
-}
-
-/// The checked kinematics of a table-tilting A/C machine.
+/// The checked kinematics of a machine, whatever its family (docs/kinematics.md): the model,
+/// which machine axes it reads, and the branch for poses given without axes. The pipeline
+/// talks only to these methods and never matches on the family.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Kinematics {
-    /// The URDF chain.
-    pub chain: KinematicChain,
-    /// The closed-form model (mm, rad) with the file's offsets and the axes' travels.
-    pub model: TableTiltingAc,
-    /// Inverse-kinematics branch (the sign of A) for poses given without axes.
+    /// The model (mm, rad) with the file's offsets and the axes' travels.
+    pub model: vcnc_kinematics::Kinematics,
+    /// Which machine axis plays each axis of the model.
+    pub map: AxisMap,
+    /// Inverse-kinematics branch (the sign of the tilt) for poses given without axes.
     pub branch: Branch,
-    /// Which machine axes are X Y Z A C.
-    pub axes: AcAxes,
+    /// The machine axes (indices into [`Machine::axes`]) in the model's order: X Y Z, then the
+    /// rotary axes in the order A B C.
+    axes: Vec<usize>,
 }
 
 impl Kinematics {
-    /// The machine axes (in the kinematics' order) whose positions the kinematics reads:
-    /// X Y Z A C (indices into [`Machine::axes`]).
-    pub fn machine_axes(&self) -> [usize; 5] {
-        let r = self.axes;
-        [r.x, r.y, r.z, r.a, r.c]
+    /// The kinematics `model` on a machine with `axes`, or the model's error when the machine
+    /// lacks an axis it needs.
+    fn new(
+        model: vcnc_kinematics::Kinematics,
+        axes: &[Axis],
+        branch: Branch,
+    ) -> Result<Kinematics, vcnc_kinematics::Error> {
+        let names: Vec<AxisName> = axes.iter().map(|a| a.name).collect();
+        let map = AxisMap::new(&model, &names)?;
+        let order = model
+            .axes()
+            .into_iter()
+            .filter_map(|n| map.index(n))
+            .collect();
+        Ok(Kinematics {
+            model,
+            map,
+            branch,
+            axes: order,
+        })
+    }
+
+    /// The family (3-axis, table-tilting A/C, ...).
+    pub fn family(&self) -> Family {
+        self.model.family()
+    }
+
+    /// The axes the kinematics reads, in its order: X Y Z, then the rotary axes (A B C order).
+    pub fn axis_names(&self) -> Vec<AxisName> {
+        self.model.axes()
+    }
+
+    /// The machine axes (indices into [`Machine::axes`]) in the kinematics' order
+    /// ([`Kinematics::axis_names`]).
+    pub fn machine_axes(&self) -> &[usize] {
+        &self.axes
     }
 
     /// The tool pose (workpiece frame: tip in mm, unit tool axis) at sample `k` of axis
-    /// positions given per machine axis (mm, deg), by the closed-form forward kinematics.
-    pub fn pose_at(&self, positions: &[&[f64]], k: usize) -> Pose {
-        self.model.forward(&self.axes.at(positions, k))
+    /// positions given per machine axis (mm, deg), by the forward kinematics.
+    pub fn pose_at<P: AsRef<[f64]>>(&self, positions: &[P], k: usize) -> Pose {
+        self.model.forward(&self.map.at(positions, k))
     }
 
     /// Tool-centre-point samples to machine-axis references, in place. Per machine axis,
@@ -142,57 +146,71 @@ impl Kinematics {
     /// `tcp[k]` is true the linear axes hold the tool tip in the workpiece frame and become the
     /// machine axes that put it there, with the analytic derivatives of the chain rule. Every
     /// sample is transformed on its own, so pieces of any length give the whole run's values.
+    /// Error: a chain whose slides cannot reach the tip (the sample is in the error).
     pub fn inverse_tcp(
         &self,
         pos: &mut [Vec<f64>],
         vel: &mut [Vec<f64>],
         acc: &mut [Vec<f64>],
         tcp: &[bool],
-    ) {
-        let r = self.axes;
+    ) -> Result<(), vcnc_kinematics::Error> {
         let track = |i: usize| Track {
             pos: &pos[i],
             vel: &vel[i],
             acc: &acc[i],
         };
-        let [x, y, z] = self.model.inverse_tcp_track(
-            [track(r.x), track(r.y), track(r.z)],
-            track(r.a),
-            track(r.c),
-            tcp,
-        );
-        for (i, t) in [(r.x, x), (r.y, y), (r.z, z)] {
+        let slides = [self.axes[0], self.axes[1], self.axes[2]];
+        let rotary: Vec<Track<'_>> = self.axes[3..].iter().map(|i| track(*i)).collect();
+        let out = self
+            .model
+            .inverse_tcp_track(slides.map(track), &rotary, tcp)?;
+        for (i, t) in slides.into_iter().zip(out) {
             pos[i] = t.pos;
             vel[i] = t.vel;
             acc[i] = t.acc;
         }
+        Ok(())
     }
 
     /// The tool pose of one set of axis values given in the kinematics' own order
-    /// ([`Kinematics::machine_axes`]: X Y Z mm, A C deg).
-    pub fn pose_of(&self, values: &[f64; 5]) -> Pose {
-        let [x, y, z, a, c] = *values;
-        self.model
-            .forward(&Axes::new(x, y, z, a.to_radians(), c.to_radians()))
+    /// ([`Kinematics::axis_names`]: X Y Z mm, rotary axes deg). Missing values are 0.
+    pub fn pose_of(&self, values: &[f64]) -> Pose {
+        let mut j = Axes::default();
+        for (name, v) in self.axis_names().into_iter().zip(values) {
+            j[name] = if name.is_rotary() { v.to_radians() } else { *v };
+        }
+        self.model.forward(&j)
     }
 
     /// Inverse kinematics of a sequence of poses on `branch` (the machine file's when
-    /// `None`), the rotary axes unwrapped continuously from pose to pose: per pose the axis
-    /// values in the kinematics' order (X Y Z mm, A C deg).
+    /// `None`), the rotary axes unwound continuously from pose to pose: per pose the axis
+    /// values in the kinematics' order ([`Kinematics::axis_names`]: X Y Z mm, rotary deg).
     pub fn inverse_poses(
         &self,
         poses: &[Pose],
         branch: Option<Branch>,
-    ) -> Result<Vec<[f64; 5]>, vcnc_kinematics::Error> {
+    ) -> Result<Vec<Vec<f64>>, vcnc_kinematics::Error> {
         let opts = IkOptions {
             branch: Some(branch.unwrap_or(self.branch)),
             ..IkOptions::default()
         };
         let sol = self.model.inverse_sequence(poses, &opts)?;
+        let names = self.axis_names();
         Ok(sol
             .axes
             .iter()
-            .map(|a| [a.x, a.y, a.z, a.a.to_degrees(), a.c.to_degrees()])
+            .map(|j| {
+                names
+                    .iter()
+                    .map(|n| {
+                        if n.is_rotary() {
+                            j[*n].to_degrees()
+                        } else {
+                            j[*n]
+                        }
+                    })
+                    .collect()
+            })
             .collect())
     }
 }
@@ -218,7 +236,7 @@ pub struct Machine {
     pub ts: f64,
     /// Axes in the canonical order X Y Z A B C.
     pub axes: Vec<Axis>,
-    /// The table-tilting A/C kinematics, when the file has `[kinematics]`.
+    /// The kinematics, when the file has `[kinematics]` or the machine is a plain X Y Z one.
     pub kinematics: Option<Kinematics>,
     /// Tool-tip path velocity limit, mm/s.
     pub tcp_max_vel: f64,
@@ -493,8 +511,27 @@ impl Checker<'_> {
         let startup_path_mode = self.startup_path_mode(&file.gcode)?;
         let identification = self.identification(&file.identification)?;
         let kinematics = match &file.kinematics {
-            None => None,
             Some(k) => Some(self.kinematics(k, &axes)?),
+            // A plain X Y Z machine needs no section: its tool tip is its slides.
+            None if axes
+                .iter()
+                .map(|a| a.name)
+                .eq([AxisName::X, AxisName::Y, AxisName::Z]) =>
+            {
+                let xyz = KinematicsFile {
+                    family: Some(FamilyFile::Xyz),
+                    tilt: None,
+                    urdf: None,
+                    c_centre_mm: None,
+                    tilt_offset_mm: None,
+                    pivot_length_mm: None,
+                    pivot_mm: None,
+                    c_axis_mm: None,
+                    branch: default_branch_value(),
+                };
+                Some(self.kinematics(&xyz, &axes)?)
+            }
+            None => None,
         };
         Ok(Machine {
             name: file.name,
@@ -743,51 +780,26 @@ impl Checker<'_> {
         })
     }
 
-    /// `[kinematics]`: the URDF chain, the file's offsets, the axes' travels and roles.
+    /// `[kinematics]`: the family with its offsets, or a URDF chain (with a table-tilting
+    /// chain's offsets overridden by the file's), the axes' travels, roles and branch.
     fn kinematics(&self, k: &KinematicsFile, axes: &[Axis]) -> Result<Kinematics, Error> {
-        let source = &self.doc.source;
-        let (chain, urdf_name) = match &self.doc.base {
-            Base::Embedded => {
-                let name = "<embedded>/machines/nmv5000.urdf";
-                (
-                    KinematicChain::from_urdf_str(embedded::NMV5000_URDF, name),
-                    name.to_string(),
-                )
+        let model = match (&k.family, &k.urdf) {
+            (Some(_), Some(_)) => {
+                return Err(self.invalid(
+                    "kinematics.urdf",
+                    "give either kinematics.family or kinematics.urdf, not both".to_string(),
+                ));
             }
-            Base::Dir(dir) => {
-                let path = dir.join(&k.urdf);
-                (
-                    KinematicChain::from_urdf_file(&path),
-                    path.display().to_string(),
-                )
-            }
-        };
-        let chain = chain.map_err(|e| Error::Kinematics {
-            context: format!("{source}: kinematics.urdf = {urdf_name}"),
-            message: e.to_string(),
-        })?;
-        let index = |needed: AxisName| {
-            axes.iter().position(|a| a.name == needed).ok_or_else(|| {
-                self.invalid(
+            (None, None) => {
+                return Err(self.invalid(
                     "kinematics",
-                    format!("a table-tilting A/C machine needs axis {needed} in [axes]"),
-                )
-            })
+                    "[kinematics] needs family = \"xyz\" | \"table-ac\" | \"table-bc\" | \"head-head\" | \"head-table\", or urdf = \"machine.urdf\"".to_string(),
+                ));
+            }
+            (Some(f), None) => self.family_model(*f, k, axes)?,
+            (None, Some(urdf)) => self.urdf_model(urdf, k)?,
         };
-        let roles = AcAxes {
-            x: index(AxisName::X)?,
-            y: index(AxisName::Y)?,
-            z: index(AxisName::Z)?,
-            a: index(AxisName::A)?,
-            c: index(AxisName::C)?,
-        };
-        let mut model = chain.table_tilting_ac();
-        let r = k.c_centre_mm.map(Vector3::from).unwrap_or(model.r);
-        let d = k.a_offset_mm.map(Vector3::from).unwrap_or(model.d);
-        model = model
-            .with_offsets(r, d)
-            .map_err(|e| self.invalid("kinematics", e.to_string()))?;
-        // The machine file's travels govern (the URDF's are nominal).
+        // The machine file's travels govern (a URDF's are nominal).
         let mut travels = Travels::default();
         for axis in axes {
             let scale = if axis.unit == Unit::Deg {
@@ -801,7 +813,7 @@ impl Checker<'_> {
                 *t = tr;
             }
         }
-        model = model
+        let model = model
             .with_limits(travels)
             .map_err(|e| self.invalid("kinematics", e.to_string()))?;
         let branch = Branch::try_from(i32::from(k.branch)).map_err(|_| {
@@ -810,13 +822,171 @@ impl Checker<'_> {
                 format!("branch must be 1 or -1, got {}", k.branch),
             )
         })?;
-        Ok(Kinematics {
-            chain,
-            model,
-            branch,
-            axes: roles,
+        Kinematics::new(model, axes, branch).map_err(|e| {
+            self.invalid(
+                "kinematics",
+                format!("{e}: add [axes.<letter>] for it, or choose the machine's family"),
+            )
         })
     }
+
+    /// A closed-form family from its keys.
+    fn family_model(
+        &self,
+        f: FamilyFile,
+        k: &KinematicsFile,
+        axes: &[Axis],
+    ) -> Result<vcnc_kinematics::Kinematics, Error> {
+        let head = matches!(f, FamilyFile::HeadHead | FamilyFile::HeadTable);
+        if k.tilt.is_some() && !head {
+            return Err(self.invalid(
+                "kinematics.tilt",
+                "tilt applies to family = \"head-head\" and \"head-table\" only (a table's tilt is in its family name)".to_string(),
+            ));
+        }
+        let tilt = || -> Result<Tilt, Error> {
+            match k.tilt {
+                Some(TiltFile::A) => Ok(Tilt::A),
+                Some(TiltFile::B) => Ok(Tilt::B),
+                None => {
+                    let has = |n: AxisName| axes.iter().any(|a| a.name == n);
+                    match (has(AxisName::A), has(AxisName::B)) {
+                        (true, false) => Ok(Tilt::A),
+                        (false, true) => Ok(Tilt::B),
+                        (a, _) => Err(self.invalid(
+                            "kinematics.family",
+                            format!(
+                                "the head's tilting axis is A or B, and the machine has {}: set kinematics.tilt = \"A\" or \"B\"",
+                                if a { "both" } else { "neither" }
+                            ),
+                        )),
+                    }
+                }
+            }
+        };
+        let family = match f {
+            FamilyFile::Xyz => Family::Xyz,
+            FamilyFile::TableAc => Family::TableTilting(Tilt::A),
+            FamilyFile::TableBc => Family::TableTilting(Tilt::B),
+            FamilyFile::HeadHead => Family::HeadHead(tilt()?),
+            FamilyFile::HeadTable => Family::HeadTable(tilt()?),
+        };
+        let params = KinematicsParams {
+            family: Some(family),
+            c_centre_mm: k.c_centre_mm,
+            tilt_offset_mm: k.tilt_offset_mm,
+            pivot_length_mm: k.pivot_length_mm,
+            pivot_mm: k.pivot_mm,
+            c_axis_mm: k.c_axis_mm,
+            limits: Travels::default(),
+        };
+        vcnc_kinematics::Kinematics::from_params(&params).map_err(|e| match &e {
+            vcnc_kinematics::Error::BadParameter { name, .. } if is_key(name) => self.invalid(
+                &format!("kinematics.{name}"),
+                format!("{e} (family \"{}\")", family_name(f)),
+            ),
+            _ => self.invalid("kinematics", e.to_string()),
+        })
+    }
+
+    /// A URDF chain, as its closed-form family where it matches one; a table-tilting chain's
+    /// offsets may be overridden by `c_centre_mm` / `tilt_offset_mm`.
+    fn urdf_model(
+        &self,
+        urdf: &Path,
+        k: &KinematicsFile,
+    ) -> Result<vcnc_kinematics::Kinematics, Error> {
+        let source = &self.doc.source;
+        if k.tilt.is_some() {
+            return Err(self.invalid(
+                "kinematics.tilt",
+                "tilt goes with family; a URDF names its own axes".to_string(),
+            ));
+        }
+        let (chain, urdf_name) = match &self.doc.base {
+            Base::Embedded => {
+                let name = "<embedded>/machines/nmv5000.urdf";
+                (
+                    KinematicChain::read_urdf_str(embedded::NMV5000_URDF, name),
+                    name.to_string(),
+                )
+            }
+            Base::Dir(dir) => {
+                let path = dir.join(urdf);
+                (
+                    KinematicChain::read_urdf_file(&path),
+                    path.display().to_string(),
+                )
+            }
+        };
+        let chain = chain.map_err(|e| Error::Kinematics {
+            context: format!("{source}: kinematics.urdf = {urdf_name}"),
+            message: e.to_string(),
+        })?;
+        let model = chain.kinematics();
+        for (key, given) in [
+            ("pivot_length_mm", k.pivot_length_mm.is_some()),
+            ("pivot_mm", k.pivot_mm.is_some()),
+            ("c_axis_mm", k.c_axis_mm.is_some()),
+        ] {
+            if given {
+                return Err(self.invalid(
+                    &format!("kinematics.{key}"),
+                    format!("{key} goes with family = \"head-head\" / \"head-table\"; a URDF's pivot is in its joints"),
+                ));
+            }
+        }
+        match model {
+            vcnc_kinematics::Kinematics::TableTilting(m) => {
+                let r = k.c_centre_mm.map(Vector3::from).unwrap_or(m.r);
+                let d = k.tilt_offset_mm.map(Vector3::from).unwrap_or(m.d);
+                TableTilting::new(m.tilt, r, d, m.limits)
+                    .map(vcnc_kinematics::Kinematics::TableTilting)
+                    .map_err(|e| self.invalid("kinematics", e.to_string()))
+            }
+            other => {
+                for (key, given) in [
+                    ("c_centre_mm", k.c_centre_mm.is_some()),
+                    ("tilt_offset_mm", k.tilt_offset_mm.is_some()),
+                ] {
+                    if given {
+                        return Err(self.invalid(
+                            &format!("kinematics.{key}"),
+                            format!(
+                                "{key} overrides a table-tilting URDF's offsets; {urdf_name} is a {} machine (edit its joints instead)",
+                                other.family()
+                            ),
+                        ));
+                    }
+                }
+                Ok(other)
+            }
+        }
+    }
+}
+
+/// The `family` value as written.
+fn family_name(f: FamilyFile) -> &'static str {
+    match f {
+        FamilyFile::Xyz => "xyz",
+        FamilyFile::TableAc => "table-ac",
+        FamilyFile::TableBc => "table-bc",
+        FamilyFile::HeadHead => "head-head",
+        FamilyFile::HeadTable => "head-table",
+    }
+}
+
+/// True for the `[kinematics]` keys [`KinematicsParams`] names in its errors.
+fn is_key(name: &str) -> bool {
+    matches!(
+        name,
+        "c_centre_mm" | "tilt_offset_mm" | "pivot_length_mm" | "pivot_mm" | "c_axis_mm"
+    )
+}
+
+/// `kinematics.branch`'s default.
+fn default_branch_value() -> i8 {
+    -1
 }
 
 /// True when the dotted `path` is written in `table`.
@@ -857,15 +1027,19 @@ mod tests {
     fn kinematic_roles_are_resolved_at_load_time() {
         let m = nmv5000().check().unwrap();
         let k = m.kinematics.as_ref().unwrap();
-        for (i, name) in [
-            (k.axes.x, AxisName::X),
-            (k.axes.y, AxisName::Y),
-            (k.axes.z, AxisName::Z),
-            (k.axes.a, AxisName::A),
-            (k.axes.c, AxisName::C),
-        ] {
-            assert_eq!(m.axes[i].name, name);
-        }
+        assert_eq!(k.family(), Family::TableTilting(Tilt::A));
+        let names: Vec<AxisName> = k.machine_axes().iter().map(|i| m.axes[*i].name).collect();
+        assert_eq!(names, k.axis_names());
+        assert_eq!(
+            names,
+            [
+                AxisName::X,
+                AxisName::Y,
+                AxisName::Z,
+                AxisName::A,
+                AxisName::C
+            ]
+        );
         assert_eq!(k.branch, Branch::Minus);
     }
 
@@ -958,5 +1132,94 @@ mod tests {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
         let m = Machine::from_toml_str(&src, "m.toml", &dir).unwrap();
         assert!(!m.identification.options.sets_p_bounds);
+    }
+
+    /// The NMV5000 with its URDF's `[kinematics]` replaced by `with` (the text of the section).
+    fn nmv_with_kinematics(with: &str) -> Result<Machine, Error> {
+        let src = embedded::NMV5000_TOML.replace("urdf = \"nmv5000.urdf\"", with);
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
+        Machine::from_toml_str(&src, "m.toml", &dir)
+    }
+
+    #[test]
+    fn a_family_with_the_urdf_offsets_is_the_urdf_model() {
+        let urdf = nmv5000().check().unwrap();
+        let params = nmv_with_kinematics(
+            "family = \"table-ac\"\nc_centre_mm = [0.0, 0.0, 0.0]\ntilt_offset_mm = [0.0, 0.0, -100.0]",
+        )
+        .unwrap();
+        assert_eq!(urdf.kinematics, params.kinematics);
+        // The earlier key name still reads.
+        let old =
+            nmv_with_kinematics("family = \"table-ac\"\na_offset_mm = [0.0, 0.0, -100.0]").unwrap();
+        assert_eq!(urdf.kinematics, old.kinematics);
+    }
+
+    #[test]
+    fn bad_kinematics_keys_name_the_file_line_and_value() {
+        let e = nmv_with_kinematics("family = \"table-xy\"")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("m.toml:") && e.contains("table-xy"), "{e}");
+        let e = nmv_with_kinematics("family = \"head-head\"")
+            .unwrap_err()
+            .to_string();
+        // The NMV has A and C: a head-head A machine without its pivot.
+        assert!(e.contains("kinematics.pivot_length_mm"), "{e}");
+        let e = nmv_with_kinematics("family = \"table-bc\"")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("m.toml:") && e.contains("axis B"), "{e}");
+        let e = nmv_with_kinematics("family = \"table-ac\"\npivot_length_mm = 200.0")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("kinematics.pivot_length_mm") && e.contains("table-ac"),
+            "{e}"
+        );
+        let e = nmv_with_kinematics("family = \"xyz\"\nurdf = \"nmv5000.urdf\"")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not both"), "{e}");
+        let e = nmv_with_kinematics("branch = -1").unwrap_err().to_string();
+        assert!(e.contains("family") && e.contains("urdf"), "{e}");
+        let e = nmv_with_kinematics("family = \"xyz\"\ntilt = \"B\"")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("kinematics.tilt"), "{e}");
+    }
+
+    #[test]
+    fn every_family_loads_and_reads_its_axes() {
+        // A 5-axis machine with A and C reads as each family with A.
+        for (family, extra, expect) in [
+            ("xyz", "", Family::Xyz),
+            ("table-ac", "", Family::TableTilting(Tilt::A)),
+            (
+                "head-head",
+                "\npivot_length_mm = 250.0",
+                Family::HeadHead(Tilt::A),
+            ),
+            (
+                "head-table",
+                "\npivot_length_mm = 180.0",
+                Family::HeadTable(Tilt::A),
+            ),
+        ] {
+            let m = nmv_with_kinematics(&format!("family = \"{family}\"{extra}"))
+                .unwrap_or_else(|e| panic!("{family}: {e}"));
+            let k = m.require_kinematics().unwrap();
+            assert_eq!(k.family(), expect);
+            let names: Vec<AxisName> = k.machine_axes().iter().map(|i| m.axes[*i].name).collect();
+            assert_eq!(names, k.axis_names());
+            // The pose of the axes at zero: the tool tip at the slides' zero (every family's
+            // workpiece frame is the machine frame at zero), along +Z.
+            let zero = vec![0.0; names.len()];
+            let p = k.pose_of(&zero);
+            assert!(
+                p.p.norm() < 1e-12 && (p.o.z - 1.0).abs() < 1e-15,
+                "{family}: {p:?}"
+            );
+        }
     }
 }

@@ -9,7 +9,8 @@
 //! Accepted machines must keep the loader's promise that every drive's closed loop is finite and
 //! stable (Routh–Hurwitz on the analytic model, docs/drive-model.md).
 //!
-//! `ballscrew-*.toml` have no URDF; `nmv5000.toml` is loaded with the real `machines/` folder as
+//! `ballscrew-*.toml` have no kinematics; the 5-axis and 3-axis sample machines (`nmv5000.toml`
+//! with its URDF, the others with a `family`) are loaded with the real `machines/` folder as
 //! base directory so that its URDF chain, offsets and travels are checked too.
 
 use std::path::{Path, PathBuf};
@@ -26,7 +27,7 @@ use words::{KEYS, LINES, STRINGS};
 const SOURCE: &str = "fuzz.toml";
 
 /// The shipped files, and whether they need `machines/` as base directory.
-const FILES: [(&str, &str, bool); 4] = [
+const FILES: [(&str, &str, bool); 8] = [
     (
         "ballscrew-ppi.toml",
         include_str!("../../../machines/ballscrew-ppi.toml"),
@@ -45,6 +46,26 @@ const FILES: [(&str, &str, bool); 4] = [
     (
         "nmv5000.toml",
         include_str!("../../../machines/nmv5000.toml"),
+        true,
+    ),
+    (
+        "vmc-3axis.toml",
+        include_str!("../../../machines/vmc-3axis.toml"),
+        true,
+    ),
+    (
+        "dmu-bc-trunnion.toml",
+        include_str!("../../../machines/dmu-bc-trunnion.toml"),
+        true,
+    ),
+    (
+        "gantry-head-head.toml",
+        include_str!("../../../machines/gantry-head-head.toml"),
+        true,
+    ),
+    (
+        "head-table.toml",
+        include_str!("../../../machines/head-table.toml"),
         true,
     ),
 ];

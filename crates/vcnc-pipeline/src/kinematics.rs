@@ -11,20 +11,29 @@ use vcnc_machine::Machine;
 use crate::Error;
 use crate::table::read_columns;
 
-/// Columns of a forward-kinematics input: X Y Z (mm), A C (deg).
-pub const AXES_COLUMNS: [&str; 5] = ["X", "Y", "Z", "A", "C"];
+/// Columns of a forward-kinematics input (and an inverse output) on `machine`: the axes its
+/// kinematics reads, X Y Z (mm) then its rotary axes (deg), e.g. `X Y Z A C` or `X Y Z B C`.
+pub fn axes_columns(machine: &Machine) -> Result<Vec<&'static str>, Error> {
+    Ok(machine
+        .require_kinematics()?
+        .axis_names()
+        .into_iter()
+        .map(|a| a.as_str())
+        .collect())
+}
 /// Columns of an inverse-kinematics input (and a forward output): tool tip px py pz (mm) and
 /// tool axis ox oy oz in the workpiece frame.
 pub const POSE_COLUMNS: [&str; 6] = ["px", "py", "pz", "ox", "oy", "oz"];
 
-/// Forward kinematics of every row of the CSV at `input` (columns [`AXES_COLUMNS`]): rows of
+/// Forward kinematics of every row of the CSV at `input` (columns [`axes_columns`]): rows of
 /// `px py pz ox oy oz`.
 pub fn forward_file(machine: &Machine, input: &Path) -> Result<Vec<[f64; 6]>, Error> {
     let kin = machine.require_kinematics()?;
-    let c = read_columns(input, &AXES_COLUMNS, "")?;
+    let c = read_columns(input, &axes_columns(machine)?, "")?;
     Ok((0..c[0].len())
         .map(|k| {
-            let p = kin.pose_of(&[c[0][k], c[1][k], c[2][k], c[3][k], c[4][k]]);
+            let row: Vec<f64> = c.iter().map(|col| col[k]).collect();
+            let p = kin.pose_of(&row);
             [p.p.x, p.p.y, p.p.z, p.o.x, p.o.y, p.o.z]
         })
         .collect())
@@ -32,12 +41,12 @@ pub fn forward_file(machine: &Machine, input: &Path) -> Result<Vec<[f64; 6]>, Er
 
 /// Inverse kinematics of every row of the CSV at `input` (columns [`POSE_COLUMNS`]) on
 /// `branch` (the machine file's when `None`), C unwrapped continuously from row to row: rows of
-/// `X Y Z A C` (mm, deg).
+/// [`axes_columns`] (mm, deg).
 pub fn inverse_file(
     machine: &Machine,
     input: &Path,
     branch: Option<Branch>,
-) -> Result<Vec<[f64; 5]>, Error> {
+) -> Result<Vec<Vec<f64>>, Error> {
     let kin = machine.require_kinematics()?;
     let c = read_columns(input, &POSE_COLUMNS, "")?;
     let poses: Vec<Pose> = (0..c[0].len())

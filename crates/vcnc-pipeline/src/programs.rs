@@ -4,7 +4,8 @@
 use vcnc_axis::AxisName;
 use vcnc_gcode::{IdentificationOptions, SpiralOptions, TcpProgramOptions};
 use vcnc_kinematics::nalgebra::Vector3;
-use vcnc_kinematics::{Branch, TableTiltingAc};
+use vcnc_kinematics::{Axes, Branch, TableTiltingAc};
+use vcnc_machine::Machine;
 
 use crate::Error;
 
@@ -60,6 +61,95 @@ pub fn spiral_program(feed_mm_s: f64, segment_mm: f64) -> Result<String, Error> 
         ..TcpProgramOptions::default()
     };
     vcnc_gcode::tcp_program(&program_points, &popts).map_err(|e| Error::gcode(name, e))
+}
+
+/// The docs/contour.md spiral for `machine`'s own kinematics (`vcnc gen spiral --machine M`):
+/// the same tip path (3 turns, radius 20 to 60 mm on a 100 mm dome centred at x 30, y 20).
+/// On a 5-axis machine the tool axis is the dome normal, turned into the machine's rotary axes
+/// (A or B, and C) by its inverse kinematics on its `kinematics.branch`, C unwound
+/// continuously within its travel, and written as a tool-centre-point (`G43.4`) program with
+/// the machine's axis letters; on a 3-axis machine the tool stays along +Z and the program is
+/// a plain `G1 X Y Z` contour. `feed_mm_s` along the tip path, `segment_mm` between points.
+/// Error: the machine has no kinematics, or a point the kinematics cannot reach.
+pub fn machine_spiral_program(
+    machine: &Machine,
+    feed_mm_s: f64,
+    segment_mm: f64,
+) -> Result<String, Error> {
+    let name = "<spiral generator>";
+    let kin = machine.require_kinematics()?;
+    if !(feed_mm_s.is_finite() && feed_mm_s > 0.0) {
+        return Err(Error::Generator {
+            program: "spiral",
+            what: "the feed (mm/s)",
+            value: feed_mm_s,
+        });
+    }
+    let opts = SpiralOptions {
+        segment_mm,
+        ..SpiralOptions::default()
+    };
+    let points = vcnc_gcode::spiral_points(&opts).map_err(|e| Error::gcode(name, e))?;
+    let rotary: Vec<AxisName> = kin.axis_names().into_iter().skip(3).collect();
+    let mut previous = Axes::default();
+    let mut text = String::with_capacity(points.len() * 64 + 512);
+    let five = !rotary.is_empty();
+    let letters: String = kin.axis_names().iter().map(|a| a.as_str()).collect();
+    text.push_str(&format!(
+        "%\n(vcnc spiral of docs/contour.md for {}: {} kinematics, axes {letters}; 3 turns, radius 20 to 60 mm on a 100 mm dome centred at x 30 y 20; {}; {feed_mm_s} mm/s; {segment_mm} mm segments)\n",
+        machine.name.replace(['(', ')'], " "),
+        kin.family(),
+        if five {
+            format!("tool axis = dome normal, IK branch {}", kin.branch)
+        } else {
+            "tool along +Z".to_string()
+        }
+    ));
+    text.push_str(if five {
+        "(tool-centre-point program: X Y Z = tool tip in the workpiece frame, mm; rotary axes in deg)\nG21 G90 G94 G17 G64\nG43.4\n"
+    } else {
+        "(3-axis program: X Y Z = tool tip, mm)\nG21 G90 G94 G17 G64\n"
+    });
+    for (k, p) in points.iter().enumerate() {
+        let mut line = String::from(if k == 0 { "G0" } else { "G1" });
+        for (axis, v) in ["X", "Y", "Z"].iter().zip(p.p) {
+            line.push_str(&format!(" {axis}{}", decimals5(v)));
+        }
+        if five {
+            let o = Vector3::from(p.o);
+            let sol = kin
+                .model
+                .inverse_orientation(&o, kin.branch, &previous, Some(k))
+                .map_err(|source| Error::Kinematics {
+                    context: format!("{name}: point {k}"),
+                    source,
+                })?;
+            previous = sol.joints;
+            for axis in &rotary {
+                line.push_str(&format!(
+                    " {axis}{}",
+                    decimals5(previous[*axis].to_degrees())
+                ));
+            }
+        }
+        if k == 1 {
+            line.push_str(&format!(" F{:.1}", feed_mm_s * 60.0));
+        }
+        line.push('\n');
+        text.push_str(&line);
+    }
+    text.push_str(if five { "G49\nM2\n%\n" } else { "M2\n%\n" });
+    Ok(text)
+}
+
+/// `v` with 5 decimals, without the sign of a negative zero (as `vcnc_gcode::tcp_program`
+/// writes coordinates).
+fn decimals5(v: f64) -> String {
+    let s = format!("{v:.5}");
+    match s.strip_prefix('-') {
+        Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_string(),
+        _ => s,
+    }
 }
 
 /// A long 5-axis tool-centre-point program for measuring speed and memory

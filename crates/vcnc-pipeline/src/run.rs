@@ -143,9 +143,7 @@ impl Run {
     ) -> Result<Vec<Pose>, Error> {
         let kin = machine.require_kinematics()?;
         let pos = self.reference_positions();
-        Ok(rows
-            .map(|k| kin.model.forward(&kin.axes.at(&pos, k)))
-            .collect())
+        Ok(rows.map(|k| kin.pose_at(&pos, k)).collect())
     }
 
     /// [`Run::reference_poses_at`] of every sample.
@@ -158,7 +156,7 @@ impl Run {
     pub fn reference_path(&self, machine: &Machine) -> Result<vcnc_contour::ContourPath, Error> {
         let kin = machine.require_kinematics()?;
         let pos = self.reference_positions();
-        let poses = (0..self.len()).map(|k| kin.model.forward(&kin.axes.at(&pos, k)));
+        let poses = (0..self.len()).map(|k| kin.pose_at(&pos, k));
         Ok(vcnc_contour::ContourPath::from_poses(poses)?)
     }
 
@@ -287,7 +285,7 @@ pub fn load_tool_table(path: &Path) -> Result<vcnc_gcode::ToolTable, Error> {
 ///
 /// In TCP mode (G43.4) the trajectory carries the tool tip in the workpiece frame and the rotary
 /// angles; inverse kinematics turns every sample into X Y Z with analytic velocity and
-/// acceleration ([`vcnc_kinematics::TableTiltingAc::inverse_tcp_track`]). Every sample is
+/// acceleration ([`vcnc_kinematics::Kinematics::inverse_tcp_track`]). Every sample is
 /// checked against the axis travels.
 pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Result<Run, Error> {
     let interp = machine.interp_options(lenient);
@@ -323,7 +321,11 @@ pub fn prepare(machine: &Machine, src: &str, file: &str, lenient: bool) -> Resul
             take(|a| &mut a.vel),
             take(|a| &mut a.acc),
         );
-        kin.inverse_tcp(&mut pos, &mut vel, &mut acc, &traj.tcp);
+        kin.inverse_tcp(&mut pos, &mut vel, &mut acc, &traj.tcp)
+            .map_err(|source| Error::Kinematics {
+                context: file.to_string(),
+                source,
+            })?;
         for (a, ((p, v), ac)) in axes.iter_mut().zip(pos.into_iter().zip(vel).zip(acc)) {
             (a.pos, a.vel, a.acc) = (p, v, ac);
         }
@@ -499,9 +501,7 @@ pub(crate) fn missing_axis(
 pub fn forward_poses(machine: &Machine, axis_pos: &[&[f64]]) -> Result<Vec<Pose>, Error> {
     let kin = machine.require_kinematics()?;
     let n = axis_pos.first().map_or(0, |p| p.len());
-    Ok((0..n)
-        .map(|k| kin.model.forward(&kin.axes.at(axis_pos, k)))
-        .collect())
+    Ok((0..n).map(|k| kin.pose_at(axis_pos, k)).collect())
 }
 
 #[cfg(test)]

@@ -465,7 +465,13 @@ impl ReferenceStream {
             if let Some(kin) = kin
                 && c.tcp.iter().any(|t| *t)
             {
-                kin.inverse_tcp(&mut chunk.pos, &mut chunk.vel, &mut chunk.acc, &c.tcp);
+                kin.inverse_tcp(&mut chunk.pos, &mut chunk.vel, &mut chunk.acc, &c.tcp)
+                    .map_err(|source| {
+                        Failure::Pipeline(Error::Kinematics {
+                            context: file.clone(),
+                            source,
+                        })
+                    })?;
             }
             for (i, a) in machine.axes.iter().enumerate() {
                 let [lo, hi] = a.travel;

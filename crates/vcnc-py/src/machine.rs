@@ -337,43 +337,52 @@ fn reference_header(tcp: bool, axes: &[vcnc_pipeline::AxisName]) -> Vec<String> 
 }
 
 /// The rows of a 2-D array of `width` columns.
-fn rows<const W: usize>(a: &PyArrayLike2<'_, f64, AllowTypeChange>) -> PyResult<Vec<[f64; W]>> {
+fn rows(a: &PyArrayLike2<'_, f64, AllowTypeChange>, width: usize) -> PyResult<Vec<Vec<f64>>> {
     let v = a.as_array();
-    if v.ncols() != W {
+    if v.ncols() != width {
         return Err(error::bad_input(format!(
-            "expected an array of shape (N, {W}), got ({}, {})",
+            "expected an array of shape (N, {width}), got ({}, {})",
             v.nrows(),
             v.ncols()
         )));
     }
-    Ok(v.rows()
-        .into_iter()
-        .map(|r| std::array::from_fn(|i| r[i]))
-        .collect())
+    Ok(v.rows().into_iter().map(|r| r.to_vec()).collect())
 }
 
-/// Rows into an (N, W) numpy array.
-fn matrix<'py, const W: usize>(
+/// Rows of `width` values into an (N, width) numpy array.
+fn matrix<'py, R: AsRef<[f64]>>(
     py: Python<'py>,
-    rows: Vec<[f64; W]>,
+    rows: Vec<R>,
+    width: usize,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let n = rows.len();
-    let flat: Vec<f64> = rows.into_iter().flatten().collect();
-    PyArray1::from_vec(py, flat).reshape([n, W])
+    let flat: Vec<f64> = rows
+        .iter()
+        .flat_map(|r| r.as_ref().iter().copied())
+        .collect();
+    PyArray1::from_vec(py, flat).reshape([n, width])
 }
 
 #[pymethods]
 impl Kinematics {
-    /// Forward kinematics (`vcnc kinematics forward`): rows `X Y Z A C` (mm, deg), shape
-    /// (N, 5), to rows `px py pz ox oy oz` (tool tip, mm, and tool axis in the workpiece
-    /// frame), shape (N, 6).
+    /// The axes the kinematics reads, in the order of [`Kinematics::forward`]'s columns:
+    /// X Y Z then the rotary axes, e.g. `["X", "Y", "Z", "A", "C"]`.
+    #[getter]
+    fn axis_names(&self) -> PyResult<Vec<&'static str>> {
+        let kin = self.machine.require_kinematics().map_err(error::pipeline)?;
+        Ok(kin.axis_names().into_iter().map(|a| a.as_str()).collect())
+    }
+
+    /// Forward kinematics (`vcnc kinematics forward`): rows of the axes in
+    /// [`Kinematics::axis_names`]' order (mm, deg; e.g. `X Y Z A C`), shape (N, axes), to rows
+    /// `px py pz ox oy oz` (tool tip, mm, and tool axis in the workpiece frame), shape (N, 6).
     fn forward<'py>(
         &self,
         py: Python<'py>,
         axes: PyArrayLike2<'py, f64, AllowTypeChange>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let input = rows::<5>(&axes)?;
         let kin = self.machine.require_kinematics().map_err(error::pipeline)?;
+        let input = rows(&axes, kin.axis_names().len())?;
         let out: Vec<[f64; 6]> = py.detach(|| {
             input
                 .iter()
@@ -383,11 +392,12 @@ impl Kinematics {
                 })
                 .collect()
         });
-        matrix(py, out)
+        matrix(py, out, 6)
     }
 
     /// Inverse kinematics (`vcnc kinematics inverse`): rows `px py pz ox oy oz`, shape (N, 6),
-    /// to rows `X Y Z A C` (mm, deg), shape (N, 5), C unwrapped continuously from row to row,
+    /// to rows of the axes in [`Kinematics::axis_names`]' order (mm, deg), shape (N, axes), the
+    /// rotary axes unwound continuously from row to row,
     /// on `branch` (1 or -1; the machine file's when `None`).
     #[pyo3(signature = (poses, branch=None))]
     fn inverse<'py>(
@@ -402,7 +412,7 @@ impl Kinematics {
                     .map_err(|_| error::bad_input(format!("branch {b}: expected 1 or -1")))
             })
             .transpose()?;
-        let poses: Vec<Pose> = rows::<6>(&poses)?
+        let poses: Vec<Pose> = rows(&poses, 6)?
             .into_iter()
             .map(|r| {
                 Pose::new(
@@ -415,7 +425,7 @@ impl Kinematics {
         let out = py
             .detach(|| kin.inverse_poses(&poses, branch))
             .map_err(error::kinematics)?;
-        matrix(py, out)
+        matrix(py, out, kin.axis_names().len())
     }
 }
 

@@ -19,6 +19,14 @@ pub const STRINGS: &[&str] = &[
     "Mm",
     "missing.urdf",
     "../machines/nmv5000.urdf",
+    "xyz",
+    "table-ac",
+    "table-bc",
+    "head-head",
+    "head-table",
+    "table-cb",
+    "B",
+    "A",
 ];
 
 /// Every key of the machine-file schema, axis names, and near misses.
@@ -30,6 +38,12 @@ pub const KEYS: &[&str] = &[
     "urdf",
     "c_centre_mm",
     "a_offset_mm",
+    "tilt_offset_mm",
+    "family",
+    "tilt",
+    "pivot_length_mm",
+    "pivot_mm",
+    "c_axis_mm",
     "branch",
     "trajectory",
     "max_linear_velocity",
