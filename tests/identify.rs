@@ -195,8 +195,35 @@ fn emps_real_trace() {
         args.extend_from_slice(extra);
         ok(&vcnc(&args))
     };
-    eprintln!("{}", emps(dir.path(), &[]));
+    let stdout = emps(dir.path(), &[]);
+    eprintln!("{stdout}");
     let s = json(&dir.path().join("summary.json"));
+    // Every structure tried is a row of the printout and of summary.json, exactly one marked
+    // chosen: the structure model.toml holds, and every other one says why it was not chosen.
+    let tried = s["axes"]["X"]["structures"].as_array().expect("structures");
+    assert!(tried.len() >= 2, "{tried:?}");
+    let chosen: Vec<&Value> = tried
+        .iter()
+        .filter(|t| t["verdict"]["kind"] == "chosen")
+        .collect();
+    assert_eq!(chosen.len(), 1, "{tried:?}");
+    assert_eq!(chosen[0]["structure"], s["axes"]["X"]["structure"]);
+    assert!(tried.iter().all(|t| t["verdict"]["kind"].is_string()));
+    let header = stdout
+        .lines()
+        .position(|l| l.contains("held-out RMS / max") && l.contains("verdict"))
+        .expect("the table of structures tried");
+    let rows: Vec<&str> = stdout.lines().skip(header + 2).take(tried.len()).collect();
+    assert_eq!(
+        rows.iter().filter(|l| l.contains("* ")).count(),
+        1,
+        "{rows:?}"
+    );
+    assert!(
+        rows.iter()
+            .all(|l| l.contains("chosen") || l.contains("higher held-out error")),
+        "{rows:?}"
+    );
     let rms = num(&s, "axes.X.fit.freerun_rms_um");
     let tracking = num(&s, "axes.X.fit.tracking_rms_um");
     assert!(

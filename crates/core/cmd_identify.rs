@@ -14,7 +14,7 @@ use crate::{Ctx, bad_input};
 use vcnc_output::files::ensure_dir;
 use vcnc_output::identification::{
     MACHINE_MODELS, fmt_poles, identification_table, identify_machine_report,
-    identify_trace_report, model_table, write_identification,
+    identify_trace_report, model_table, structure_table, write_identification,
 };
 use vcnc_output::text::table;
 
@@ -79,6 +79,7 @@ fn identify_machine(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
     )?;
     if !ctx.quiet {
         print!("{}", identification_table(&results));
+        print!("{}", structure_table(&results));
         print!("{}", model_table(&results));
         println!("-> {}", args.out.display());
     }
@@ -163,6 +164,7 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
                 )
             );
         }
+        print!("{}", structure_table(&ids));
         print!("{}", model_table(&ids));
         println!("-> {}", args.out.display());
     }

@@ -10,6 +10,7 @@ use vcnc_output::figures::{
 use vcnc_output::files::{ensure_dir, write_json};
 use vcnc_output::runs::{
     CONTOUR_TABLE_NOTE, contour_report_table, contour_rows, report_table_file, run_report,
+    worst_report_table, worst_rows,
 };
 use vcnc_output::table::ContourTable;
 use vcnc_output::text::table as text_table;
@@ -141,6 +142,7 @@ pub fn predict(
         ctx.lenient,
     );
     contour_report_table(&mut report, &[(VCNC_MODEL, &outcome.figures[0])]);
+    worst_report_table(&mut report, &outcome.summaries[0].worst_blocks);
     let program_ts = (source.file(), source.ts());
     if let Some(record) = record {
         let mask = record.measured(measured);
@@ -264,45 +266,10 @@ pub fn worst_table(blocks: &[WorstBlock]) -> String {
     if blocks.is_empty() {
         return String::new();
     }
-    let rows: Vec<Vec<String>> = blocks
-        .iter()
-        .map(|b| {
-            let c = b.cause.as_ref();
-            let text = c.map_or(String::new(), |c| {
-                let mut t: String = c.text.chars().take(40).collect();
-                if c.text.chars().count() > 40 {
-                    t.push('~');
-                }
-                t
-            });
-            vec![
-                b.line.to_string(),
-                format!("{:.3}", b.contour_max_um),
-                c.map_or(String::new(), |c| c.kind.to_string()),
-                c.map_or(String::new(), |c| format!("{:.0}", c.planned_feed_mm_min)),
-                c.map_or(String::new(), |c| format!("{:.0}", c.achieved_feed_mm_min)),
-                c.map_or(String::new(), |c| {
-                    format!("{} {:.1}", c.axis, c.axis_share_um)
-                }),
-                c.map_or(String::new(), |c| c.flags.words().join(", ")),
-                text,
-            ]
-        })
-        .collect();
+    let (header, rows) = worst_rows(blocks, "um", 40);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
     format!(
         "worst blocks (true machine):\n{}",
-        text_table(
-            &[
-                "line",
-                "tip [um]",
-                "move",
-                "planned [mm/min]",
-                "achieved [mm/min]",
-                "axis [um]",
-                "flags",
-                "G-code",
-            ],
-            &rows,
-        )
+        text_table(&header, &rows)
     )
 }

@@ -1181,7 +1181,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not both"), "{e}");
-        let e = nmv_with_kinematics("branch = -1").unwrap_err().to_string();
+        let e = nmv_with_kinematics("").unwrap_err().to_string();
         assert!(e.contains("family") && e.contains("urdf"), "{e}");
         let e = nmv_with_kinematics("family = \"xyz\"\ntilt = \"B\"")
             .unwrap_err()

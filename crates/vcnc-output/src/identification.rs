@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use vcnc_pipeline::identify::{IdentifySummary, axis_warnings, model_set};
-use vcnc_pipeline::{AxisIdentification, ClosedLoopModel, TraceFormat, Unit};
+use vcnc_pipeline::{
+    AxisIdentification, ClosedLoopModel, Degeneracy, DriveModel, TraceFormat, Unit, Verdict,
+};
 
 use crate::figures;
 use crate::files::{write_atomic, write_json};
@@ -35,6 +37,18 @@ pub fn write_identification(
         .map_err(|e| Error::Pipeline(e.into()))?;
     write_atomic(&out.join("model.toml"), text.as_bytes())?;
     identification_report_table(report, ids);
+    let (header, rows) = structure_rows(ids, Unit::micro_symbol);
+    let header_s: Vec<&str> = header.iter().map(String::as_str).collect();
+    report.table(
+        "model structures tried",
+        &header_s,
+        rows,
+        "* the chosen structure, what model.toml holds; free-run error of each structure's model \
+         on the trace it was fitted to ((stretch): only compared, on the compared stretch) and \
+         where it was judged (the validation run, or the held-out end of a single trace); the \
+         verdict says why a structure was not chosen (docs/identification.md, \"Choosing a \
+         structure\")",
+    );
     let (header, rows) = model_rows(ids);
     let header: Vec<&str> = header.iter().map(String::as_str).collect();
     report.table(
@@ -197,6 +211,127 @@ pub fn model_rows(ids: &[AxisIdentification]) -> (Vec<String>, Vec<Vec<String>>)
         }
     }
     (header, rows)
+}
+
+/// Per axis, one row per model structure tried (issue 29): its model input and parameters,
+/// its free-run error RMS / max on the trace it was fitted to and where it was judged (the
+/// validation run, or the held-out end of a single trace), and the choice's verdict — `chosen`
+/// (what `model.toml` holds) or why not, with why its parameters are not trusted where they
+/// are not. Errors in µm or mdeg, labelled by `unit_label`.
+pub fn structure_rows(
+    ids: &[AxisIdentification],
+    unit_label: fn(Unit) -> &'static str,
+) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut rows = Vec::new();
+    for r in ids {
+        let label = unit_label(r.unit);
+        let k = r.unit.micro_factor();
+        let err = |m: &vcnc_pipeline::FitMetrics| {
+            format!(
+                "{:.3} / {:.3} {label}",
+                m.freerun_rms * k,
+                m.freerun_max * k
+            )
+        };
+        for (i, f) in r.result.structures.iter().enumerate() {
+            let chosen = matches!(f.verdict, Some(Verdict::Chosen));
+            let mut verdict = f.verdict.as_ref().map_or("-".into(), short_verdict);
+            for d in &f.degenerate {
+                verdict.push_str("; ");
+                verdict.push_str(&short_degeneracy(d));
+            }
+            rows.push(vec![
+                if i == 0 {
+                    r.axis.to_string()
+                } else {
+                    String::new()
+                },
+                format!("{}{}", if chosen { "* " } else { "" }, f.structure),
+                f.input.to_string(),
+                structure_parameters(&f.model),
+                format!(
+                    "{}{}",
+                    err(&f.estimation),
+                    if f.whole { "" } else { " (stretch)" }
+                ),
+                f.validation.as_ref().map_or("-".into(), err),
+                verdict,
+            ]);
+        }
+    }
+    let header = [
+        "axis",
+        "structure",
+        "input",
+        "wn/zeta/p [Hz], own parameters",
+        "estimation RMS / max",
+        "held-out RMS / max",
+        "verdict",
+    ]
+    .map(String::from)
+    .to_vec();
+    (header, rows)
+}
+
+/// The choice's verdict in a few words (the numbers are in the error columns; summary.json has
+/// them all).
+fn short_verdict(v: &Verdict) -> String {
+    match v {
+        Verdict::Chosen => "chosen".into(),
+        Verdict::HigherError { .. } => "higher held-out error".into(),
+        Verdict::Simpler { margin, .. } => format!(
+            "within {:.0} % of the chosen, which is simpler or lower",
+            100.0 * margin
+        ),
+        Verdict::Degenerate { margin, .. } => format!(
+            "not trusted and not {:.0} % below the chosen",
+            100.0 * margin
+        ),
+    }
+}
+
+/// Why a structure's parameters are not trusted, in a few words.
+fn short_degeneracy(d: &Degeneracy) -> String {
+    match d {
+        Degeneracy::OnBound(h) => format!("{} on its {} bound", h.parameter, h.bound),
+        Degeneracy::Undetermined {
+            parameter,
+            relative_std,
+            ..
+        } if relative_std.is_finite() => {
+            format!("{parameter} ± {:.0} %", 100.0 * relative_std)
+        }
+        Degeneracy::Undetermined { parameter, .. } => format!("{parameter} undetermined"),
+    }
+}
+
+/// The poles of `m`'s core and the structure's own parameters (dead time, reference filter,
+/// extra pole).
+fn structure_parameters(m: &DriveModel) -> String {
+    let mut s = fmt_poles(&m.core);
+    if m.delay_s > 0.0 {
+        s.push_str(&format!("; delay {:.2} ms", m.delay_s * 1e3));
+    }
+    match m.reference_filter {
+        Some(vcnc_pipeline::ReferenceFilter::FirstOrder { tau_s }) => {
+            s.push_str(&format!("; filter tau {:.2} ms", tau_s * 1e3));
+        }
+        Some(vcnc_pipeline::ReferenceFilter::SecondOrder { wn_hz, zeta }) => {
+            s.push_str(&format!("; filter {wn_hz:.2} Hz / {zeta:.3}"));
+        }
+        None => {}
+    }
+    if let Some(hz) = m.extra_pole_hz {
+        s.push_str(&format!("; extra pole {hz:.2} Hz"));
+    }
+    s
+}
+
+/// [`structure_rows`] as the terminal table.
+pub fn structure_table(ids: &[AxisIdentification]) -> String {
+    let (header, rows) = structure_rows(ids, Unit::micro_label);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    table(&header, &rows)
 }
 
 /// The chosen structures and their parameters with standard deviations, for the terminal.

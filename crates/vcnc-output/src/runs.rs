@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use vcnc_pipeline::predict::WorstBlock;
 use vcnc_pipeline::{ContourFigures, Machine, Source};
 
 use crate::figures;
@@ -120,4 +121,70 @@ pub fn run_report(
     }
     report.warnings(warnings);
     report
+}
+
+/// The worst blocks of a prediction, where (line, G-code, cut to `text_chars` characters) and
+/// why (cutting or link move, planned and achieved feed, the axis whose following error moves
+/// the tip farthest and by how much, flags): the header and the rows, errors labelled
+/// `micro` (`um` in the terminal, `µm` in reports).
+pub fn worst_rows(
+    blocks: &[WorstBlock],
+    micro: &str,
+    text_chars: usize,
+) -> (Vec<String>, Vec<Vec<String>>) {
+    let rows = blocks
+        .iter()
+        .map(|b| {
+            let c = b.cause.as_ref();
+            let text = c.map_or(String::new(), |c| {
+                let mut t: String = c.text.chars().take(text_chars).collect();
+                if c.text.chars().count() > text_chars {
+                    t.push('~');
+                }
+                t
+            });
+            vec![
+                b.line.to_string(),
+                format!("{:.3}", b.contour_max_um),
+                c.map_or(String::new(), |c| c.kind.to_string()),
+                c.map_or(String::new(), |c| format!("{:.0}", c.planned_feed_mm_min)),
+                c.map_or(String::new(), |c| format!("{:.0}", c.achieved_feed_mm_min)),
+                c.map_or(String::new(), |c| {
+                    format!("{} {:.1}", c.axis, c.axis_share_um)
+                }),
+                c.map_or(String::new(), |c| c.flags.words().join(", ")),
+                text,
+            ]
+        })
+        .collect();
+    let header = vec![
+        "line".to_string(),
+        format!("tip [{micro}]"),
+        "move".to_string(),
+        "planned [mm/min]".to_string(),
+        "achieved [mm/min]".to_string(),
+        format!("axis [{micro}]"),
+        "flags".to_string(),
+        "G-code".to_string(),
+    ];
+    (header, rows)
+}
+
+/// The worst blocks' table in a report ([`worst_rows`]); nothing when there are none.
+pub fn worst_report_table(report: &mut RunReport, blocks: &[WorstBlock]) {
+    if blocks.is_empty() {
+        return;
+    }
+    let (header, rows) = worst_rows(blocks, "µm", 60);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    report.table(
+        "worst blocks (true machine)",
+        &header,
+        rows,
+        "the program lines where the true machine's tool-tip contour error peaks; move: cutting, \
+         link or dwell; planned / achieved: the reference's and the true machine's peak tool-tip \
+         speed over the block; axis: the axis whose following error alone moves the tip farthest \
+         across the path at the worst sample, and by how much; flags: at an axis limit, axis \
+         reversal, sharp corner, rotary unwinding (docs/contour.md, \"Why a block is bad\")",
+    );
 }

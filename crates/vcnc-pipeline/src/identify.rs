@@ -470,6 +470,16 @@ pub struct StructureSummary {
     /// single trace).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fit_validation: Option<FitSummary>,
+    /// Whether it was refined on the whole estimation trace (the chosen one and the paper's
+    /// structure) or only compared on the compared stretch.
+    pub whole: bool,
+    /// The choice's verdict on it (`chosen`, or why not, with the numbers); absent when
+    /// nothing was chosen.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<vcnc_identify::Verdict>,
+    /// Why its parameters are not trusted (on a bound, not determined by the data); empty
+    /// when they are.
+    pub not_trusted: Vec<String>,
 }
 
 /// A parameter and its standard deviation.
@@ -541,6 +551,9 @@ impl AxisIdentifySummary {
                     model: ModelSummary::of_drive(&s.model),
                     fit_estimation: fit(&s.estimation),
                     fit_validation: s.validation.as_ref().map(fit),
+                    whole: s.whole,
+                    verdict: s.verdict.clone(),
+                    not_trusted: s.degenerate.iter().map(|d| d.to_string()).collect(),
                 })
                 .collect(),
             uncertainty: id.uncertainty.as_ref().map(|u| {

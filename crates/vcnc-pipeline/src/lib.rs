@@ -92,9 +92,11 @@ pub use summary::{FitSummary, ModelSummary};
 pub use sweep::{Sweep, SweepRow};
 pub use vcnc_axis::{AxisName, Unit};
 pub use vcnc_contour::ContourReport;
-pub use vcnc_drive::{ClosedLoopModel, DriveModel, DriveTrace, Frf, MAX_ACTUAL_LATENCY_S};
+pub use vcnc_drive::{
+    ClosedLoopModel, DriveModel, DriveTrace, Frf, MAX_ACTUAL_LATENCY_S, ReferenceFilter,
+};
 pub use vcnc_gcode::StreamOptions;
-pub use vcnc_identify::{FitMetrics, ModelStructure};
+pub use vcnc_identify::{Degeneracy, FitMetrics, ModelStructure, Verdict};
 pub use vcnc_machine::{
     Error as MachineError, Machine, MachineDocument, MachineModels, ModelSet, OptionsFile, embedded,
 };
