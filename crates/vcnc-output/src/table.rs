@@ -503,15 +503,29 @@ impl Sink<ReferenceChunk> for ReferenceTable<'_> {
         } else {
             None
         };
-        let mut cols: Vec<&[f64]> = vec![&self.t];
-        if let Some(tip) = &tip {
-            cols.extend(tip.iter().map(Vec::as_slice));
-        }
-        for i in 0..c.pos.len() {
-            cols.extend([c.pos[i].as_slice(), &c.vel[i], &c.acc[i]]);
-        }
-        self.writer.write(&cols)
+        self.writer.write(&reference_columns(
+            c,
+            &self.t,
+            tip.as_ref().map(|t| t.as_slice()),
+        ))
     }
+}
+
+/// One piece of `reference.csv` as columns in [`reference_header`]'s order: its times `t`,
+/// the tool tips `tip` of a TCP program, then per axis position, velocity and acceleration.
+pub fn reference_columns<'a>(
+    c: &'a ReferenceChunk,
+    t: &'a [f64],
+    tip: Option<&'a [Vec<f64>]>,
+) -> Vec<&'a [f64]> {
+    let mut cols: Vec<&[f64]> = vec![t];
+    if let Some(tip) = tip {
+        cols.extend(tip.iter().map(Vec::as_slice));
+    }
+    for i in 0..c.pos.len() {
+        cols.extend([c.pos[i].as_slice(), &c.vel[i], &c.acc[i]]);
+    }
+    cols
 }
 
 /// The columns of `trace.csv`: `t`, then per axis `<A>_ref`, `<A>_act` and, with models,
@@ -566,16 +580,22 @@ impl Sink<SimulatePiece> for TraceTable {
         self.t.clear();
         self.t
             .extend((p.first..p.first + p.len()).map(|k| k as f64 * self.ts));
-        let mut cols: Vec<&[f64]> = vec![&self.t];
-        for i in 0..p.reference.len() {
-            cols.push(&p.reference[i]);
-            cols.push(&p.traces[i].position);
-            if let Some(pred) = &p.predicted {
-                cols.push(&pred[i]);
-            }
-        }
-        self.writer.write(&cols)
+        self.writer.write(&trace_columns(p, &self.t))
     }
+}
+
+/// One piece of `trace.csv` as columns in [`trace_header`]'s order: its times `t`, then per
+/// axis reference, actual and (with models) predicted position.
+pub fn trace_columns<'a>(p: &'a SimulatePiece, t: &'a [f64]) -> Vec<&'a [f64]> {
+    let mut cols: Vec<&[f64]> = vec![t];
+    for i in 0..p.reference.len() {
+        cols.push(&p.reference[i]);
+        cols.push(&p.traces[i].position);
+        if let Some(pred) = &p.predicted {
+            cols.push(&pred[i]);
+        }
+    }
+    cols
 }
 
 /// Columns of `contour.csv` (axes `axes`, in machine order): `t`, `line`, per axis its

@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyString, PyTuple};
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{Branch, Pose};
+use vcnc_output::table;
 use vcnc_pipeline::predict::{self, PredictOptions, PredictSummary};
 use vcnc_pipeline::simulate::{self, simulate_summary_of};
 use vcnc_pipeline::source::{self, Program};
@@ -33,8 +34,23 @@ impl Columns {
         Columns { names, values }
     }
 
-    fn into_pairs(self) -> Vec<(String, Vec<f64>)> {
-        self.names.into_iter().zip(self.values).collect()
+    /// Appends one piece, given as columns in the names' order.
+    fn append(&mut self, piece: Vec<&[f64]>) {
+        debug_assert_eq!(piece.len(), self.values.len(), "one column per name");
+        for (v, c) in self.values.iter_mut().zip(piece) {
+            v.extend_from_slice(c);
+        }
+    }
+
+    /// `(columns, summary)` as a command's Python result: a dict of numpy arrays in the names'
+    /// order and the summary as a dict.
+    fn with_summary<'py, S: serde::Serialize>(
+        self,
+        py: Python<'py>,
+        summary: &S,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let cols: Vec<(String, Vec<f64>)> = self.names.into_iter().zip(self.values).collect();
+        PyTuple::new(py, [columns(py, cols)?.into_any(), to_py(py, summary)?])
     }
 }
 
@@ -50,19 +66,17 @@ struct ReferenceColumns<'m> {
 impl Sink<ReferenceChunk> for ReferenceColumns<'_> {
     type Error = vcnc_pipeline::Error;
     fn piece(&mut self, c: &ReferenceChunk) -> Result<(), Self::Error> {
-        let mut v = self.cols.values.iter_mut();
-        let mut next = || v.next().expect("one column per name");
-        next().extend((c.first..c.first + c.len()).map(|k| k as f64 * self.ts));
-        if self.tcp {
-            for tip in vcnc_pipeline::interpolate::tool_tips(self.machine, c)? {
-                next().extend(tip);
-            }
-        }
-        for i in 0..c.pos.len() {
-            for s in [&c.pos[i], &c.vel[i], &c.acc[i]] {
-                next().extend_from_slice(s);
-            }
-        }
+        let t = piece_times(c.first, c.len(), self.ts);
+        let tip = if self.tcp {
+            Some(vcnc_pipeline::interpolate::tool_tips(self.machine, c)?)
+        } else {
+            None
+        };
+        self.cols.append(table::reference_columns(
+            c,
+            &t,
+            tip.as_ref().map(|t| t.as_slice()),
+        ));
         Ok(())
     }
 }
@@ -77,18 +91,15 @@ struct TraceColumns {
 impl Sink<SimulatePiece> for TraceColumns {
     type Error = vcnc_pipeline::Error;
     fn piece(&mut self, p: &SimulatePiece) -> Result<(), Self::Error> {
-        let mut v = self.cols.values.iter_mut();
-        let mut next = || v.next().expect("one column per name");
-        next().extend((p.first..p.first + p.len()).map(|k| k as f64 * self.ts));
-        for i in 0..p.reference.len() {
-            next().extend_from_slice(&p.reference[i]);
-            next().extend_from_slice(&p.traces[i].position);
-            if let Some(pred) = &p.predicted {
-                next().extend_from_slice(&pred[i]);
-            }
-        }
+        let t = piece_times(p.first, p.len(), self.ts);
+        self.cols.append(table::trace_columns(p, &t));
         Ok(())
     }
+}
+
+/// The times of the `len` samples from sample `first` at period `ts`, s.
+fn piece_times(first: usize, len: usize, ts: f64) -> Vec<f64> {
+    (first..first + len).map(|k| k as f64 * ts).collect()
 }
 
 /// The columns of `vcnc predict`'s `contour.csv`: `t`, `line`, per axis reference, true and
@@ -105,7 +116,7 @@ impl Sink<PredictPiece> for ContourColumns {
         let Some(model) = p.models.first() else {
             return Ok(());
         };
-        vcnc_output::table::append_contour_columns(p, model, self.ts, &mut self.cols.values);
+        table::append_contour_columns(p, model, self.ts, &mut self.cols.values);
         Ok(())
     }
 }
@@ -195,19 +206,13 @@ impl Machine {
                     machine: m,
                     ts: source.ts(),
                     tcp: source.has_tcp(),
-                    cols: Columns::new(reference_header(source.has_tcp(), &names)),
+                    cols: Columns::new(table::reference_header(source.has_tcp(), &names)),
                 };
                 let outcome = vcnc_pipeline::interpolate::interpolate(m, source, &mut sink)?;
                 Ok::<_, vcnc_pipeline::Error>((sink.cols, outcome.summary))
             })
             .map_err(error::pipeline)?;
-        PyTuple::new(
-            py,
-            [
-                columns(py, cols.into_pairs())?.into_any(),
-                to_py(py, &summary)?,
-            ],
-        )
+        cols.with_summary(py, &summary)
     }
 
     /// `vcnc simulate`: the true drives (and the models of the file `models`, when given)
@@ -228,17 +233,10 @@ impl Machine {
                 let plan = source::plan(m, program, lenient)?;
                 let models = models.map(|p| MachineModels::load(&p, m)).transpose()?;
                 let source = Source::Streamed(&plan);
-                let mut names = vec!["t".to_string()];
-                for a in &m.axes {
-                    names.push(format!("{}_ref", a.name));
-                    names.push(format!("{}_act", a.name));
-                    if models.is_some() {
-                        names.push(format!("{}_model", a.name));
-                    }
-                }
+                let names: Vec<_> = m.axes.iter().map(|a| a.name).collect();
                 let mut sink = TraceColumns {
                     ts: source.ts(),
-                    cols: Columns::new(names),
+                    cols: Columns::new(table::trace_header(&names, models.is_some())),
                 };
                 let outcome = simulate::simulate(m, source, models.as_ref(), &mut sink)?;
                 let summary = simulate_summary_of(
@@ -250,13 +248,7 @@ impl Machine {
                 Ok::<_, vcnc_pipeline::Error>((sink.cols, summary))
             })
             .map_err(error::pipeline)?;
-        PyTuple::new(
-            py,
-            [
-                columns(py, cols.into_pairs())?.into_any(),
-                to_py(py, &summary)?,
-            ],
-        )
+        cols.with_summary(py, &summary)
     }
 
     /// `vcnc predict`: contour and orientation errors of `program` on the true machine and
@@ -281,7 +273,7 @@ impl Machine {
                 let source = Source::Streamed(&plan);
                 let mut sink = ContourColumns {
                     ts: source.ts(),
-                    cols: Columns::new(vcnc_output::table::contour_header(
+                    cols: Columns::new(table::contour_header(
                         &m.axes.iter().map(|a| a.name).collect::<Vec<_>>(),
                     )),
                 };
@@ -304,13 +296,7 @@ impl Machine {
                 Ok::<_, vcnc_pipeline::Error>((sink.cols, summary))
             })
             .map_err(error::pipeline)?;
-        PyTuple::new(
-            py,
-            [
-                columns(py, cols.into_pairs())?.into_any(),
-                to_py(py, &summary)?,
-            ],
-        )
+        cols.with_summary(py, &summary)
     }
 
     fn __repr__(&self) -> String {
@@ -320,20 +306,6 @@ impl Machine {
             self.axes().concat()
         )
     }
-}
-
-/// `t`, `px py pz` for TCP programs, per axis position, velocity and acceleration.
-fn reference_header(tcp: bool, axes: &[vcnc_pipeline::AxisName]) -> Vec<String> {
-    let mut header = vec!["t".to_string()];
-    if tcp {
-        header.extend(["px", "py", "pz"].map(String::from));
-    }
-    for a in axes {
-        header.push(a.to_string());
-        header.push(format!("{a}_vel"));
-        header.push(format!("{a}_acc"));
-    }
-    header
 }
 
 /// The rows of a 2-D array of `width` columns.
