@@ -48,6 +48,21 @@ fn worst_blocks_say_where_and_why_in_the_terminal_and_the_summary() {
     for word in ["G1 X40 Y0 F6000", "cutting", "reversal", "sharp corner"] {
         assert!(first.contains(word), "{word} missing in {first}");
     }
+    // The same table in report.html: a real table whose first row is that line, not a JSON
+    // dump.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let section = html
+        .split("worst blocks (true machine)")
+        .nth(1)
+        .expect("a worst-blocks table in report.html");
+    let first_row = section
+        .split("<tbody>")
+        .nth(1)
+        .and_then(|b| b.split("</tr>").next())
+        .expect("a first row");
+    for cell in [">3<", "G1 X40 Y0 F6000", "cutting", "sharp corner"] {
+        assert!(first_row.contains(cell), "{cell} missing in {first_row}");
+    }
     let summary = json(&out.join("summary.json"));
     let w = &summary["worst_blocks"][0];
     assert_eq!(w["line"], 3);
