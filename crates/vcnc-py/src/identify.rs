@@ -1,13 +1,12 @@
 //! `vcnc.identify` (arrays) and `vcnc.identify_trace` (files): the identification of
 //! `vcnc identify --trace`, its result as an [`Identification`].
 //!
-//! Arrays take the command line's route too: they are written as the delimited text a scope
-//! export would hold (`t,xr,x`, numbers in Rust's shortest exact form, which reads back bit for
-//! bit) and read by `vcnc-trace`'s delimited reader, so that the time column is checked into a
-//! sample period by the one law every file goes through (first time, mean period, lost
-//! samples), the units are converted as for a file, and the identification is the file's bit
-//! for bit. Errors in the arrays name them `<arrays>` (or the `name` given) with the line the
-//! sample would be on: sample `k` (from 0) is line `k + 2`.
+//! Arrays take the command line's route too: [`vcnc_trace::from_columns`] makes them the trace
+//! a delimited file `t,xr,x` would be, through the delimited reader's own law (the time column
+//! checked into a sample period: first time, mean period, lost samples; then the pairing and
+//! units as for a file), so that the identification equals the file's bit for bit. Errors in
+//! the arrays name them `<arrays>` (or the `name` given) with the line the sample would be on:
+//! sample `k` (from 0) is line `k + 2`.
 
 use std::path::PathBuf;
 
@@ -16,7 +15,7 @@ use pyo3::types::PyDict;
 use vcnc_pipeline::identify::{self as pipeline_identify, AxisIdentifySummary};
 use vcnc_pipeline::traces::{self, MeasuredTrace};
 use vcnc_pipeline::{AxisIdentification, MAX_ACTUAL_LATENCY_S, OptionsFile};
-use vcnc_trace::{Format, TraceArgs};
+use vcnc_trace::TraceArgs;
 
 use crate::convert::{Samples, array, to_py, to_vec};
 use crate::error;
@@ -112,16 +111,8 @@ pub(crate) fn arrays_trace(
     let axis = axis_name(axis)?;
     let (times, ts) = match t.extract::<f64>() {
         Ok(ts) => (None, Some(ts)),
-        Err(_) => (Some(to_vec(&t.extract::<Samples<'_>>()?)), None),
+        Err(_) => (Some(t.extract::<Samples<'_>>()?), None),
     };
-    let (xr, x) = (to_vec(xr), to_vec(x));
-    let lengths = [times.as_ref().map_or(xr.len(), Vec::len), xr.len(), x.len()];
-    if lengths.iter().any(|&n| n != lengths[0]) {
-        return Err(error::bad_input(format!(
-            "{name}: t, xr and x have {}, {} and {} samples; they must have one length",
-            lengths[0], lengths[1], lengths[2]
-        )));
-    }
     let args = TraceArgs {
         ts,
         units: Some(units.to_string()),
@@ -130,18 +121,18 @@ pub(crate) fn arrays_trace(
         x_col: Some("x".into()),
         ..TraceArgs::default()
     };
-    let mut read = args.read_options().map_err(error::pipeline)?;
-    read.format = Some(Format::Delimited);
+    let read = args.read_options().map_err(error::pipeline)?;
     let pair = args.pair_options().map_err(error::pipeline)?;
+    // The times are read in place when contiguous; the positions are copied once, into the
+    // trace's channels.
+    let times = times.as_ref().map(|t| match t.as_slice() {
+        Ok(s) => std::borrow::Cow::Borrowed(s),
+        Err(_) => std::borrow::Cow::Owned(t.as_array().to_vec()),
+    });
+    let columns = vec![("xr".to_string(), to_vec(xr)), ("x".to_string(), to_vec(x))];
     py.detach(|| {
-        let mut text = Vec::new();
-        let (header, columns): (&[&str], Vec<&[f64]>) = match &times {
-            Some(t) => (&["t", "xr", "x"], vec![t, &xr, &x]),
-            None => (&["xr", "x"], vec![&xr, &x]),
-        };
-        vcnc_trace::write::delimited(&mut text, b',', false, Some(header), &columns)
-            .map_err(error::internal)?;
-        let trace = vcnc_trace::read_bytes(name, &text, &read).map_err(error::pipeline)?;
+        let trace = vcnc_trace::from_columns(name, times.as_deref(), columns, &read)
+            .map_err(error::pipeline)?;
         let paired = vcnc_trace::pair(&trace, &pair).map_err(error::pipeline)?;
         Ok(MeasuredTrace { trace, paired })
     })

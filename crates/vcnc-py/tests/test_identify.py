@@ -49,9 +49,13 @@ def test_identification_carries_what_a_user_plots(emps):
 def test_bad_input_is_a_value_error_naming_the_sample(emps):
     t = emps["t"].copy()
     t[10] = t[9]  # time stands still at sample 10: line 12 of the arrays' text
-    with pytest.raises(ValueError, match="<arrays>"):
+    with pytest.raises(ValueError, match="<arrays>:12: time does not increase"):
         vcnc.identify(t, emps["qg"], emps["qm"], units="m")
-    with pytest.raises(ValueError, match="one length"):
+    x = emps["qm"].copy()
+    x[3] = np.nan
+    with pytest.raises(ValueError, match="<arrays>:5: x is NaN"):
+        vcnc.identify(emps["t"], emps["qg"], x, units="m")
+    with pytest.raises(ValueError, match="xr 24840, x 24841"):
         vcnc.identify(emps["t"], emps["qg"][:-1], emps["qm"], units="m")
     with pytest.raises(ValueError, match="units"):
         vcnc.identify(emps["t"], emps["qg"], emps["qm"], units="furlong")

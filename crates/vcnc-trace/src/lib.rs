@@ -75,6 +75,7 @@ use std::path::Path;
 
 pub use detect::{EXAMINED_BYTES, detect, detect_format};
 pub use error::{Attempt, Error};
+pub use formats::delimited::from_columns;
 pub use formats::sinumerik::NO_VALUE_ABOVE;
 pub use info::{ChannelInfo, TraceInfo, format_period};
 pub use lost_motion::{LostMotion, REVERSAL_HYSTERESIS, Reversal, lost_motion};

@@ -985,3 +985,29 @@ fn every_bad_input_gives_its_typed_error_with_file_and_line() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Columns in memory (numpy arrays from Python, `vcnc_trace::from_columns`) are refused as
+/// their file would be: a NaN names its column and the line its sample would be on (sample
+/// `k` on line `k + 2`), an irregular time the same; unequal or empty columns name the
+/// lengths.
+#[test]
+fn bad_columns_in_memory_give_their_typed_error() {
+    let t: Vec<f64> = (0..10).map(|k| k as f64 * 1e-3).collect();
+    let opts = ReadOptions::default();
+    let cols = |xr: Vec<f64>| vec![("xr".to_string(), xr), ("x".to_string(), vec![0.0; 10])];
+    let mut xr = vec![0.0; 10];
+    xr[3] = f64::NAN;
+    let e = vcnc_trace::from_columns("<arrays>", Some(&t), cols(xr), &opts).unwrap_err();
+    assert!(matches!(e, Error::NotFinite { line: 5, .. }), "{e}");
+    assert_eq!(e.to_string(), "<arrays>:5: xr is NaN: not a finite number");
+    let e = vcnc_trace::from_columns("<arrays>", Some(&t), cols(vec![0.0; 9]), &opts).unwrap_err();
+    assert!(matches!(e, Error::BadOption { .. }), "{e}");
+    assert!(e.to_string().contains("t 10, xr 9, x 10"), "{e}");
+    let e = vcnc_trace::from_columns("<arrays>", None, vec![], &opts).unwrap_err();
+    assert!(matches!(e, Error::BadOption { .. }), "{e}");
+    let mut jitter = t.clone();
+    jitter[6] += 0.5e-3;
+    let e = vcnc_trace::from_columns("<arrays>", Some(&jitter), cols(vec![0.0; 10]), &opts)
+        .unwrap_err();
+    assert!(matches!(e, Error::IrregularTime { line: 8, .. }), "{e}");
+}

@@ -4,7 +4,9 @@
 
 use proptest::prelude::*;
 use vcnc_axis::AxisName;
-use vcnc_trace::{Format, Quantity, ReadOptions, TraceUnit, detect, read_bytes, write};
+use vcnc_trace::{
+    Format, Quantity, ReadOptions, TraceUnit, detect, from_columns, read_bytes, write,
+};
 
 fn values(n: usize) -> impl Strategy<Value = Vec<Vec<f64>>> {
     let v = prop_oneof![
@@ -109,6 +111,40 @@ proptest! {
             prop_assert_eq!(&ch.unit, &Some(TraceUnit::Mm));
             prop_assert_eq!(bits(&ch.samples), bits(col));
             prop_assert!((ch.period_s.unwrap() - 0.5e-3).abs() < 1e-15);
+        }
+    }
+
+    /// Columns in memory (numpy arrays from Python) read as the delimited file holding them
+    /// would be: the same trace (time base, gaps and their lines, names, units, axes),
+    /// samples bit for bit. The time column has a gap of `lost` samples at `at` and jitter
+    /// of printed digits.
+    #[test]
+    fn columns_read_as_their_delimited_file(cols in values(25), at in 1usize..24, lost in 1usize..4, with_t in any::<bool>()) {
+        let n = cols[0].len();
+        let t: Vec<f64> = (0..n)
+            .map(|k| (k + if k >= at { lost } else { 0 }) as f64 * 1e-3 + 7.25)
+            .collect();
+        let mut names: Vec<String> = with_t.then(|| "t".to_string()).into_iter().collect();
+        names.extend((0..cols.len()).map(|i| format!("c{i}[mm]")));
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let mut slices: Vec<&[f64]> = with_t.then_some(t.as_slice()).into_iter().collect();
+        slices.extend(cols.iter().map(Vec::as_slice));
+        let mut buf = Vec::new();
+        write::delimited(&mut buf, b',', false, Some(&refs), &slices).unwrap();
+        let opts = ReadOptions {
+            period_s: (!with_t).then_some(1e-3),
+            ..ReadOptions::default()
+        };
+        let file = read_bytes("arrays", &buf, &opts).unwrap();
+        let named = names[usize::from(with_t)..]
+            .iter()
+            .cloned()
+            .zip(cols.iter().cloned())
+            .collect();
+        let mem = from_columns("arrays", with_t.then_some(t.as_slice()), named, &opts).unwrap();
+        prop_assert_eq!(&mem.channels, &file.channels);
+        if with_t {
+            prop_assert_eq!(mem.channels[0].gaps[0].line, at + 2);
         }
     }
 

@@ -155,63 +155,173 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
 
     let cols = formats::read_table(file, bytes, data_start, delim, decimal_comma, &names, true)?;
     let line_of = |row: usize| formats::row_line(bytes, data_start, true, row);
-
-    let uniform = match time_col {
-        Some(tc) => {
-            let unit = units[tc]
-                .clone()
-                .or_else(|| time_name(&names[tc]).flatten())
-                .or_else(|| opts.time_unit.clone())
-                .unwrap_or(TraceUnit::S);
-            let k = match unit.to_base() {
-                Some((BaseUnit::S, k)) => k,
-                _ => {
-                    return Err(Error::Header {
-                        file: file.to_string(),
-                        line: header_line,
-                        what: format!("time column '{}' is in {unit}, not a time unit", names[tc]),
-                    });
-                }
-            };
-            let times: std::borrow::Cow<'_, [f64]> = if k == 1.0 {
-                std::borrow::Cow::Borrowed(&cols[tc])
-            } else {
-                cols[tc].iter().map(|t| t * k).collect()
-            };
-            let u = timebase::uniform(&times, None)
-                .map_err(|f| formats::time_error(file, f, header_line, line_of))?;
-            Some(u)
-        }
-        None => None,
-    };
-
-    let mut channels = Vec::with_capacity(names.len());
-    for (c, samples) in cols.into_iter().enumerate() {
-        if Some(c) == time_col {
+    let mut times = None;
+    let mut columns = Vec::with_capacity(names.len());
+    for (c, ((name, unit), samples)) in names.into_iter().zip(units).zip(cols).enumerate() {
+        if Some(c) != time_col {
+            columns.push(Column {
+                name,
+                unit,
+                samples,
+                column: c,
+            });
             continue;
         }
-        let mut ch = Channel::new(names[c].clone(), first.no, c);
-        ch.unit = units[c].clone();
-        ch.samples = samples;
-        if let Some(u) = &uniform {
-            formats::apply_uniform(&mut ch, u, line_of);
+        let unit = unit
+            .or_else(|| time_name(&name).flatten())
+            .or_else(|| opts.time_unit.clone())
+            .unwrap_or(TraceUnit::S);
+        let k = match unit.to_base() {
+            Some((BaseUnit::S, k)) => k,
+            _ => {
+                return Err(Error::Header {
+                    file: file.to_string(),
+                    line: header_line,
+                    what: format!("time column '{name}' is in {unit}, not a time unit"),
+                });
+            }
+        };
+        let mut t = samples;
+        if k != 1.0 {
+            t.iter_mut().for_each(|v| *v *= k);
         }
-        formats::apply_period_option(file, opts, &mut ch)?;
-        formats::infer_channel(&mut ch, &[("name", &names[c])], None);
-        channels.push(ch);
+        times = Some((name, t));
     }
+    let channels = channels(
+        file,
+        first.no,
+        times.as_ref().map(|(_, t)| t.as_slice()),
+        columns,
+        header_line,
+        line_of,
+        opts,
+    )?;
     metadata.push(("separator".to_string(), delim.describe().to_string()));
     metadata.push((
         "decimal mark".to_string(),
         if decimal_comma { "','" } else { "'.'" }.to_string(),
     ));
-    if let Some(tc) = time_col {
-        metadata.push(("time column".to_string(), names[tc].clone()));
+    if let Some((name, _)) = times {
+        metadata.push(("time column".to_string(), name));
     }
     Ok(Trace {
         file: file.to_string(),
         format: Format::Delimited,
         channels,
+        metadata,
+    })
+}
+
+/// A column of samples with its name, unit and place in the file (0-based, counting a time
+/// column).
+pub(crate) struct Column {
+    pub name: String,
+    pub unit: Option<TraceUnit>,
+    pub samples: Vec<f64>,
+    pub column: usize,
+}
+
+/// The channels of `columns`, their time base checked from `times` (s) when given, else from
+/// [`ReadOptions::period_s`]; `header_line` is the line a fault of the time base as a whole
+/// is reported on and `line_of` gives the line of a row. Both the reader and
+/// [`crate::from_columns`] end here: one law for time columns and names.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn channels(
+    file: &str,
+    line: usize,
+    times: Option<&[f64]>,
+    columns: Vec<Column>,
+    header_line: usize,
+    line_of: impl Fn(usize) -> usize,
+    opts: &ReadOptions,
+) -> Result<Vec<Channel>, Error> {
+    let uniform = match times {
+        Some(t) => Some(
+            timebase::uniform(t, None)
+                .map_err(|f| formats::time_error(file, f, header_line, &line_of))?,
+        ),
+        None => None,
+    };
+    let mut channels = Vec::with_capacity(columns.len());
+    for c in columns {
+        let mut ch = Channel::new(c.name, line, c.column);
+        ch.unit = c.unit;
+        ch.samples = c.samples;
+        if let Some(u) = &uniform {
+            formats::apply_uniform(&mut ch, u, &line_of);
+        }
+        formats::apply_period_option(file, opts, &mut ch)?;
+        let name = ch.name.clone();
+        formats::infer_channel(&mut ch, &[("name", &name)], None);
+        channels.push(ch);
+    }
+    Ok(channels)
+}
+
+/// A trace of columns held in memory (numpy arrays from Python): named columns of samples,
+/// with `times` (s) for their time column or, without one, [`ReadOptions::period_s`] for their
+/// period. The columns go through the delimited reader's law (time base, names, units), so
+/// that they read exactly as the text file with a header row `t,<names…>` and one row per
+/// sample would: sample `k` (from 0) is reported as line `k + 2` of `file`. Non-finite values
+/// and columns of unequal length are refused, as the reader refuses them.
+pub fn from_columns(
+    file: &str,
+    times: Option<&[f64]>,
+    columns: Vec<(String, Vec<f64>)>,
+    opts: &ReadOptions,
+) -> Result<Trace, Error> {
+    let offset = usize::from(times.is_some());
+    let n = times.map_or_else(|| columns.first().map_or(0, |c| c.1.len()), <[f64]>::len);
+    let mut named: Vec<(&str, &[f64])> = times.map(|t| ("t", t)).into_iter().collect();
+    named.extend(
+        columns
+            .iter()
+            .map(|(name, v)| (name.as_str(), v.as_slice())),
+    );
+    let lengths: Vec<String> = named
+        .iter()
+        .map(|(c, v)| format!("{c} {}", v.len()))
+        .collect();
+    if named.iter().any(|(_, v)| v.len() != n) || n == 0 {
+        return Err(Error::BadOption {
+            file: file.to_string(),
+            what: format!(
+                "the columns must hold one non-zero number of samples; they hold {}",
+                lengths.join(", ")
+            ),
+        });
+    }
+    for (name, v) in named {
+        if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+            return Err(Error::NotFinite {
+                file: file.to_string(),
+                line: k + 2,
+                column: name.to_string(),
+                text: v[k].to_string(),
+            });
+        }
+    }
+    let columns = columns
+        .into_iter()
+        .enumerate()
+        .map(|(c, (name, samples))| {
+            let (name, unit) = split_unit(&name);
+            Column {
+                name,
+                unit,
+                samples,
+                column: c + offset,
+            }
+        })
+        .collect();
+    let mut metadata = Vec::new();
+    if times.is_some() {
+        metadata.push(("time column".to_string(), "t".to_string()));
+    }
+    Ok(Trace {
+        file: file.to_string(),
+        format: Format::Delimited,
+        channels: channels(file, 1, times, columns, 1, |row| row + 2, opts)?,
         metadata,
     })
 }
