@@ -468,9 +468,10 @@ proptest! {
             let run = load(&src, &InterpOptions::default(), &limits, &opts)
                 .map_err(|e| TestCaseError::fail(format!("{e}\n{src}")))?;
             let t = &run.trajectory;
-            check_limits(t, &limits)?;
+            let which = |e: TestCaseError| TestCaseError::fail(format!("{profile:?} {planner:?}: {e}\n{src}"));
+            check_limits(t, &limits).map_err(which)?;
             if profile == Profile::JerkLimited {
-                check_jerk(t, &limits)?;
+                check_jerk(t, &limits).map_err(which)?;
             }
             let last = run.toolpath.points().last().copied().unwrap_or(run.toolpath.start);
             for (i, a) in t.axes.iter().enumerate() {

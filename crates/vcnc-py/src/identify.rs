@@ -166,45 +166,24 @@ pub fn identify(
 }
 
 /// `vcnc.identify_trace(path, **options)`: identifies every axis of a trace file, as
-/// `vcnc identify --trace` does (same options, same models).
+/// `vcnc identify --trace` does (same options, same models); `**trace` are the trace options
+/// of `read_trace`.
 #[pyfunction]
-#[pyo3(signature = (path, *, ts=None, units=None, trace_format=None, joints=None, axis_map=None,
-                    t_col=None, axes=None, xr_col=None, x_col=None, gaps=None,
-                    structures=None, options=None, seed=None, actual_latency_s=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (path, *, structures=None, options=None, seed=None, actual_latency_s=None,
+                    **trace))]
 pub fn identify_trace(
     py: Python<'_>,
     path: PathBuf,
-    ts: Option<f64>,
-    units: Option<String>,
-    trace_format: Option<String>,
-    joints: Option<String>,
-    axis_map: Option<String>,
-    t_col: Option<String>,
-    axes: Option<Vec<String>>,
-    xr_col: Option<String>,
-    x_col: Option<String>,
-    gaps: Option<String>,
     structures: Option<Vec<String>>,
     options: Option<String>,
     seed: Option<u64>,
     actual_latency_s: Option<f64>,
+    trace: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Vec<Identification>> {
     check_latency(actual_latency_s)?;
     // The options first: a mistake in them is reported before the trace is read.
     let options = options_file(options, structures)?;
-    let (read, pair) = trace_options(
-        ts,
-        units,
-        trace_format,
-        joints,
-        axis_map,
-        t_col,
-        axes,
-        xr_col,
-        x_col,
-        gaps,
-    )?;
+    let (read, pair) = trace_options(trace)?;
     let m = py.detach(|| crate::trace::measured(&path, &read, &pair))?;
     identify_measured(py, &m, &options, seed, actual_latency_s)
 }

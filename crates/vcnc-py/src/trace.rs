@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use numpy::PyArray1;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use vcnc_pipeline::AxisName;
 use vcnc_pipeline::traces::{self, MeasuredTrace, PairOptions, ReadOptions};
 use vcnc_trace::{GapPolicy, TraceArgs};
@@ -13,36 +14,60 @@ use vcnc_trace::{GapPolicy, TraceArgs};
 use crate::convert::array;
 use crate::error;
 
+/// The keyword names of the trace options, in the command line's order.
+pub(crate) const TRACE_OPTIONS: [&str; 10] = [
+    "ts",
+    "units",
+    "trace_format",
+    "joints",
+    "axis_map",
+    "t_col",
+    "axes",
+    "xr_col",
+    "x_col",
+    "gaps",
+];
+
 /// The trace options of the command line (`vcnc trace info`, `identify --trace`, `validate`),
-/// as keyword arguments: checked into the reader's and the pairing's options.
-#[allow(clippy::too_many_arguments)]
+/// given as keyword arguments (`**options`; [`TRACE_OPTIONS`]): checked into the reader's and
+/// the pairing's options. An unknown keyword or a value of the wrong type is a `ValueError`
+/// that names it.
 pub(crate) fn trace_options(
-    ts: Option<f64>,
-    units: Option<String>,
-    trace_format: Option<String>,
-    joints: Option<String>,
-    axis_map: Option<String>,
-    t_col: Option<String>,
-    axes: Option<Vec<String>>,
-    xr_col: Option<String>,
-    x_col: Option<String>,
-    gaps: Option<String>,
+    options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(ReadOptions, PairOptions)> {
-    let args = TraceArgs {
-        ts,
-        units,
-        trace_format,
-        joints,
-        axis_map,
-        axes: axis_names(axes.unwrap_or_default())?,
-        t_col,
-        xr_col,
-        x_col,
-        gaps: gaps
-            .map(|g| GapPolicy::parse(&g))
-            .transpose()
-            .map_err(error::pipeline)?,
-    };
+    let mut args = TraceArgs::default();
+    let mut gaps = None;
+    let mut axes = Vec::new();
+    for (key, value) in options.into_iter().flat_map(|d| d.iter()) {
+        let key: String = key.extract()?;
+        if value.is_none() {
+            continue;
+        }
+        let bad = |e: PyErr| error::bad_input(format!("trace option {key}={value}: {e}"));
+        match key.as_str() {
+            "ts" => args.ts = Some(value.extract().map_err(bad)?),
+            "units" => args.units = Some(value.extract().map_err(bad)?),
+            "trace_format" => args.trace_format = Some(value.extract().map_err(bad)?),
+            "joints" => args.joints = Some(value.extract().map_err(bad)?),
+            "axis_map" => args.axis_map = Some(value.extract().map_err(bad)?),
+            "t_col" => args.t_col = Some(value.extract().map_err(bad)?),
+            "axes" => axes = value.extract().map_err(bad)?,
+            "xr_col" => args.xr_col = Some(value.extract().map_err(bad)?),
+            "x_col" => args.x_col = Some(value.extract().map_err(bad)?),
+            "gaps" => gaps = Some(value.extract::<String>().map_err(bad)?),
+            _ => {
+                return Err(error::bad_input(format!(
+                    "unknown trace option '{key}'; the options are {}",
+                    TRACE_OPTIONS.join(", ")
+                )));
+            }
+        }
+    }
+    args.axes = axis_names(axes)?;
+    args.gaps = gaps
+        .map(|g| GapPolicy::parse(&g))
+        .transpose()
+        .map_err(error::pipeline)?;
     let read = args.read_options().map_err(error::pipeline)?;
     let pair = args.pair_options().map_err(error::pipeline)?;
     Ok((read, pair))
@@ -136,37 +161,16 @@ pub struct Trace {
 }
 
 /// `vcnc.read_trace(path, **options)`: reads a scope file (format detected from the content
-/// unless `trace_format` is given). The options are the command line's trace options.
+/// unless `trace_format` is given). The options are the command line's trace options
+/// ([`TRACE_OPTIONS`]).
 #[pyfunction]
-#[pyo3(signature = (path, *, ts=None, units=None, trace_format=None, joints=None, axis_map=None,
-                    t_col=None, axes=None, xr_col=None, x_col=None, gaps=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (path, **options))]
 pub fn read_trace(
     py: Python<'_>,
     path: PathBuf,
-    ts: Option<f64>,
-    units: Option<String>,
-    trace_format: Option<String>,
-    joints: Option<String>,
-    axis_map: Option<String>,
-    t_col: Option<String>,
-    axes: Option<Vec<String>>,
-    xr_col: Option<String>,
-    x_col: Option<String>,
-    gaps: Option<String>,
+    options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Trace> {
-    let (read, pair) = trace_options(
-        ts,
-        units,
-        trace_format,
-        joints,
-        axis_map,
-        t_col,
-        axes,
-        xr_col,
-        x_col,
-        gaps,
-    )?;
+    let (read, pair) = trace_options(options)?;
     let trace = py
         .detach(|| vcnc_trace::read_path(&path, &read))
         .map_err(error::pipeline)?;

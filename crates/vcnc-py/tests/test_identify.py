@@ -61,6 +61,10 @@ def test_bad_input_is_a_value_error_naming_the_sample(emps):
         vcnc.identify(emps["t"], emps["qg"], emps["qm"], units="furlong")
     with pytest.raises(ValueError, match="cannot read"):
         vcnc.identify_trace(ROOT / "no-such-trace.csv")
+    with pytest.raises(ValueError, match="unknown trace option 'xr_column'; the options are ts, units"):
+        vcnc.read_trace(EMPS, xr_column="qg")
+    with pytest.raises(ValueError, match="trace option ts=fast"):
+        vcnc.identify_trace(EMPS, ts="fast")
 
 
 def test_fresh_random_trace_round_trips_through_read_trace(tmp_path):

@@ -199,10 +199,20 @@ pub(crate) fn joint(cfg: &Cfg, a: &Side, b: &Side) -> Joint {
         }
         let a_inst = vmax / cfg.ts + b.seg.acap;
         let mut scale: f64 = 0.0;
-        for i in 0..3 {
-            let bound = cfg.limits.axes[i].max_acc;
+        if a.tcp {
+            // In TCP mode the tip is what LinuxCNC's planner moves, and its bound is the tip's
+            // (`tcp_max_acc`, a bound on the norm): the kink's velocity change as a vector.
+            let bound = cfg.limits.tcp_max_acc;
+            let du = [u2[0] - u1[0], u2[1] - u1[1], u2[2] - u1[2]];
             if bound > 0.0 {
-                scale = scale.max((a_inst * (u2[i] - u1[i])).abs() / bound);
+                scale = a_inst * norm3(&du) / bound;
+            }
+        } else {
+            for i in 0..3 {
+                let bound = cfg.limits.axes[i].max_acc;
+                if bound > 0.0 {
+                    scale = scale.max((a_inst * (u2[i] - u1[i])).abs() / bound);
+                }
             }
         }
         if matches!(a.kind, MoveKind::Arc(_)) || matches!(b.kind, MoveKind::Arc(_)) {
