@@ -180,6 +180,30 @@ fn tool_table_gives_g43_its_tool_length() {
     let last: Vec<&str> = csv.lines().last().unwrap().split(',').collect();
     let z_end: f64 = last[z].parse().unwrap();
     assert!((z_end - 15.0).abs() < 1e-9, "{z_end}");
+    // A sweep reads the same table in every configuration; without it G43 H1 is refused.
+    let sweep = |t: Option<&Path>| {
+        let mut a = vec![
+            "sweep".to_string(),
+            "machines/nmv5000.toml".into(),
+            s(&prog),
+            "--set".into(),
+            "axes.X.controller.vff=0.5,0.7".into(),
+            "--quiet".into(),
+            "--out".into(),
+            s(&dir.path().join("sweep")),
+        ];
+        if let Some(t) = t {
+            a.extend(["--tool-table".into(), s(t)]);
+        }
+        run(a)
+    };
+    let o = sweep(None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).1.contains("tool 1"), "{}", text(&o).1);
+    ok(&sweep(Some(&tbl)));
+    let rows = std::fs::read_to_string(dir.path().join("sweep/sweep.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 3, "{rows}");
+    assert!(rows.lines().skip(1).all(|r| r.ends_with(",ok")), "{rows}");
     // A wrong line of the table is bad input naming the file and line.
     std::fs::write(&tbl, "T1 P1 Z5.0\nT2 P2 Zfive\n").unwrap();
     let o = run(args(Some(&tbl)));

@@ -23,7 +23,7 @@ pub struct Cli {
     #[arg(long, short, global = true)]
     pub quiet: bool,
     /// LinuxCNC tool table (`.tbl`) for the programs' `G43 H` tool-length offsets (predict,
-    /// simulate, interpolate, feed-plan, compensate).
+    /// simulate, interpolate, feed-plan, compensate, sweep).
     #[arg(long, global = true, value_name = "FILE")]
     pub tool_table: Option<PathBuf>,
 }

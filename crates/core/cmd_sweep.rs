@@ -34,6 +34,10 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
         &args.sets,
         args.shard.as_deref(),
         models,
+        ctx.tool_table
+            .as_deref()
+            .map(vcnc_pipeline::run::load_tool_table)
+            .transpose()?,
         ctx.lenient,
     )?;
     ensure_dir(&args.out)?;

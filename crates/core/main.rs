@@ -134,11 +134,12 @@ fn main() -> ExitCode {
             | Command::Interpolate { .. }
             | Command::FeedPlan { .. }
             | Command::Compensate(_)
+            | Command::Sweep(_)
     );
     if ctx.tool_table.is_some() && !reads_tools {
         eprintln!(
             "vcnc: --tool-table is for the commands that read a program on a machine: predict, \
-             simulate, interpolate, feed-plan, compensate"
+             simulate, interpolate, feed-plan, compensate, sweep"
         );
         return ExitCode::from(2);
     }

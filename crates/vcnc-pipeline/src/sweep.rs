@@ -200,14 +200,17 @@ pub struct Sweep<'a> {
     reuse: bool,
     /// The identified models, with their stated actual-value latencies.
     models: Option<MachineModels>,
+    /// The tools every configuration's `G43 H` reads (`--tool-table`).
+    tools: Option<vcnc_gcode::ToolTable>,
     lenient: bool,
 }
 
 impl<'a> Sweep<'a> {
     /// Plans a sweep of `program` (its text and name) on the machine `doc` over `keys`
     /// (`--set` arguments), restricted to `shard` (`i/n`), with optional identified `models`
-    /// (their positions advanced by their stated actual-value latencies, [`crate::latency`]).
-    /// The base machine and run must be valid.
+    /// (their positions advanced by their stated actual-value latencies, [`crate::latency`])
+    /// and the `tools` of a tool table for every configuration. The base machine and run must
+    /// be valid.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         doc: &'a MachineDocument,
@@ -216,9 +219,13 @@ impl<'a> Sweep<'a> {
         sets: &[String],
         shard: Option<&str>,
         models: Option<MachineModels>,
+        tools: Option<vcnc_gcode::ToolTable>,
         lenient: bool,
     ) -> Result<Sweep<'a>, Error> {
-        let base = doc.check()?;
+        let mut base = doc.check()?;
+        if let Some(t) = &tools {
+            base.tools = t.clone();
+        }
         let keys: Vec<SweepKey> = sets
             .iter()
             .map(|s| parse_set(s))
@@ -245,6 +252,7 @@ impl<'a> Sweep<'a> {
             base_run,
             reuse,
             models,
+            tools,
             lenient,
         })
     }
@@ -353,7 +361,10 @@ impl<'a> Sweep<'a> {
             .zip(values)
             .map(|(k, v)| (k.key.as_str(), *v))
             .collect();
-        let machine = self.doc.with_values(&set)?;
+        let mut machine = self.doc.with_values(&set)?;
+        if let Some(t) = &self.tools {
+            machine.tools = t.clone();
+        }
         let owned;
         let run = if self.reuse {
             &self.base_run
