@@ -154,18 +154,22 @@ fn tool_table_gives_g43_its_tool_length() {
     let tbl = dir.path().join("tools.tbl");
     std::fs::write(&tbl, "T1 P1 Z5.0 D10 ;end mill\n").unwrap();
     let out = dir.path().join("i");
-    let args = |t: Option<&Path>| {
-        let mut a = vec![
-            "interpolate".to_string(),
-            "machines/nmv5000.toml".into(),
-            s(&prog),
-            "--out".into(),
-            s(&out),
-        ];
+    // `vcnc <args…>`, with `--tool-table t` when given.
+    let with_table = |mut a: Vec<String>, t: Option<&Path>| {
         if let Some(t) = t {
             a.extend(["--tool-table".into(), s(t)]);
         }
         a
+    };
+    let args = |t: Option<&Path>| {
+        let a = [
+            "interpolate",
+            "machines/nmv5000.toml",
+            &s(&prog),
+            "--out",
+            &s(&out),
+        ];
+        with_table(a.map(String::from).to_vec(), t)
     };
     let run = |a: Vec<String>| vcnc(&a.iter().map(String::as_str).collect::<Vec<_>>());
     // Without a table, G43 H1 is an error naming the tool.
@@ -182,20 +186,17 @@ fn tool_table_gives_g43_its_tool_length() {
     assert!((z_end - 15.0).abs() < 1e-9, "{z_end}");
     // A sweep reads the same table in every configuration; without it G43 H1 is refused.
     let sweep = |t: Option<&Path>| {
-        let mut a = vec![
-            "sweep".to_string(),
-            "machines/nmv5000.toml".into(),
-            s(&prog),
-            "--set".into(),
-            "axes.X.controller.vff=0.5,0.7".into(),
-            "--quiet".into(),
-            "--out".into(),
-            s(&dir.path().join("sweep")),
+        let a = [
+            "sweep",
+            "machines/nmv5000.toml",
+            &s(&prog),
+            "--set",
+            "axes.X.controller.vff=0.5,0.7",
+            "--quiet",
+            "--out",
+            &s(&dir.path().join("sweep")),
         ];
-        if let Some(t) = t {
-            a.extend(["--tool-table".into(), s(t)]);
-        }
-        run(a)
+        run(with_table(a.map(String::from).to_vec(), t))
     };
     let o = sweep(None);
     assert_eq!(o.status.code(), Some(2));

@@ -278,11 +278,11 @@ pub fn from_columns(
             .iter()
             .map(|(name, v)| (name.as_str(), v.as_slice())),
     );
-    let lengths: Vec<String> = named
-        .iter()
-        .map(|(c, v)| format!("{c} {}", v.len()))
-        .collect();
     if named.iter().any(|(_, v)| v.len() != n) || n == 0 {
+        let lengths: Vec<String> = named
+            .iter()
+            .map(|(c, v)| format!("{c} {}", v.len()))
+            .collect();
         return Err(Error::BadOption {
             file: file.to_string(),
             what: format!(
