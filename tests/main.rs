@@ -8,6 +8,7 @@ mod bad_inputs;
 mod cli;
 mod compensate;
 mod identify;
+mod models_only;
 mod predict;
 mod realistic;
 mod report;

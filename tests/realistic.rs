@@ -168,7 +168,7 @@ fn demo_realistic_effect_budget() {
 /// The least-damped closed-loop pole of a drive linearised in motion, Hz: from the eigenvalues
 /// of its transition matrix at the servo rate, $s = \ln z / h$.
 fn least_damped_pole_hz(m: &Machine, axis: usize) -> (f64, f64) {
-    let d = &m.axes[axis].drive;
+    let d = m.axes[axis].drive().expect("a virtual drive");
     let h = 1.0 / d.servo_rate_hz();
     let t = d.effects_transition_matrix().expect("transition matrix");
     let mut best = (0.0, f64::INFINITY);

@@ -118,7 +118,8 @@ fn record(ts: Option<f64>) -> Recording {
                 acc: &acc,
             };
             let trace = axis
-                .drive
+                .drive()
+                .expect("a virtual drive")
                 .simulate(reference, machine.ts)
                 .expect("the true drive runs");
             AxisRec {

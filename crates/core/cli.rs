@@ -117,9 +117,10 @@ pub enum Command {
         machine: PathBuf,
         /// G-code program.
         program: PathBuf,
-        /// Identified model file (from `vcnc identify`).
+        /// Identified model file (from `vcnc identify`). Default on a machine made of
+        /// identified models: its own.
         #[arg(long)]
-        model: PathBuf,
+        model: Option<PathBuf>,
         /// Tool-tip contour-error tolerance with its unit: `10um` (or `µm`), `0.01mm`.
         #[arg(long)]
         tolerance: String,
@@ -266,9 +267,10 @@ pub struct CompensateArgs {
     pub machine: PathBuf,
     /// G-code program.
     pub program: PathBuf,
-    /// Identified model file (from `vcnc identify`).
+    /// Identified model file (from `vcnc identify`). Default on a machine made of identified
+    /// models: its own.
     #[arg(long)]
-    pub model: PathBuf,
+    pub model: Option<PathBuf>,
     /// Most iterations of the learning loop on the models.
     #[arg(long, default_value_t = 30)]
     pub iterations: usize,

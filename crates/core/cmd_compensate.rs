@@ -6,8 +6,8 @@ use anyhow::Result;
 use vcnc_output::compensation::{tables, write_figure, write_tables};
 use vcnc_output::files::{ensure_dir, write_atomic, write_json};
 use vcnc_output::report::RunReport;
-use vcnc_pipeline::MachineModels;
 use vcnc_pipeline::compensate::{self, CompensateOptions};
+use vcnc_pipeline::identify;
 
 use crate::cli::CompensateArgs;
 use crate::{Ctx, print_warnings};
@@ -24,7 +24,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
         table,
     } = args;
     let machine = ctx.machine(machine_path)?;
-    let models = MachineModels::load(model, &machine)?;
+    let models = identify::given_models(&machine, model.as_deref(), "compensate")?;
     let opts = CompensateOptions {
         max_iterations: *iterations,
         ..CompensateOptions::default()

@@ -8,8 +8,8 @@ use anyhow::Result;
 use vcnc_output::feed_plan::{tables, write_blocks, write_figure};
 use vcnc_output::files::{ensure_dir, write_atomic, write_json};
 use vcnc_output::report::RunReport;
-use vcnc_pipeline::MachineModels;
 use vcnc_pipeline::feed_plan::{self, FeedPlanOptions};
+use vcnc_pipeline::identify;
 
 use crate::{Ctx, bad_input, print_warnings};
 
@@ -59,7 +59,7 @@ fn parse_angle(s: &str) -> Result<f64> {
 pub fn feed_plan(
     machine_path: &Path,
     program: &Path,
-    model: &Path,
+    model: Option<&Path>,
     tolerance: &str,
     orientation: Option<&str>,
     out: &Path,
@@ -68,7 +68,7 @@ pub fn feed_plan(
     let tolerance_mm = parse_length(tolerance)?;
     let orientation_tolerance_rad = orientation.map(parse_angle).transpose()?;
     let machine = ctx.machine(machine_path)?;
-    let models = MachineModels::load(model, &machine)?;
+    let models = identify::given_models(&machine, model, "feed-plan")?;
     let opts = FeedPlanOptions {
         orientation_tolerance_rad,
         ..FeedPlanOptions::new(tolerance_mm)

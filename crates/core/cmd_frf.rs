@@ -5,7 +5,7 @@ use std::path::Path;
 use anyhow::Result;
 use vcnc_output::figures::Role;
 use vcnc_pipeline::frf::{frf_summary, measure_tracking};
-use vcnc_pipeline::{DriveModel, Machine, MachineModels};
+use vcnc_pipeline::{DriveModel, Dynamics, MachineModels};
 
 use crate::Ctx;
 use vcnc_output::figures::{
@@ -17,7 +17,7 @@ use vcnc_output::text::table;
 
 /// `vcnc frf MACHINE [--model MODEL] --out DIR`.
 pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> Result<()> {
-    let machine = Machine::load(machine_path)?;
+    let machine = ctx.machine(machine_path)?;
     let models = model
         .map(|p| MachineModels::load(p, &machine))
         .transpose()?;
@@ -38,18 +38,25 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
          (docs/machine-file.md, Frequency response of the true drive)",
     );
     for (i, a) in machine.axes.iter().enumerate() {
-        let truth = a.true_model();
-        // A drive with effects is not its rigid model: say which curve is which.
-        let rigid = !a.drive.effects().is_ideal();
-        let mut list = vec![FrfModel {
-            tag: "true",
-            label: if rigid {
-                "true machine, rigid model"
-            } else {
-                TRUE_MACHINE
+        let mut list = vec![match &a.dynamics {
+            // A drive with effects is not its rigid model: say which curve is which.
+            Dynamics::Drive(d) => FrfModel {
+                tag: "true",
+                label: if d.effects().is_ideal() {
+                    TRUE_MACHINE
+                } else {
+                    "true machine, rigid model"
+                },
+                role: Role::TrueMachine,
+                model: DriveModel::from(a.true_model()),
             },
-            role: Role::TrueMachine,
-            model: DriveModel::from(truth),
+            // No true machine: the axis' own identified model is the response.
+            Dynamics::Model(m) => FrfModel {
+                tag: "true",
+                label: "the machine's identified model (no true machine)",
+                role: Role::Model,
+                model: *m,
+            },
         }];
         if let Some(m) = &models {
             list.push(FrfModel {
@@ -64,10 +71,10 @@ pub fn frf(machine_path: &Path, model: Option<&Path>, out: &Path, ctx: &Ctx) -> 
             &format!("frf_{}", a.name),
             a.name,
             &list,
-            Some(MeasuredFrf {
+            measured[i].as_ref().map(|frf| MeasuredFrf {
                 label: MEASUREMENT,
                 role: Role::Measurement,
-                frf: &measured[i],
+                frf,
             }),
             section::FRF,
         )?;

@@ -96,6 +96,7 @@ pub fn predict(
         .into());
     }
     let models = identify::models_for(&machine, model)?;
+    print_warnings(&predict::model_warnings(&machine, &[&models]));
     let every = match table_args.decimate {
         Some(n) => usize::try_from(n).unwrap_or(usize::MAX),
         None => source.len().div_ceil(DEFAULT_OUTPUT_SAMPLES).max(1),
@@ -207,8 +208,14 @@ pub fn predict(
         }
     }
     if !ctx.quiet {
+        // Without a true machine, a prediction with the machine's own models is the result:
+        // only its rows say something (the "true" rows would repeat them).
+        let own = machine
+            .own_models()
+            .is_some_and(|own| own.models() == models.models());
         let rows: Vec<Vec<String>> = contour_rows(&outcome.figures[0])
             .into_iter()
+            .filter(|(n, _, _)| !own || n.starts_with("predicted"))
             .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
             .collect();
         print!(
@@ -218,7 +225,17 @@ pub fn predict(
                 &rows
             )
         );
-        print!("{}", worst_table(&outcome.summaries[0].worst_blocks));
+        print!(
+            "{}",
+            worst_table(
+                &outcome.summaries[0].worst_blocks,
+                match (machine.has_true_machine(), machine.own_models().is_some()) {
+                    (true, _) => "true machine",
+                    (false, true) => "the machine's models",
+                    (false, false) => "the machine: virtual drives and identified models",
+                }
+            )
+        );
         let total: u64 = bytes.values().sum();
         let decimated = if every > 1 {
             format!(", every {every}th sample in the table/path outputs")
@@ -262,14 +279,12 @@ fn human_bytes(n: u64) -> String {
 
 /// The worst blocks as the terminal shows them: where (line, G-code) and why (kind, feeds,
 /// the axis contributing most, flags).
-pub fn worst_table(blocks: &[WorstBlock]) -> String {
+/// `by` names what ranked them (the true machine, or a machine's models).
+pub fn worst_table(blocks: &[WorstBlock], by: &str) -> String {
     if blocks.is_empty() {
         return String::new();
     }
     let (header, rows) = worst_rows(blocks, "um", 40);
     let header: Vec<&str> = header.iter().map(String::as_str).collect();
-    format!(
-        "worst blocks (true machine):\n{}",
-        text_table(&header, &rows)
-    )
+    format!("worst blocks ({by}):\n{}", text_table(&header, &rows))
 }

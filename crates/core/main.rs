@@ -71,9 +71,16 @@ pub struct Ctx {
 }
 
 impl Ctx {
-    /// The machine file at `path`, with the tools of `--tool-table` when given.
+    /// The machine file at `path`, with the tools of `--tool-table` when given. On a machine
+    /// (partly) made of identified models, a note says what plays the true machine.
     pub fn machine(&self, path: &std::path::Path) -> anyhow::Result<vcnc_pipeline::Machine> {
         let mut machine = vcnc_pipeline::Machine::load(path)?;
+        if !self.quiet && !machine.has_true_machine() {
+            eprintln!(
+                "note: {} (the results are what these models predict)",
+                machine.truth_description()
+            );
+        }
         if let Some(t) = &self.tool_table {
             machine.tools = vcnc_pipeline::run::load_tool_table(t)?;
         }
@@ -216,7 +223,7 @@ fn run(command: Command, ctx: &Ctx) -> anyhow::Result<()> {
         } => cmd_feed_plan::feed_plan(
             &machine,
             &program,
-            &model,
+            model.as_deref(),
             &tolerance,
             orientation_tolerance.as_deref(),
             &out,

@@ -29,6 +29,7 @@ fn machine_limits() -> Limits {
     let lin = AxisLimits {
         max_vel: 500.0,
         max_acc: 5000.0,
+        max_jerk: f64::INFINITY,
     };
     Limits {
         axes: [
@@ -38,18 +39,22 @@ fn machine_limits() -> Limits {
             AxisLimits {
                 max_vel: 250.0,
                 max_acc: 2500.0,
+                max_jerk: f64::INFINITY,
             },
             AxisLimits {
                 max_vel: 0.0,
                 max_acc: 0.0,
+                max_jerk: f64::INFINITY,
             },
             AxisLimits {
                 max_vel: 300.0,
                 max_acc: 5000.0,
+                max_jerk: f64::INFINITY,
             },
         ],
         tcp_max_vel: 250.0,
         tcp_max_acc: 1500.0,
+        tcp_max_jerk: f64::INFINITY,
     }
 }
 

@@ -408,6 +408,20 @@ impl DriveModel {
         Ok(())
     }
 
+    /// How long the control's shaping delays the reference before the loop, s, at low
+    /// frequency: the dead time plus the filter's group delay at 0 Hz ($\tau$ of a first-order
+    /// filter, $2\zeta_f/\omega_f$ of a second-order one). 0 for the core alone.
+    pub fn reference_lag_s(&self) -> f64 {
+        self.delay_s
+            + match self.reference_filter {
+                None => 0.0,
+                Some(ReferenceFilter::FirstOrder { tau_s }) => tau_s,
+                Some(ReferenceFilter::SecondOrder { wn_hz, zeta }) => {
+                    2.0 * zeta / (std::f64::consts::TAU * wn_hz)
+                }
+            }
+    }
+
     /// Whether the model is the paper's seven parameters as [`ClosedLoopModel::simulate`] runs
     /// them: no dead time, filter or extra pole, and the smooth input
     /// ([`ReferenceInput::Smooth`]; a model with the hold input is simulated by this type).

@@ -55,6 +55,11 @@ pub struct MachineFile {
     /// Identification program and identifier settings.
     #[serde(default)]
     pub identification: IdentificationFile,
+    /// An identified model file (`model.toml`, written by `vcnc identify`), relative to this
+    /// file: the dynamics of every axis given without `plant` and `controller`
+    /// (docs/machine-file.md#a-machine-made-of-identified-models).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<PathBuf>,
     /// Axes by letter (X Y Z A B C).
     pub axes: BTreeMap<String, AxisFile>,
 }
@@ -274,10 +279,13 @@ pub struct AxisFile {
     /// Jerk limit, units/s³ (needed with `trajectory.profile = "jerk-limited"`). Default: none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_jerk: Option<f64>,
-    /// Mechanics and amplifier.
-    pub plant: Plant,
-    /// Controller gains, or desired poles to design them.
-    pub controller: ControllerSpec,
+    /// Mechanics and amplifier. Give it with `controller`, or neither: the axis is then known
+    /// by its identified model (the machine's `model` file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plant: Option<Plant>,
+    /// Controller gains, or desired poles to design them (with `plant`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller: Option<ControllerSpec>,
     /// Position encoder (default 1e-4 units, no noise).
     #[serde(default)]
     pub encoder: Encoder,

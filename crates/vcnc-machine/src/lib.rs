@@ -24,7 +24,7 @@ pub use file::{
     ProfileFile, ProgramFile, TiltFile, TrajectoryFile, Unit,
 };
 pub use locate::{LineCol, line_col, locate_key};
-pub use machine::{Axis, IdentificationSettings, Kinematics, Machine, MachineDocument};
+pub use machine::{Axis, Dynamics, IdentificationSettings, Kinematics, Machine, MachineDocument};
 pub use models::{AxisModel, MachineModels, ModelSet};
 pub use options_file::OptionsFile;
 
@@ -96,6 +96,18 @@ pub enum Error {
     NoKinematics {
         /// The machine file.
         file: String,
+    },
+    /// A run that needs a virtual drive on an axis known only by its identified model.
+    #[error(
+        "{file}: axis {axis} has no plant and controller (it is known by its identified model), but {what} needs a virtual drive: give [axes.{axis}] a plant and controller, or use the model where a model will do (predict, simulate, compensate, feed-plan, frf)"
+    )]
+    NoDrive {
+        /// The machine file.
+        file: String,
+        /// The axis.
+        axis: vcnc_axis::AxisName,
+        /// What needs the drive (e.g. "identification on the virtual machine").
+        what: String,
     },
     /// A model file that does not fit the machine (axis missing, unit mismatch).
     #[error("{file}: {message}")]

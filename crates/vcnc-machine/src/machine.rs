@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::{ClosedLoopModel, Drive, DriveParams};
+use vcnc_drive::{ClosedLoopModel, Drive, DriveModel, DriveParams};
 use vcnc_gcode::{
     AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits, PathMode,
     PlannerRules, Profile, ToolTable,
@@ -27,7 +27,7 @@ use crate::file::{
 };
 use crate::locate::{error_offset, line_col, locate_key};
 use crate::options_file::OptionsFile;
-use crate::{Error, embedded};
+use crate::{Error, MachineModels, ModelSet, embedded};
 
 /// One checked axis.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,8 +44,8 @@ pub struct Axis {
     pub max_acceleration: f64,
     /// Jerk limit, units/s³ (`None`: none).
     pub max_jerk: Option<f64>,
-    /// The true drive (validated: stable, gains resolved).
-    pub drive: Drive,
+    /// What moves the axis in a run: its virtual drive, or only its identified model.
+    pub dynamics: Dynamics,
     /// Half-range of this axis' identification moves, axis units.
     pub identification_range: f64,
     /// Centre of this axis' identification moves (a work offset), axis units.
@@ -54,10 +54,53 @@ pub struct Axis {
     pub start: f64,
 }
 
+/// What moves an axis in a run (docs/machine-file.md#a-machine-made-of-identified-models).
+#[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)] // one per axis, built once: boxing the drive buys nothing
+pub enum Dynamics {
+    /// A virtual drive built from the axis' plant and controller (validated: stable, gains
+    /// resolved): the true machine of virtual experiments.
+    Drive(Drive),
+    /// Only an identified model (the machine file's `model`): there is no true machine behind
+    /// the axis, and what the model predicts is the result.
+    Model(DriveModel),
+}
+
 impl Axis {
-    /// The analytic closed-loop model of the true drive (docs/drive-model.md).
+    /// The virtual drive, or `None` for an axis known only by its identified model.
+    pub fn drive(&self) -> Option<&Drive> {
+        match &self.dynamics {
+            Dynamics::Drive(d) => Some(d),
+            Dynamics::Model(_) => None,
+        }
+    }
+
+    /// The virtual drive, or an error saying that `what` needs one and this axis of `machine`
+    /// is known only by its identified model.
+    pub fn require_drive(&self, machine: &Machine, what: &str) -> Result<&Drive, Error> {
+        self.drive().ok_or_else(|| Error::NoDrive {
+            file: machine.source.clone(),
+            axis: self.name,
+            what: what.to_string(),
+        })
+    }
+
+    /// What controls the axis, as summaries print it: the virtual drive's controller kind
+    /// (`p-pi`, `pid`, `smc`), or `model` for an axis known by its identified model.
+    pub fn controller_kind(&self) -> &'static str {
+        match &self.dynamics {
+            Dynamics::Drive(d) => d.controller().kind(),
+            Dynamics::Model(_) => "model",
+        }
+    }
+
+    /// The analytic closed-loop model of the axis (docs/drive-model.md): the virtual drive's,
+    /// or the 7-parameter core of the identified model.
     pub fn true_model(&self) -> ClosedLoopModel {
-        self.drive.closed_loop_model()
+        match &self.dynamics {
+            Dynamics::Drive(d) => d.closed_loop_model(),
+            Dynamics::Model(m) => m.core,
+        }
     }
 
     /// The actual-value latency of this axis' control as its configuration states it, s: the
@@ -65,17 +108,18 @@ impl Axis {
     /// $1/f_\text{servo}$ — the logged actual position is the reading the loop used, that many
     /// cycles old (docs/machine-file.md#feedback). 0 without a dead time. What a model file's
     /// `actual_latency_s` states for models identified on this machine
-    /// (docs/drive-model.md#actual-value-latency).
+    /// (docs/drive-model.md#actual-value-latency). For an axis known by its model, the model's
+    /// stated latency.
     pub fn actual_latency_s(&self) -> f64 {
-        let cycles = self
-            .drive
-            .params()
-            .feedback
-            .map_or(0, |f| f.dead_time_cycles);
+        let drive = match &self.dynamics {
+            Dynamics::Drive(d) => d,
+            Dynamics::Model(m) => return m.actual_latency_s,
+        };
+        let cycles = drive.params().feedback.map_or(0, |f| f.dead_time_cycles);
         if cycles == 0 {
             0.0
         } else {
-            f64::from(cycles) / self.drive.servo_rate_hz()
+            f64::from(cycles) / drive.servo_rate_hz()
         }
     }
 }
@@ -258,6 +302,9 @@ pub struct Machine {
     pub identification: IdentificationSettings,
     /// Tools for `G43 H` (a LinuxCNC `.tbl` given on the command line; empty by default).
     pub tools: ToolTable,
+    /// The identified model file the axes without a plant take their dynamics from (the
+    /// machine file's `model`, resolved), when the file names one.
+    pub model_file: Option<String>,
 }
 
 /// Where relative paths of a machine file resolve.
@@ -459,6 +506,50 @@ impl Machine {
         }
     }
 
+    /// The axes' identified models when every axis is known only by its model (the machine
+    /// file's `model`): what a prediction on this machine runs. `None` when some axis has a
+    /// virtual drive.
+    pub fn own_models(&self) -> Option<MachineModels> {
+        let models = self
+            .axes
+            .iter()
+            .map(|a| match &a.dynamics {
+                Dynamics::Model(m) => Some(*m),
+                Dynamics::Drive(_) => None,
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let source = self
+            .model_file
+            .clone()
+            .unwrap_or_else(|| self.source.clone());
+        MachineModels::new(self, models, source).ok()
+    }
+
+    /// What plays the true machine in runs, as summaries and tables say it: `virtual drives`,
+    /// `no true machine: the identified models of FILE`, or for a mixed machine which axes are
+    /// which.
+    pub fn truth_description(&self) -> String {
+        let names = |drive: bool| {
+            self.axes
+                .iter()
+                .filter(|a| a.drive().is_some() == drive)
+                .map(|a| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let file = self.model_file.as_deref().unwrap_or("");
+        match (names(true), names(false)) {
+            (_, m) if m.is_empty() => "virtual drives".to_string(),
+            (d, _) if d.is_empty() => format!("no true machine: the identified models of {file}"),
+            (d, m) => format!("virtual drives on {d}, the identified models of {file} on {m}"),
+        }
+    }
+
+    /// Whether every axis has a virtual drive (a true machine to compare predictions with).
+    pub fn has_true_machine(&self) -> bool {
+        self.axes.iter().all(|a| a.drive().is_some())
+    }
+
     /// The kinematics, or an error saying the machine has none (needed for TCP programs, poses
     /// and contour errors).
     pub fn require_kinematics(&self) -> Result<&Kinematics, Error> {
@@ -505,7 +596,8 @@ impl Checker<'_> {
 
     fn machine(&self, file: MachineFile) -> Result<Machine, Error> {
         let ts = self.sample_period(file.sample_period_s)?;
-        let axes = self.axes(&file, ts)?;
+        let models = self.model_file(file.model.as_deref())?;
+        let axes = self.axes(&file, ts, models.as_ref())?;
         let t = &file.trajectory;
         self.trajectory(t, &axes, file.kinematics.is_some())?;
         let startup_path_mode = self.startup_path_mode(&file.gcode)?;
@@ -555,7 +647,27 @@ impl Checker<'_> {
             startup_path_mode,
             identification,
             tools: ToolTable::default(),
+            model_file: models.map(|(_, name)| name),
         })
+    }
+
+    /// The machine file's `model`: the model file read (relative to the machine file), with
+    /// its name for messages.
+    fn model_file(&self, path: Option<&Path>) -> Result<Option<(ModelSet, String)>, Error> {
+        let Some(path) = path else {
+            return Ok(None);
+        };
+        let full = match &self.doc.base {
+            Base::Dir(dir) => dir.join(path),
+            Base::Embedded => {
+                return Err(self.invalid(
+                    "model",
+                    "an embedded machine names no model file".to_string(),
+                ));
+            }
+        };
+        let set = ModelSet::load(&full)?;
+        Ok(Some((set, full.display().to_string())))
     }
 
     fn sample_period(&self, ts: f64) -> Result<f64, Error> {
@@ -572,20 +684,32 @@ impl Checker<'_> {
     }
 
     /// Every `[axes.<letter>]`, in canonical order.
-    fn axes(&self, file: &MachineFile, ts: f64) -> Result<Vec<Axis>, Error> {
+    fn axes(
+        &self,
+        file: &MachineFile,
+        ts: f64,
+        models: Option<&(ModelSet, String)>,
+    ) -> Result<Vec<Axis>, Error> {
         if file.axes.is_empty() {
             return Err(self.invalid("axes", "the machine has no axes".to_string()));
         }
         let mut axes = file
             .axes
             .iter()
-            .map(|(key, a)| self.axis(key, a, ts, file.identification.program.range))
+            .map(|(key, a)| self.axis(key, a, ts, file.identification.program.range, models))
             .collect::<Result<Vec<Axis>, Error>>()?;
         axes.sort_by_key(|a| a.name);
         Ok(axes)
     }
 
-    fn axis(&self, key: &str, a: &AxisFile, ts: f64, default_range: f64) -> Result<Axis, Error> {
+    fn axis(
+        &self,
+        key: &str,
+        a: &AxisFile,
+        ts: f64,
+        default_range: f64,
+        models: Option<&(ModelSet, String)>,
+    ) -> Result<Axis, Error> {
         let name = match key.parse::<AxisName>() {
             Ok(n) if n.as_str() == key => n,
             _ => {
@@ -624,23 +748,43 @@ impl Checker<'_> {
                 ));
             }
         }
-        let params = DriveParams {
-            plant: a.plant.clone(),
-            controller: a.controller.clone(),
-            encoder: a.encoder.clone(),
-            servo_rate_hz: a.servo_rate_hz,
-            compliance: a.compliance.clone(),
-            friction: a.friction.clone(),
-            current_loop: a.current_loop.clone(),
-            feedback: a.feedback.clone(),
-            reference: a.reference.clone(),
+        let dynamics = match (&a.plant, &a.controller) {
+            (Some(plant), Some(controller)) => {
+                let params = DriveParams {
+                    plant: plant.clone(),
+                    controller: controller.clone(),
+                    encoder: a.encoder.clone(),
+                    servo_rate_hz: a.servo_rate_hz,
+                    compliance: a.compliance.clone(),
+                    friction: a.friction.clone(),
+                    current_loop: a.current_loop.clone(),
+                    feedback: a.feedback.clone(),
+                    reference: a.reference.clone(),
+                };
+                let drive = params.validate().map_err(|e| {
+                    self.invalid(&k(drive_error_key(&e)), format!("axis {name}: {e}"))
+                })?;
+                drive
+                    .ticks_per_sample(ts)
+                    .map_err(|e| self.invalid(&k("servo_rate_hz"), format!("axis {name}: {e}")))?;
+                Dynamics::Drive(drive)
+            }
+            (Some(_), None) | (None, Some(_)) => {
+                let missing = if a.plant.is_none() {
+                    "plant"
+                } else {
+                    "controller"
+                };
+                return Err(self.invalid(
+                    &format!("axes.{key}"),
+                    format!(
+                        "axis {name} has {} but no {missing}: give both (a virtual drive) or neither (the axis is then known by the machine's identified model, `model = \"model.toml\"`)",
+                        if a.plant.is_none() { "a controller" } else { "a plant" }
+                    ),
+                ));
+            }
+            (None, None) => Dynamics::Model(self.axis_model(key, name, a, models)?),
         };
-        let drive = params
-            .validate()
-            .map_err(|e| self.invalid(&k(drive_error_key(&e)), format!("axis {name}: {e}")))?;
-        drive
-            .ticks_per_sample(ts)
-            .map_err(|e| self.invalid(&k("servo_rate_hz"), format!("axis {name}: {e}")))?;
         let range = a.identification_range.unwrap_or(default_range);
         let centre = a.identification_centre.unwrap_or(0.0);
         if !positive(range) || range > LIMIT || !centre.is_finite() {
@@ -675,7 +819,7 @@ impl Checker<'_> {
             max_velocity: a.max_velocity,
             max_acceleration: a.max_acceleration,
             max_jerk: a.max_jerk,
-            drive,
+            dynamics,
             identification_range: range,
             identification_centre: centre,
             start,
@@ -736,6 +880,55 @@ impl Checker<'_> {
                 )
             }),
         }
+    }
+
+    /// The identified model of axis `key` (given without plant and controller) from the
+    /// machine's model file. Keys that describe a physical drive are refused on such an axis:
+    /// nothing would read them.
+    fn axis_model(
+        &self,
+        key: &str,
+        name: AxisName,
+        a: &AxisFile,
+        models: Option<&(ModelSet, String)>,
+    ) -> Result<DriveModel, Error> {
+        let physical = [
+            (
+                "encoder",
+                table_has(&self.doc.table, &["axes", key, "encoder"]),
+            ),
+            (
+                "servo_rate_hz",
+                table_has(&self.doc.table, &["axes", key, "servo_rate_hz"]),
+            ),
+            ("compliance", a.compliance.is_some()),
+            ("friction", a.friction.is_some()),
+            ("current_loop", a.current_loop.is_some()),
+            ("feedback", a.feedback.is_some()),
+            ("reference", a.reference.is_some()),
+        ];
+        if let Some((field, _)) = physical.iter().find(|(_, given)| *given) {
+            return Err(self.invalid(
+                &format!("axes.{key}.{field}"),
+                format!(
+                    "axis {name} has no plant and controller (it is known by its identified model), so `{field}`, which describes a physical drive, has nothing to act on: remove it, or give the axis a plant and controller"
+                ),
+            ));
+        }
+        let Some((set, file)) = models else {
+            return Err(self.invalid(
+                &format!("axes.{key}"),
+                format!(
+                    "axis {name} has neither plant and controller nor a model: give the axis `plant` and `controller` (a virtual drive), or name an identified model file at the top of the machine file, `model = \"model.toml\"` (written by `vcnc identify`)"
+                ),
+            ));
+        };
+        set.model_of(name, a.unit, file, || {
+            format!(
+                "no model for axis {name}, which the machine file {} gives without a plant",
+                self.doc.source
+            )
+        })
     }
 
     /// `[identification]`: the program and the identifier options.
@@ -1048,7 +1241,7 @@ mod tests {
         let doc = nmv5000();
         let m = doc.with_values(&[("axes.X.controller.vff", 0.7)]).unwrap();
         let base = doc.check().unwrap();
-        assert_ne!(m.axes[0].drive, base.axes[0].drive);
+        assert_ne!(m.axes[0].dynamics, base.axes[0].dynamics);
         assert_eq!(m.axes[1], base.axes[1]);
         let e = doc
             .with_values(&[("axes.X.controller.kv", 30.0)])

@@ -20,6 +20,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+use vcnc_axis::AxisName;
 use vcnc_drive::drive_model::ReferenceInput;
 use vcnc_drive::{ClosedLoopModel, DriveModel, MAX_ACTUAL_LATENCY_S, ReferenceFilter};
 
@@ -191,6 +192,34 @@ impl ModelSet {
         Ok(set)
     }
 
+    /// The model of axis `name` in `unit` (the file `file` names in messages), or the error
+    /// `missing` says when the file has none, or a unit mismatch.
+    pub(crate) fn model_of(
+        &self,
+        name: AxisName,
+        unit: Unit,
+        file: &str,
+        missing: impl FnOnce() -> String,
+    ) -> Result<DriveModel, Error> {
+        let m = self
+            .axes
+            .get(name.as_str())
+            .ok_or_else(|| Error::ModelMismatch {
+                file: file.to_string(),
+                message: missing(),
+            })?;
+        if m.unit != unit {
+            return Err(Error::ModelMismatch {
+                file: file.to_string(),
+                message: format!(
+                    "axis {name}: the model is in {} but the machine axis is in {unit}",
+                    m.unit
+                ),
+            });
+        }
+        Ok(m.model())
+    }
+
     /// TOML text of this model set.
     pub fn to_toml_string(&self) -> Result<String, Error> {
         toml::to_string_pretty(self).map_err(|e| Error::Write {
@@ -224,26 +253,12 @@ impl MachineModels {
             .axes
             .iter()
             .map(|a| {
-                let m = set
-                    .axes
-                    .get(a.name.as_str())
-                    .ok_or_else(|| Error::ModelMismatch {
-                        file: file.to_string(),
-                        message: format!(
-                            "no model for axis {} of machine \"{}\"",
-                            a.name, machine.name
-                        ),
-                    })?;
-                if m.unit != a.unit {
-                    return Err(Error::ModelMismatch {
-                        file: file.to_string(),
-                        message: format!(
-                            "axis {}: the model is in {} but the machine axis is in {}",
-                            a.name, m.unit, a.unit
-                        ),
-                    });
-                }
-                Ok(m.model())
+                set.model_of(a.name, a.unit, file, || {
+                    format!(
+                        "no model for axis {} of machine \"{}\"",
+                        a.name, machine.name
+                    )
+                })
             })
             .collect::<Result<Vec<_>, Error>>()?;
         Ok(MachineModels {

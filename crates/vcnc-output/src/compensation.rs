@@ -164,10 +164,10 @@ pub fn tables(s: &CompensateSummary, comp: &Compensation) -> String {
                     m.motion_acceleration, m.acceleration_limit
                 ),
                 format!("{:.0} {u}/s2", m.reference_acceleration),
-                format!(
-                    "{:.3} -> {:.3}",
-                    ax.before.torque_peak_nm, ax.after.torque_peak_nm
-                ),
+                match (ax.before.torque_peak_nm, ax.after.torque_peak_nm) {
+                    (Some(b), Some(a)) => format!("{b:.3} -> {a:.3}"),
+                    _ => "- (model)".to_string(),
+                },
                 (if m.within() { "ok" } else { "EXCEEDED" }).to_string(),
             ]
         })

@@ -638,8 +638,9 @@ pub struct AxisRunFigures {
     /// Largest |acceleration| of the true motion (central differences of the true positions),
     /// units/s².
     pub motion_acceleration: f64,
-    /// Largest |motor torque|, N·m.
-    pub torque_peak_nm: f64,
+    /// Largest |motor torque|, N·m; `None` for an axis known only by its identified model
+    /// (no motor).
+    pub torque_peak_nm: Option<f64>,
 }
 
 impl AxisRunFigures {
@@ -653,7 +654,7 @@ impl AxisRunFigures {
                 .fold(0.0f64, |m, (d, x)| m.max((d - x).abs()))
                 * unit.micro_factor(),
             motion_acceleration: max_abs(&acc),
-            torque_peak_nm: max_abs(&trace.motor_torque),
+            torque_peak_nm: (!trace.motor_torque.is_empty()).then(|| max_abs(&trace.motor_torque)),
         }
     }
 }

@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 use vcnc_drive::{Channels, DriveStream, DriveTrace, ModelStream, SimOptions};
-use vcnc_machine::{Machine, MachineModels};
+use vcnc_machine::{Dynamics, Machine, MachineModels};
 
 use crate::Error;
 use crate::latency::Shifter;
@@ -20,51 +20,106 @@ pub(crate) fn drive_error(machine: &Machine, i: usize) -> impl Fn(vcnc_drive::Er
     }
 }
 
-/// Every machine axis' true drive, fed a piece at a time.
+/// One machine axis of the true machine: its virtual drive, or (for an axis known only by its
+/// identified model) the model with the shift from its logged to its physical position.
+#[allow(clippy::large_enum_variant)] // one per axis and run: boxing buys nothing
+enum TrueAxis {
+    Drive(DriveStream),
+    Model(AxisModel),
+}
+
+/// Every machine axis of the true machine, fed a piece at a time: the virtual drives, and on
+/// a machine (partly) made of identified models, those models — what they predict is then the
+/// truth of the run (docs/machine-file.md#a-machine-made-of-identified-models).
 pub(crate) struct TrueDrives {
-    streams: Vec<DriveStream>,
-    /// Per machine axis: the trace of the last piece (the channels asked for).
+    axes: Vec<TrueAxis>,
+    /// Per machine axis: the trace of the last piece (the channels asked for). An axis known by
+    /// its model logs only positions: its model's logged position in both `position` and
+    /// `true_position` (the physical shift is in [`TrueDrives::physical`]).
     pub traces: Vec<DriveTrace>,
+    /// Per machine axis: the physical positions that became known with the last piece (a
+    /// drive's true positions; a model's logged positions advanced by its stated actual-value
+    /// latency, which holds back a few samples until the end).
+    pub physical: Vec<Vec<f64>>,
 }
 
 impl TrueDrives {
-    /// The drives of `machine` at sample period `ts`, logging `channels`.
+    /// The true machine of `machine` at sample period `ts`, its drives logging `channels`.
     pub fn new(machine: &Machine, ts: f64, channels: Channels) -> Result<TrueDrives, Error> {
-        let streams = machine
+        let opts = SimOptions::default();
+        let axes = machine
             .axes
             .iter()
             .enumerate()
             .map(|(i, a)| {
-                a.drive
-                    .stream(ts, channels)
-                    .map_err(drive_error(machine, i))
+                Ok(match &a.dynamics {
+                    Dynamics::Drive(d) => {
+                        TrueAxis::Drive(d.stream(ts, channels).map_err(drive_error(machine, i))?)
+                    }
+                    Dynamics::Model(m) => TrueAxis::Model(AxisModel {
+                        stream: m.stream(ts, &opts).map_err(drive_error(machine, i))?,
+                        shifter: Shifter::new(m.actual_latency_s, ts),
+                        logged: Vec::new(),
+                    }),
+                })
             })
             .collect::<Result<Vec<_>, Error>>()?;
-        let traces = (0..streams.len()).map(|_| DriveTrace::default()).collect();
-        Ok(TrueDrives { streams, traces })
+        let n = axes.len();
+        Ok(TrueDrives {
+            axes,
+            traces: (0..n).map(|_| DriveTrace::default()).collect(),
+            physical: vec![Vec::new(); n],
+        })
     }
 
-    /// Feeds chunk `c` to each axis' drive, every axis in parallel, into [`TrueDrives::traces`]
-    /// (one per axis, its channels cleared first).
+    /// Feeds chunk `c` to each axis, every axis in parallel, into [`TrueDrives::traces`] and
+    /// [`TrueDrives::physical`] (one per axis, cleared first).
     pub fn feed(&mut self, machine: &Machine, c: &ReferenceChunk) -> Result<(), Error> {
-        self.streams
+        self.axes
             .par_iter_mut()
             .zip(self.traces.par_iter_mut())
+            .zip(self.physical.par_iter_mut())
             .enumerate()
-            .try_for_each(|(i, (d, t))| {
+            .try_for_each(|(i, ((d, t), y))| {
                 t.clear_channels(0);
-                d.feed(c.axis(i), t).map_err(drive_error(machine, i))
+                y.clear();
+                match d {
+                    TrueAxis::Drive(d) => {
+                        d.feed(c.axis(i), t).map_err(drive_error(machine, i))?;
+                        y.extend_from_slice(&t.true_position);
+                    }
+                    TrueAxis::Model(m) => {
+                        m.logged.clear();
+                        m.stream
+                            .feed(c.axis(i), &mut m.logged)
+                            .map_err(drive_error(machine, i))?;
+                        m.shifter.feed(&m.logged, y);
+                        t.position.extend_from_slice(&m.logged);
+                        t.true_position.extend_from_slice(&m.logged);
+                    }
+                }
+                Ok(())
             })
     }
 
     /// The end of the reference: per machine axis, the servo ticks at which the drive's
-    /// command saturated.
-    pub fn finish(self, machine: &Machine) -> Result<Vec<u64>, Error> {
-        self.streams
-            .into_iter()
-            .enumerate()
-            .map(|(i, d)| d.finish().map_err(drive_error(machine, i)))
-            .collect()
+    /// command saturated (0 for a model), and the physical positions still held back.
+    pub fn finish(self, machine: &Machine) -> Result<(Vec<u64>, Vec<Vec<f64>>), Error> {
+        let mut ticks = Vec::with_capacity(self.axes.len());
+        let mut rest = Vec::with_capacity(self.axes.len());
+        for (i, d) in self.axes.into_iter().enumerate() {
+            let mut y = Vec::new();
+            match d {
+                TrueAxis::Drive(d) => ticks.push(d.finish().map_err(drive_error(machine, i))?),
+                TrueAxis::Model(m) => {
+                    m.stream.finish().map_err(drive_error(machine, i))?;
+                    m.shifter.finish(&mut y);
+                    ticks.push(0);
+                }
+            }
+            rest.push(y);
+        }
+        Ok((ticks, rest))
     }
 }
 

@@ -292,6 +292,18 @@ pub enum Error {
         /// The trace's axes.
         has: String,
     },
+    /// A command that runs identified models got none, on a machine with virtual drives.
+    #[error(
+        "{command} needs identified models: give --model model.toml (written by `vcnc identify`); only a machine made of identified models ({file} has virtual drives on {drives}) supplies its own"
+    )]
+    NeedsModels {
+        /// The command.
+        command: &'static str,
+        /// The machine file.
+        file: String,
+        /// The axes with virtual drives.
+        drives: String,
+    },
     /// A model file without a model of an axis named.
     #[error("{file}: no model for axis {axis} (it has: {has})")]
     NoModelFor {
@@ -453,6 +465,7 @@ impl Error {
             | Error::TooManyBlocks { .. }
             | Error::MissingColumn { .. }
             | Error::AxisNotInTrace { .. }
+            | Error::NeedsModels { .. }
             | Error::NoModelFor { .. }
             | Error::NothingToValidate { .. }
             | Error::UnitMismatch { .. }

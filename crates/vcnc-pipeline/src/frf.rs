@@ -128,16 +128,21 @@ pub fn measured_tracking_options() -> FrfOptions {
 
 /// Measures every axis' true tracking response (nominal → measured position) by simulating
 /// its drive ([`vcnc_drive::Drive::measure_frf`]); axes in parallel, results in machine order.
-pub fn measure_tracking(machine: &Machine) -> Result<Vec<Frf>, Error> {
+/// `None` for an axis known only by its identified model: there is no drive to measure.
+pub fn measure_tracking(machine: &Machine) -> Result<Vec<Option<Frf>>, Error> {
     let o = measured_tracking_options();
     machine
         .axes
         .par_iter()
         .map(|a| {
-            a.drive.measure_frf(&o).map_err(|source| Error::Drive {
-                axis: a.name,
-                source,
-            })
+            a.drive()
+                .map(|d| {
+                    d.measure_frf(&o).map_err(|source| Error::Drive {
+                        axis: a.name,
+                        source,
+                    })
+                })
+                .transpose()
         })
         .collect()
 }
@@ -223,7 +228,7 @@ pub struct FrfSummary {
 pub fn frf_summary(
     machine: &Machine,
     models: Option<&[DriveModel]>,
-    measured: Option<&[Frf]>,
+    measured: Option<&[Option<Frf>]>,
 ) -> FrfSummary {
     FrfSummary {
         machine: machine.name.clone(),
@@ -239,11 +244,15 @@ pub fn frf_summary(
                         truth: ModelSummary::of(&truth),
                         bandwidth_3db_hz: bandwidth_hz(&truth),
                         model: models.map(|m| ModelSummary::of_drive(&m[i])),
-                        measured_tracking: measured.and_then(|f| MeasuredFrfSummary::of(&f[i])),
-                        two_mass: a.drive.effects().compliance.map(|c| TwoMassSummary {
-                            resonance_hz: c.resonance_hz(),
-                            antiresonance_hz: c.antiresonance_hz(),
-                            zeta: c.zeta(),
+                        measured_tracking: measured
+                            .and_then(|f| f[i].as_ref())
+                            .and_then(MeasuredFrfSummary::of),
+                        two_mass: a.drive().and_then(|d| d.effects().compliance).map(|c| {
+                            TwoMassSummary {
+                                resonance_hz: c.resonance_hz(),
+                                antiresonance_hz: c.antiresonance_hz(),
+                                zeta: c.zeta(),
+                            }
                         }),
                     },
                 )

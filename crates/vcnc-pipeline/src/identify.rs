@@ -16,7 +16,7 @@ use vcnc_gcode::IdentificationOptions;
 use vcnc_identify::{
     FitMetrics, Identification, IdentifyOptions, Regressors, Trace, fit_metrics_with,
 };
-use vcnc_machine::{Axis, AxisModel, Machine, MachineModels, ModelSet, OptionsFile};
+use vcnc_machine::{Axis, AxisModel, Dynamics, Machine, MachineModels, ModelSet, OptionsFile};
 
 use crate::Error;
 use crate::run::AxisSignals;
@@ -107,6 +107,7 @@ impl ExcitationRun {
 /// Generates the axis' identification program with `seed`, interpolates it and runs it through
 /// the true drive.
 pub fn excitation_run(machine: &Machine, a: &Axis, seed: u64) -> Result<ExcitationRun, Error> {
+    let drive = a.require_drive(machine, "identification on the virtual machine")?;
     let p = &machine.identification.program;
     let opts = IdentificationOptions {
         moves: p.moves,
@@ -153,8 +154,7 @@ pub fn excitation_run(machine: &Machine, a: &Axis, seed: u64) -> Result<Excitati
         vel: track.vel.clone(),
         acc: track.acc.clone(),
     };
-    let trace = a
-        .drive
+    let trace = drive
         .simulate(reference.reference(), machine.ts)
         .map_err(|source| Error::Drive {
             axis: a.name,
@@ -354,20 +354,72 @@ pub fn machine_models(
 }
 
 /// The models a prediction runs: those of the model file at `path` (checked against
-/// `machine`), or without one every axis identified on the fly from the machine's own
-/// excitation runs.
+/// `machine`); without one, every axis with a virtual drive identified on the fly from the
+/// machine's own excitation runs, and every axis known by its identified model that model.
 pub fn models_for(
     machine: &Machine,
     path: Option<&std::path::Path>,
 ) -> Result<MachineModels, Error> {
-    match path {
-        Some(p) => Ok(MachineModels::load(p, machine)?),
-        None => {
-            let axes = select_axes(machine, &[])?;
-            let ids = identify_axes(machine, &axes, None)?;
-            machine_models(machine, &ids, "identified on the fly")
-        }
+    if let Some(p) = path {
+        return Ok(MachineModels::load(p, machine)?);
     }
+    let drives: Vec<&Axis> = machine
+        .axes
+        .iter()
+        .filter(|a| a.drive().is_some())
+        .collect();
+    if drives.is_empty()
+        && let Some(own) = machine.own_models()
+    {
+        return Ok(own);
+    }
+    let mut identified = identify_axes(machine, &drives, None)?.into_iter();
+    let models = machine
+        .axes
+        .iter()
+        .filter_map(|a| match &a.dynamics {
+            Dynamics::Drive(_) => identified.next().map(|r| r.result.model),
+            Dynamics::Model(m) => Some(*m),
+        })
+        .collect();
+    let source = if drives.len() == machine.axes.len() {
+        "identified on the fly".to_string()
+    } else {
+        format!(
+            "identified on the fly ({}), the machine's models ({})",
+            drives
+                .iter()
+                .map(|a| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" "),
+            machine.model_file.as_deref().unwrap_or_default()
+        )
+    };
+    Ok(MachineModels::new(machine, models, source)?)
+}
+
+/// The models a command that does not identify runs (`compensate`, `feed-plan`): those of the
+/// model file at `path`, or without one the machine's own when every axis is known by its
+/// identified model ([`Error::NeedsModels`] otherwise).
+pub fn given_models(
+    machine: &Machine,
+    path: Option<&std::path::Path>,
+    command: &'static str,
+) -> Result<MachineModels, Error> {
+    if let Some(p) = path {
+        return Ok(MachineModels::load(p, machine)?);
+    }
+    machine.own_models().ok_or_else(|| Error::NeedsModels {
+        command,
+        file: machine.source.clone(),
+        drives: machine
+            .axes
+            .iter()
+            .filter(|a| a.drive().is_some())
+            .map(|a| a.name.as_str())
+            .collect::<Vec<_>>()
+            .join(" "),
+    })
 }
 
 /// The paper's method's models (the equation-error PSO alone) of identifications of every

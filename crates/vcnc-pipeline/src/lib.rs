@@ -98,7 +98,8 @@ pub use vcnc_drive::{
 pub use vcnc_gcode::StreamOptions;
 pub use vcnc_identify::{Degeneracy, FitMetrics, ModelStructure, Verdict};
 pub use vcnc_machine::{
-    Error as MachineError, Machine, MachineDocument, MachineModels, ModelSet, OptionsFile, embedded,
+    Dynamics, Error as MachineError, Machine, MachineDocument, MachineModels, ModelSet,
+    OptionsFile, embedded,
 };
 pub use vcnc_trace::Format as TraceFormat;
 

@@ -18,7 +18,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use rayon::prelude::*;
 use serde::Serialize;
-use vcnc_axis::Unit;
+use vcnc_axis::{AxisName, Unit};
 use vcnc_contour::{ContourStream, SearchWindow, StreamLimits};
 use vcnc_drive::Channels;
 use vcnc_gcode::MoveClass;
@@ -184,7 +184,7 @@ pub fn predict<S: Sink<PredictPiece>>(
         flagger.flag(machine, c, &poses, &mut pending.flags);
         for i in 0..axes {
             pending.reference[i].extend(&c.pos[i]);
-            pending.actual[0].positions[i].extend(&drives.traces[i].true_position);
+            pending.actual[0].positions[i].extend(&drives.physical[i]);
             for (set, out) in pending.actual[1..].iter_mut().zip(&model_runs.out) {
                 set.positions[i].extend(&out[i]);
             }
@@ -202,7 +202,10 @@ pub fn predict<S: Sink<PredictPiece>>(
 
     // The end: the drives' saturation counts, the models' last shifted samples, the searches'
     // last feet.
-    let saturated_ticks = drives.finish(machine)?;
+    let (saturated_ticks, true_rest) = drives.finish(machine)?;
+    for (p, y) in pending.actual[0].positions.iter_mut().zip(&true_rest) {
+        p.extend(y);
+    }
     let last = model_runs.finish(machine)?;
     for (set, out) in pending.actual[1..].iter_mut().zip(&last) {
         for (p, y) in set.positions.iter_mut().zip(out) {
@@ -234,6 +237,7 @@ pub fn predict<S: Sink<PredictPiece>>(
     let (truth, summaries, figures) = stats.finish(which, machine, kin, &texts);
     let mut warnings = source.warnings().to_vec();
     warnings.extend(reference.warnings.iter().cloned());
+    warnings.extend(model_warnings(machine, models));
     Ok(PredictOutcome {
         truth,
         tracking: tracking.iter().map(MaxRms::max_rms).collect(),
@@ -243,6 +247,53 @@ pub fn predict<S: Sink<PredictPiece>>(
         saturated_ticks,
         warnings,
     })
+}
+
+/// The warnings about the models of a prediction: [`lag_mismatch`] of the machine's own
+/// models (where axes are known by them) and of each set in `models`, each said once.
+pub fn model_warnings(machine: &Machine, models: &[&MachineModels]) -> Vec<String> {
+    let own = machine.own_models();
+    let mut warnings: Vec<String> = Vec::new();
+    for w in own
+        .iter()
+        .chain(models.iter().copied())
+        .filter_map(|set| lag_mismatch(machine, set))
+    {
+        if !warnings.contains(&w) {
+            warnings.push(w);
+        }
+    }
+    warnings
+}
+
+/// A warning when the axes' models of `set` lag the reference by different times (a dead time
+/// or a nominal-position filter on some axes and not on others): the axes then fall behind the
+/// path by different amounts, and the predicted contour error is dominated by that mismatch
+/// rather than by the loops. Lags within two sample periods of each other pass.
+pub fn lag_mismatch(machine: &Machine, set: &MachineModels) -> Option<String> {
+    let lags: Vec<(AxisName, f64)> = machine
+        .axes
+        .iter()
+        .zip(set.models())
+        .map(|(a, m)| (a.name, m.reference_lag_s()))
+        .collect();
+    let (lo, hi) = lags
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), (_, l)| {
+            (lo.min(*l), hi.max(*l))
+        });
+    if hi - lo <= 2.0 * machine.ts {
+        return None;
+    }
+    let list = lags
+        .iter()
+        .map(|(n, l)| format!("{n} {:.1} ms", l * 1e3))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Some(format!(
+        "the models of {} lag the reference by different times ({list}: dead time plus nominal-position filter): the contour error predicted is then dominated by that mismatch; identify every axis with the same structure (`[identification.options] structures`, `identify --trace --structures`) unless the control really filters its axes differently",
+        set.source()
+    ))
 }
 
 fn new_search() -> Result<ContourStream, Error> {
@@ -955,6 +1006,9 @@ pub struct PredictSummary {
     pub machine: String,
     /// Program path.
     pub program: String,
+    /// What played the true machine ("virtual drives", or the machine's identified models:
+    /// docs/machine-file.md#a-machine-made-of-identified-models).
+    pub truth: String,
     /// Where the models come from (a file, or "identified on the fly").
     pub models: String,
     /// The actual-value latency stated per axis (axis letter → s) by which the models'
@@ -982,6 +1036,7 @@ impl PredictSummary {
             contour,
             machine: machine.name.clone(),
             program: program.to_string(),
+            truth: machine.truth_description(),
             models: models.source().to_string(),
             actual_latency_s: machine
                 .axes

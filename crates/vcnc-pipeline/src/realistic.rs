@@ -32,7 +32,7 @@ use serde::Serialize;
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::{DriveParams, Feedback};
 use vcnc_identify::ModelStructure;
-use vcnc_machine::Machine;
+use vcnc_machine::{Dynamics, Machine};
 
 use crate::Error;
 use crate::identify::{self, AxisIdentification};
@@ -145,12 +145,14 @@ pub fn machine_with(
 ) -> Result<Machine, Error> {
     let mut m = machine.clone();
     for a in &mut m.axes {
-        a.drive = f(&a.drive.params())
-            .validate()
-            .map_err(|source| Error::Drive {
-                axis: a.name,
-                source,
-            })?;
+        let params = a
+            .require_drive(machine, "a variant of the machine's drives")?
+            .params();
+        let drive = f(&params).validate().map_err(|source| Error::Drive {
+            axis: a.name,
+            source,
+        })?;
+        a.dynamics = Dynamics::Drive(drive);
     }
     Ok(m)
 }
@@ -364,7 +366,7 @@ mod tests {
         // Truth: the tables of machines/nmv5000-realistic.toml (axis A has every effect,
         // backlash included).
         let m = Machine::embedded_nmv5000_realistic().unwrap();
-        let p = m.axes[3].drive.params();
+        let p = m.axes[3].drive().expect("a drive").params();
         assert_eq!(m.axes[3].name.to_string(), "A");
         let base = ideal(&p);
         assert!(base.validate().unwrap().effects().is_ideal() && base.encoder.noise_std == 0.0);

@@ -111,7 +111,7 @@ pub fn simulate<S: Sink<SimulatePiece>>(
         Ok(())
     };
     let reference = source.for_each(machine, &mut on_chunk)?;
-    let saturated_ticks = drives.finish(machine)?;
+    let (saturated_ticks, _) = drives.finish(machine)?;
     model_runs.finish(machine)?;
     let tracking = (0..axes)
         .map(|i| AxisFigures {
@@ -134,9 +134,19 @@ pub fn simulate<S: Sink<SimulatePiece>>(
 pub fn true_traces(machine: &Machine, run: &Run) -> Result<Vec<DriveTrace>, crate::Error> {
     let mut keep = TraceRecord(vec![DriveTrace::default(); machine.axes.len()]);
     let outcome = simulate(machine, Source::Prepared(run), None, &mut keep)?;
-    for (t, s) in keep.0.iter_mut().zip(outcome.saturated_ticks) {
+    for ((t, s), a) in keep
+        .0
+        .iter_mut()
+        .zip(outcome.saturated_ticks)
+        .zip(&machine.axes)
+    {
         t.ts = run.ts;
         t.saturated_ticks = s;
+        // An axis known by its model logged its model's positions as both; its physical
+        // position is them advanced by the model's stated latency (as in a prediction).
+        if let vcnc_machine::Dynamics::Model(m) = &a.dynamics {
+            t.true_position = crate::latency::shifted(&t.position, m.actual_latency_s, run.ts);
+        }
     }
     Ok(keep.0)
 }
@@ -226,7 +236,7 @@ impl AxisTracking {
         AxisTracking {
             axis: axis.name,
             unit: axis.unit,
-            controller: axis.drive.controller().kind(),
+            controller: axis.controller_kind(),
             true_model: axis.true_model(),
             tracking_max: max_abs(&error),
             tracking_rms: rms(&error),
@@ -394,7 +404,7 @@ pub fn simulate_summary_of(
                     true_model: ModelSummary::of(&axis.true_model()),
                     model: models.map(|m| ModelSummary::of_drive(m.get(i))),
                     model_vs_true: f.model_vs_true,
-                    controller: axis.drive.controller().kind(),
+                    controller: axis.controller_kind(),
                 },
             )
         })

@@ -8,7 +8,7 @@
 //! N / servo_rate_hz.
 
 use vcnc_drive::Feedback;
-use vcnc_machine::{Machine, MachineModels, embedded};
+use vcnc_machine::{Dynamics, Machine, MachineModels, embedded};
 use vcnc_pipeline::latency::shifted;
 use vcnc_pipeline::predict::{self, PredictOptions};
 use vcnc_pipeline::realistic::ideal;
@@ -28,12 +28,12 @@ fn dead_time_machine_of(cycles: [u32; 5]) -> (Machine, Run) {
     let base = Machine::embedded_nmv5000().expect("embedded machine");
     let mut m = base.clone();
     for (a, n) in m.axes.iter_mut().zip(cycles) {
-        let mut q = ideal(&a.drive.params());
+        let mut q = ideal(&a.drive().expect("a virtual drive").params());
         q.feedback = Some(Feedback {
             dead_time_cycles: n,
             ..Feedback::default()
         });
-        a.drive = q.validate().expect("the dead-time drive checks");
+        a.dynamics = Dynamics::Drive(q.validate().expect("the dead-time drive checks"));
     }
     let run = run::prepare(&m, embedded::SPIRAL_NGC, "spiral.ngc", false).expect("spiral");
     (m, run)

@@ -137,7 +137,8 @@ fn oracle(machine: &Machine, run: &Run, sets: &[&MachineModels]) -> Oracle {
         .iter()
         .zip(&run.axes)
         .map(|(a, s)| {
-            a.drive
+            a.drive()
+                .expect("a virtual drive")
                 .simulate(s.reference(), ts)
                 .expect("true drive")
                 .true_position
@@ -369,7 +370,11 @@ fn simulation_equals_an_independent_whole_run() {
             });
             let s = simulate::simulate(&machine, source, m, &mut keep).expect("simulated");
             for (i, (axis, a)) in machine.axes.iter().zip(&run.axes).enumerate() {
-                let whole = axis.drive.simulate(a.reference(), run.ts).expect("drive");
+                let whole = axis
+                    .drive()
+                    .expect("a virtual drive")
+                    .simulate(a.reference(), run.ts)
+                    .expect("drive");
                 for ((c, v), name) in channels[i]
                     .iter()
                     .zip(whole.channels())
