@@ -291,7 +291,7 @@ pub fn lag_mismatch(machine: &Machine, set: &MachineModels) -> Option<String> {
         .collect::<Vec<_>>()
         .join(", ");
     Some(format!(
-        "the models of {} lag the reference by different times ({list}: dead time plus nominal-position filter): the contour error predicted is then dominated by that mismatch; identify every axis with the same structure (`[identification.options] structures`, `identify --trace --structures`) unless the control really filters its axes differently",
+        "the models of {} lag the reference by different times ({list}: dead time plus nominal-position filter): the contour error predicted is then dominated by that mismatch; identify every axis with the same structure (`structures` in the machine file's `[identification.options]`, or in the `--options` file of `identify --trace`) unless the control really filters its axes differently",
         set.source()
     ))
 }
