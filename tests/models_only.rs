@@ -224,6 +224,11 @@ fn incomplete_axes_are_refused_with_the_key_and_what_to_do() {
             strip(&["Y"], &model),
             "absent-model.toml: cannot read",
         ),
+        (
+            // A model file no axis uses.
+            strip(&[], &repo("machines/emps-model.toml")),
+            "no axis would use it",
+        ),
     ];
     for (i, (src, expected)) in cases.iter().enumerate() {
         let path = dir.path().join(format!("bad{i}.toml"));

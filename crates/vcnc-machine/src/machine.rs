@@ -598,6 +598,12 @@ impl Checker<'_> {
         let ts = self.sample_period(file.sample_period_s)?;
         let models = self.model_file(file.model.as_deref())?;
         let axes = self.axes(&file, ts, models.as_ref())?;
+        if models.is_some() && axes.iter().all(|a| a.drive().is_some()) {
+            return Err(self.invalid(
+                "model",
+                "the machine names a model file but every axis has a plant and controller, so no axis would use it: remove `model`, or leave out `plant` and `controller` on the axes it describes".to_string(),
+            ));
+        }
         let t = &file.trajectory;
         self.trajectory(t, &axes, file.kinematics.is_some())?;
         let startup_path_mode = self.startup_path_mode(&file.gcode)?;
