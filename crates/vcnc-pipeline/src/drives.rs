@@ -37,10 +37,11 @@ pub(crate) struct TrueDrives {
     /// its model logs only positions: its model's logged position in both `position` and
     /// `true_position` (the physical shift is in [`TrueDrives::physical`]).
     pub traces: Vec<DriveTrace>,
-    /// Per machine axis: the physical positions that became known with the last piece (a
-    /// drive's true positions; a model's logged positions advanced by its stated actual-value
-    /// latency, which holds back a few samples until the end).
-    pub physical: Vec<Vec<f64>>,
+    /// Per machine axis known by its model: the physical positions that became known with the
+    /// last piece (its logged positions advanced by its stated actual-value latency, which
+    /// holds back a few samples until the end). Empty for a drive axis: see
+    /// [`TrueDrives::physical`].
+    shifted: Vec<Vec<f64>>,
 }
 
 impl TrueDrives {
@@ -68,17 +69,26 @@ impl TrueDrives {
         Ok(TrueDrives {
             axes,
             traces: (0..n).map(|_| DriveTrace::default()).collect(),
-            physical: vec![Vec::new(); n],
+            shifted: vec![Vec::new(); n],
         })
     }
 
+    /// Machine axis `i`'s physical positions that became known with the last piece: a drive's
+    /// true positions, a model's shifted ones.
+    pub fn physical(&self, i: usize) -> &[f64] {
+        match self.axes[i] {
+            TrueAxis::Drive(_) => &self.traces[i].true_position,
+            TrueAxis::Model(_) => &self.shifted[i],
+        }
+    }
+
     /// Feeds chunk `c` to each axis, every axis in parallel, into [`TrueDrives::traces`] and
-    /// [`TrueDrives::physical`] (one per axis, cleared first).
+    /// the models' shifted positions (one per axis, cleared first).
     pub fn feed(&mut self, machine: &Machine, c: &ReferenceChunk) -> Result<(), Error> {
         self.axes
             .par_iter_mut()
             .zip(self.traces.par_iter_mut())
-            .zip(self.physical.par_iter_mut())
+            .zip(self.shifted.par_iter_mut())
             .enumerate()
             .try_for_each(|(i, ((d, t), y))| {
                 t.clear_channels(0);
@@ -86,7 +96,6 @@ impl TrueDrives {
                 match d {
                     TrueAxis::Drive(d) => {
                         d.feed(c.axis(i), t).map_err(drive_error(machine, i))?;
-                        y.extend_from_slice(&t.true_position);
                     }
                     TrueAxis::Model(m) => {
                         m.logged.clear();

@@ -184,7 +184,7 @@ pub fn predict<S: Sink<PredictPiece>>(
         flagger.flag(machine, c, &poses, &mut pending.flags);
         for i in 0..axes {
             pending.reference[i].extend(&c.pos[i]);
-            pending.actual[0].positions[i].extend(&drives.physical[i]);
+            pending.actual[0].positions[i].extend(drives.physical(i));
             for (set, out) in pending.actual[1..].iter_mut().zip(&model_runs.out) {
                 set.positions[i].extend(&out[i]);
             }
