@@ -96,6 +96,7 @@ pub fn predict(
         .into());
     }
     let models = identify::models_for(&machine, model)?;
+    crate::release_freed_memory();
     print_warnings(&predict::model_warnings(&machine, &[&models]));
     let every = match table_args.decimate {
         Some(n) => usize::try_from(n).unwrap_or(usize::MAX),
@@ -117,7 +118,7 @@ pub fn predict(
         .transpose()?;
     let mut envelopes = (outputs.figures && !along_path_from_record)
         .then(|| ContourEnvelopes::new(source.len(), measured));
-    let mut record = keep_record.then(|| PredictionRecord::every(every));
+    let mut record = keep_record.then(|| PredictionRecord::of_run(source.len(), every));
     let opts = PredictOptions {
         measured,
         tracking: false,
@@ -238,7 +239,7 @@ pub fn predict(
         );
         let total: u64 = bytes.values().sum();
         let decimated = if every > 1 {
-            format!(", every {every}th sample in the table/path outputs")
+            format!(", 1 sample in {every} kept in the table/path outputs")
         } else {
             String::new()
         };

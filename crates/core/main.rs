@@ -106,6 +106,20 @@ fn fix_mmap_threshold() {
     }
 }
 
+/// Hands the heap's free memory back to the system: called between a run's stages when the
+/// first (an identification on the worker threads) has freed what the next (a long
+/// prediction) will not reuse. glibc keeps memory freed by a worker thread in that thread's
+/// arena, where the main thread's allocations cannot reuse it: measured on the impeller's
+/// prediction with models identified on the fly, 99 MB peak resident against 67 MB with the
+/// models given (docs/performance.md).
+pub fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap pages to the system; it is thread-safe.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 fn main() -> ExitCode {
     fix_mmap_threshold();
     let cli = match Cli::try_parse() {

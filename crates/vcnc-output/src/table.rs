@@ -11,6 +11,7 @@
 //! [`ROW_GROUP_ROWS`] rows, so memory stays bounded).
 
 use std::io::{BufWriter, Write};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -626,28 +627,30 @@ pub fn contour_header(axes: &[AxisName]) -> Vec<String> {
     header
 }
 
-/// Appends the columns of [`contour_header`] for piece `p` with the model sequence `model`
-/// (sample period `ts`) to `cols`, one buffer per header column: the layout of `contour.csv`,
-/// shared by the table and the Python binding.
+/// Appends the columns of [`contour_header`] for the samples `rows` of piece `p` (indices
+/// within the piece) with the model sequence `model` (sample period `ts`) to `cols`, one buffer
+/// per header column: the layout of `contour.csv`, shared by the table and the Python binding.
 pub fn append_contour_columns(
     p: &PredictPiece,
     model: &ActualPiece,
     ts: f64,
+    rows: Range<usize>,
     cols: &mut [Vec<f64>],
 ) {
     let mut c = cols.iter_mut();
     let mut next = || c.next().expect("one buffer per header column");
-    next().extend((p.first..p.first + p.len()).map(|k| k as f64 * ts));
-    next().extend(p.lines.iter().map(|l| f64::from(*l)));
+    let first = p.first + rows.start;
+    next().extend((first..first + rows.len()).map(|k| k as f64 * ts));
+    next().extend(p.lines[rows.clone()].iter().map(|l| f64::from(*l)));
     for i in 0..p.reference.len() {
         for s in [&p.reference[i], &p.truth.positions[i], &model.positions[i]] {
-            next().extend_from_slice(s);
+            next().extend_from_slice(&s[rows.clone()]);
         }
     }
     for poses in [&p.reference_poses, &p.truth.poses, &model.poses] {
         for i in 0..6 {
             next().extend(
-                poses
+                poses[rows.clone()]
                     .iter()
                     .map(|q| if i < 3 { q.p[i] } else { q.o[i - 3] }),
             );
@@ -659,9 +662,14 @@ pub fn append_contour_columns(
         &p.truth.orientation_rad,
         &model.orientation_rad,
     ] {
-        next().extend(e.iter().map(|x| x * 1000.0));
+        next().extend(e[rows.clone()].iter().map(|x| x * 1000.0));
     }
 }
+
+/// Rows of a piece that [`ContourTable`] lays out at a time: its column buffers stay at
+/// 39 columns × 4 096 rows × 8 bytes (1.3 MB on five axes) whatever the piece's length (a
+/// piece may hold tens of thousands of samples); the file does not depend on it.
+const CONTOUR_BLOCK_ROWS: usize = 4096;
 
 /// The `contour` table of `vcnc predict` (the first model set), written piece by piece.
 pub struct ContourTable {
@@ -700,10 +708,14 @@ impl Sink<PredictPiece> for ContourTable {
         let Some(model) = p.models.first() else {
             return Ok(());
         };
-        self.cols.iter_mut().for_each(Vec::clear);
-        append_contour_columns(p, model, self.ts, &mut self.cols);
-        let refs: Vec<&[f64]> = self.cols.iter().map(Vec::as_slice).collect();
-        self.writer.write(&refs)
+        for start in (0..p.len()).step_by(CONTOUR_BLOCK_ROWS) {
+            let rows = start..(start + CONTOUR_BLOCK_ROWS).min(p.len());
+            self.cols.iter_mut().for_each(Vec::clear);
+            append_contour_columns(p, model, self.ts, rows, &mut self.cols);
+            let refs: Vec<&[f64]> = self.cols.iter().map(Vec::as_slice).collect();
+            self.writer.write(&refs)?;
+        }
+        Ok(())
     }
 }
 

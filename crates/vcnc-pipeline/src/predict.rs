@@ -1150,6 +1150,9 @@ pub struct PredictionRecord {
     /// Keep every `every`-th sample only (samples 0, N, 2N, …; 0 or 1 keeps every one): a
     /// long program's figures and `.vtp` in bounded memory.
     pub every: usize,
+    /// The run's samples when known (0 if not): the record's vectors are then sized once for
+    /// the samples it keeps instead of growing by doubling (which may hold twice that).
+    pub samples: usize,
     /// Per sample: the source line of the block running.
     pub lines: Vec<u32>,
     /// Per sample: the kind of move running.
@@ -1203,10 +1206,11 @@ impl PredictionRecord {
 }
 
 impl PredictionRecord {
-    /// A record of every `every`-th sample.
-    pub fn every(every: usize) -> PredictionRecord {
+    /// A record of every `every`-th sample of a run of `samples` samples.
+    pub fn of_run(samples: usize, every: usize) -> PredictionRecord {
         PredictionRecord {
             every,
+            samples,
             ..PredictionRecord::default()
         }
     }
@@ -1218,10 +1222,17 @@ impl Sink<PredictPiece> for PredictionRecord {
         let every = self.every.max(1);
         // The piece's samples kept: those whose index is a multiple of `every`.
         let start = (every - p.first % every) % every;
+        // Sized once for the samples kept (a no-op after the first piece).
+        let kept = self.samples.div_ceil(every);
         let keep = |v: &[f64], out: &mut Vec<f64>| {
+            out.reserve_exact(kept.saturating_sub(out.len()));
             out.extend(v.iter().skip(start).step_by(every));
         };
+        self.lines
+            .reserve_exact(kept.saturating_sub(self.lines.len()));
         self.lines.extend(p.lines.iter().skip(start).step_by(every));
+        self.classes
+            .reserve_exact(kept.saturating_sub(self.classes.len()));
         self.classes
             .extend(p.classes.iter().skip(start).step_by(every));
         self.reference.resize_with(p.reference.len(), Vec::new);
@@ -1359,8 +1370,12 @@ mod tests {
             },
             models: Vec::new(),
         };
-        for cuts in [vec![100], vec![3, 40, 57], vec![1; 100]] {
-            let mut r = PredictionRecord::every(7);
+        // The run's length unknown, exact, or too short: the same record.
+        for (samples, cuts) in [0, 100, 40]
+            .into_iter()
+            .flat_map(|s| [vec![100], vec![3, 40, 57], vec![1; 100]].map(|c| (s, c)))
+        {
+            let mut r = PredictionRecord::of_run(samples, 7);
             let mut first = 0;
             for n in cuts {
                 r.piece(&piece(first, n)).unwrap();
@@ -1374,6 +1389,9 @@ mod tests {
             );
             assert_eq!(r.truth.positions[0][1], -7.0);
             assert_eq!(r.truth.tip_mm[2], 28.0);
+            if samples == 100 {
+                assert_eq!(r.lines.capacity(), kept.len(), "sized once");
+            }
         }
     }
 }

@@ -116,7 +116,7 @@ impl Sink<PredictPiece> for ContourColumns {
         let Some(model) = p.models.first() else {
             return Ok(());
         };
-        table::append_contour_columns(p, model, self.ts, &mut self.cols.values);
+        table::append_contour_columns(p, model, self.ts, 0..p.len(), &mut self.cols.values);
         Ok(())
     }
 }
