@@ -61,3 +61,40 @@ def test_interpolate_simulate_and_kinematics(models):
     assert cols["X"][-1] == pytest.approx(10.0)
     with pytest.raises(ValueError):
         m.interpolate("G1 X1e9 F600\nM2\n")
+
+
+def _models_only(models, tmp_path):
+    """The NMV5000's machine file with every plant, controller and encoder removed and
+    `models` named as the machine's own (a machine known only by identified models)."""
+    out = []
+    for line in MACHINE.read_text().splitlines():
+        if line.startswith(("plant =", "controller =", "encoder =")):
+            continue
+        if line.startswith("urdf ="):
+            line = f'urdf = "{ROOT / "machines" / "nmv5000.urdf"}"'
+        out.append(line)
+        if line.startswith("sample_period_s"):
+            out.append(f'model = "{models}"')
+    p = tmp_path / "models-only.toml"
+    p.write_text("\n".join(out) + "\n")
+    return p
+
+
+def test_a_models_only_machine_predicts_what_the_full_machine_predicts(models, tmp_path):
+    # Truth: the full NMV5000 predicting with the same model file. The models-only machine's
+    # true machine is those models, so its prediction equals the full machine's bit for bit
+    # and its "true" columns equal its predicted ones.
+    full, full_summary = vcnc.Machine(MACHINE).predict(SPIRAL, models)
+    only, only_summary = vcnc.Machine(_models_only(models, tmp_path)).predict(SPIRAL)
+    assert list(only) == list(full)
+    true_cols = [n for n in only if "true" in n]
+    assert len(true_cols) == 5 + 6 + 2
+    for name in only:
+        if name in true_cols:
+            assert np.array_equal(only[name], only[name.replace("true", "pred")]), name
+        else:
+            assert np.array_equal(only[name], full[name]), name
+    predicted = full_summary["contour_um"]
+    assert only_summary["contour_um"]["predicted_max"] == predicted["predicted_max"]
+    assert only_summary["contour_um"]["true_max"] == predicted["predicted_max"]
+    assert only_summary["contour_um"]["discrepancy_max"] == 0.0
