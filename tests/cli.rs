@@ -84,6 +84,42 @@ fn interpolate_writes_reference_and_summary() {
 }
 
 #[test]
+fn cycle_time_is_the_exact_stop_trapezoids_plus_the_dwell() {
+    // Truth by hand (one axis, exact stop: a move of length d at peak speed v with acceleration
+    // a lasts d/v + v/a when it reaches v): the rapid 50 mm at the axis' 250 mm/s and
+    // 2500 mm/s² takes 0.2 + 0.1 s, the dwell 0.5 s, the feed 50 mm at F600 (10 mm/s)
+    // 5 + 0.004 s.
+    let dir = tempdir();
+    let prog = dir.path().join("ct.ngc");
+    std::fs::write(&prog, "G21 G90 G61.1\nG0 X50\nG4 P0.5\nG1 X0 F600\nM2\n").unwrap();
+    let out = dir.path().join("ct");
+    let stdout = ok(&vcnc(&[
+        "interpolate",
+        "machines/ballscrew-ppi.toml",
+        prog.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let s = json(&out.join("summary.json"));
+    for (key, want) in [
+        ("cycle_time.rapid_s", 0.3),
+        ("cycle_time.dwell_s", 0.5),
+        ("cycle_time.feed_s", 5.004),
+        ("cycle_time.total_s", 5.804),
+    ] {
+        assert!(
+            (num(&s, key) - want).abs() < 1e-9,
+            "{key}: {}",
+            num(&s, key)
+        );
+    }
+    assert!(
+        stdout.contains("cycle time 5.804 s (feed 5.004 s, rapid 0.300 s, dwell 0.500 s)"),
+        "{stdout}"
+    );
+}
+
+#[test]
 fn identification_program_interpolates_within_the_issue_bounds() {
     // Issue 2: the identification program for one axis takes 20–60 s at the defaults.
     let dir = tempdir();

@@ -192,7 +192,7 @@ pub fn predict(
         .collect();
     let mut summary = PredictSummary::new(
         &machine,
-        source.file(),
+        &source,
         outcome.summaries[0].clone(),
         &models,
         outcome.warnings.clone(),
@@ -219,6 +219,7 @@ pub fn predict(
             .filter(|(n, _, _)| !own || n.starts_with("predicted"))
             .map(|(n, a, b)| vec![n, format!("{a:.3}"), format!("{b:.4}")])
             .collect();
+        println!("{}", crate::cycle_time_line(&source.cycle()));
         print!(
             "{}",
             text_table(

@@ -72,6 +72,7 @@ pub fn interpolate(
             out.display(),
             plan.plan.lookahead_peak
         );
+        println!("{}", crate::cycle_time_line(&source.cycle()));
     }
     Ok(())
 }

@@ -106,6 +106,15 @@ fn fix_mmap_threshold() {
     }
 }
 
+/// The planner's cycle time as the commands print it: `cycle time 10.586 s (feed 10.125 s,
+/// rapid 0.461 s, dwell 0 s)`.
+pub fn cycle_time_line(c: &vcnc_pipeline::CycleTime) -> String {
+    format!(
+        "cycle time {:.3} s (feed {:.3} s, rapid {:.3} s, dwell {:.3} s)",
+        c.total_s, c.feed_s, c.rapid_s, c.dwell_s
+    )
+}
+
 /// Hands the heap's free memory back to the system: called between a run's stages when the
 /// first (an identification on the worker threads) has freed what the next (a long
 /// prediction) will not reuse. glibc keeps memory freed by a worker thread in that thread's
@@ -120,8 +129,20 @@ pub fn release_freed_memory() {
     }
 }
 
+/// A closed standard output (`vcnc predict … | head`) ends the process quietly, as it ends
+/// other command-line tools, instead of a panic in `println!`: Rust ignores SIGPIPE by
+/// default, so the write fails and `println!` panics.
+fn default_sigpipe() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: restores the signal's default action; called before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
     fix_mmap_threshold();
+    default_sigpipe();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

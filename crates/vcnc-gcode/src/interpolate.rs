@@ -251,7 +251,7 @@ pub struct Slowdown {
 
 /// The cycle time of a program and how it splits between the kinds of move (a chain of moves
 /// joined without a stop counts as the kind of its moves: feeds or rapids).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct CycleTime {
     /// The whole program, s (the trajectory's duration).
     pub total_s: f64,

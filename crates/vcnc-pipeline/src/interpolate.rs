@@ -67,6 +67,8 @@ pub struct InterpolateSummary {
     pub duration_s: f64,
     /// Time spent in feed moves (G1 G2 G3, cycles' feed parts), s.
     pub feed_duration_s: f64,
+    /// The planner's cycle time and its split between feeds, rapids and dwells, s.
+    pub cycle_time: vcnc_gcode::CycleTime,
     /// Number of samples.
     pub samples: usize,
     /// Sample period, s.
@@ -93,6 +95,7 @@ pub fn interpolate_summary(
         program: source.file().to_string(),
         duration_s: source.duration_s(),
         feed_duration_s: stats.feed_samples as f64 * source.ts(),
+        cycle_time: source.cycle(),
         samples: source.len(),
         ts_s: source.ts(),
         tcp: source.has_tcp(),

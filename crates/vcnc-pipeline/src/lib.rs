@@ -95,7 +95,7 @@ pub use vcnc_contour::ContourReport;
 pub use vcnc_drive::{
     ClosedLoopModel, DriveModel, DriveTrace, Frf, MAX_ACTUAL_LATENCY_S, ReferenceFilter,
 };
-pub use vcnc_gcode::StreamOptions;
+pub use vcnc_gcode::{CycleTime, StreamOptions};
 pub use vcnc_identify::{Degeneracy, FitMetrics, ModelStructure, Verdict};
 pub use vcnc_machine::{
     Dynamics, Error as MachineError, Machine, MachineDocument, MachineModels, ModelSet,

@@ -1006,6 +1006,9 @@ pub struct PredictSummary {
     pub machine: String,
     /// Program path.
     pub program: String,
+    /// The planner's cycle time of the program and its split between feeds, rapids and
+    /// dwells, s.
+    pub cycle_time: vcnc_gcode::CycleTime,
     /// What played the true machine ("virtual drives", or the machine's identified models:
     /// docs/machine-file.md#a-machine-made-of-identified-models).
     pub truth: String,
@@ -1024,10 +1027,10 @@ pub struct PredictSummary {
 }
 
 impl PredictSummary {
-    /// The summary of a prediction of `program` on `machine` with `models`.
+    /// The summary of a prediction of the program `source` on `machine` with `models`.
     pub fn new(
         machine: &Machine,
-        program: &str,
+        source: &Source<'_>,
         contour: ContourSummary,
         models: &MachineModels,
         warnings: Vec<String>,
@@ -1035,7 +1038,8 @@ impl PredictSummary {
         PredictSummary {
             contour,
             machine: machine.name.clone(),
-            program: program.to_string(),
+            program: source.file().to_string(),
+            cycle_time: source.cycle(),
             truth: machine.truth_description(),
             models: models.source().to_string(),
             actual_latency_s: machine

@@ -237,6 +237,15 @@ impl Source<'_> {
         }
     }
 
+    /// The planner's cycle time, split between feeds, rapids and dwells (the duration before
+    /// sampling: [`Source::duration_s`] is the last sample's time).
+    pub fn cycle(&self) -> vcnc_gcode::CycleTime {
+        match self {
+            Source::Prepared(r) => r.loaded.trajectory.cycle,
+            Source::Streamed(s) => s.plan.cycle,
+        }
+    }
+
     /// Whether some samples are in tool-centre-point mode.
     pub fn has_tcp(&self) -> bool {
         match self {

@@ -288,7 +288,7 @@ impl Machine {
                 let outcome = predict::predict(m, source, &[&models], &opts, &mut sink)?;
                 let summary = PredictSummary::new(
                     m,
-                    source.file(),
+                    &source,
                     outcome.summaries[0].clone(),
                     &models,
                     outcome.warnings.clone(),
