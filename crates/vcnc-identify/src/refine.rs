@@ -668,6 +668,12 @@ impl Layout {
 /// ([`RefineOptions::sign_iterations`] bounds the number of stages).
 const SIGN_CONVERGED: f64 = 1e-6;
 
+/// Stage B also stops after this many stages in a row without a better free run than the
+/// best so far: the iteration has left its fixed point's neighbourhood (on some drives
+/// the friction input and the model push each other away from it) and the chosen stage, the
+/// one with the smallest free-run error, can no longer change.
+const STALE_STAGES: usize = 2;
+
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
 const KMAX: usize = 9;
 
@@ -1378,6 +1384,9 @@ pub fn refine(
         stage_signs.push(prob.f.clone());
         if fr < stages[chosen_run.0].freerun_rms {
             chosen_run = (stages.len() - 1, r.eta.clone(), r.history.clone(), r.cost);
+        }
+        if stages.len() > chosen_run.0 + STALE_STAGES {
+            break;
         }
         // Converged: the stage's cost repeats the previous stage's (the friction input and
         // the model have stopped moving each other).
