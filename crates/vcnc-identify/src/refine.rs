@@ -669,9 +669,10 @@ impl Layout {
 const SIGN_CONVERGED: f64 = 1e-6;
 
 /// Stage B also stops after this many stages in a row without a better free run than the
-/// best so far: the iteration has left its fixed point's neighbourhood (on some drives
-/// the friction input and the model push each other away from it) and the chosen stage, the
-/// one with the smallest free-run error, can no longer change.
+/// best so far: the iteration has turned away from its fixed point (on some drives the
+/// friction input and the model push each other off it, and the free-run error only grows
+/// from there; docs/identification.md, "The friction input"). The chosen stage is the one with
+/// the smallest free-run error among those run.
 const STALE_STAGES: usize = 2;
 
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
