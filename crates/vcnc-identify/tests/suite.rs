@@ -34,14 +34,15 @@
 //! structures; the table shows the 7-parameter model's validation error beside the extended one,
 //! which must come within 1.2 × the true extended model's.
 //!
-//! Run the whole suite (prints the table):
+//! Run it (prints the table):
 //!
 //! ```text
-//! VCNC_SUITE=full cargo test --release -p vcnc-identify --test suite -- --nocapture
+//! cargo test --release -p vcnc-identify --test suite -- --nocapture
 //! ```
 //!
-//! Without `VCNC_SUITE=full` a bounded subset runs (the CI's share: four drives and two
-//! shaped ones, about 15 s). `VCNC_SUITE_IDS=3,56` runs only those drives.
+//! By default (and in CI) that is the 64 fixed drives and two shaped ones, about two minutes
+//! on two cores; `VCNC_SUITE=full` adds six shaped drives, `VCNC_SUITE_IDS=3,56` runs only
+//! those drives, and `--ignored` the fresh drives (below).
 //! The per-drive step is [`identify_csv`]: CSV path in, identification out, the library route
 //! of `vcnc identify --trace FILE.csv`; swapping it for the binary changes nothing else.
 
