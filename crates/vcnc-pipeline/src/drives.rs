@@ -57,11 +57,10 @@ impl TrueDrives {
                     Dynamics::Drive(d) => {
                         TrueAxis::Drive(d.stream(ts, channels).map_err(drive_error(machine, i))?)
                     }
-                    Dynamics::Model(m) => TrueAxis::Model(AxisModel {
-                        stream: m.stream(ts, &opts).map_err(drive_error(machine, i))?,
-                        shifter: Shifter::new(m.actual_latency_s, ts),
-                        logged: Vec::new(),
-                    }),
+                    Dynamics::Model(m) => TrueAxis::Model(
+                        AxisModel::new(m, ts, m.actual_latency_s, &opts)
+                            .map_err(drive_error(machine, i))?,
+                    ),
                 })
             })
             .collect::<Result<Vec<_>, Error>>()?;
@@ -98,11 +97,7 @@ impl TrueDrives {
                         d.feed(c.axis(i), t).map_err(drive_error(machine, i))?;
                     }
                     TrueAxis::Model(m) => {
-                        m.logged.clear();
-                        m.stream
-                            .feed(c.axis(i), &mut m.logged)
-                            .map_err(drive_error(machine, i))?;
-                        m.shifter.feed(&m.logged, y);
+                        m.feed(c.axis(i), y).map_err(drive_error(machine, i))?;
                         t.position.extend_from_slice(&m.logged);
                         t.true_position.extend_from_slice(&m.logged);
                     }
@@ -121,8 +116,7 @@ impl TrueDrives {
             match d {
                 TrueAxis::Drive(d) => ticks.push(d.finish().map_err(drive_error(machine, i))?),
                 TrueAxis::Model(m) => {
-                    m.stream.finish().map_err(drive_error(machine, i))?;
-                    m.shifter.finish(&mut y);
+                    m.finish(&mut y).map_err(drive_error(machine, i))?;
                     ticks.push(0);
                 }
             }
@@ -138,6 +132,43 @@ struct AxisModel {
     shifter: Shifter,
     /// The model's logged positions of the last piece (before the shift).
     logged: Vec<f64>,
+}
+
+impl AxisModel {
+    /// The model `m` at sample period `ts`, its output advanced by `shift_s` (0: none).
+    fn new(
+        m: &vcnc_drive::DriveModel,
+        ts: f64,
+        shift_s: f64,
+        opts: &SimOptions,
+    ) -> Result<AxisModel, vcnc_drive::Error> {
+        Ok(AxisModel {
+            stream: m.stream(ts, opts)?,
+            shifter: Shifter::new(shift_s, ts),
+            logged: Vec::new(),
+        })
+    }
+
+    /// Feeds a piece: its logged positions into `self.logged`, and the shifted positions that
+    /// became known with it into `shifted` (cleared first).
+    fn feed(
+        &mut self,
+        piece: vcnc_drive::Reference<'_>,
+        shifted: &mut Vec<f64>,
+    ) -> Result<(), vcnc_drive::Error> {
+        self.logged.clear();
+        shifted.clear();
+        self.stream.feed(piece, &mut self.logged)?;
+        self.shifter.feed(&self.logged, shifted);
+        Ok(())
+    }
+
+    /// The end of the reference: the shifted positions still held back into `rest`.
+    fn finish(self, rest: &mut Vec<f64>) -> Result<(), vcnc_drive::Error> {
+        self.stream.finish()?;
+        self.shifter.finish(rest);
+        Ok(())
+    }
 }
 
 /// Sets of models (one model per machine axis each), fed a piece at a time.
@@ -167,14 +198,8 @@ impl ModelRuns {
                     .iter()
                     .enumerate()
                     .map(|(i, m)| {
-                        Ok(AxisModel {
-                            stream: m.stream(ts, &opts).map_err(drive_error(machine, i))?,
-                            shifter: Shifter::new(
-                                if physical { m.actual_latency_s } else { 0.0 },
-                                ts,
-                            ),
-                            logged: Vec::new(),
-                        })
+                        let shift = if physical { m.actual_latency_s } else { 0.0 };
+                        AxisModel::new(m, ts, shift, &opts).map_err(drive_error(machine, i))
                     })
                     .collect::<Result<Vec<_>, Error>>()
             })
@@ -194,13 +219,7 @@ impl ModelRuns {
                     .zip(out.par_iter_mut())
                     .enumerate()
                     .try_for_each(|(i, (m, y))| {
-                        m.logged.clear();
-                        y.clear();
-                        m.stream
-                            .feed(c.axis(i), &mut m.logged)
-                            .map_err(drive_error(machine, i))?;
-                        m.shifter.feed(&m.logged, y);
-                        Ok::<(), Error>(())
+                        m.feed(c.axis(i), y).map_err(drive_error(machine, i))
                     })
             })
     }
@@ -211,9 +230,8 @@ impl ModelRuns {
         let mut out = self.out;
         for (set, o) in self.sets.into_iter().zip(&mut out) {
             for (i, (m, y)) in set.into_iter().zip(o.iter_mut()).enumerate() {
-                m.stream.finish().map_err(drive_error(machine, i))?;
                 y.clear();
-                m.shifter.finish(y);
+                m.finish(y).map_err(drive_error(machine, i))?;
             }
         }
         Ok(out)
