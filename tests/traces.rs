@@ -833,3 +833,51 @@ fn real_twincat_exports_are_listed() {
         assert!(err.contains("no axis has both"), "{err}");
     }
 }
+
+/// vcnc reads the Parquet tables it writes: `simulate --format parquet` (what it writes by
+/// default beyond 200 000 rows) identifies through `identify --trace` to the same model as the
+/// CSV of the same run, bit for bit (truth: the delimited reader, tested above on every axis).
+#[test]
+fn simulate_parquet_identifies_as_its_csv() {
+    let dir = tempdir();
+    let d = dir.path();
+    let program = d.join("id.ngc");
+    let source = ok(&vcnc(&[
+        "gen",
+        "identification",
+        "--moves",
+        "40",
+        "--seed",
+        "3",
+    ]));
+    std::fs::write(&program, source).unwrap();
+    let mut models = Vec::new();
+    for format in ["csv", "parquet"] {
+        let sim = d.join(format!("sim-{format}"));
+        ok(&vcnc(&[
+            "-q",
+            "simulate",
+            repo("machines/ballscrew-ppi.toml").to_str().unwrap(),
+            program.to_str().unwrap(),
+            "--out",
+            sim.to_str().unwrap(),
+            "--format",
+            format,
+        ]));
+        let trace = sim.join(format!("trace.{format}"));
+        let out = d.join(format!("id-{format}"));
+        let summary = identify(&trace, &out, &[]);
+        assert_eq!(
+            summary["format"],
+            if format == "csv" {
+                "Delimited"
+            } else {
+                "Parquet"
+            }
+        );
+        let model = std::fs::read_to_string(out.join("model.toml")).unwrap();
+        // The first line names the trace file.
+        models.push(model.lines().skip(1).collect::<Vec<_>>().join("\n"));
+    }
+    assert_eq!(models[0], models[1]);
+}

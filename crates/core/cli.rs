@@ -363,7 +363,7 @@ pub struct TraceReadArgs {
     /// unit keeps it [default: mm, deg].
     #[arg(long, value_name = "UNIT")]
     pub units: Option<String>,
-    /// Read as this format instead of detecting it: sinumerik, tncscope, halscope,
+    /// Read as this format instead of detecting it: parquet, sinumerik, tncscope, halscope,
     /// halscope-pairs, twincat, halsampler, delimited.
     #[arg(long, value_name = "FORMAT")]
     pub trace_format: Option<String>,

@@ -18,6 +18,13 @@ fn first_line(head: &[u8]) -> String {
 
 fn check(format: Format, head: &[u8]) -> Result<(), String> {
     match format {
+        Format::Parquet => {
+            if head.starts_with(crate::formats::parquet::MAGIC) {
+                Ok(())
+            } else {
+                Err("does not start with the Parquet magic 'PAR1'".to_string())
+            }
+        }
         Format::SinumerikTrace => {
             let start = head.iter().find(|b| !b.is_ascii_whitespace());
             if start != Some(&b'<') {
@@ -150,6 +157,7 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
 ///
 /// | # | format | signature |
 /// |---|--------|-----------|
+/// | 0 | Apache Parquet | starts with `PAR1` (binary; the only format that may hold NUL bytes) |
 /// | 1 | Sinumerik servo trace | first non-blank character `<`, and `<traceSession`, `<traceData` or `<dataSignal` in the examined part |
 /// | 2 | TNCscope | first non-blank line starts with `%TNCscope` (any case) |
 /// | 3 | halscope table (2.9+) | first line `# Sampling period is N ns` |
@@ -161,17 +169,24 @@ fn check(format: Format, head: &[u8]) -> Result<(), String> {
 /// Signatures look at the first lines only: a fault further down (a ragged row, a NaN) is left to
 /// the reader, which reports it with its line instead of refusing the whole file.
 ///
-/// Content with NUL bytes is binary and matches none. When nothing matches, the error lists each
+/// Content with NUL bytes is binary and matches none but Parquet. When nothing matches, the error lists each
 /// format with what the content lacked.
 pub fn detect(bytes: &[u8]) -> Result<Format, Vec<Attempt>> {
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let head = &bytes[..bytes.len().min(EXAMINED_BYTES)];
+    if check(Format::Parquet, head).is_ok() {
+        return Ok(Format::Parquet);
+    }
     if head.contains(&0) {
         return Err(Format::ALL
             .iter()
             .map(|&format| Attempt {
                 format,
-                reason: "binary content (NUL bytes)".to_string(),
+                reason: match format {
+                    Format::Parquet => "does not start with the Parquet magic 'PAR1'",
+                    _ => "binary content (NUL bytes)",
+                }
+                .to_string(),
             })
             .collect());
     }

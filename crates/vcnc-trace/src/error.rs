@@ -78,6 +78,14 @@ pub enum Error {
         /// The operating system's message.
         message: String,
     },
+    /// A Parquet file the `parquet` crate cannot read (a damaged or cut-short file).
+    #[error("{file}: not a readable Parquet table: {what}")]
+    Parquet {
+        /// The file.
+        file: String,
+        /// The `parquet` crate's message, or what is missing.
+        what: String,
+    },
     /// No reader recognises the content.
     #[error("{file}: not a trace format vcnc reads; tried {}", list_attempts(.tried))]
     UnknownFormat {

@@ -21,7 +21,8 @@
 //! 2. The readers, one per [`Format`], each documented in [`formats`] with the public description
 //!    it follows: LinuxCNC halscope logs (2.9+ table and the older name–value pairs), LinuxCNC
 //!    halsampler output, Heidenhain TNCscope text exports, Siemens Sinumerik Operate servo traces
-//!    (XML), Beckhoff TwinCAT Scope CSV exports, and generic delimited text. Each returns the
+//!    (XML), Beckhoff TwinCAT Scope CSV exports, generic delimited text, and Parquet tables (what
+//!    `vcnc simulate` writes beyond 200 000 rows). Each returns the
 //!    same [`Trace`]. Data rows are parsed from byte slices into reused buffers, without
 //!    allocating per row (`cargo bench -p vcnc-trace`: 1 M samples × 4 channels in 0.2–0.6 s on a shared 2-core VM).
 //! 3. Each [`Channel`]'s axis and quantity are inferred from its name and the file's fields (the
@@ -113,7 +114,10 @@ pub fn read_bytes(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace,
         None => detect_format(file, bytes)?,
     };
     if let Some(c) = &opts.time_column
-        && !matches!(format, Format::Delimited | Format::Halsampler)
+        && !matches!(
+            format,
+            Format::Delimited | Format::Halsampler | Format::Parquet
+        )
     {
         return Err(Error::TimeColumnNotApplicable {
             file: file.to_string(),
@@ -132,5 +136,6 @@ pub fn read_bytes(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace,
         Format::TwinCatScope => formats::twincat::read(file, bytes, opts),
         Format::Halsampler => formats::halsampler::read(file, bytes, opts),
         Format::Delimited => formats::delimited::read(file, bytes, opts),
+        Format::Parquet => formats::parquet::read(file, bytes, opts),
     }
 }

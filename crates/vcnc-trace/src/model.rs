@@ -28,11 +28,14 @@ pub enum Format {
     Halsampler,
     /// Generic delimited text (`,` `;` tab or spaces; optional header; either decimal mark).
     Delimited,
+    /// Apache Parquet table, one numeric column per channel (vcnc's own tables).
+    Parquet,
 }
 
 impl Format {
     /// Every format, in detection order.
-    pub const ALL: [Format; 7] = [
+    pub const ALL: [Format; 8] = [
+        Format::Parquet,
         Format::SinumerikTrace,
         Format::TncScope,
         Format::HalscopeTable,
@@ -52,6 +55,7 @@ impl Format {
             Format::TwinCatScope => "twincat",
             Format::Halsampler => "halsampler",
             Format::Delimited => "delimited",
+            Format::Parquet => "parquet",
         }
     }
 
@@ -70,6 +74,7 @@ impl Format {
             Format::TwinCatScope => "Beckhoff TwinCAT Scope CSV export",
             Format::Halsampler => "LinuxCNC halsampler output",
             Format::Delimited => "delimited text",
+            Format::Parquet => "Apache Parquet table",
         }
     }
 }

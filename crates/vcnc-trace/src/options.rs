@@ -12,7 +12,7 @@
 //! | `--axis-map N=A,…` | the file's axis number `N` is axis `A` | Sinumerik (`…[u1, N]`) |
 //! | `--axis A` | the axes to pair (repeatable); with one axis, a file whose position channels belong to one unnamed axis is that axis | every format |
 //! | `--xr-col C --x-col C` | the nominal and actual position channels of the (first) `--axis`, X by default: a name as `vcnc trace info` lists it (exact, else ignoring case, else the description), or a 0-based column number | every format |
-//! | `--t-col C` | the time column (s, or the unit its header states) | delimited text, halsampler, halscope |
+//! | `--t-col C` | the time column (s, or the unit its header states) | delimited text, halsampler, halscope, Parquet |
 //! | `--gaps refuse\|longest` | refuse lost samples, or use the longest stretch without any | every format |
 
 use std::fmt;
@@ -343,7 +343,7 @@ mod tests {
                     trace_format: Some("csv".into()),
                     ..TraceArgs::default()
                 },
-                "--trace-format csv: expected one of sinumerik, tncscope",
+                "--trace-format csv: expected one of parquet, sinumerik, tncscope",
             ),
             (
                 TraceArgs {

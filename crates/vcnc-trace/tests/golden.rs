@@ -127,6 +127,11 @@ fn corpus() -> Vec<(&'static str, ReadOptions, PairOptions)> {
             ReadOptions::default(),
             PairOptions::default(),
         ),
+        (
+            "parquet/simulate-x.parquet",
+            ReadOptions::default(),
+            PairOptions::default(),
+        ),
     ]
 }
 

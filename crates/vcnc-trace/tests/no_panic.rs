@@ -7,7 +7,7 @@ use std::path::Path;
 use proptest::prelude::*;
 use vcnc_trace::{GapPolicy, PairOptions, ReadOptions, pair, read_bytes};
 
-const FILES: [&str; 13] = [
+const FILES: [&str; 14] = [
     "halscope/xyzac-2.9.log",
     "halscope/xy-pre2.9.log",
     "halsampler/xz-tagged.txt",
@@ -21,6 +21,7 @@ const FILES: [&str; 13] = [
     "delimited/t-xr-x.csv",
     "delimited/semicolon-decimal-comma.csv",
     "delimited/whitespace-rad.txt",
+    "parquet/simulate-x.parquet",
 ];
 
 fn cases() -> u32 {

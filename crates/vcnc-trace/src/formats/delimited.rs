@@ -138,6 +138,56 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     }
     let header_line = if has_header { first.no } else { 0 };
 
+    let cols = formats::read_table(file, bytes, data_start, delim, decimal_comma, &names, true)?;
+    let line_of = |row: usize| formats::row_line(bytes, data_start, true, row);
+    let header = Header {
+        first_line: first.no,
+        line: header_line,
+        names,
+        units,
+    };
+    let (channels, time_column) = named_channels(file, header, cols, line_of, opts)?;
+    metadata.push(("separator".to_string(), delim.describe().to_string()));
+    metadata.push((
+        "decimal mark".to_string(),
+        if decimal_comma { "','" } else { "'.'" }.to_string(),
+    ));
+    if let Some(name) = time_column {
+        metadata.push(("time column".to_string(), name));
+    }
+    Ok(Trace {
+        file: file.to_string(),
+        format: Format::Delimited,
+        channels,
+        metadata,
+    })
+}
+
+/// A table's header: the line of its first row of content, the line of its names (0: none), and
+/// its columns' names and units.
+pub(crate) struct Header {
+    pub first_line: usize,
+    pub line: usize,
+    pub names: Vec<String>,
+    pub units: Vec<Option<TraceUnit>>,
+}
+
+/// The channels of a table of named columns `cols` (one per name, in order) and the name of its
+/// time column, if any (module documentation: [`ReadOptions::time_column`], else a time name);
+/// `line_of` gives the line of a row. The delimited reader and the Parquet reader end here.
+pub(crate) fn named_channels(
+    file: &str,
+    header: Header,
+    cols: Vec<Vec<f64>>,
+    line_of: impl Fn(usize) -> usize,
+    opts: &ReadOptions,
+) -> Result<(Vec<Channel>, Option<String>), Error> {
+    let Header {
+        first_line,
+        line: header_line,
+        names,
+        units,
+    } = header;
     let time_col = match &opts.time_column {
         Some(ChannelRef::Column(c)) if *c < names.len() => Some(*c),
         Some(ChannelRef::Name(n)) if names.iter().any(|m| m == n) => {
@@ -152,9 +202,6 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         }
         None => names.iter().position(|n| time_name(n).is_some()),
     };
-
-    let cols = formats::read_table(file, bytes, data_start, delim, decimal_comma, &names, true)?;
-    let line_of = |row: usize| formats::row_line(bytes, data_start, true, row);
     let mut times = None;
     let mut columns = Vec::with_capacity(names.len());
     for (c, ((name, unit), samples)) in names.into_iter().zip(units).zip(cols).enumerate() {
@@ -189,27 +236,14 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
     }
     let channels = channels(
         file,
-        first.no,
+        first_line,
         times.as_ref().map(|(_, t)| t.as_slice()),
         columns,
         header_line,
         line_of,
         opts,
     )?;
-    metadata.push(("separator".to_string(), delim.describe().to_string()));
-    metadata.push((
-        "decimal mark".to_string(),
-        if decimal_comma { "','" } else { "'.'" }.to_string(),
-    ));
-    if let Some((name, _)) = times {
-        metadata.push(("time column".to_string(), name));
-    }
-    Ok(Trace {
-        file: file.to_string(),
-        format: Format::Delimited,
-        channels,
-        metadata,
-    })
+    Ok((channels, times.map(|(name, _)| name)))
 }
 
 /// A column of samples with its name, unit and place in the file (0-based, counting a time

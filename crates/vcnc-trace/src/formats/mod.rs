@@ -5,6 +5,7 @@
 pub mod delimited;
 pub mod halsampler;
 pub mod halscope;
+pub mod parquet;
 pub mod sinumerik;
 pub mod tncscope;
 pub mod twincat;
