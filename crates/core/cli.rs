@@ -305,7 +305,7 @@ pub struct IdentifyArgs {
     pub seed: Option<u64>,
     /// Measured trace: a scope file of any supported format (LinuxCNC halscope/halsampler,
     /// Heidenhain TNCscope, Siemens Sinumerik trace XML, Beckhoff TwinCAT Scope CSV, delimited
-    /// text), detected from its content. Every axis with a nominal and an actual position is
+    /// text, Parquet tables such as `vcnc simulate` writes), detected from its content. Every axis with a nominal and an actual position is
     /// identified (or the ones named with --axis).
     #[arg(long)]
     pub trace: Option<PathBuf>,
