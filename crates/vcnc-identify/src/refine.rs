@@ -673,7 +673,7 @@ const SIGN_CONVERGED: f64 = 1e-6;
 /// friction input and the model push each other off it, and the free-run error only grows
 /// from there; docs/identification.md, "The friction input"). The chosen stage is the one with
 /// the smallest free-run error among those run.
-const STALE_STAGES: usize = 2;
+const STALE_STAGES: usize = 1;
 
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
 const KMAX: usize = 9;
