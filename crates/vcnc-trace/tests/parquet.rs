@@ -3,10 +3,13 @@
 //! tested on its own in round_trip.rs and fixtures.rs), and refused with their column and row
 //! when a value is null, not finite or not a number.
 
+mod common;
+
 use std::sync::Arc;
 
 use arrow_array::{ArrayRef, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
 use arrow_schema::{Field, Schema};
+use common::values;
 use parquet::arrow::ArrowWriter;
 use parquet::file::properties::WriterProperties;
 use proptest::prelude::*;
@@ -33,17 +36,6 @@ fn parquet_file(columns: Vec<(&str, ArrayRef)>, group: usize) -> Vec<u8> {
 
 fn f64s(v: &[f64]) -> ArrayRef {
     Arc::new(Float64Array::from(v.to_vec()))
-}
-
-fn values(n: usize) -> impl Strategy<Value = Vec<Vec<f64>>> {
-    let v = prop_oneof![
-        -1e6f64..1e6,
-        -1e-3f64..1e-3,
-        Just(0.0),
-        Just(-0.0),
-        (-1000i32..1000).prop_map(f64::from),
-    ];
-    prop::collection::vec(prop::collection::vec(v, n..=n), 1..5)
 }
 
 proptest! {

@@ -2,22 +2,14 @@
 //! sample bit for bit, names, periods and gaps as written; and every format detected from its
 //! content whatever the file is called.
 
+mod common;
+
+use common::values;
 use proptest::prelude::*;
 use vcnc_axis::AxisName;
 use vcnc_trace::{
     Format, Quantity, ReadOptions, TraceUnit, detect, from_columns, read_bytes, write,
 };
-
-fn values(n: usize) -> impl Strategy<Value = Vec<Vec<f64>>> {
-    let v = prop_oneof![
-        -1e6f64..1e6,
-        -1e-3f64..1e-3,
-        Just(0.0),
-        Just(-0.0),
-        (-1000i32..1000).prop_map(f64::from),
-    ];
-    prop::collection::vec(prop::collection::vec(v, n..=n), 1..5)
-}
 
 fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
