@@ -157,6 +157,11 @@ pub enum Verdict {
         /// The margin, relative.
         margin: f64,
     },
+    /// Trusted on the compared stretch, but refined on the whole trace a parameter ends on a
+    /// bound or undetermined ([`StructureFit::degenerate`] says which), as did the paper's
+    /// structure with the same input, while the paper's structure with the other input is
+    /// trusted there: that one is chosen instead.
+    DegenerateOnWholeTrace,
     /// Its parameters are not trusted ([`StructureFit::degenerate`]) and its validation error
     /// is not below the best trusted candidate's by `degenerate_margin`.
     Degenerate {
@@ -188,6 +193,9 @@ impl std::fmt::Display for Verdict {
                 rms,
                 100.0 * margin,
                 chosen_rms
+            ),
+            Verdict::DegenerateOnWholeTrace => f.write_str(
+                "refined on the whole trace, its parameters are on a bound or not determined; the paper's structure with the other model input is trusted there",
             ),
             Verdict::Degenerate {
                 rms,
@@ -541,12 +549,41 @@ fn finish(
         }
         Ok(fit)
     };
-    let (chosen_fit, paper_fit) = if c == paper {
+    let (mut chosen_fit, mut paper_fit) = if c == paper {
         (refit(c)?, None)
     } else {
         let (a, b) = rayon::join(|| refit(c), || refit(paper));
         (a?, Some(b?))
     };
+    // The whole trace's own verdict (docs/identification.md, "Choosing a structure"): when the
+    // chosen candidate and the paper's structure with its input both end on a bound or leave a
+    // parameter undetermined once refined on the whole trace, the paper's structure with the
+    // other input is refined there too, and chosen when it is trusted.
+    let mut c = c;
+    let mut demoted = vec![];
+    let paper_whole = paper_fit.as_ref().unwrap_or(&chosen_fit);
+    if !degeneracy(&chosen_fit.refinement).is_empty()
+        && !degeneracy(&paper_whole.refinement).is_empty()
+        && let Some(other) = screened
+            .iter()
+            .find(|f| f.structure == ModelStructure::Paper && f.input != c.input)
+            .map(|f| Candidate {
+                structure: f.structure,
+                input: f.input,
+            })
+    {
+        let mut alt = refit(other)?;
+        if degeneracy(&alt.refinement).is_empty() {
+            for mut f in std::iter::once(chosen_fit).chain(paper_fit.take()) {
+                f.degenerate = degeneracy(&f.refinement);
+                f.verdict = Some(Verdict::DegenerateOnWholeTrace);
+                demoted.push(f);
+            }
+            alt.verdict = Some(Verdict::Chosen);
+            chosen_fit = alt;
+            c = other;
+        }
+    }
     // The sensitivity to the model input: the paper's structure compared with either input.
     let twin = screened
         .iter()
@@ -554,16 +591,15 @@ fn finish(
     let me = screened
         .iter()
         .find(|f| f.structure == ModelStructure::Paper && f.input == c.input);
-    let mut chosen_fit = chosen_fit;
     if let (Some(me), Some(twin), Some(u)) = (me, twin, chosen_fit.refinement.uncertainty.as_mut())
     {
         widen_by_input(u, me, twin);
     }
-    let mut fits = vec![];
-    fits.push(paper_fit.clone().unwrap_or_else(|| chosen_fit.clone()));
-    if paper_fit.is_some() {
-        fits.push(chosen_fit);
-    }
+    // The whole-trace fits, the paper's structure first.
+    let mut fits = vec![chosen_fit];
+    fits.extend(paper_fit);
+    fits.sort_by_key(|f| f.structure != ModelStructure::Paper);
+    fits.extend(demoted);
     for f in screened {
         if !fits
             .iter()

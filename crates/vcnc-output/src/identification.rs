@@ -287,6 +287,7 @@ fn short_verdict(v: &Verdict) -> String {
             "not trusted and not {:.0} % below the chosen",
             100.0 * margin
         ),
+        Verdict::DegenerateOnWholeTrace => "not trusted on the whole trace".into(),
     }
 }
 
