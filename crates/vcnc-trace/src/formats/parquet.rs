@@ -44,7 +44,9 @@ fn append(
     a: &ArrayRef,
     out: &mut Vec<f64>,
 ) -> Result<(), Error> {
-    if let Some(k) = (0..a.len()).find(|&k| a.is_null(k)) {
+    if a.null_count() > 0
+        && let Some(k) = (0..a.len()).find(|&k| a.is_null(k))
+    {
         return Err(Error::NotANumber {
             file: file.to_string(),
             line: row0 + k + 2,
