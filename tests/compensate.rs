@@ -111,8 +111,12 @@ fn compensation_takes_the_spiral_from_450_um_to_under_5_um_on_the_true_drives() 
         // And the true drive's own motion on the written program.
         let ta = num(&a["after"], "motion_acceleration");
         assert!(ta <= al, "{axis}: the true drive accelerates at {ta}");
-        // The re-read program reproduces the set-points bit for bit.
-        assert_eq!(num(&a["reproduction"], "position"), 0.0, "{axis}");
+        // The re-read program runs through the set-points within the machine file's
+        // [program_output] (default: words at 0.1 µm / 0.0001°, blocks merged within the same):
+        // the larger of the chord tolerance and half the resolution, blocks of one period being
+        // allowed.
+        let off = num(&a["reproduction"], "position");
+        assert!(off <= 1e-4 * (1.0 + 1e-9), "{axis}: {off}");
     }
 
     // Independently of `compensate`'s own judging: `vcnc simulate` runs the written program on
@@ -141,11 +145,20 @@ fn compensation_takes_the_spiral_from_450_um_to_under_5_um_on_the_true_drives() 
         .map(|a| format!("{}_ref", a.name))
         .collect();
     let set_points: Vec<String> = machine.axes.iter().map(|a| a.name.to_string()).collect();
-    assert_eq!(
-        columns(&sim.join("trace.csv"), &refs),
-        columns(&out.path().join("references.csv"), &set_points),
-        "simulate runs the set-points compensate computed"
-    );
+    for (r, c) in columns(&sim.join("trace.csv"), &refs)
+        .iter()
+        .zip(&columns(&out.path().join("references.csv"), &set_points))
+    {
+        assert_eq!(r.len(), c.len());
+        let off = r
+            .iter()
+            .zip(c)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(
+            off <= 1e-4 * (1.0 + 1e-9),
+            "simulate runs the set-points compensate computed, as written: {off}"
+        );
+    }
     let pos: Vec<&[f64]> = act.iter().map(Vec::as_slice).collect();
     let c = compensate::contour_against(&machine, &original, &pos).unwrap();
     eprintln!(
@@ -155,6 +168,194 @@ fn compensation_takes_the_spiral_from_450_um_to_under_5_um_on_the_true_drives() 
     );
     // The encoder's 0.1 µm quantisation adds at most a few tenths of a µm to the true positions'.
     assert!(c.tip_max_mm * 1e3 <= 5.0 && c.orientation_max_rad * 1e3 <= 0.05);
+}
+
+/// The spiral in inverse time: `G93`, every G1 block's F = 4500 mm/min over its tool-tip
+/// length (the spiral is a tool-centre-point program), so that each block lasts what it lasts
+/// at F4500 under `G94`.
+fn spiral_in_inverse_time() -> String {
+    let src = std::fs::read_to_string(repo("gcode/spiral.ngc")).unwrap();
+    let mut prev: Option<[f64; 3]> = None;
+    let mut out = String::new();
+    for line in src.lines() {
+        let line = line.replace("G94", "G93");
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let coord = |l: char| {
+            words
+                .iter()
+                .find_map(|w| w.strip_prefix(l))
+                .and_then(|v| v.parse::<f64>().ok())
+        };
+        let p = match (coord('X'), coord('Y'), coord('Z')) {
+            (Some(x), Some(y), Some(z)) => Some([x, y, z]),
+            _ => None,
+        };
+        match (words.first(), p, prev) {
+            (Some(&"G1"), Some(p), Some(q)) => {
+                let d =
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+                let kept: Vec<&str> = words
+                    .iter()
+                    .copied()
+                    .filter(|w| !w.starts_with('F'))
+                    .collect();
+                out.push_str(&format!("{} F{:.4}\n", kept.join(" "), 4500.0 / d));
+            }
+            _ => {
+                out.push_str(&line);
+                out.push('\n');
+            }
+        }
+        if p.is_some() {
+            prev = p;
+        }
+    }
+    out
+}
+
+#[test]
+fn feed_planning_plans_an_inverse_time_program_as_its_feed_per_minute_twin() {
+    // Truth: the same spiral under G94 F4500, whose blocks last as long: the plan of the G93
+    // program (its F words scaled, 1/min) must give the same cycle times and the same errors.
+    let dir = tempdir();
+    let g93 = dir.path().join("spiral-g93.ngc");
+    std::fs::write(&g93, spiral_in_inverse_time()).unwrap();
+    let plan = |program: &Path, out: &Path| {
+        ok(&vcnc(&[
+            "feed-plan",
+            repo("machines/nmv5000.toml").to_str().unwrap(),
+            program.to_str().unwrap(),
+            "--model",
+            models("machines/nmv5000.toml").to_str().unwrap(),
+            "--tolerance",
+            "200um",
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ]));
+        json(&out.join("summary.json"))
+    };
+    let a = plan(&g93, &dir.path().join("g93"));
+    let b = plan(&repo("gcode/spiral.ngc"), &dir.path().join("g94"));
+    for key in [
+        "original.cycle_time_s",
+        "planned.cycle_time_s",
+        "uniform.cycle_time_s",
+        "planned.predicted.contour_max_um",
+    ] {
+        let (x, y) = (num(&a, key), num(&b, key));
+        eprintln!("{key}: G93 {x:.4}, G94 {y:.4}");
+        assert!((x - y).abs() <= 2e-3 * y, "{key}: G93 {x} against G94 {y}");
+    }
+    assert!(num(&a, "planned.predicted.contour_max_um") <= 200.0);
+    // Every block still in inverse time, never faster than programmed.
+    let programmed = spiral_in_inverse_time();
+    let planned = std::fs::read_to_string(dir.path().join("g93/planned.ngc")).unwrap();
+    let f = |text: &str| -> Vec<f64> {
+        text.lines()
+            .filter(|l| l.starts_with("G1"))
+            .filter_map(|l| l.split_whitespace().find_map(|w| w.strip_prefix('F')))
+            .map(|v| v.parse().unwrap())
+            .collect()
+    };
+    let (fp, fq) = (f(&programmed), f(&planned));
+    assert_eq!(fp.len(), fq.len());
+    assert!(fp.iter().zip(&fq).all(|(p, q)| *q > 0.0 && q <= p));
+    assert!(planned.contains("G93"));
+    let blocks = columns(
+        &dir.path().join("g93/blocks.csv"),
+        &["inverse_time".to_string()],
+    );
+    assert!(!blocks[0].is_empty() && blocks[0].iter().all(|&v| v == 1.0));
+}
+
+#[test]
+fn a_control_with_a_4_ms_block_cycle_gets_blocks_of_4_ms_at_its_resolution() {
+    // Truths: the machine file's [program_output] (block cycle 4 ms = 4 periods, words at
+    // 0.001 mm / 0.001°), read from the written text itself: every G1 block's 1/F (G93) is a
+    // whole number of periods, at least 4; every axis word has at most 3 decimals; and the
+    // blocks' end points, placed at their samples by summing the blocks' periods, are the
+    // set-points of references.csv rounded to the resolution (within half of it).
+    let dir = tempdir();
+    let mut text = std::fs::read_to_string(repo("machines/nmv5000.toml")).unwrap();
+    text.push_str(
+        "\n[program_output]\nblock_cycle_s = 0.004\nresolution = 0.001\nrotary_resolution = 0.001\nchord_tolerance = 0.002\nrotary_chord_tolerance = 0.002\n",
+    );
+    let machine = dir.path().join("nmv5000-4ms.toml");
+    std::fs::write(&machine, text).unwrap();
+    std::fs::copy(
+        repo("machines/nmv5000.urdf"),
+        dir.path().join("nmv5000.urdf"),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let stdout = ok(&vcnc(&[
+        "compensate",
+        machine.to_str().unwrap(),
+        repo("gcode/spiral.ngc").to_str().unwrap(),
+        "--model",
+        models("machines/nmv5000.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    eprintln!("{stdout}");
+    let s = json(&out.join("summary.json"));
+    assert!((num(&s, "written.shortest_block_s") - 0.004).abs() < 1e-12);
+    let after = num(&s, "after.contour_max_um");
+    // Blocks of 4 periods and words at 1 µm cannot carry all of the compensation's content:
+    // measured 4.31 µm (0.17 µm with one full-precision block per period, docs/compensation.md),
+    // still a hundredth of the 450 µm uncompensated. Tolerance 2× the figure.
+    assert!(after <= 9.0, "{after} um");
+
+    let names = ["X", "Y", "Z", "A", "C"].map(String::from);
+    let set = columns(&out.join("references.csv"), &names);
+    let program = std::fs::read_to_string(out.join("compensated.ngc")).unwrap();
+    let mut k = 0usize;
+    let mut g93 = false;
+    let mut blocks = 0;
+    for line in program.lines() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        if words.first() == Some(&"G93") {
+            g93 = true;
+            continue;
+        }
+        if !g93 {
+            continue;
+        }
+        let value = |l: char| {
+            words
+                .iter()
+                .find_map(|w| w.strip_prefix(l))
+                .map(|v| v.parse::<f64>().unwrap())
+        };
+        match words.first() {
+            Some(&"G4") => k += (value('P').unwrap() / 0.001).round() as usize,
+            Some(&"G1") => {
+                let periods = 60.0 / (value('F').unwrap() * 0.001);
+                let m = periods.round();
+                assert!((periods - m).abs() <= 1e-7 * m, "{line}");
+                assert!(m >= 4.0, "{line}: a block of {m} periods");
+                k += m as usize;
+                blocks += 1;
+                for (i, n) in names.iter().enumerate() {
+                    let c = n.chars().next().unwrap();
+                    if let Some(v) = value(c) {
+                        let w = words.iter().find(|w| w.starts_with(c)).unwrap();
+                        assert!(w.split('.').nth(1).map_or(0, str::len) <= 3, "{w}");
+                        let off = (v - set[i][k]).abs();
+                        assert!(
+                            off <= 0.0005 + 1e-12,
+                            "{line}: {n} {v} against {}",
+                            set[i][k]
+                        );
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(k + 1, set[0].len(), "the blocks last the set-points' time");
+    assert_eq!(blocks as f64, num(&s, "written.blocks"));
 }
 
 #[test]

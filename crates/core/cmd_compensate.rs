@@ -68,7 +68,7 @@ pub fn compensate(args: &CompensateArgs, ctx: &Ctx) -> Result<()> {
     }
     report.file(
         "compensated.ngc",
-        "the compensated program: one G93 G1 block per sample period (docs/compensation.md)",
+        "the compensated program: G93 G1 blocks of whole sample periods, written as the machine file's [program_output] states (docs/compensation.md)",
     );
     write_json(&out.join("summary.json"), &c.summary)?;
     report.finish()?;

@@ -36,14 +36,19 @@
 //! Ruckig), a chain its trapezoid smoothed by a moving average of the path position
 //! (`chain`).
 //!
-//! **Time-exact chains of fine blocks** (`G93` + `G64`, every block's $1/F$ exactly one sample
-//! period $T_s$, `G1` only): such a program is a stream of set-points, one per interpolation
-//! cycle, as a pre-compensated program is (docs/compensation.md). A maximal run of such blocks
-//! is not re-planned: the position at sample $k$ of the chain is the end point of its block $k$,
-//! and the velocity and acceleration are the central differences of those positions, the chain
-//! at rest before its first and after its last block ([`time_exact_rates`]):
+//! **Time-exact chains of fine blocks** (`G93` + `G64`, `G1` only, every block's $1/F$ a whole
+//! number $m$ of sample periods $T_s$, $1 \le m \le 32$,
+//! [`FINE_BLOCK_MAX_SAMPLES`](crate::FINE_BLOCK_MAX_SAMPLES)): such a program is a stream of
+//! set-points, a block per interpolation cycle or per few, as a pre-compensated program is
+//! (docs/compensation.md). A maximal run of such blocks is not re-planned: a block of $m$
+//! periods runs straight from its start to its end in $m$ equal steps, the position at its
+//! $j$-th sample being $\mathbf x_0 + (\mathbf x_1 - \mathbf x_0)\,j/m$ (its end point at
+//! $j = m$), and the velocity and acceleration are the central differences of those positions,
+//! the chain at rest before its first and after its last block ([`time_exact_rates`]):
 //! $$ \dot{\mathbf x}_k = \frac{\mathbf x_{k+1} - \mathbf x_{k-1}}{2T_s}, \qquad
 //!    \ddot{\mathbf x}_k = \frac{\mathbf x_{k+1} - 2\mathbf x_k + \mathbf x_{k-1}}{T_s^2}. $$
+//! A longer `G93` block, or one whose $1/F$ is not a whole number of periods, is an ordinary
+//! move.
 //! A chain with a block too fast for the limits runs block by block, each an exact stop, with a
 //! warning naming the block.
 //!
@@ -968,19 +973,64 @@ mod tests {
     }
 
     #[test]
-    fn longer_inverse_time_blocks_under_g64_are_not_set_points() {
-        // 1/F = 2 ms is not one sample period: the blocks run as ordinary moves at L·F/60, a
-        // chain through their collinear junction, as under G61 (exact path).
+    fn blocks_of_several_periods_run_straight_in_equal_steps() {
+        // Truth: the definition of a time-exact chain (module doc) — a block of m periods
+        // (1/F = m·Ts) puts its j-th sample at start + (end − start)·j/m and its last on its end
+        // point; velocity and acceleration are the central differences of those positions.
         let limits = Limits::uniform(500.0, 5000.0);
-        let src = "G0 X0\nG93 G64\nG1 X0.001 F30000\nG1 X0.002 F30000\n";
+        let src = "G0 X0 Y0\nG93 G64\nG1 X0.003 Y0.0009 F20000\nG1 X0.005 F30000\nG1 Y0 F60000\n";
         let t = traj(src, &limits, &InterpolateOptions::default()).unwrap();
-        let g61 = traj(
-            &src.replace("G64", "G61"),
-            &limits,
-            &InterpolateOptions::default(),
-        )
-        .unwrap();
-        assert_eq!(t, g61);
+        let lerp = |a: f64, b: f64, j: f64, m: f64| a + (b - a) * (j / m);
+        let x = [
+            0.0,
+            lerp(0.0, 0.003, 1.0, 3.0),
+            lerp(0.0, 0.003, 2.0, 3.0),
+            0.003,
+            lerp(0.003, 0.005, 1.0, 2.0),
+            0.005,
+            0.005,
+        ];
+        let y = [
+            0.0,
+            lerp(0.0, 0.0009, 1.0, 3.0),
+            lerp(0.0, 0.0009, 2.0, 3.0),
+            0.0009,
+            0.0009,
+            0.0009,
+            0.0,
+        ];
+        assert_eq!(t.axis(AxisName::X).unwrap().pos, x);
+        assert_eq!(t.axis(AxisName::Y).unwrap().pos, y);
+        let (vel, acc) = time_exact_rates(&x, t.ts);
+        let a = t.axis(AxisName::X).unwrap();
+        assert_eq!(a.vel[..6], vel[..6]);
+        assert_eq!(a.acc[..6], acc[..6]);
+        let lines: Vec<(u32, usize, usize)> = t
+            .blocks
+            .iter()
+            .map(|b| (b.line, b.first_sample, b.end_sample))
+            .collect();
+        assert_eq!(lines, vec![(3, 0, 4), (4, 4, 6), (5, 6, 7)]);
+        assert!(t.warnings.is_empty());
+    }
+
+    #[test]
+    fn other_inverse_time_blocks_under_g64_are_not_set_points() {
+        // 1/F = 1.5 ms is not a whole number of sample periods, and 1/F = 33 ms is longer than a
+        // fine block may be: the blocks run as ordinary moves at L·F/60, a chain through their
+        // collinear junction, as under G61 (exact path).
+        let limits = Limits::uniform(500.0, 5000.0);
+        for f in ["40000", "1818.1818"] {
+            let src = format!("G0 X0\nG93 G64\nG1 X0.001 F{f}\nG1 X0.002 F{f}\n");
+            let t = traj(&src, &limits, &InterpolateOptions::default()).unwrap();
+            let g61 = traj(
+                &src.replace("G64", "G61"),
+                &limits,
+                &InterpolateOptions::default(),
+            )
+            .unwrap();
+            assert_eq!(t, g61, "F{f}");
+        }
     }
 
     #[test]

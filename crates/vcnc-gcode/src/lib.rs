@@ -42,6 +42,7 @@ pub use interp::{
     ArcMove, ChunkInterp, Feed, InterpOptions, Move, MoveKind, PathMode, Plane, ProgramRead,
     StartPosition, Toolpath, interpret,
 };
+pub use interpolate::planner::FINE_BLOCK_MAX_SAMPLES;
 pub use interpolate::stream::{ProgramSource, SampleChunk, StreamOptions, StreamPlan, plan};
 pub use interpolate::{
     AxisLimits, AxisTrack, BlockSpan, CycleTime, InterpolateOptions, Limits, MoveClass,

@@ -55,6 +55,9 @@ pub struct MachineFile {
     /// Identification program and identifier settings.
     #[serde(default)]
     pub identification: IdentificationFile,
+    /// How vcnc writes programs for the control (`compensate`'s fine-block program).
+    #[serde(default)]
+    pub program_output: ProgramOutputFile,
     /// An identified model file (`model.toml`, written by `vcnc identify`), relative to this
     /// file: the dynamics of every axis given without `plant` and `controller`
     /// (docs/machine-file.md#a-machine-made-of-identified-models).
@@ -201,6 +204,38 @@ pub enum PlannerFile {
     /// LinuxCNC 2.9's trajectory planner.
     #[serde(rename = "linuxcnc-2.9")]
     LinuxCnc29,
+}
+
+/// `[program_output]`: how vcnc writes programs the control runs (docs/machine-file.md,
+/// "[program_output]").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProgramOutputFile {
+    /// Resolution of linear-axis words, mm (0: full precision). Default 0.0001.
+    pub resolution: f64,
+    /// Resolution of rotary-axis words, deg (0: full precision). Default 0.0001.
+    pub rotary_resolution: f64,
+    /// The control's block cycle, s: the shortest time a block may last. Default: the sample
+    /// period (one block per interpolation cycle at most).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub block_cycle_s: Option<f64>,
+    /// How far a merged block's straight line may stray from the set-points it replaces,
+    /// linear axes, mm. Default 0.0001.
+    pub chord_tolerance: f64,
+    /// The same for rotary axes, deg. Default 0.0001.
+    pub rotary_chord_tolerance: f64,
+}
+
+impl Default for ProgramOutputFile {
+    fn default() -> Self {
+        ProgramOutputFile {
+            resolution: 1e-4,
+            rotary_resolution: 1e-4,
+            block_cycle_s: None,
+            chord_tolerance: 1e-4,
+            rotary_chord_tolerance: 1e-4,
+        }
+    }
 }
 
 /// `[gcode]`: dialect settings.

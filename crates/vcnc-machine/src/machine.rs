@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use vcnc_axis::{AxisName, Unit};
 use vcnc_drive::{ClosedLoopModel, Drive, DriveModel, DriveParams};
 use vcnc_gcode::{
-    AxisLimits as GcodeAxisLimits, InterpOptions, InterpolateOptions, Limits, PathMode,
-    PlannerRules, Profile, ToolTable,
+    AxisLimits as GcodeAxisLimits, FINE_BLOCK_MAX_SAMPLES, InterpOptions, InterpolateOptions,
+    Limits, PathMode, PlannerRules, Profile, ToolTable, write::BlockRules,
 };
 use vcnc_kinematics::nalgebra::Vector3;
 use vcnc_kinematics::{
@@ -23,7 +23,7 @@ use vcnc_kinematics::{
 
 use crate::file::{
     AxisFile, FamilyFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile,
-    ProfileFile, ProgramFile, TiltFile, TrajectoryFile,
+    ProfileFile, ProgramFile, ProgramOutputFile, TiltFile, TrajectoryFile,
 };
 use crate::locate::{error_offset, line_col, locate_key};
 use crate::options_file::OptionsFile;
@@ -305,6 +305,8 @@ pub struct Machine {
     /// The identified model file the axes without a plant take their dynamics from (the
     /// machine file's `model`, resolved), when the file names one.
     pub model_file: Option<String>,
+    /// How programs for the control are written (`[program_output]`).
+    pub program_output: BlockRules,
 }
 
 /// Where relative paths of a machine file resolve.
@@ -608,6 +610,7 @@ impl Checker<'_> {
         self.trajectory(t, &axes, file.kinematics.is_some())?;
         let startup_path_mode = self.startup_path_mode(&file.gcode)?;
         let identification = self.identification(&file.identification)?;
+        let program_output = self.program_output(&file.program_output, ts)?;
         let kinematics = match &file.kinematics {
             Some(k) => Some(self.kinematics(k, &axes)?),
             // A plain X Y Z machine needs no section: its tool tip is its slides.
@@ -654,6 +657,48 @@ impl Checker<'_> {
             identification,
             tools: ToolTable::default(),
             model_file: models.map(|(_, name)| name),
+            program_output,
+        })
+    }
+
+    /// `[program_output]`: resolutions and tolerances finite and ≥ 0 (at most 1), the block
+    /// cycle positive and at most [`FINE_BLOCK_MAX_SAMPLES`] sample periods.
+    fn program_output(&self, o: &ProgramOutputFile, ts: f64) -> Result<BlockRules, Error> {
+        for (field, v, unit) in [
+            ("resolution", o.resolution, "mm"),
+            ("rotary_resolution", o.rotary_resolution, "deg"),
+            ("chord_tolerance", o.chord_tolerance, "mm"),
+            ("rotary_chord_tolerance", o.rotary_chord_tolerance, "deg"),
+        ] {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return Err(self.invalid(
+                    &format!("program_output.{field}"),
+                    format!("{field} must be between 0 and 1 {unit} (0: none), got {v:?}"),
+                ));
+            }
+        }
+        let periods = match o.block_cycle_s {
+            None => 1,
+            Some(c) => {
+                let periods = (c / ts - 1e-9).ceil();
+                if !(c > 0.0 && periods <= FINE_BLOCK_MAX_SAMPLES as f64) {
+                    return Err(self.invalid(
+                        "program_output.block_cycle_s",
+                        format!(
+                            "the block cycle must be positive and at most {FINE_BLOCK_MAX_SAMPLES} sample periods ({} s at this machine's sample period), got {c:?}",
+                            FINE_BLOCK_MAX_SAMPLES as f64 * ts
+                        ),
+                    ));
+                }
+                periods.max(1.0) as u64
+            }
+        };
+        Ok(BlockRules {
+            min_samples: periods,
+            resolution: o.resolution,
+            rotary_resolution: o.rotary_resolution,
+            tolerance: o.chord_tolerance,
+            rotary_tolerance: o.rotary_chord_tolerance,
         })
     }
 
@@ -1256,6 +1301,51 @@ mod tests {
         assert!(e.contains("<embedded>/machines/nmv5000.toml"), "{e}");
         let e = doc.with_values(&[("axes.Q.plant.j", 1.0)]).unwrap_err();
         assert!(e.to_string().contains("axes.Q"), "{e}");
+    }
+
+    #[test]
+    fn program_output_keys_give_the_writer_its_rules_and_bad_ones_name_their_key() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
+        let base = embedded::NMV5000_TOML;
+        let m = Machine::from_toml_str(base, "m.toml", &dir).unwrap();
+        assert_eq!(
+            m.program_output,
+            BlockRules {
+                min_samples: 1,
+                resolution: 1e-4,
+                rotary_resolution: 1e-4,
+                tolerance: 1e-4,
+                rotary_tolerance: 1e-4,
+            }
+        );
+        // A 2.5 ms block cycle at 1 ms is three periods (rounded up); 4 ms exactly is four.
+        for (cycle, periods) in [(0.0025, 3), (0.004, 4), (0.0001, 1)] {
+            let src = format!(
+                "{base}\n[program_output]\nblock_cycle_s = {cycle}\nresolution = 0.001\nchord_tolerance = 0\n"
+            );
+            let m = Machine::from_toml_str(&src, "m.toml", &dir).unwrap();
+            assert_eq!(m.program_output.min_samples, periods, "{cycle}");
+            assert_eq!(m.program_output.resolution, 0.001);
+            assert_eq!(m.program_output.tolerance, 0.0);
+            assert_eq!(m.program_output.rotary_resolution, 1e-4);
+        }
+        for (line, key) in [
+            ("block_cycle_s = 0.05", "program_output.block_cycle_s"),
+            ("block_cycle_s = 0", "program_output.block_cycle_s"),
+            ("resolution = -0.001", "program_output.resolution"),
+            (
+                "rotary_chord_tolerance = nan",
+                "program_output.rotary_chord_tolerance",
+            ),
+            ("chord_tolerance = 2", "program_output.chord_tolerance"),
+            ("decimals = 4", "decimals"),
+        ] {
+            let src = format!("{base}\n[program_output]\n{line}\n");
+            let e = Machine::from_toml_str(&src, "m.toml", &dir)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key) && e.contains("m.toml"), "{line}: {e}");
+        }
     }
 
     #[test]

@@ -168,6 +168,7 @@ pub fn tables(s: &CompensateSummary, comp: &Compensation) -> String {
                     (Some(b), Some(a)) => format!("{b:.3} -> {a:.3}"),
                     _ => "- (model)".to_string(),
                 },
+                format!("{:.3} {l}", ax.reproduction.position * u.micro_factor()),
                 (if m.within() { "ok" } else { "EXCEEDED" }).to_string(),
             ]
         })
@@ -180,9 +181,22 @@ pub fn tables(s: &CompensateSummary, comp: &Compensation) -> String {
             "motion acceleration / limit",
             "set-point acceleration (not judged)",
             "torque peak [N m]",
+            "program off set-point",
             "limits",
         ],
         &rows,
+    ));
+    let w = &s.written;
+    out.push_str(&format!(
+        "program: {} G1 blocks ({:.0} ms or longer; block cycle {:.0} ms), {} dwells; words at {} mm and {} deg, merged within {} mm and {} deg\n",
+        w.blocks,
+        w.shortest_block_s * 1e3,
+        w.block_cycle_s * 1e3,
+        w.dwells,
+        w.resolution_mm,
+        w.rotary_resolution_deg,
+        w.chord_tolerance_mm,
+        w.rotary_chord_tolerance_deg
     ));
     out
 }

@@ -14,8 +14,9 @@ use crate::files::write_csv;
 use crate::report::RunReport;
 use crate::text::table;
 
-/// `blocks.csv`: every line the plan slowed — line, programmed and planned F (the program's
-/// units per minute), factor, predicted largest contour error charged to the line (µm).
+/// `blocks.csv`: every line the plan slowed — line, whether its F is an inverse time (1: `G93`,
+/// 1/min; 0: the program's units per minute), programmed and planned F, factor, predicted
+/// largest contour error charged to the line (µm).
 pub fn write_blocks(out: &Path, plan: &FeedPlan) -> Result<()> {
     let slowed: Vec<_> = plan.lines.iter().filter(|l| l.factor < 1.0).collect();
     let col = |f: fn(&feed_plan::PlannedLine) -> f64| -> Vec<f64> {
@@ -23,6 +24,7 @@ pub fn write_blocks(out: &Path, plan: &FeedPlan) -> Result<()> {
     };
     let cols = [
         col(|l| f64::from(l.line)),
+        col(|l| f64::from(u8::from(l.inverse_time))),
         col(|l| l.programmed_f),
         col(|l| l.planned_f),
         col(|l| l.factor),
@@ -33,6 +35,7 @@ pub fn write_blocks(out: &Path, plan: &FeedPlan) -> Result<()> {
         &out.join("blocks.csv"),
         &[
             "line",
+            "inverse_time",
             "programmed_f",
             "planned_f",
             "factor",

@@ -39,7 +39,9 @@ fn compensate(c: &mut Criterion) {
         b.iter(|| compensate_run(&machine, black_box(&spiral), &drive_models, &opts))
     });
     if let Ok(comp) = compensate_run(&machine, &spiral, &drive_models, &opts) {
-        group.bench_function("program_text", |b| b.iter(|| comp.program(&[])));
+        group.bench_function("program_text", |b| {
+            b.iter(|| comp.program(&[], &vcnc_gcode::write::BlockRules::EXACT))
+        });
     }
     group.finish();
 }

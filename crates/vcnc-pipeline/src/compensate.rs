@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use vcnc_axis::{AxisName, Unit};
 use vcnc_gcode::interpolate::time_exact_rates;
+use vcnc_gcode::write::BlockRules;
 use vcnc_kinematics::nalgebra::Complex;
 use vcnc_machine::{Machine, MachineModels};
 
@@ -228,15 +229,20 @@ impl Compensation {
         }
     }
 
-    /// The compensated set-points as a G-code program the control runs as they are
-    /// ([`vcnc_gcode::write::fine_blocks`]); `header` lines become comments.
-    pub fn program(&self, header: &[String]) -> String {
+    /// The compensated set-points as a G-code program the control runs
+    /// ([`vcnc_gcode::write::fine_blocks`], written by `rules`); `header` lines become
+    /// comments.
+    pub fn program(
+        &self,
+        header: &[String],
+        rules: &vcnc_gcode::write::BlockRules,
+    ) -> vcnc_gcode::write::FineProgram {
         let axes: Vec<(AxisName, &[f64])> = self
             .axes
             .iter()
             .map(|a| (a.reference.name, a.reference.pos.as_slice()))
             .collect();
-        vcnc_gcode::write::fine_blocks(&axes, self.ts, header)
+        vcnc_gcode::write::fine_blocks(&axes, self.ts, header, rules)
     }
 }
 
@@ -693,6 +699,43 @@ pub struct RunFigures {
     pub cycle_time_s: f64,
 }
 
+/// The compensated program as written ([`vcnc_gcode::write::fine_blocks`]) and the rules it
+/// was written by (the machine file's `[program_output]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct WrittenProgram {
+    /// `G1` blocks.
+    pub blocks: usize,
+    /// `G4` dwells.
+    pub dwells: usize,
+    /// The shortest `G1` block, s.
+    pub shortest_block_s: f64,
+    /// The shortest block the rules allow (the block cycle rounded up to sample periods), s.
+    pub block_cycle_s: f64,
+    /// Word resolution of linear axes, mm (0: full precision).
+    pub resolution_mm: f64,
+    /// Word resolution of rotary axes, deg (0: full precision).
+    pub rotary_resolution_deg: f64,
+    /// Chord tolerance of merged blocks, linear axes, mm.
+    pub chord_tolerance_mm: f64,
+    /// Chord tolerance of merged blocks, rotary axes, deg.
+    pub rotary_chord_tolerance_deg: f64,
+}
+
+impl WrittenProgram {
+    fn new(p: &vcnc_gcode::write::FineProgram, rules: &BlockRules, ts: f64) -> WrittenProgram {
+        WrittenProgram {
+            blocks: p.blocks,
+            dwells: p.dwells,
+            shortest_block_s: p.shortest_block as f64 * ts,
+            block_cycle_s: rules.min_samples as f64 * ts,
+            resolution_mm: rules.resolution,
+            rotary_resolution_deg: rules.rotary_resolution,
+            chord_tolerance_mm: rules.tolerance,
+            rotary_chord_tolerance_deg: rules.rotary_tolerance,
+        }
+    }
+}
+
 /// `summary.json` of `vcnc compensate`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CompensateSummary {
@@ -704,6 +747,8 @@ pub struct CompensateSummary {
     pub models: String,
     /// The compensated program written.
     pub compensated_program: String,
+    /// What it is made of.
+    pub written: WrittenProgram,
     /// Sample period, s.
     pub ts_s: f64,
     /// Pre-actuation before the original's first sample, s.
@@ -769,6 +814,7 @@ pub fn compensate_program(
     let planned =
         compensate_within_limits(machine, program, &original, models, opts, headroom, lenient)?;
     let comp = &planned.compensation;
+    let rules = &machine.program_output;
     let header = vec![
         format!(
             "vcnc compensate: {} on machine {}, models {}",
@@ -777,26 +823,40 @@ pub fn compensate_program(
             models.source()
         ),
         format!(
-            "{} set-points at {} s, one G93 block each; lead {} s, tail {} s; velocity headroom {}; docs/compensation.md",
+            "{} set-points at {} s in G93 blocks of {} to {} periods (resolution {} mm, {} deg; chord tolerance {} mm, {} deg); lead {} s, tail {} s; velocity headroom {}; docs/compensation.md",
             comp.len(),
             comp.ts,
+            rules.min_samples,
+            vcnc_gcode::FINE_BLOCK_MAX_SAMPLES,
+            rules.resolution,
+            rules.rotary_resolution,
+            rules.tolerance,
+            rules.rotary_tolerance,
             comp.lead as f64 * comp.ts,
             comp.tail as f64 * comp.ts,
             planned.headroom
         ),
     ];
-    let text = comp.program(&header);
-    // The program as the control runs it: re-read and interpolated, it must reproduce the
-    // set-points; the true drives are judged on it.
-    let rerun = crate::run::prepare(machine, &text, program_name, false)?;
+    let written = comp.program(&header, rules);
+    // The program as the control runs it: re-read and interpolated, it must run through the
+    // positions it was written for (the set-points within the rounding and chord error the
+    // writer measured); the true drives are judged on it.
+    let rerun = crate::run::prepare(machine, &written.text, program_name, false)?;
     let reproduction = reproduction(comp, &rerun)?;
-    if let Some(r) = reproduction.iter().find(|r| r.position != 0.0) {
+    if let Some((r, bound)) = reproduction
+        .iter()
+        .zip(&written.deviation)
+        .find(|(r, d)| r.position > **d * (1.0 + 1e-9) + 1e-12)
+    {
         return Err(Error::NotReproduced {
             program: program_name.to_string(),
             axis: r.axis,
             off: r.position,
+            bound: *bound,
         });
     }
+    let program_figures = WrittenProgram::new(&written, rules, comp.ts);
+    let text = written.text;
     let before = on_true_machine(machine, &original, &original)?;
     let after = on_true_machine(machine, &original, &rerun)?;
     let after_models = match machine.kinematics {
@@ -807,7 +867,7 @@ pub fn compensate_program(
         machine,
         &original,
         models.source(),
-        program_name,
+        (program_name, program_figures),
         (opts, &planned),
         (&before, &after, after_models.as_ref()),
         &reproduction,
@@ -833,7 +893,7 @@ impl CompensateSummary {
         machine: &Machine,
         original: &Run,
         model_file: &str,
-        program_name: &str,
+        (program_name, written): (&str, WrittenProgram),
         (opts, planned): (&CompensateOptions, &Planned),
         (before, after, after_models): (&Judged, &Judged, Option<&vcnc_contour::ContourReport>),
         repro: &[Reproduction],
@@ -881,6 +941,7 @@ impl CompensateSummary {
             program: original.file.clone(),
             models: model_file.to_string(),
             compensated_program: program_name.to_string(),
+            written,
             ts_s: comp.ts,
             lead_s: comp.lead as f64 * comp.ts,
             tail_s: comp.tail as f64 * comp.ts,

@@ -218,7 +218,9 @@ pub enum Error {
         expected: &'static str,
     },
     /// A program without feed moves to plan.
-    #[error("{file}: the program has no G94 feed moves whose feed could be planned")]
+    #[error(
+        "{file}: the program has no feed moves (G1, G2, G3 with an F word) whose feed could be planned"
+    )]
     NothingToPlan {
         /// The program.
         file: String,
@@ -400,7 +402,7 @@ pub enum Error {
     /// A compensated program read back does not give the set-points it was written from
     /// (vcnc's own failure).
     #[error(
-        "internal error: {program} does not reproduce the set-points of axis {axis} (off by {off:e})"
+        "internal error: {program} does not reproduce the set-points of axis {axis} (off by {off:e}, written within {bound:e})"
     )]
     NotReproduced {
         /// The compensated program.
@@ -409,6 +411,8 @@ pub enum Error {
         axis: AxisName,
         /// Its largest position difference, axis units.
         off: f64,
+        /// The largest the writer measured (rounding and chord error), axis units.
+        bound: f64,
     },
     /// A run ended before every sample was finished (vcnc's own failure).
     #[error("internal error: the {run} finished {finished} of {samples} samples")]

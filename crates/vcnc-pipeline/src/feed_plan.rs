@@ -39,6 +39,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 use vcnc_drive::DriveModel;
+use vcnc_gcode::write::LineFeed;
 use vcnc_gcode::{Feed, MoveKind};
 use vcnc_machine::{Machine, MachineModels};
 
@@ -163,8 +164,10 @@ impl FeedPlanOptions {
 pub struct PlannedLine {
     /// Source line (1-based).
     pub line: u32,
-    /// Programmed feed of the line's (first) move, in the program's units per minute (as an F
-    /// word would write it).
+    /// The line's F is an inverse time (`G93`, 1/min).
+    pub inverse_time: bool,
+    /// Programmed feed of the line's (first) move, in the program's units per minute or its
+    /// inverse time (as an F word would write it).
     pub programmed_f: f64,
     /// Planned feed, same unit (rounded down to 10⁻⁴).
     pub planned_f: f64,
@@ -225,16 +228,23 @@ pub struct FeedPlan {
     pub lag_s: f64,
 }
 
-/// The feed lines of a prepared program: line → (programmed feed in the move's unit per
-/// minute, whether it is a pure rotary move).
-fn feed_lines(run: &Run) -> BTreeMap<u32, (f64, bool)> {
+/// The feed lines of a prepared program: line → its (first) move's feed, per minute or in
+/// inverse time.
+fn feed_lines(run: &Run) -> BTreeMap<u32, LineFeed> {
     let mut out = BTreeMap::new();
     for m in &run.loaded.toolpath.moves {
-        if let (Some(Feed::UnitsPerMin(f)), MoveKind::Linear | MoveKind::Arc(_)) = (m.feed, m.kind)
-        {
-            let pure_rotary = matches!(m.kind, MoveKind::Linear) && m.start[..3] == m.end[..3];
-            out.entry(m.line).or_insert((f, pure_rotary));
+        if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc(_)) {
+            continue;
         }
+        let feed = match m.feed {
+            Some(Feed::UnitsPerMin(feed)) => LineFeed::PerMinute {
+                feed,
+                pure_rotary: matches!(m.kind, MoveKind::Linear) && m.start[..3] == m.end[..3],
+            },
+            Some(Feed::InverseTime(f)) => LineFeed::InverseTime(f),
+            None => continue,
+        };
+        out.entry(m.line).or_insert(feed);
     }
     out
 }
@@ -247,7 +257,7 @@ struct Planner<'a> {
     file: &'a str,
     lenient: bool,
     original: &'a Run,
-    lines: BTreeMap<u32, (f64, bool)>,
+    lines: BTreeMap<u32, LineFeed>,
 }
 
 impl Planner<'_> {
@@ -408,6 +418,7 @@ pub fn plan_feeds(
             let planned = written.get(line).copied().unwrap_or(*f);
             PlannedLine {
                 line: *line,
+                inverse_time: matches!(planner.lines.get(line), Some(LineFeed::InverseTime(_))),
                 programmed_f: *f,
                 planned_f: planned,
                 factor: planned / f,

@@ -157,8 +157,15 @@ fn compensation_with_the_stated_latency_leads_the_physical_axes() {
     let judge = |models: &MachineModels| {
         let comp = compensate::compensate_run(&m, &planned, models, &opts).expect("compensation");
         comp.check_limits(&planned, 0.9).expect("within the limits");
-        let rerun =
-            run::prepare(&m, &comp.program(&[]), "compensated.ngc", false).expect("re-read");
+        let rerun = run::prepare(
+            &m,
+            &comp
+                .program(&[], &vcnc_gcode::write::BlockRules::EXACT)
+                .text,
+            "compensated.ngc",
+            false,
+        )
+        .expect("re-read");
         let repro = compensate::reproduction(&comp, &rerun).expect("same samples");
         assert!(repro.iter().all(|r| r.position == 0.0), "{repro:?}");
         let j = compensate::on_true_machine(&m, &run, &rerun).expect("true machine");

@@ -70,13 +70,30 @@ pub(crate) fn central_rates(
     (v, acc)
 }
 
-/// A fine block: `G1` under `G93` and `G64` whose $1/F$ is exactly one sample period (within
-/// $10^{-9}$ relative), the element of a time-exact chain (module doc of
-/// [`crate::interpolate`](mod@crate::interpolate)).
+/// The most sample periods a fine block may last: a `G93` block of up to 32 periods whose
+/// $1/F$ is a whole number of them runs time-exactly; a longer one is an ordinary move.
+pub const FINE_BLOCK_MAX_SAMPLES: u64 = 32;
+
+/// The sample periods of a fine block: `G1` under `G93` and `G64` whose $1/F$ is a whole number
+/// $m$ of sample periods, $1 \le m \le$ [`FINE_BLOCK_MAX_SAMPLES`] (within $10^{-7}$
+/// relative: an F word written with four decimals), the element of a time-exact chain (module
+/// doc of [`crate::interpolate`](mod@crate::interpolate)); `None` for any other move.
+pub(crate) fn fine_samples(mv: &Move, ts: f64) -> Option<u64> {
+    if !matches!(mv.path, PathMode::Blend { .. }) || !matches!(mv.kind, MoveKind::Linear) {
+        return None;
+    }
+    let Some(Feed::InverseTime(f)) = mv.feed else {
+        return None;
+    };
+    let periods = 60.0 / (f * ts);
+    let m = periods.round();
+    (m >= 1.0 && m <= FINE_BLOCK_MAX_SAMPLES as f64 && (periods - m).abs() <= 1e-7 * m)
+        .then_some(m as u64)
+}
+
+/// Whether `mv` is a fine block ([`fine_samples`]).
 pub(crate) fn fine_block(mv: &Move, ts: f64) -> bool {
-    matches!(mv.path, PathMode::Blend { .. })
-        && matches!(mv.kind, MoveKind::Linear)
-        && matches!(mv.feed, Some(Feed::InverseTime(f)) if (60.0 / (f * ts) - 1.0).abs() <= 1e-9)
+    fine_samples(mv, ts).is_some()
 }
 
 /// Why a block was slowed (numbers only: the message is built once, for the worst block).
@@ -563,10 +580,10 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
         let State::Fine(f) = &self.state else {
             return Ok(false);
         };
-        if !fine_block(mv, ts) || mv.tcp != f.tcp {
+        let Some(m) = fine_samples(mv, ts).filter(|_| mv.tcp == f.tcp) else {
             self.end_state(false)?;
             return Ok(false);
-        }
+        };
         let sampling = self.sampling();
         let exact = f.exact;
         let seg = segment(mv, i, self.cfg)?;
@@ -590,28 +607,37 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
         f.blocks += 1;
         if let Some(seg) = seg {
             if !sampling {
-                let speed = seg.len / ts;
+                let speed = seg.len / (m as f64 * ts);
                 if speed > seg.vlim * (1.0 + 1e-9)
                     && f.refusal.is_none_or(|r| speed / seg.vlim > r.0 / r.1)
                 {
                     f.refusal = Some((speed, seg.vlim, mv.line, mv.col, !seg.xyz_basis));
                 }
-                f.points += 1;
+                f.points += m;
             } else if exact {
+                // The block's m points run straight from its start to its end, one per sample.
                 // Point q arrives: sample q − 1 needs points q − 2, q − 1 and q (central
                 // differences, at rest before the first point).
-                let q = f.points;
-                f.points += 1;
-                let (a, b, c) = (if q >= 2 { f.prev } else { f.cur }, f.cur, mv.end);
-                f.prev = f.cur;
-                f.cur = mv.end;
-                let k = (f.base + q - 1) as usize;
-                let tcp = f.tcp;
-                if let Mode::Sample { out, .. } = &mut self.mode {
-                    let t0 = k as f64 * ts;
-                    out.span(k + 1, k + 2, t0, t0 + ts, i, mv);
-                    let (v, acc) = central_rates(&a, &b, &c, ts);
-                    out.sample(&b, &v, &acc, tcp);
+                for j in 1..=m {
+                    let c: [f64; 6] = if j == m {
+                        mv.end
+                    } else {
+                        let w = j as f64 / m as f64;
+                        std::array::from_fn(|d| mv.start[d] + (mv.end[d] - mv.start[d]) * w)
+                    };
+                    let q = f.points;
+                    f.points += 1;
+                    let (a, b) = (if q >= 2 { f.prev } else { f.cur }, f.cur);
+                    f.prev = f.cur;
+                    f.cur = c;
+                    let k = (f.base + q - 1) as usize;
+                    let tcp = f.tcp;
+                    if let Mode::Sample { out, .. } = &mut self.mode {
+                        let t0 = k as f64 * ts;
+                        out.span(k + 1, k + 2, t0, t0 + ts, i, mv);
+                        let (v, acc) = central_rates(&a, &b, &c, ts);
+                        out.sample(&b, &v, &acc, tcp);
+                    }
                 }
             }
         }
@@ -896,7 +922,7 @@ impl<'c, 'd, 'o> Planner<'c, 'd, 'o> {
                     Some((speed, cap, line, col, deg)) => {
                         let unit = if deg { "deg" } else { "mm" };
                         let message = format!(
-                            "the {} fine blocks from line {} (G93 G64, 1/F = one sample period) are not run as set-points: line {line} needs {speed:.3} {unit}/s along its path, the limits allow {cap:.3} {unit}/s; each block runs as an exact stop",
+                            "the {} fine blocks from line {} (G93 G64, 1/F a whole number of sample periods) are not run as set-points: line {line} needs {speed:.3} {unit}/s along its path, the limits allow {cap:.3} {unit}/s; each block runs as an exact stop",
                             f.blocks, f.first_line
                         );
                         let span = Span {
