@@ -881,3 +881,124 @@ fn simulate_parquet_identifies_as_its_csv() {
     }
     assert_eq!(models[0], models[1]);
 }
+
+/// Column `name` of a CSV file.
+fn csv_column(path: &Path, name: &str) -> Vec<f64> {
+    let mut r = csv::Reader::from_path(path).unwrap();
+    let i = r
+        .headers()
+        .unwrap()
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("{}: no column {name}", path.display()));
+    r.records()
+        .map(|rec| rec.unwrap()[i].parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn an_identified_dead_time_moves_into_the_control_section_and_predicts_the_same() {
+    // Truth: the ball-screw drive behind a control that delays its nominal position by 8 ms
+    // ([control], the section this test reads back). `vcnc identify --trace` finds the dead
+    // time inside the model and suggests the section; the machine with the suggested section
+    // and the model changed as its comment says must predict, on another program, what the
+    // identified model predicts on the machine without it — the same physics in two places
+    // (a whole-period delay is the same shift in both: agreement to rounding).
+    let dir = tempdir();
+    let d = dir.path();
+    let base = std::fs::read_to_string(repo("machines/ballscrew-ppi.toml")).unwrap();
+    let machine = |name: &str, section: &str| {
+        let p = d.join(name);
+        std::fs::write(&p, format!("{base}\n{section}")).unwrap();
+        p
+    };
+    let program_of = |seed: &str, file: &str| {
+        let p = d.join(file);
+        let src = ok(&vcnc(&[
+            "gen",
+            "identification",
+            "--moves",
+            "40",
+            "--seed",
+            seed,
+        ]));
+        std::fs::write(&p, src).unwrap();
+        p
+    };
+    let delayed = machine("delayed.toml", "[control]\ndelay_s = 0.008\n");
+    let program = program_of("11", "id.ngc");
+    let sim = d.join("sim");
+    ok(&vcnc(&[
+        "-q",
+        "simulate",
+        delayed.to_str().unwrap(),
+        program.to_str().unwrap(),
+        "--out",
+        sim.to_str().unwrap(),
+    ]));
+    let id = d.join("id");
+    let s = identify(&sim.join("trace.csv"), &id, &[]);
+    let section = s["axes"]["X"]["control_section"]
+        .as_str()
+        .expect("a suggested [control] section")
+        .to_string();
+    assert!(
+        section.contains("[control]\ndelay_s = 0.008\n"),
+        "{section}"
+    );
+    // The model as the comment says: the delay's fraction of a period stays in it.
+    let rest: f64 = section
+        .lines()
+        .next()
+        .and_then(|l| l.split("delay_s = ").nth(1))
+        .and_then(|v| v.parse().ok())
+        .expect("the comment names the delay left in the model");
+    let model = std::fs::read_to_string(id.join("model.toml")).unwrap();
+    assert!(
+        model.contains("delay_s = "),
+        "the delay structure is chosen:\n{model}"
+    );
+    let core: String = model
+        .lines()
+        .map(|l| {
+            if l.starts_with("delay_s = ") {
+                format!("delay_s = {rest}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(d.join("core.toml"), core).unwrap();
+    let moved = machine("moved.toml", &section);
+
+    let validation = program_of("12", "val.ngc");
+    let predicted = |m: &Path, model: &Path, out: &str| {
+        let out = d.join(out);
+        ok(&vcnc(&[
+            "-q",
+            "simulate",
+            m.to_str().unwrap(),
+            validation.to_str().unwrap(),
+            "--model",
+            model.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]));
+        csv_column(&out.join("trace.csv"), "X_model")
+    };
+    let a = predicted(
+        &repo("machines/ballscrew-ppi.toml"),
+        &id.join("model.toml"),
+        "inside",
+    );
+    let b = predicted(&moved, &d.join("core.toml"), "in-front");
+    assert_eq!(a.len(), b.len());
+    let off = a
+        .iter()
+        .zip(&b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    eprintln!("model inside against [control] in front: {:.3e} mm", off);
+    // The suggestion rounds the delay's fraction to 7 digits (1e-10 s × 250 mm/s).
+    assert!(off < 1e-6, "{off} mm");
+}

@@ -166,6 +166,15 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         }
         print!("{}", structure_table(&ids));
         print!("{}", model_table(&ids));
+        for id in &ids {
+            if let Some(section) = identify::control_section(id) {
+                println!(
+                    "axis {}: its dead time and reference filter can be the control's filters instead (docs/machine-file.md#control); with this section in the machine file and the model changed as the comment says, it predicts the same:\n{}",
+                    id.axis,
+                    section.trim_end()
+                );
+            }
+        }
         println!("-> {}", args.out.display());
     }
     Ok(())

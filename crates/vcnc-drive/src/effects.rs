@@ -1261,7 +1261,10 @@ fn whole_ticks(
     Ok(n as usize)
 }
 
-fn check_shaping(r: &ReferenceShaping, servo_rate_hz: f64) -> Result<Option<Shaping>, Error> {
+pub(crate) fn check_shaping(
+    r: &ReferenceShaping,
+    servo_rate_hz: f64,
+) -> Result<Option<Shaping>, Error> {
     let delay_ticks = whole_ticks(
         "reference.interpolation_delay_s",
         r.interpolation_delay_s,

@@ -63,6 +63,7 @@ pub mod frf;
 mod lane;
 mod law;
 pub mod model;
+pub mod nominal;
 pub mod params;
 mod plant;
 pub mod presets;
@@ -85,6 +86,7 @@ pub use effects::{
 pub use engine::{DriveTrace, simulate_drive};
 pub use frf::{Frf, FrfKind, FrfOptions};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
+pub use nominal::{NominalFilter, NominalStream};
 pub use params::{
     Controller, ControllerSpec, Encoder, PPiGains, PidGains, Plant, PoleDesign, SmcGains,
 };

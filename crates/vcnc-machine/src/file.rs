@@ -58,6 +58,9 @@ pub struct MachineFile {
     /// How vcnc writes programs for the control (`compensate`'s fine-block program).
     #[serde(default)]
     pub program_output: ProgramOutputFile,
+    /// The control's nominal-position filters between the interpolator and the drives.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub control: Option<ControlFile>,
     /// An identified model file (`model.toml`, written by `vcnc identify`), relative to this
     /// file: the dynamics of every axis given without `plant` and `controller`
     /// (docs/machine-file.md#a-machine-made-of-identified-models).
@@ -236,6 +239,67 @@ impl Default for ProgramOutputFile {
             rotary_chord_tolerance: 1e-4,
         }
     }
+}
+
+/// `[control]`: the control's nominal-position filters (docs/machine-file.md, "[control]").
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControlFile {
+    /// Delay of the nominal position before the drives, s (whole sample periods). Default 0.
+    pub delay_s: f64,
+    /// Filters, in order. Default none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub filters: Vec<ControlFilterFile>,
+    /// Siemens Sinumerik's axial jerk filter, by its machine data (added after `filters`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sinumerik: Option<SinumerikJerkFilterFile>,
+}
+
+/// One filter of `control.filters`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ControlFilterFile {
+    /// $1/(1 + Ts)$.
+    FirstOrder {
+        /// $T$, s.
+        time_constant_s: f64,
+    },
+    /// $1/(T^2s^2 + 2\zeta Ts + 1)$.
+    SecondOrder {
+        /// $T$, s.
+        time_constant_s: f64,
+        /// $\zeta$ (default 1).
+        #[serde(default = "default_zeta")]
+        zeta: f64,
+    },
+    /// Moving average over `window_s` (whole sample periods).
+    MovingAverage {
+        /// The window, s.
+        window_s: f64,
+    },
+    /// Triangle filter of base `window_s`: two moving averages of half the window each.
+    Triangular {
+        /// The base, s (an even number of sample periods).
+        window_s: f64,
+    },
+}
+
+fn default_zeta() -> f64 {
+    1.0
+}
+
+/// `[control.sinumerik]`: the axial jerk filter of a Sinumerik 840D by its machine data
+/// (MD32402 `AX_JERK_MODE`, MD32410 `AX_JERK_TIME`, MD32411 `AX_JERK_TIME_ADD`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SinumerikJerkFilterFile {
+    /// MD32402: 2 moving average, 4 double moving average (1, 3 and 5 are not modelled).
+    pub ax_jerk_mode: u8,
+    /// MD32410, s.
+    pub ax_jerk_time: f64,
+    /// MD32411, s (mode 4; default `ax_jerk_time`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ax_jerk_time_add: Option<f64>,
 }
 
 /// `[gcode]`: dialect settings.

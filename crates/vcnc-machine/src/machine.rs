@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use vcnc_axis::{AxisName, Unit};
-use vcnc_drive::{ClosedLoopModel, Drive, DriveModel, DriveParams};
+use vcnc_drive::{ClosedLoopModel, Drive, DriveModel, DriveParams, NominalFilter, ShapingFilter};
 use vcnc_gcode::{
     AxisLimits as GcodeAxisLimits, FINE_BLOCK_MAX_SAMPLES, InterpOptions, InterpolateOptions,
     Limits, PathMode, PlannerRules, Profile, ToolTable, write::BlockRules,
@@ -22,8 +22,9 @@ use vcnc_kinematics::{
 };
 
 use crate::file::{
-    AxisFile, FamilyFile, GcodeFile, IdentificationFile, KinematicsFile, MachineFile, PlannerFile,
-    ProfileFile, ProgramFile, ProgramOutputFile, TiltFile, TrajectoryFile,
+    AxisFile, ControlFile, ControlFilterFile, FamilyFile, GcodeFile, IdentificationFile,
+    KinematicsFile, MachineFile, PlannerFile, ProfileFile, ProgramFile, ProgramOutputFile,
+    TiltFile, TrajectoryFile,
 };
 use crate::locate::{error_offset, line_col, locate_key};
 use crate::options_file::OptionsFile;
@@ -307,6 +308,9 @@ pub struct Machine {
     pub model_file: Option<String>,
     /// How programs for the control are written (`[program_output]`).
     pub program_output: BlockRules,
+    /// The control's nominal-position filter chain between the interpolator and the drives
+    /// (`[control]`); `None` when it has no delay and no filter.
+    pub control: Option<NominalFilter>,
 }
 
 /// Where relative paths of a machine file resolve.
@@ -611,6 +615,10 @@ impl Checker<'_> {
         let startup_path_mode = self.startup_path_mode(&file.gcode)?;
         let identification = self.identification(&file.identification)?;
         let program_output = self.program_output(&file.program_output, ts)?;
+        let control = match &file.control {
+            Some(c) => self.control(c, ts)?,
+            None => None,
+        };
         let kinematics = match &file.kinematics {
             Some(k) => Some(self.kinematics(k, &axes)?),
             // A plain X Y Z machine needs no section: its tool tip is its slides.
@@ -658,7 +666,69 @@ impl Checker<'_> {
             tools: ToolTable::default(),
             model_file: models.map(|(_, name)| name),
             program_output,
+            control,
         })
+    }
+
+    /// `[control]`: the filters in order (a triangle as two moving averages of half its base,
+    /// a Sinumerik jerk filter by its machine data after them), checked at the sample period.
+    fn control(&self, c: &ControlFile, ts: f64) -> Result<Option<NominalFilter>, Error> {
+        let mut filters = Vec::new();
+        for f in &c.filters {
+            match *f {
+                ControlFilterFile::FirstOrder { time_constant_s } => {
+                    filters.push(ShapingFilter::FirstOrder { time_constant_s })
+                }
+                ControlFilterFile::SecondOrder {
+                    time_constant_s,
+                    zeta,
+                } => filters.push(ShapingFilter::SecondOrder {
+                    time_constant_s,
+                    zeta,
+                }),
+                ControlFilterFile::MovingAverage { window_s } => {
+                    filters.push(ShapingFilter::MovingAverage { window_s })
+                }
+                ControlFilterFile::Triangular { window_s } => {
+                    let half = ShapingFilter::MovingAverage {
+                        window_s: window_s / 2.0,
+                    };
+                    filters.extend([half, half]);
+                }
+            }
+        }
+        if let Some(s) = &c.sinumerik {
+            let ma = |window_s| ShapingFilter::MovingAverage { window_s };
+            match s.ax_jerk_mode {
+                2 => filters.push(ma(s.ax_jerk_time)),
+                4 => filters.extend([
+                    ma(s.ax_jerk_time),
+                    ma(s.ax_jerk_time_add.unwrap_or(s.ax_jerk_time)),
+                ]),
+                m => {
+                    return Err(self.invalid(
+                        "control.sinumerik.ax_jerk_mode",
+                        format!(
+                            "AX_JERK_MODE {m} is not modelled: vcnc models 2 (moving average) and 4 (double moving average); for a second-order filter (mode 1) write it under control.filters with its time constant and damping"
+                        ),
+                    ));
+                }
+            }
+        }
+        let chain = NominalFilter::new(c.delay_s, &filters, ts).map_err(|e| {
+            let message = e
+                .to_string()
+                .replace("reference.filter.", "filter ")
+                .replace("reference.interpolation_delay_s", "delay_s")
+                .replace("servo periods 1/servo_rate_hz", "sample periods");
+            self.invalid(
+                "control",
+                format!(
+                    "{message} (the control's filters act at the machine's sample period, {ts} s: the delay and windows in whole periods, a triangle's base in an even number of them)"
+                ),
+            )
+        })?;
+        Ok((!chain.is_identity()).then_some(chain))
     }
 
     /// `[program_output]`: resolutions and tolerances finite and ≥ 0 (at most 1), the block

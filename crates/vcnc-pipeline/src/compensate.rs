@@ -262,6 +262,63 @@ pub fn with_velocity_headroom(machine: &Machine, headroom: f64) -> Result<Machin
     Ok(m)
 }
 
+/// `models` with the machine's nominal-position filters (`[control]`) folded in: the control's
+/// delay added to each model's dead time, and its one first- or second-order filter as the
+/// model's reference filter — the same physics in the models instead of in front of them
+/// (docs/machine-file.md#control). A compensation inverts the models, so it needs them so; a
+/// chain with a moving average or several filters, or a model with a filter of its own, is
+/// refused ([`Error::ControlFilters`]).
+pub fn with_control_filters(
+    machine: &Machine,
+    models: &MachineModels,
+) -> Result<MachineModels, Error> {
+    let Some(c) = &machine.control else {
+        return Ok(models.clone());
+    };
+    let refuse = |what: String| Error::ControlFilters {
+        machine: machine.source.clone(),
+        what,
+    };
+    let filter = match c.filters() {
+        [] => None,
+        [vcnc_drive::ShapingFilter::FirstOrder { time_constant_s }] => {
+            Some(vcnc_drive::ReferenceFilter::FirstOrder {
+                tau_s: *time_constant_s,
+            })
+        }
+        [
+            vcnc_drive::ShapingFilter::SecondOrder {
+                time_constant_s,
+                zeta,
+            },
+        ] => Some(vcnc_drive::ReferenceFilter::SecondOrder {
+            wn_hz: 1.0 / (std::f64::consts::TAU * time_constant_s),
+            zeta: *zeta,
+        }),
+        [f] => return Err(refuse(format!("a {f:?} filter"))),
+        many => return Err(refuse(format!("a chain of {} filters", many.len()))),
+    };
+    let mut folded = Vec::with_capacity(models.models().len());
+    for (i, m) in models.models().iter().enumerate() {
+        if filter.is_some() && m.reference_filter.is_some() {
+            return Err(refuse(format!(
+                "the model of axis {} has a reference filter of its own",
+                machine.axes[i].name
+            )));
+        }
+        folded.push(vcnc_drive::DriveModel {
+            delay_s: m.delay_s + c.delay_s(),
+            reference_filter: m.reference_filter.or(filter),
+            ..*m
+        });
+    }
+    Ok(MachineModels::new(
+        machine,
+        folded,
+        format!("{} with the control's filters", models.source()),
+    )?)
+}
+
 /// Replanning rounds [`compensate_within_limits`] may take when no headroom is given.
 pub const MAX_REPLANS: usize = 3;
 
@@ -290,6 +347,7 @@ pub fn compensate_within_limits(
     headroom: Option<f64>,
     lenient: bool,
 ) -> Result<Planned, Error> {
+    let models = &with_control_filters(machine, models)?;
     let mut h = headroom.unwrap_or(1.0);
     let mut replanned = Vec::new();
     loop {

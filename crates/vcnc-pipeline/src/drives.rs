@@ -5,7 +5,7 @@
 //! for bit (`vcnc_drive::stream`).
 
 use rayon::prelude::*;
-use vcnc_drive::{Channels, DriveStream, DriveTrace, ModelStream, SimOptions};
+use vcnc_drive::{Channels, DriveStream, DriveTrace, ModelStream, NominalStream, SimOptions};
 use vcnc_machine::{Dynamics, Machine, MachineModels};
 
 use crate::Error;
@@ -17,6 +17,49 @@ pub(crate) fn drive_error(machine: &Machine, i: usize) -> impl Fn(vcnc_drive::Er
     move |source| Error::Drive {
         axis: machine.axes[i].name,
         source,
+    }
+}
+
+/// One machine axis' nominal-position filters (the machine file's `[control]`): what the
+/// drive receives of the reference, a piece at a time.
+struct AxisNominal {
+    stream: NominalStream,
+    pos: Vec<f64>,
+    vel: Vec<f64>,
+    acc: Vec<f64>,
+}
+
+impl AxisNominal {
+    /// Per machine axis, the control's filter chain (`None` everywhere without one).
+    fn of(machine: &Machine) -> Vec<Option<AxisNominal>> {
+        machine
+            .axes
+            .iter()
+            .map(|_| {
+                machine.control.as_ref().map(|f| AxisNominal {
+                    stream: f.stream(),
+                    pos: Vec::new(),
+                    vel: Vec::new(),
+                    acc: Vec::new(),
+                })
+            })
+            .collect()
+    }
+
+    /// The piece `r` as the drive receives it (`r` itself without filters).
+    fn apply<'a>(
+        this: &'a mut Option<AxisNominal>,
+        r: vcnc_drive::Reference<'a>,
+    ) -> Result<vcnc_drive::Reference<'a>, vcnc_drive::Error> {
+        let Some(n) = this else {
+            return Ok(r);
+        };
+        n.stream.feed(r, &mut n.pos, &mut n.vel, &mut n.acc)?;
+        Ok(vcnc_drive::Reference {
+            pos: &n.pos,
+            vel: &n.vel,
+            acc: &n.acc,
+        })
     }
 }
 
@@ -33,6 +76,8 @@ enum TrueAxis {
 /// truth of the run (docs/machine-file.md#a-machine-made-of-identified-models).
 pub(crate) struct TrueDrives {
     axes: Vec<TrueAxis>,
+    /// Per machine axis: the control's filters in front of it.
+    nominal: Vec<Option<AxisNominal>>,
     /// Per machine axis: the trace of the last piece (the channels asked for). An axis known by
     /// its model logs only positions: its model's logged position in both `position` and
     /// `true_position` (the physical shift is in [`TrueDrives::physical`]).
@@ -67,6 +112,7 @@ impl TrueDrives {
         let n = axes.len();
         Ok(TrueDrives {
             axes,
+            nominal: AxisNominal::of(machine),
             traces: (0..n).map(|_| DriveTrace::default()).collect(),
             shifted: vec![Vec::new(); n],
         })
@@ -81,23 +127,26 @@ impl TrueDrives {
         }
     }
 
-    /// Feeds chunk `c` to each axis, every axis in parallel, into [`TrueDrives::traces`] and
-    /// the models' shifted positions (one per axis, cleared first).
+    /// Feeds chunk `c` to each axis (through the control's filters), every axis in parallel,
+    /// into [`TrueDrives::traces`] and the models' shifted positions (one per axis, cleared
+    /// first).
     pub fn feed(&mut self, machine: &Machine, c: &ReferenceChunk) -> Result<(), Error> {
         self.axes
             .par_iter_mut()
             .zip(self.traces.par_iter_mut())
             .zip(self.shifted.par_iter_mut())
+            .zip(self.nominal.par_iter_mut())
             .enumerate()
-            .try_for_each(|(i, ((d, t), y))| {
+            .try_for_each(|(i, (((d, t), y), nominal))| {
                 t.clear_channels(0);
                 y.clear();
+                let r = AxisNominal::apply(nominal, c.axis(i)).map_err(drive_error(machine, i))?;
                 match d {
                     TrueAxis::Drive(d) => {
-                        d.feed(c.axis(i), t).map_err(drive_error(machine, i))?;
+                        d.feed(r, t).map_err(drive_error(machine, i))?;
                     }
                     TrueAxis::Model(m) => {
-                        m.feed(c.axis(i), y).map_err(drive_error(machine, i))?;
+                        m.feed(r, y).map_err(drive_error(machine, i))?;
                         t.position.extend_from_slice(&m.logged);
                         t.true_position.extend_from_slice(&m.logged);
                     }
@@ -174,6 +223,8 @@ impl AxisModel {
 /// Sets of models (one model per machine axis each), fed a piece at a time.
 pub(crate) struct ModelRuns {
     sets: Vec<Vec<AxisModel>>,
+    /// Per machine axis: the control's filters in front of every set's model.
+    nominal: Vec<Option<AxisNominal>>,
     /// Per set, per machine axis: the positions that became known with the last piece (or at
     /// the end), advanced by the model's stated actual-value latency when the runs were made
     /// for the physical axes.
@@ -205,12 +256,22 @@ impl ModelRuns {
             })
             .collect::<Result<Vec<_>, Error>>()?;
         let out = sets.iter().map(|s| vec![Vec::new(); s.len()]).collect();
-        Ok(ModelRuns { sets, out })
+        Ok(ModelRuns {
+            sets,
+            nominal: AxisNominal::of(machine),
+            out,
+        })
     }
 
-    /// Feeds chunk `c` to every model, every axis of every set in parallel, into
-    /// [`ModelRuns::out`] (cleared first).
+    /// Feeds chunk `c` to every model (through the control's filters), every axis of every
+    /// set in parallel, into [`ModelRuns::out`] (cleared first).
     pub fn feed(&mut self, machine: &Machine, c: &ReferenceChunk) -> Result<(), Error> {
+        let refs = self
+            .nominal
+            .par_iter_mut()
+            .enumerate()
+            .map(|(i, n)| AxisNominal::apply(n, c.axis(i)).map_err(drive_error(machine, i)))
+            .collect::<Result<Vec<_>, Error>>()?;
         self.sets
             .par_iter_mut()
             .zip(self.out.par_iter_mut())
@@ -218,9 +279,7 @@ impl ModelRuns {
                 set.par_iter_mut()
                     .zip(out.par_iter_mut())
                     .enumerate()
-                    .try_for_each(|(i, (m, y))| {
-                        m.feed(c.axis(i), y).map_err(drive_error(machine, i))
-                    })
+                    .try_for_each(|(i, (m, y))| m.feed(refs[i], y).map_err(drive_error(machine, i)))
             })
     }
 

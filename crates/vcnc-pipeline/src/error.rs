@@ -217,6 +217,17 @@ pub enum Error {
         /// Its range.
         expected: &'static str,
     },
+    /// The control's nominal-position filters cannot be folded into the models a
+    /// compensation inverts.
+    #[error(
+        "{machine}: compensate cannot invert the control's filters ([control]): {what}; it folds a delay and one first- or second-order filter into models without a reference filter of their own"
+    )]
+    ControlFilters {
+        /// The machine file.
+        machine: String,
+        /// What stands in the way.
+        what: String,
+    },
     /// A program without feed moves to plan.
     #[error(
         "{file}: the program has no feed moves (G1, G2, G3 with an F word) whose feed could be planned"
@@ -464,6 +475,7 @@ impl Error {
             | Error::Generator { .. }
             | Error::FeedPlanOption { .. }
             | Error::NothingToPlan { .. }
+            | Error::ControlFilters { .. }
             | Error::ToleranceUnreachable { .. }
             | Error::ProgramTooLarge { .. }
             | Error::TooManyBlocks { .. }

@@ -154,6 +154,28 @@ pub fn excitation_run(machine: &Machine, a: &Axis, seed: u64) -> Result<Excitati
         vel: track.vel.clone(),
         acc: track.acc.clone(),
     };
+    // On a machine with the control's nominal-position filters (`[control]`) the drive is
+    // identified from what it receives, the filtered reference: its models then take the
+    // filters' place nowhere, and a prediction filters the reference before them as before the
+    // drives.
+    let reference = match &machine.control {
+        None => reference,
+        Some(f) => {
+            let (mut pos, mut vel, mut acc) = (Vec::new(), Vec::new(), Vec::new());
+            f.stream()
+                .feed(reference.reference(), &mut pos, &mut vel, &mut acc)
+                .map_err(|source| Error::Drive {
+                    axis: a.name,
+                    source,
+                })?;
+            AxisSignals {
+                pos,
+                vel,
+                acc,
+                ..reference
+            }
+        }
+    };
     let trace = drive
         .simulate(reference.reference(), machine.ts)
         .map_err(|source| Error::Drive {
@@ -507,6 +529,59 @@ pub struct AxisIdentifySummary {
     pub on_bounds: Vec<vcnc_identify::BoundHit>,
     /// Warnings about this axis' model (parameters on bounds, relative deviations above 10 %).
     pub warnings: Vec<String>,
+    /// The chosen model's dead time and reference filter as a machine file's `[control]`
+    /// section (TOML), when it has either ([`control_section`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub control_section: Option<String>,
+}
+
+/// The chosen model's dead time and reference filter of `id` as the control's nominal-position
+/// filters (`[control]`, docs/machine-file.md#control), TOML text: the whole sample periods of
+/// the delay (the trace's period), the filter as it is, and a comment line naming what stays in
+/// the model (the delay's fraction of a period, when there is one). A machine file with this
+/// section and the model with `reference_filter` removed and `delay_s` set to that fraction
+/// predicts what the model predicts (the same physics in front of the drive instead of inside
+/// its model; tested in crates/vcnc-pipeline/tests/control_filters.rs). `None` when the model
+/// has neither.
+pub fn control_section(id: &AxisIdentification) -> Option<String> {
+    let m = &id.result.model;
+    if m.delay_s == 0.0 && m.reference_filter.is_none() {
+        return None;
+    }
+    let ts = id.validation_trace.ts;
+    let periods = (m.delay_s / ts).floor();
+    let rest = m.delay_s - periods * ts;
+    let mut text = format!(
+        "# axis {}: in model.toml remove reference_filter and set delay_s = {}\n[control]\ndelay_s = {}\n",
+        id.axis,
+        fmt_g(rest),
+        fmt_g(periods * ts)
+    );
+    match m.reference_filter {
+        None => {}
+        Some(vcnc_drive::ReferenceFilter::FirstOrder { tau_s }) => text.push_str(&format!(
+            "filters = [{{ kind = \"first-order\", time_constant_s = {} }}]\n",
+            fmt_g(tau_s)
+        )),
+        Some(vcnc_drive::ReferenceFilter::SecondOrder { wn_hz, zeta }) => text.push_str(&format!(
+            "filters = [{{ kind = \"second-order\", time_constant_s = {}, zeta = {} }}]\n",
+            fmt_g(1.0 / (std::f64::consts::TAU * wn_hz)),
+            fmt_g(zeta)
+        )),
+    }
+    Some(text)
+}
+
+/// A value with 6 significant digits, as a TOML float.
+fn fmt_g(v: f64) -> String {
+    let s = format!("{:.6e}", v);
+    let parsed: f64 = s.parse().unwrap_or(v);
+    let t = format!("{parsed}");
+    if t.contains('.') || t.contains('e') {
+        t
+    } else {
+        format!("{t}.0")
+    }
 }
 
 /// One model structure as identified.
@@ -624,6 +699,7 @@ impl AxisIdentifySummary {
             }),
             on_bounds: id.on_bounds.clone(),
             warnings: axis_warnings(r),
+            control_section: control_section(r),
             trace: match &r.source {
                 IdentificationSource::Measured { provenance, .. } => Some(AxisTraceSummary {
                     samples: r.validation_trace.len(),
