@@ -107,7 +107,7 @@ pub enum Command {
     },
     /// Compensate a program with identified models: set-points that make the drives follow the
     /// programmed path, written as a fine-block program (G93 G64 blocks of whole sample
-    /// periods, at the resolution and block cycle of the machine file's [program_output]) and
+    /// periods, at the resolution and block cycle of the machine file's `[program_output]`) and
     /// judged on the true machine against the original path (docs/compensation.md).
     Compensate(CompensateArgs),
     /// Plan per-block feeds (never above the programmed ones) that keep the predicted contour
