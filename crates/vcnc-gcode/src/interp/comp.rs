@@ -147,6 +147,16 @@ fn circle_circle(c1: [f64; 2], r1: f64, c2: [f64; 2], r2: f64) -> Option<[[f64; 
     Some([polar(c1, r1, base - spread), polar(c1, r1, base + spread)])
 }
 
+/// The feed of a compensated move whose programmed path is `len` mm long: as LinuxCNC, an
+/// inverse-time `F` becomes the rate that runs the *programmed* move in 1/F minutes (the
+/// compensated move, and a corner arc before it, run at that rate).
+fn programmed_rate(feed: Option<Feed>, len: f64) -> Option<Feed> {
+    match feed {
+        Some(Feed::InverseTime(f)) => Some(Feed::UnitsPerMin(f * len)),
+        other => other,
+    }
+}
+
 /// The one of `pts` nearest to `to`.
 fn nearest(pts: [[f64; 2]; 2], to: [f64; 2]) -> [f64; 2] {
     let d = |p: [f64; 2]| (p[0] - to[0]).hypot(p[1] - to[1]);
@@ -489,6 +499,10 @@ impl Interp<'_> {
         let s = comp.side.sign();
         let c = self.tool_xy();
         let pxy = [p[0], p[1]];
+        let from = comp.nominal.unwrap_or(c);
+        let z0 = self.to_program(self.st.pos)[2];
+        let programmed = (pxy[0] - from[0]).hypot(pxy[1] - from[1]).hypot(p[2] - z0);
+        let feed = programmed_rate(feed, programmed);
         let Some(op) = comp.nominal else {
             // Entry move: to p moved by r perpendicular to c → p.
             let len = (pxy[0] - c[0]).hypot(pxy[1] - c[1]);
@@ -637,6 +651,9 @@ impl Interp<'_> {
         let s = comp.side.sign();
         let c = self.tool_xy();
         let e = [end[0], end[1]];
+        let z0 = self.to_program(self.st.pos)[2];
+        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[2] - z0);
+        let feed = programmed_rate(feed, programmed);
         let centre = geom.centre;
         let ccw = geom.sweep_rad > 0.0;
         let arc_r = (centre[0] - e[0]).hypot(centre[1] - e[1]);
