@@ -219,7 +219,12 @@ impl Interp<'_> {
     pub(super) fn cutter_mode(&mut self, code: u32, k: &Checked, span: Span) -> bool {
         if code == 400 {
             if self.comp_active() && self.nominal_xy().is_some() {
-                self.release_held();
+                // The held move ends where it is, but must not run backwards (a concave corner
+                // before it deeper than it is long).
+                let c = self.tool_xy();
+                if !self.move_held_end(c, span) {
+                    return false;
+                }
                 self.st.comp.nominal_after_off = self.nominal_xy();
                 self.st.comp.arc_not_allowed = true;
             }
