@@ -446,14 +446,12 @@ impl Interp<'_> {
                     a.sweep_rad = new;
                     a.radius_end_mm = (m[0] - a.centre[0]).hypot(m[1] - a.centre[1]);
                 }
-                (_, Check::Direction(d)) => {
-                    if d[0] * (m[0] - s[0]) + d[1] * (m[1] - s[1]) < 0.0 {
-                        problem = Some(if h.mv.kind == MoveKind::Rapid {
-                            "straight traverse in a concave corner cannot be reached by the tool without gouging"
-                        } else {
-                            "straight feed in a concave corner cannot be reached by the tool without gouging"
-                        });
-                    }
+                (_, Check::Direction(d)) if d[0] * (m[0] - s[0]) + d[1] * (m[1] - s[1]) < 0.0 => {
+                    problem = Some(if h.mv.kind == MoveKind::Rapid {
+                        "straight traverse in a concave corner cannot be reached by the tool without gouging"
+                    } else {
+                        "straight feed in a concave corner cannot be reached by the tool without gouging"
+                    });
                 }
                 _ => {}
             }
@@ -559,8 +557,7 @@ impl Interp<'_> {
             .held
             .first()
             .is_some_and(|h| matches!(h.mv.kind, MoveKind::Arc(_)));
-        let concave = turn < -CORNER_TOL
-            || turn > PI + CORNER_TOL
+        let concave = !(-CORNER_TOL..=PI + CORNER_TOL).contains(&turn)
             || (turn > PI - CORNER_TOL && prev_arc_outside);
         if concave && let Some((pc, pr)) = comp.circle.filter(|_| prev_is_arc) {
             // Arc → line: the previous arc ends where its tool circle meets the new offset
@@ -687,8 +684,7 @@ impl Interp<'_> {
         // inside.
         let out = if inside { PI } else { 0.0 };
         let new_end = polar(e, r, dir(centre, e) + out);
-        let concave = turn < -CORNER_TOL
-            || turn > PI + CORNER_TOL
+        let concave = !(-CORNER_TOL..=PI + CORNER_TOL).contains(&turn)
             || ((turn - PI).abs() < CORNER_TOL && !inside);
         let tool_r = if inside { arc_r - r } else { arc_r + r };
         let mut start = c;
