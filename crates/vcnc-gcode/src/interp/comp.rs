@@ -32,9 +32,13 @@
 //!   the arc's centre) meet, the meeting point nearest the tool; when they do not meet, or the
 //!   held move would reverse or its arc grow, the tool cannot fit: an error.
 //!
+//! - **Entry arc** (centre format): the programmed end moves by r towards or away from the
+//!   centre; the arc runs from the tool to there about the point of the line from that end to
+//!   the programmed centre that is equally far from both ends.
+//!
 //! Not done (refused with an error naming the line): compensation in `G18` (LinuxCNC's lathe
-//! mode with tool orientations) and `G19` (LinuxCNC refuses it too), and an arc as the entry
-//! move.
+//! mode with tool orientations) and `G19` (LinuxCNC refuses it too), and an `R`-format arc as
+//! the entry move.
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -629,6 +633,87 @@ impl Interp<'_> {
         }
     }
 
+    /// An arc as the entry move (LinuxCNC `convert_arc_comp1`, centre format only): the
+    /// programmed end moves by r towards the centre (tool inside) or away from it (outside), and
+    /// the arc runs from the tool to there about a centre on the line from that end to the
+    /// programmed centre, equally far from both ends.
+    fn comp_entry_arc(
+        &mut self,
+        comp: &Comp,
+        geom: ArcMove,
+        end: [f64; 6],
+        span: Span,
+        feed: Option<Feed>,
+        r_format: bool,
+    ) {
+        if r_format {
+            self.err(
+                span,
+                DiagnosticKind::CutterCompensation,
+                "an R-format arc as the cutter compensation entry move is not supported by vcnc: give its centre (I J) or enter with a straight move",
+            );
+            return;
+        }
+        let r = comp.radius;
+        let c = self.tool_xy();
+        let e = [end[0], end[1]];
+        let dist = (e[0] - c[0]).hypot(e[1] - c[1]);
+        if dist <= r {
+            self.err(span, DiagnosticKind::CutterCompensation, || {
+                format!(
+                    "the cutter compensation entry arc ({dist:.4} mm from start to end) is not longer than the tool radius ({r:.4} mm)"
+                )
+            });
+            return;
+        }
+        let centre = geom.centre;
+        let ccw = geom.sweep_rad > 0.0;
+        let arc_r = (centre[0] - e[0]).hypot(centre[1] - e[1]);
+        let inside = (ccw && comp.side == Side::Left) || (!ccw && comp.side == Side::Right);
+        if inside && arc_r <= r {
+            self.err(span, DiagnosticKind::CutterCompensation, || {
+                format!(
+                    "the tool radius ({r:.4} mm) is not less than the radius of the arc it runs inside ({arc_r:.4} mm)"
+                )
+            });
+            return;
+        }
+        let out = if inside { PI } else { 0.0 };
+        let new_end = polar(e, r, dir(centre, e) + out);
+        // Centre n = new_end + t·u (u towards the programmed centre) with |n − c| = t:
+        // t = |c − new_end|² / (2 u·(c − new_end)).
+        let to_c = [c[0] - new_end[0], c[1] - new_end[1]];
+        let ua = dir(new_end, centre);
+        let u = [ua.cos(), ua.sin()];
+        let along = u[0] * to_c[0] + u[1] * to_c[1];
+        let chord = to_c[0].hypot(to_c[1]);
+        if along.abs() < 1e-6 * chord {
+            self.err(span, DiagnosticKind::CutterCompensation, || {
+                format!(
+                    "the cutter compensation entry arc has no centre for the tool radius ({r:.4} mm)"
+                )
+            });
+            return;
+        }
+        let t = chord * chord / (2.0 * along);
+        let n = polar(new_end, t, ua);
+        let rr = (n[0] - new_end[0]).hypot(n[1] - new_end[1]);
+        let arc = ArcMove {
+            plane: Plane::XY,
+            centre: self.machine_xy(n),
+            sweep_rad: sweep(ccw, c, new_end, n, geom.turns),
+            radius_start_mm: (c[0] - n[0]).hypot(c[1] - n[1]),
+            radius_end_mm: rr,
+            turns: geom.turns,
+        };
+        let z0 = self.to_program(self.st.pos)[2];
+        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[2] - z0);
+        let feed = programmed_rate(feed, programmed);
+        let target = self.comp_target(end, new_end);
+        self.emit_held(MoveKind::Arc(arc), target, span, feed, Check::Free);
+        self.set_nominal(e, Some((n, rr)));
+    }
+
     /// A compensated `G2`/`G3` (LinuxCNC `convert_arc_comp2`): `start`/`end` programmed (program
     /// coordinates), `geom` the programmed arc (program coordinates).
     pub(super) fn comp_arc(
@@ -637,16 +722,13 @@ impl Interp<'_> {
         end: [f64; 6],
         span: Span,
         feed: Option<Feed>,
+        r_format: bool,
     ) {
         let Some(comp) = self.st.comp.on.clone() else {
             return;
         };
         let Some(op) = comp.nominal else {
-            self.err(
-                span,
-                DiagnosticKind::CutterCompensation,
-                "an arc as the cutter compensation entry move is not supported by vcnc: enter with a straight move",
-            );
+            self.comp_entry_arc(&comp, geom, end, span, feed, r_format);
             return;
         };
         let r = comp.radius;

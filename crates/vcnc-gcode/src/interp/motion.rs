@@ -253,6 +253,11 @@ impl Interp<'_> {
         if zero {
             return;
         }
+        if !matches!(kind, MoveKind::Dwell { .. }) && !self.comp_active() {
+            // The first move after G40 (a straight move, G28/G30) has started from the
+            // programmed point: from now on the tool's position is the program's.
+            self.st.comp.nominal_after_off = None;
+        }
         let mv = Move {
             line: span.line,
             col: span.col,
@@ -344,7 +349,6 @@ impl Interp<'_> {
         let Some(target) = self.straight_target(k) else {
             return;
         };
-        self.st.comp.nominal_after_off = None;
         if m == Motion::Rapid {
             self.emit(MoveKind::Rapid, target, span, None);
             return;
@@ -408,7 +412,7 @@ impl Interp<'_> {
         };
         if self.comp_active() {
             if let Some(feed) = self.feed_for(span, f_block, false) {
-                self.comp_arc(geom, end_p, span, Some(feed));
+                self.comp_arc(geom, end_p, span, Some(feed), k.w.get('R').is_some());
             }
             return;
         }
