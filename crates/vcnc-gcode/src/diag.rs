@@ -66,7 +66,7 @@ pub enum DiagnosticKind {
     Unsupported,
     /// Cutter radius compensation (`G40`–`G42.1`): what LinuxCNC refuses (the tool cannot
     /// reach a concave corner, an entry move too short, codes not allowed while it is on) and
-    /// what vcnc does not do (`G18` lathe compensation, an `R`-format arc as the entry move).
+    /// what vcnc does not do (`G18` lathe compensation).
     CutterCompensation,
     /// Words that conflict, are missing or have no code that uses them.
     Block,

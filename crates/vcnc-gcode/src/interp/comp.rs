@@ -32,13 +32,12 @@
 //!   the arc's centre) meet, the meeting point nearest the tool; when they do not meet, or the
 //!   held move would reverse or its arc grow, the tool cannot fit: an error.
 //!
-//! - **Entry arc** (centre format): the programmed end moves by r towards or away from the
+//! - **Entry arc**: the programmed end moves by r towards or away from the
 //!   centre; the arc runs from the tool to there about the point of the line from that end to
 //!   the programmed centre that is equally far from both ends.
 //!
 //! Not done (refused with an error naming the line): compensation in `G18` (LinuxCNC's lathe
-//! mode with tool orientations) and `G19` (LinuxCNC refuses it too), and an `R`-format arc as
-//! the entry move.
+//! mode with tool orientations) and `G19` (LinuxCNC refuses it too).
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -633,7 +632,8 @@ impl Interp<'_> {
         }
     }
 
-    /// An arc as the entry move (LinuxCNC `convert_arc_comp1`, centre format only): the
+    /// An arc as the entry move (LinuxCNC `convert_arc_comp1`; its centre, of either format,
+    /// is found from the tool's position as for an uncompensated arc): the
     /// programmed end moves by r towards the centre (tool inside) or away from it (outside), and
     /// the arc runs from the tool to there about a centre on the line from that end to the
     /// programmed centre, equally far from both ends.
@@ -644,16 +644,7 @@ impl Interp<'_> {
         end: [f64; 6],
         span: Span,
         feed: Option<Feed>,
-        r_format: bool,
     ) {
-        if r_format {
-            self.err(
-                span,
-                DiagnosticKind::CutterCompensation,
-                "an R-format arc as the cutter compensation entry move is not supported by vcnc: give its centre (I J) or enter with a straight move",
-            );
-            return;
-        }
         let r = comp.radius;
         let c = self.tool_xy();
         let e = [end[0], end[1]];
@@ -722,13 +713,12 @@ impl Interp<'_> {
         end: [f64; 6],
         span: Span,
         feed: Option<Feed>,
-        r_format: bool,
     ) {
         let Some(comp) = self.st.comp.on.clone() else {
             return;
         };
         let Some(op) = comp.nominal else {
-            self.comp_entry_arc(&comp, geom, end, span, feed, r_format);
+            self.comp_entry_arc(&comp, geom, end, span, feed);
             return;
         };
         let r = comp.radius;

@@ -412,7 +412,7 @@ impl Interp<'_> {
         };
         if self.comp_active() {
             if let Some(feed) = self.feed_for(span, f_block, false) {
-                self.comp_arc(geom, end_p, span, Some(feed), k.w.get('R').is_some());
+                self.comp_arc(geom, end_p, span, Some(feed));
             }
             return;
         }

@@ -659,9 +659,9 @@ fn cutter_compensation_errors_name_the_line() {
         (format!("{on}T1 M6"), 4, "change tools"),
         (format!("{on}G40\nG2 X5 Y0 R5"), 5, "must be straight"),
         (
-            "G0 X0\nG41.1 D2\nG2 X10 Y0 R5 F100".to_string(),
+            "G0 X0\nG41.1 D20\nG2 X5 Y0 R5 F100".to_string(),
             3,
-            "entry move",
+            "entry arc",
         ),
         ("G0 X0\nG41.1 D10\nG1 X4 F100".to_string(), 3, "not longer"),
         (format!("{on}G1 X10\nG3 X10 Y1.8 R0.9"), 5, "not less than"),
