@@ -64,7 +64,9 @@ pub enum DiagnosticKind {
     CallDepth,
     /// An unknown or unsupported G-code, M-code or word.
     Unsupported,
-    /// Cutter radius compensation (`G41`, `G42`), which vcnc does not perform.
+    /// Cutter radius compensation (`G40`–`G42.1`): what LinuxCNC refuses (the tool cannot
+    /// reach a concave corner, an entry move too short, codes not allowed while it is on) and
+    /// what vcnc does not do (`G18` lathe compensation).
     CutterCompensation,
     /// Words that conflict, are missing or have no code that uses them.
     Block,

@@ -47,6 +47,7 @@
 //! anything that changes what moves where is an error even then.
 
 mod block;
+mod comp;
 mod cycles;
 mod eval;
 mod flow;
@@ -446,6 +447,8 @@ struct State {
     line: u32,
     /// `false` until the first motion under [`StartPosition::FirstMove`].
     started: bool,
+    /// Cutter radius compensation (module `comp`).
+    comp: comp::CompState,
 }
 
 /// One subroutine call (the main program is the first frame).
@@ -470,6 +473,7 @@ pub fn interpret(
 ) -> Result<(Toolpath, Vec<Diagnostic>), Vec<Diagnostic>> {
     let mut it = Interp::new(program, opts);
     it.run();
+    it.release_held();
     conclude(it.sink, it.tp)
 }
 
@@ -625,6 +629,7 @@ impl<'a> Interp<'a> {
                 cycle: CycleMemory::default(),
                 line: 0,
                 started,
+                comp: comp::CompState::default(),
             },
             params,
             tools: opts.tools.clone(),

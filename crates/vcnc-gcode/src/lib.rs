@@ -1,6 +1,7 @@
 //! G-code front end of vcnc: parsing, interpretation, trapezoidal interpolation at the sample
 //! period, and the program generators (docs/gcode.md). The language — RS274/NGC as LinuxCNC
-//! runs it, with parameters, expressions, O-word control flow, offsets and canned cycles — is
+//! runs it, with parameters, expressions, O-word control flow, offsets, canned cycles and cutter
+//! radius compensation — is
 //! described in docs/gcode.md, and checked against LinuxCNC's own interpreter
 //! (`tests/linuxcnc.rs`).
 //!
@@ -9,7 +10,7 @@
 //! | module | input → output | main type |
 //! |---|---|---|
 //! | [`syntax`] | text → blocks, words, expressions, O-words, comments with spans; every diagnostic | [`Program`] |
-//! | [`interp`] | blocks → moves in mm and degrees, machine coordinates (parameters, control flow, modal state, offsets, cycles, arcs, feeds) | [`Toolpath`] |
+//! | [`interp`] | blocks → moves in mm and degrees, machine coordinates (parameters, control flow, modal state, offsets, cycles, arcs, feeds, cutter compensation) | [`Toolpath`] |
 //! | [`tables`] | LinuxCNC parameter file and tool table → typed tables | [`ParameterTable`], [`ToolTable`] |
 //! | [`interpolate`](mod@interpolate) | moves + limits → samples of position, velocity, acceleration, with each sample's source line and move class | [`Trajectory`] |
 //! | [`generate`] | options → G-code text (identification excitation, 5-axis spiral) | `String` |

@@ -204,6 +204,37 @@ fn the_corpus_streams_bit_for_bit() {
     assert!(n >= 4);
 }
 
+#[test]
+fn cutter_compensation_streams_bit_for_bit() {
+    // Compensated moves are held back until the next move is known: cut into pieces of 1 byte
+    // and of 300 bytes, the held moves must come out as in the whole program, including
+    // those still held at the end and the errors of the bad programs.
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/linuxcnc");
+    let tools = std::fs::read_to_string(format!("{dir}/tools.tbl")).unwrap();
+    let interp = InterpOptions {
+        tools: vcnc_gcode::parse_tool_table(&tools, "tools.tbl").unwrap(),
+        machine_units: vcnc_gcode::LengthUnit::Inch,
+        ..InterpOptions::default()
+    };
+    let mut n = 0;
+    for e in std::fs::read_dir(format!("{dir}/programs")).unwrap() {
+        let path = e.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        if !name.contains("comp") {
+            continue;
+        }
+        let src = std::fs::read_to_string(&path).unwrap();
+        same(
+            &src,
+            &interp,
+            &Limits::uniform(100.0, 1000.0),
+            &InterpolateOptions::default(),
+        );
+        n += 1;
+    }
+    assert!(n >= 10, "{n} programs");
+}
+
 /// A long 5-axis TCP program of short segments: a helix of `n` points with a tilting tool, so
 /// that chains run over thousands of segments while the look-ahead holds a braking distance.
 fn long_tcp(n: usize, feed: f64) -> String {

@@ -77,7 +77,7 @@ enum Group {
     FeedMode,
     /// 6: G20 G21.
     Units,
-    /// 7: G40.
+    /// 7: G40 G41 G41.1 G42 G42.1.
     Cutter,
     /// 8: G43 G43.1 G43.2 G49 (and vcnc's G43.4).
     ToolLength,
@@ -113,7 +113,7 @@ impl Group {
 
 /// The group of a supported G-code, or why it is not supported.
 fn g_group(c: u32) -> Result<Group, (DiagnosticKind, &'static str)> {
-    use DiagnosticKind::{CutterCompensation, Unsupported};
+    use DiagnosticKind::Unsupported;
     Ok(match c {
         40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => Group::NonModal,
         0 | 10 | 20 | 30 | 730 | 800 | 810 | 820 | 830 | 850 | 890 => Group::Motion,
@@ -122,19 +122,12 @@ fn g_group(c: u32) -> Result<Group, (DiagnosticKind, &'static str)> {
         901 | 911 => Group::ArcDistance,
         930 | 940 => Group::FeedMode,
         200 | 210 => Group::Units,
-        400 => Group::Cutter,
+        400 | 410 | 411 | 420 | 421 => Group::Cutter,
         430 | 431 | 432 | 434 | 490 => Group::ToolLength,
         980 | 990 => Group::Retract,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => Group::Coord,
         610 | 611 | 640 => Group::Path,
         960 | 970 => Group::SpindleMode,
-        410 | 411 | 420 | 421 => {
-            return Err((
-                CutterCompensation,
-                "cutter radius compensation is not supported: vcnc runs the programmed path; \
-                 post the program with compensation applied (CAM 'computer' compensation)",
-            ));
-        }
         50..=53 => {
             return Err((Unsupported, "splines (G5 G5.1 G5.2 G5.3) are not supported"));
         }
@@ -181,6 +174,7 @@ pub(super) struct Checked<'c> {
     arc_distance: Option<(u32, Span)>,
     feed_mode: Option<(u32, Span)>,
     units: Option<(u32, Span)>,
+    cutter: Option<(u32, Span)>,
     tool_length: Option<(u32, Span)>,
     retract: Option<(u32, Span)>,
     coord: Option<(u32, Span)>,
@@ -331,6 +325,7 @@ impl Interp<'_> {
             arc_distance: None,
             feed_mode: None,
             units: None,
+            cutter: None,
             tool_length: None,
             retract: None,
             coord: None,
@@ -376,12 +371,13 @@ impl Interp<'_> {
                 Group::ArcDistance => &mut k.arc_distance,
                 Group::FeedMode => &mut k.feed_mode,
                 Group::Units => &mut k.units,
+                Group::Cutter => &mut k.cutter,
                 Group::ToolLength => &mut k.tool_length,
                 Group::Retract => &mut k.retract,
                 Group::Coord => &mut k.coord,
                 Group::Path => &mut k.path,
-                // G40 (compensation off) and G96/G97 do not change the path.
-                Group::Cutter | Group::SpindleMode => continue,
+                // G96/G97 do not change the path.
+                Group::SpindleMode => continue,
             };
             if let Some((prev, _)) = *slot {
                 self.sink.report_msg(
@@ -590,17 +586,21 @@ impl Interp<'_> {
         if !(g64 || q_cycle || m61 || p_m || g10) {
             no_user(self, 'Q', "G64, G73, G83 or M61");
         }
-        if !(g10 || cycle) {
-            no_user(self, 'L', "G10 or canned cycle");
+        let comp_on = matches!(k.cutter, Some((410 | 411 | 420 | 421, _)));
+        let comp_dynamic = matches!(k.cutter, Some((411 | 421, _)));
+        if !(g10 || cycle || comp_dynamic) {
+            no_user(self, 'L', "G10, G41.1, G42.1 or canned cycle");
         }
         if !matches!(tlo, Some(430 | 432 | 434)) {
             no_user(self, 'H', "G43, G43.2 or G43.4");
         }
-        no_user(
-            self,
-            'D',
-            "G41/G42 (cutter radius compensation, not supported) or G96",
-        );
+        if !comp_on {
+            no_user(
+                self,
+                'D',
+                "G41/G42/G41.1/G42.1 (cutter radius compensation)",
+            );
+        }
         if let Some((p, s)) = k.w.get('P')
             && arc
             && dwell
@@ -768,7 +768,16 @@ impl Interp<'_> {
         if let Some((40, s)) = k.nonmodal {
             self.dwell(k, s);
         }
-        if let Some((c, _)) = k.plane {
+        if let Some((c, s)) = k.plane {
+            let plane = match c {
+                170 => Plane::XY,
+                180 => Plane::ZX,
+                _ => Plane::YZ,
+            };
+            if self.comp_on() && plane != self.st.plane {
+                self.comp_refuse(s, "cannot change planes");
+                return false;
+            }
             self.st.plane = match c {
                 170 => Plane::XY,
                 180 => Plane::ZX,
@@ -777,6 +786,46 @@ impl Interp<'_> {
         }
         if let Some((c, _)) = k.units {
             self.st.inch = c == 200;
+        }
+        if let Some((c, s)) = k.cutter
+            && !self.cutter_mode(c, k, s)
+        {
+            return false;
+        }
+        if self.comp_on() {
+            // What LinuxCNC refuses while compensation is on.
+            let refused = [
+                (k.tool_length, "cannot change the tool length offset"),
+                (k.coord, "cannot change coordinate systems"),
+                (k.retract, "cannot change the canned-cycle return mode"),
+                (k.m_tool.filter(|m| m.0 == 6), "cannot change tools (M6)"),
+                (
+                    k.nonmodal.filter(|n| matches!(n.0, 280 | 300)),
+                    "cannot use G28 or G30",
+                ),
+                (
+                    k.nonmodal.filter(|n| matches!(n.0, 281 | 301)),
+                    "cannot set a reference point (G28.1, G30.1)",
+                ),
+                (
+                    k.nonmodal
+                        .filter(|n| matches!(n.0, 520 | 920 | 921 | 922 | 923)),
+                    "cannot change axis offsets (G52, G92)",
+                ),
+                (
+                    k.motion_to_be
+                        .filter(|m| matches!(m.0, Motion::Cycle(_)))
+                        .map(|m| (0, m.1)),
+                    "cannot use canned cycles",
+                ),
+            ];
+            if let Some((what, s)) = refused
+                .iter()
+                .find_map(|(code, what)| code.map(|(_, s)| (*what, s)))
+            {
+                self.comp_refuse(s, what);
+                return false;
+            }
         }
         if let Some((c, s)) = k.tool_length
             && !self.tool_length(c, k, s)
@@ -867,6 +916,9 @@ impl Interp<'_> {
     }
 
     pub(super) fn stop_after_last(&mut self) {
+        if self.mark_held_stop() {
+            return;
+        }
         if let Some(last) = self.tp.moves.last_mut() {
             last.stop_after = true;
         }

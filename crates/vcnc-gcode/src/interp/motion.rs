@@ -18,7 +18,7 @@ fn coord_base(index: usize) -> u32 {
 /// Signed sweep, rad, of an arc from `s` to `e` about `c` (in-plane coordinates) with `turns`
 /// turns: in (0, 2π] in the direction of travel for the first turn (equal points make a full
 /// circle), plus 2π for each further turn; positive counter-clockwise.
-fn arc_sweep(ccw: bool, s: [f64; 2], e: [f64; 2], c: [f64; 2], turns: u32) -> f64 {
+pub(super) fn arc_sweep(ccw: bool, s: [f64; 2], e: [f64; 2], c: [f64; 2], turns: u32) -> f64 {
     let t0 = (s[1] - c[1]).atan2(s[0] - c[0]);
     let t1 = (e[1] - c[1]).atan2(e[0] - c[0]);
     let same = (e[0] - s[0]).hypot(e[1] - s[1]) <= 1e-9;
@@ -134,7 +134,13 @@ impl Interp<'_> {
     /// The programmed end point in program coordinates (LinuxCNC `find_ends`, without G53):
     /// absolute or incremental words, polar `@ ^` in the XY plane.
     fn program_target(&mut self, k: &Checked) -> Option<[f64; 6]> {
-        let cur = self.to_program(self.st.pos);
+        let mut cur = self.to_program(self.st.pos);
+        // Under cutter compensation (and for the move after G40) the program continues from the
+        // programmed point, not the tool's.
+        if let Some(xy) = self.nominal_xy() {
+            cur[0] = xy[0];
+            cur[1] = xy[1];
+        }
         let mut p = cur;
         for (i, v) in p.iter_mut().enumerate() {
             if let Some(x) = self.axis_value(k, i) {
@@ -247,7 +253,12 @@ impl Interp<'_> {
         if zero {
             return;
         }
-        self.tp.moves.push(Move {
+        if !matches!(kind, MoveKind::Dwell { .. }) && !self.comp_active() {
+            // The first move after G40 (a straight move, G28/G30) has started from the
+            // programmed point: from now on the tool's position is the program's.
+            self.st.comp.nominal_after_off = None;
+        }
+        let mv = Move {
             line: span.line,
             col: span.col,
             kind,
@@ -261,7 +272,10 @@ impl Interp<'_> {
             },
             stop_after: matches!(kind, MoveKind::Dwell { .. }),
             tcp: self.st.tcp,
-        });
+        };
+        if let Some(mv) = self.hold(mv) {
+            self.tp.moves.push(mv);
+        }
     }
 
     /// The feed of a feed move, or `None` (reported) when there is none.
@@ -310,6 +324,28 @@ impl Interp<'_> {
     /// `G0`/`G1` (with `G53`, polar coordinates).
     pub(super) fn straight(&mut self, m: Motion, k: &Checked, span: Span, f_block: Val) {
         self.mark_axes(k);
+        self.st.comp.arc_not_allowed = false;
+        if self.comp_active() {
+            if let Some((530, s)) = k.nonmodal {
+                self.comp_refuse(s, "G53 (machine coordinates)");
+                return;
+            }
+            let Some(p) = self.program_target(k) else {
+                return;
+            };
+            let feed = if m == Motion::Rapid {
+                None
+            } else {
+                let cur = self.to_program(self.st.pos);
+                let xyz_zero = (0..3).all(|i| p[i] == cur[i]);
+                match self.feed_for(span, f_block, xyz_zero) {
+                    Some(f) => Some(f),
+                    None => return,
+                }
+            };
+            self.comp_straight(m == Motion::Rapid, p, span, feed);
+            return;
+        }
         let Some(target) = self.straight_target(k) else {
             return;
         };
@@ -355,13 +391,31 @@ impl Interp<'_> {
             );
             return;
         }
-        let start_p = self.to_program(self.st.pos);
+        if self.st.comp.arc_not_allowed {
+            self.err(
+                span,
+                DiagnosticKind::CutterCompensation,
+                "the move just after G40 (cutter compensation off) must be straight, not an arc",
+            );
+            return;
+        }
+        let mut start_p = self.to_program(self.st.pos);
+        if let Some(xy) = self.nominal_xy() {
+            start_p[0] = xy[0];
+            start_p[1] = xy[1];
+        }
         let Some(end_p) = self.program_target(k) else {
             return;
         };
         let Some(geom) = self.arc_geometry(ccw, start_p, end_p, span, k) else {
             return;
         };
+        if self.comp_active() {
+            if let Some(feed) = self.feed_for(span, f_block, false) {
+                self.comp_arc(geom, end_p, span, Some(feed));
+            }
+            return;
+        }
         let (u, v, _) = geom.plane.axes();
         let mut c6 = start_p;
         c6[u] = geom.centre[0];

@@ -490,6 +490,7 @@ impl<'r> ChunkInterp<'r> {
                 }
             }
         }
+        super::comp::release_into(&mut carry.st.comp, &mut carry.tp);
         match conclude(carry.sink, carry.tp) {
             Ok((tp, d)) => {
                 diags.extend(d);

@@ -182,8 +182,8 @@ fn lenient_only_downgrades_what_cannot_change_the_path() {
     assert_eq!(tp.moves.len(), 1);
     assert_eq!(warnings.len(), 2);
     assert!(warnings.iter().all(|w| w.severity == Severity::Warning));
-    // Unknown G- and M-codes, unsupported axes and cutter compensation stay errors.
-    for src in ["G5.1 X1", "M587", "G0 U1", "G41 D1", "M70"] {
+    // Unknown G- and M-codes, unsupported axes and compensation errors stay errors.
+    for src in ["G5.1 X1", "M587", "G0 U1", "G19 G41.1 D1", "M70"] {
         let (p, _) = parse(src);
         let e = interpret(&p, &opts).expect_err(src);
         assert!(e.iter().any(Diagnostic::is_error), "{src}");
@@ -638,11 +638,212 @@ fn canned_cycles_expand_as_in_linuxcnc() {
 }
 
 #[test]
-fn cutter_compensation_is_refused_clearly() {
-    let (l, c, k, m) = first_error("G0 X0\nG41 D1 G1 X10 F100");
-    assert_eq!((l, c, k), (2, 1, DiagnosticKind::CutterCompensation));
-    assert!(m.contains("not supported"), "{m}");
+fn cutter_compensation_errors_name_the_line() {
+    // Lines 1–3 turn compensation on and make the entry move.
+    let on = "G0 X-9 Y-9\nG41.1 D2\nG1 X0 Y0 F100\n";
+    let cases = [
+        (format!("{on}G41.1 D2"), 4, "when it is on"),
+        ("G19 G41.1 D2".to_string(), 1, "not G19"),
+        ("G18 G41.1 D2".to_string(), 1, "G17 only"),
+        ("G41.1\nG1 X1".to_string(), 1, "no D word"),
+        ("G41.1 D2 L3".to_string(), 1, "not G18"),
+        ("G41 D3".to_string(), 1, "not in the tool table"),
+        ("G41 D1.5".to_string(), 1, "tool number"),
+        (format!("{on}G18"), 4, "cannot change planes"),
+        (format!("{on}G81 X1 Y1 Z-1 R1"), 4, "canned cycles"),
+        (format!("{on}G28"), 4, "G28 or G30"),
+        (format!("{on}G53 G0 X0"), 4, "G53"),
+        (format!("{on}G92 X0"), 4, "axis offsets"),
+        (format!("{on}G55"), 4, "coordinate systems"),
+        (format!("{on}G49"), 4, "tool length offset"),
+        (format!("{on}T1 M6"), 4, "change tools"),
+        (format!("{on}G40\nG2 X5 Y0 R5"), 5, "must be straight"),
+        (
+            "G0 X0\nG41.1 D20\nG2 X5 Y0 R5 F100".to_string(),
+            3,
+            "entry arc",
+        ),
+        ("G0 X0\nG41.1 D10\nG1 X4 F100".to_string(), 3, "not longer"),
+        (format!("{on}G1 X10\nG3 X10 Y1.8 R0.9"), 5, "not less than"),
+        // A concave corner deeper than the line before it: the line would reverse.
+        (
+            "G0 X-9 Y-9\nG42.1 D10\nG1 X0 Y0 F100\nG1 Y30\nG1 X2\nG1 Y0".to_string(),
+            6,
+            "gouging",
+        ),
+    ];
+    for (src, line, words) in cases {
+        let (l, _, k, m) = first_error(&src);
+        assert_eq!(
+            (l, k),
+            (line, DiagnosticKind::CutterCompensation),
+            "{src}: {m}"
+        );
+        assert!(m.contains(words), "{src}: {m}");
+    }
     assert!(errors("G40 G0 X1").is_empty());
+    // Radius 0 (no tool): compensation is on, the path is the programmed one.
+    let tp = ok("G0 X-9 Y-9\nG41\nG1 X0 Y0 F100\nG1 X10\nG40\nM2");
+    assert_eq!(ends(&tp)[2], xyz(10.0, 0.0, 0.0));
+}
+
+#[test]
+fn cutter_compensation_offsets_the_path() {
+    // Left of a square run clockwise (the tool outside): a corner arc at each corner.
+    let tp = ok("G0 X-10 Y-10\nG41.1 D4\nG1 X0 Y0 F100\nG1 Y10\nG1 X10\nG40\nG1 X20 Y20\nM2");
+    let e = ends(&tp);
+    // The entry line (direction (1,1)) and Y10 make a concave corner for the tool on the left:
+    // the entry ends where its offset line meets x = −2, at y = 2(√2 − 1).
+    assert!(
+        close(e[1], xyz(-2.0, 2.0 * (2f64.sqrt() - 1.0), 0.0)),
+        "{e:?}"
+    );
+    assert!(close(e[2], xyz(-2.0, 10.0, 0.0)), "{e:?}");
+    let a = arc(&tp.moves[3]);
+    assert_eq!(a.centre, [0.0, 10.0]);
+    assert!((a.sweep_rad + FRAC_PI_2).abs() < 1e-12, "{a:?}");
+    assert!(close(e[3], xyz(0.0, 12.0, 0.0)), "{e:?}");
+    // The line after G40 is held back until then; the exit move starts where it ends.
+    assert!(close(e[4], xyz(10.0, 12.0, 0.0)), "{e:?}");
+    assert!(close(e[5], xyz(20.0, 20.0, 0.0)), "{e:?}");
+    // A negative diameter compensates on the other side.
+    let a = ok("G0 X-10 Y-10\nG41.1 D-4\nG1 X0 Y0 F100\nG1 Y10\nM2");
+    let b = ok("G0 X-10 Y-10\nG42.1 D4\nG1 X0 Y0 F100\nG1 Y10\nM2");
+    assert_eq!(ends(&a), ends(&b));
+}
+
+/// Distance from `x` to the segment `a`–`b`.
+fn segment_distance(x: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let t = (((x[0] - a[0]) * d[0] + (x[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]))
+        .clamp(0.0, 1.0);
+    (x[0] - a[0] - t * d[0]).hypot(x[1] - a[1] - t * d[1])
+}
+
+#[test]
+fn compensated_paths_keep_the_tool_radius_from_the_programmed_path() {
+    // Random polylines (segments 10–30 mm, turns up to ±150°), tool radius 0.5–8 mm, either
+    // side. Truth from geometry, not from LinuxCNC: every compensated line lies at exactly r
+    // from its programmed line on the compensation side; every corner arc is centred on the
+    // programmed corner with radius r and turns away from the tool's side; no point of a
+    // compensated move comes nearer than r to its own programmed segment or its neighbours.
+    // Corners within LinuxCNC's 0.05 rad get no corner arc: the next line starts where the
+    // previous one ended, at r·cos(turn) from its own line, so starts and distances get a
+    // slack of r·(1 − cos 0.05).
+    let mut seed = 0x9E37_79B9_7F4A_7C15_u64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut passed, mut refused) = (0, 0);
+    for _ in 0..400 {
+        let r = ((0.5 + 7.5 * rnd()) * 1e4).round() / 1e4;
+        let s = if rnd() < 0.5 { 1.0 } else { -1.0 };
+        let slack = r * (1.0 - 0.05f64.cos()) + 1e-9;
+        let mut pts = vec![[0.0f64, 0.0f64]];
+        let mut heading = rnd() * 2.0 * PI;
+        for _ in 0..6 {
+            let len = 10.0 + 20.0 * rnd();
+            let p = *pts.last().unwrap();
+            let q = [p[0] + len * heading.cos(), p[1] + len * heading.sin()];
+            pts.push(q.map(|v| (v * 1e4).round() / 1e4));
+            heading += (rnd() - 0.5) * 2.0 * 150f64.to_radians();
+        }
+        // Enter along the first segment's direction, from 20 mm before it.
+        let d0 = [pts[1][0] - pts[0][0], pts[1][1] - pts[0][1]];
+        let l0 = d0[0].hypot(d0[1]);
+        let start = [-20.0 * d0[0] / l0, -20.0 * d0[1] / l0].map(|v| (v * 1e4).round() / 1e4);
+        let code = if s > 0.0 { "G41.1" } else { "G42.1" };
+        let mut src = format!(
+            "G0 X{:.4} Y{:.4}\n{code} D{:.4}\nG1 X0 Y0 F100\n",
+            start[0],
+            start[1],
+            2.0 * r
+        );
+        for p in &pts[1..] {
+            src += &format!("G1 X{:.4} Y{:.4}\n", p[0], p[1]);
+        }
+        src += "G40\nM2\n";
+        let tp = match run(&src) {
+            Ok((tp, _)) => tp,
+            Err(d) => {
+                // Only the tool not fitting a concave corner may stop it.
+                assert!(
+                    d.iter()
+                        .any(|d| d.kind == DiagnosticKind::CutterCompensation
+                            && d.message.contains("gouging")),
+                    "{src}: {d:?}"
+                );
+                refused += 1;
+                continue;
+            }
+        };
+        // Segment k (from pts[k-1] to pts[k]) is programmed on line k + 3.
+        for m in &tp.moves {
+            let k = m.line as usize - 3;
+            if k == 0 || k >= pts.len() {
+                continue; // the entry move
+            }
+            let (a, b) = (pts[k - 1], pts[k]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let len = d[0].hypot(d[1]);
+            let side = |x: [f64; 2]| (d[0] * (x[1] - a[1]) - d[1] * (x[0] - a[0])) / len;
+            let samples: Vec<[f64; 2]> = match m.kind {
+                MoveKind::Linear => {
+                    for (x, tol) in [(m.start, slack), (m.end, 1e-9)] {
+                        let off = side([x[0], x[1]]);
+                        assert!(
+                            (off - s * r).abs() < tol,
+                            "{src}: {m:?} at {off}, not {}",
+                            s * r
+                        );
+                    }
+                    (0..=20)
+                        .map(|i| {
+                            let t = f64::from(i) / 20.0;
+                            [0, 1].map(|j| m.start[j] + t * (m.end[j] - m.start[j]))
+                        })
+                        .collect()
+                }
+                MoveKind::Arc(arc) => {
+                    assert!(
+                        (arc.centre[0] - a[0]).abs() < 1e-9 && (arc.centre[1] - a[1]).abs() < 1e-9,
+                        "{src}: corner arc {m:?} not about the corner {a:?}"
+                    );
+                    assert!((arc.radius_start_mm - r).abs() < 1e-9, "{src}: {m:?}");
+                    assert!((arc.radius_end_mm - r).abs() < 1e-9, "{src}: {m:?}");
+                    assert!(
+                        arc.sweep_rad * s < 0.0,
+                        "{src}: corner arc turns towards the tool"
+                    );
+                    let t0 = (m.start[1] - a[1]).atan2(m.start[0] - a[0]);
+                    (0..=20)
+                        .map(|i| {
+                            let t = t0 + arc.sweep_rad * f64::from(i) / 20.0;
+                            [a[0] + r * t.cos(), a[1] + r * t.sin()]
+                        })
+                        .collect()
+                }
+                _ => panic!("{src}: unexpected {m:?}"),
+            };
+            for j in k.saturating_sub(1).max(1)..=(k + 1).min(pts.len() - 1) {
+                for x in &samples {
+                    let dist = segment_distance(*x, pts[j - 1], pts[j]);
+                    assert!(
+                        dist > r - slack,
+                        "{src}: {m:?} comes {dist} from segment {j}"
+                    );
+                }
+            }
+        }
+        passed += 1;
+    }
+    assert!(
+        passed > 200 && refused > 10,
+        "{passed} passed, {refused} refused"
+    );
 }
 
 #[test]
