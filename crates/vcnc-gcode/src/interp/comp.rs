@@ -659,16 +659,9 @@ impl Interp<'_> {
         }
         let centre = geom.centre;
         let ccw = geom.sweep_rad > 0.0;
-        let arc_r = (centre[0] - e[0]).hypot(centre[1] - e[1]);
-        let inside = (ccw && comp.side == Side::Left) || (!ccw && comp.side == Side::Right);
-        if inside && arc_r <= r {
-            self.err(span, DiagnosticKind::CutterCompensation, || {
-                format!(
-                    "the tool radius ({r:.4} mm) is not less than the radius of the arc it runs inside ({arc_r:.4} mm)"
-                )
-            });
+        let Some(inside) = self.arc_side(comp, &geom, e, span) else {
             return;
-        }
+        };
         let out = if inside { PI } else { 0.0 };
         let new_end = polar(e, r, dir(centre, e) + out);
         // Centre n = new_end + t·u (u towards the programmed centre) with |n − c| = t:
@@ -697,12 +690,36 @@ impl Interp<'_> {
             radius_end_mm: rr,
             turns: geom.turns,
         };
-        let z0 = self.to_program(self.st.pos)[2];
-        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[2] - z0);
-        let feed = programmed_rate(feed, programmed);
+        let feed = self.arc_rate(&geom, end, feed);
         let target = self.comp_target(end, new_end);
         self.emit_held(MoveKind::Arc(arc), target, span, feed, Check::Free);
         self.set_nominal(e, Some((n, rr)));
+    }
+
+    /// Whether the tool runs inside the arc `geom` ending at `e` (the arc turns towards the
+    /// tool's side); `None`, with the error, when the tool does not fit inside it.
+    fn arc_side(&mut self, comp: &Comp, geom: &ArcMove, e: [f64; 2], span: Span) -> Option<bool> {
+        let r = comp.radius;
+        let ccw = geom.sweep_rad > 0.0;
+        let arc_r = (geom.centre[0] - e[0]).hypot(geom.centre[1] - e[1]);
+        let inside = (ccw && comp.side == Side::Left) || (!ccw && comp.side == Side::Right);
+        if inside && arc_r <= r {
+            self.err(span, DiagnosticKind::CutterCompensation, || {
+                format!(
+                    "the tool radius ({r:.4} mm) is not less than the radius of the arc it runs inside ({arc_r:.4} mm)"
+                )
+            });
+            return None;
+        }
+        Some(inside)
+    }
+
+    /// The feed of a compensated arc to `end`: under `G93` the rate of its programmed length
+    /// (LinuxCNC's F × length).
+    fn arc_rate(&self, geom: &ArcMove, end: [f64; 6], feed: Option<Feed>) -> Option<Feed> {
+        let z0 = self.to_program(self.st.pos)[2];
+        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[2] - z0);
+        programmed_rate(feed, programmed)
     }
 
     /// A compensated `G2`/`G3` (LinuxCNC `convert_arc_comp2`): `start`/`end` programmed (program
@@ -725,22 +742,13 @@ impl Interp<'_> {
         let s = comp.side.sign();
         let c = self.tool_xy();
         let e = [end[0], end[1]];
-        let z0 = self.to_program(self.st.pos)[2];
-        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[2] - z0);
-        let feed = programmed_rate(feed, programmed);
+        let feed = self.arc_rate(&geom, end, feed);
         let centre = geom.centre;
         let ccw = geom.sweep_rad > 0.0;
-        let arc_r = (centre[0] - e[0]).hypot(centre[1] - e[1]);
-        // The tool runs inside the arc when the arc turns towards the tool's side.
-        let inside = (ccw && comp.side == Side::Left) || (!ccw && comp.side == Side::Right);
-        if inside && arc_r <= r {
-            self.err(span, DiagnosticKind::CutterCompensation, || {
-                format!(
-                    "the tool radius ({r:.4} mm) is not less than the radius of the arc it runs inside ({arc_r:.4} mm)"
-                )
-            });
+        let Some(inside) = self.arc_side(&comp, &geom, e, span) else {
             return;
-        }
+        };
+        let arc_r = (centre[0] - e[0]).hypot(centre[1] - e[1]);
         // Direction of travel at the arc's start, and of the previous move at its end.
         let radial = dir(centre, op);
         let alpha = radial + if ccw { FRAC_PI_2 } else { -FRAC_PI_2 };
