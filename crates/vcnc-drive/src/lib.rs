@@ -86,7 +86,7 @@ pub use effects::{
 pub use engine::{DriveTrace, simulate_drive};
 pub use frf::{Frf, FrfKind, FrfOptions};
 pub use model::{ClosedLoopModel, Discretized, Integrator, Poles, Reference, SimOptions};
-pub use nominal::{NominalFilter, NominalStream};
+pub use nominal::{MAX_FIR_TAPS, NominalFilter, NominalStream};
 pub use params::{
     Controller, ControllerSpec, Encoder, PPiGains, PidGains, Plant, PoleDesign, SmcGains,
 };

@@ -1,13 +1,15 @@
 //! The control's nominal-position filter chain (docs/machine-file.md#control): what a CNC does
 //! to its interpolated setpoints before handing them to the drives — a delay of whole
 //! interpolation periods and a chain of low-pass filters (first order, second order, moving
-//! average; a triangle filter is two moving averages), applied to position, velocity and
-//! acceleration alike so that the feed-forward stays consistent.
+//! average; a triangle filter is two moving averages; an FIR filter of given taps), applied to
+//! position, velocity and acceleration alike so that the feed-forward stays consistent.
 //!
 //! It is the same law as a drive's own reference shaping (`[axes.<A>.reference]`,
 //! [`crate::ReferenceShaping`]), stepped by the same code at the interpolation period instead
 //! of the servo period: the first- and second-order filters exactly for a reference that is
-//! linear between samples, the moving average as the trapezoidal sum over its window. Each
+//! linear between samples, the moving average as the trapezoidal sum over its window. An FIR
+//! filter is a law of the samples themselves, $y_k = \sum_j h_j u_{k-j}$, and acts after the
+//! others (linear filters commute; several FIR filters are one, their taps convolved). Each
 //! stage starts at rest on the first reference sample, so the filter is causal and hands on
 //! exactly as many samples as it receives; fed in pieces it gives the whole run's values bit
 //! for bit.
@@ -26,7 +28,12 @@ pub struct NominalFilter {
     filters: Vec<ShapingFilter>,
     /// Per stage: the delay (first stage only) and its filter, in whole periods.
     stages: Vec<Shaping>,
+    /// The FIR filter's taps, newest sample first (`None`: none).
+    fir: Option<Vec<f64>>,
 }
+
+/// Most taps an FIR filter may have.
+pub const MAX_FIR_TAPS: usize = 4096;
 
 impl NominalFilter {
     /// The chain: a delay of `delay_s` (a whole number of periods `ts`, at most 1 s), then
@@ -61,7 +68,55 @@ impl NominalFilter {
             delay_s,
             filters: filters.to_vec(),
             stages,
+            fir: None,
         })
+    }
+
+    /// The chain followed by an FIR filter of `taps` ($h_0$ for the newest sample first; at
+    /// most [`MAX_FIR_TAPS`], finite, summing to 1 within $10^{-9}$: unit static gain); a
+    /// second call convolves the taps with the first's.
+    pub fn with_fir(mut self, taps: &[f64]) -> Result<NominalFilter, Error> {
+        let sum: f64 = taps.iter().sum();
+        if taps.is_empty() || taps.len() > MAX_FIR_TAPS || taps.iter().any(|h| !h.is_finite()) {
+            return Err(Error::BadParameter {
+                name: "fir.taps",
+                value: taps.len() as f64,
+                expected: "1 to 4096 finite taps",
+            });
+        }
+        if (sum - 1.0).abs() > 1e-9 {
+            return Err(Error::BadParameter {
+                name: "fir.taps (their sum)",
+                value: sum,
+                expected: "1 within 1e-9 (unit static gain: divide the taps by their sum)",
+            });
+        }
+        let taps = match self.fir.take() {
+            None => taps.to_vec(),
+            Some(h) => {
+                let mut c = vec![0.0; h.len() + taps.len() - 1];
+                for (i, a) in h.iter().enumerate() {
+                    for (j, b) in taps.iter().enumerate() {
+                        c[i + j] += a * b;
+                    }
+                }
+                c
+            }
+        };
+        if taps.len() > MAX_FIR_TAPS {
+            return Err(Error::BadParameter {
+                name: "fir.taps",
+                value: taps.len() as f64,
+                expected: "at most 4096 taps in all",
+            });
+        }
+        self.fir = Some(taps);
+        Ok(self)
+    }
+
+    /// The FIR filter's taps, if any.
+    pub fn fir(&self) -> Option<&[f64]> {
+        self.fir.as_deref()
     }
 
     /// The delay, s.
@@ -81,7 +136,7 @@ impl NominalFilter {
 
     /// Neither delay nor filter: the chain hands on its input.
     pub fn is_identity(&self) -> bool {
-        self.stages.is_empty()
+        self.stages.is_empty() && self.fir.is_none()
     }
 
     /// A stream of this chain, at rest until its first sample.
@@ -90,6 +145,7 @@ impl NominalFilter {
             filter: self.clone(),
             shapers: Vec::new(),
             buf: Vec::new(),
+            past: Vec::new(),
             seen: 0,
         }
     }
@@ -101,6 +157,9 @@ pub struct NominalStream {
     /// One per stage, made at the first sample (at rest on it).
     shapers: Vec<ReferenceShaper<f64>>,
     buf: Vec<RefSample<f64>>,
+    /// The FIR filter's input: its last `taps − 1` samples (at rest on the first before the
+    /// start), then the piece.
+    past: Vec<RefSample<f64>>,
     /// Samples fed so far.
     seen: usize,
 }
@@ -143,6 +202,29 @@ impl NominalStream {
         }));
         for s in &mut self.shapers {
             s.shape_block(&mut self.buf);
+        }
+        if let Some(h) = &self.filter.fir {
+            let l = h.len();
+            if self.past.is_empty() {
+                self.past = vec![self.buf[0]; l - 1];
+            }
+            self.past.extend_from_slice(&self.buf);
+            for (k, out) in self.buf.iter_mut().enumerate() {
+                // Output k: the newest input at past[k + l − 1], h_j weighting past[k + l − 1 − j].
+                let w = &self.past[k..k + l];
+                let (mut x, mut v, mut a) = (0.0, 0.0, 0.0);
+                for (hj, u) in h.iter().zip(w.iter().rev()) {
+                    x += hj * u.xr;
+                    v += hj * u.vr;
+                    a += hj * u.ar;
+                }
+                *out = RefSample {
+                    xr: x,
+                    vr: v,
+                    ar: a,
+                };
+            }
+            self.past.drain(..n);
         }
         pos.extend(self.buf.iter().map(|s| s.xr));
         vel.extend(self.buf.iter().map(|s| s.vr));
@@ -230,6 +312,56 @@ mod tests {
         )
         .unwrap();
         assert_eq!(run(&f, &x, &[3000]), run(&f, &x, &[1, 2, 333, 1000, 17]));
+    }
+
+    #[test]
+    fn an_fir_filter_is_its_convolution_sum_from_rest() {
+        // Truth: y_k = Σ_j h_j u_{k−j} with u_{k} = u_0 before the start, summed here
+        // directly; two FIR filters in a row are one with the taps convolved.
+        let ts = 1e-3;
+        let x: Vec<f64> = (0..300)
+            .map(|k| ((k * k) % 17) as f64 * 0.1 + k as f64 * 0.01)
+            .collect();
+        let h = [0.1, 0.2, 0.4, 0.2, 0.1];
+        let f = NominalFilter::new(0.0, &[], ts)
+            .unwrap()
+            .with_fir(&h)
+            .unwrap();
+        let y = run(&f, &x, &[4, 1, 100]);
+        for (k, yk) in y.iter().enumerate() {
+            let want: f64 = h
+                .iter()
+                .enumerate()
+                .map(|(j, hj)| hj * x[k.saturating_sub(j)])
+                .sum();
+            assert!((yk - want).abs() < 1e-12, "{k}: {yk} against {want}");
+        }
+        let g = [0.5, 0.5];
+        let twice = NominalFilter::new(0.0, &[], ts)
+            .unwrap()
+            .with_fir(&h)
+            .unwrap()
+            .with_fir(&g)
+            .unwrap();
+        let once = f.clone();
+        let y2 = run(&twice, &x, &[300]);
+        let y1 = run(&once, &x, &[300]);
+        for k in 1..300 {
+            let want = 0.5 * y1[k] + 0.5 * y1[k - 1];
+            assert!((y2[k] - want).abs() < 1e-12, "{k}");
+        }
+        assert!(
+            NominalFilter::new(0.0, &[], ts)
+                .unwrap()
+                .with_fir(&[0.5, 0.4])
+                .is_err()
+        );
+        assert!(
+            NominalFilter::new(0.0, &[], ts)
+                .unwrap()
+                .with_fir(&[])
+                .is_err()
+        );
     }
 
     #[test]

@@ -256,7 +256,7 @@ pub struct ControlFile {
 }
 
 /// One filter of `control.filters`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ControlFilterFile {
     /// $1/(1 + Ts)$.
@@ -281,6 +281,11 @@ pub enum ControlFilterFile {
     Triangular {
         /// The base, s (an even number of sample periods).
         window_s: f64,
+    },
+    /// FIR filter of the samples: $y_k = \sum_j h_j u_{k-j}$.
+    Fir {
+        /// The taps $h_0, h_1, \ldots$ (newest sample first), summing to 1.
+        taps: Vec<f64>,
     },
 }
 

@@ -674,8 +674,10 @@ impl Checker<'_> {
     /// a Sinumerik jerk filter by its machine data after them), checked at the sample period.
     fn control(&self, c: &ControlFile, ts: f64) -> Result<Option<NominalFilter>, Error> {
         let mut filters = Vec::new();
+        let mut fir: Vec<&[f64]> = Vec::new();
         for f in &c.filters {
             match *f {
+                ControlFilterFile::Fir { ref taps } => fir.push(taps),
                 ControlFilterFile::FirstOrder { time_constant_s } => {
                     filters.push(ShapingFilter::FirstOrder { time_constant_s })
                 }
@@ -715,7 +717,9 @@ impl Checker<'_> {
                 }
             }
         }
-        let chain = NominalFilter::new(c.delay_s, &filters, ts).map_err(|e| {
+        let chain = NominalFilter::new(c.delay_s, &filters, ts)
+            .and_then(|f| fir.into_iter().try_fold(f, |f, taps| f.with_fir(taps)));
+        let chain = chain.map_err(|e| {
             let message = e
                 .to_string()
                 .replace("reference.filter.", "filter ")

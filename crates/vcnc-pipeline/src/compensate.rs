@@ -279,6 +279,9 @@ pub fn with_control_filters(
         machine: machine.source.clone(),
         what,
     };
+    if c.fir().is_some() {
+        return Err(refuse("an FIR filter".to_string()));
+    }
     let filter = match c.filters() {
         [] => None,
         [vcnc_drive::ShapingFilter::FirstOrder { time_constant_s }] => {

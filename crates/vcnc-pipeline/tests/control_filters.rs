@@ -191,6 +191,7 @@ fn a_compensation_folds_a_delay_and_one_filter_into_the_models_and_refuses_the_r
         "[control]\nfilters = [{ kind = \"moving-average\", window_s = 0.004 }]\n",
         "[control]\nfilters = [{ kind = \"triangular\", window_s = 0.004 }]\n",
         "[control]\n[control.sinumerik]\nax_jerk_mode = 2\nax_jerk_time = 0.008\n",
+        "[control]\nfilters = [{ kind = \"fir\", taps = [0.25, 0.5, 0.25] }]\n",
     ] {
         let (m, core) = machine(section, 1e-3);
         let e = with_control_filters(&m, &core).unwrap_err();
@@ -217,6 +218,10 @@ fn control_sections_are_checked_naming_the_key() {
             "AX_JERK_MODE 5",
         ),
         ("[control]\nfilter = 3\n", "filter"),
+        (
+            "[control]\nfilters = [{ kind = \"fir\", taps = [0.5, 0.4] }]\n",
+            "sum",
+        ),
     ] {
         let src = format!("{}\n{section}", embedded::NMV5000_TOML);
         let e = Machine::from_toml_str(&src, "m.toml", &dir)
