@@ -160,6 +160,20 @@ fn programmed_rate(feed: Option<Feed>, len: f64) -> Option<Feed> {
     }
 }
 
+/// How far the path turns away from the tool at a corner, in (−π/2, 3π/2] (> 0: convex, the
+/// tool goes around the outside): `s` the side's sign, `before` the previous move's direction
+/// at its end, `alpha` the next move's direction at its start.
+fn corner_turn(s: f64, before: f64, alpha: f64) -> f64 {
+    let mut turn = s * (before - alpha);
+    while turn <= -FRAC_PI_2 {
+        turn += TAU;
+    }
+    while turn > 1.5 * PI {
+        turn -= TAU;
+    }
+    turn
+}
+
 /// The one of `pts` nearest to `to`.
 fn nearest(pts: [[f64; 2]; 2], to: [f64; 2]) -> [f64; 2] {
     let d = |p: [f64; 2]| (p[0] - to[0]).hypot(p[1] - to[1]);
@@ -538,15 +552,7 @@ impl Interp<'_> {
         // at s·90° from it, so it is the direction op → tool turned back by s·90°).
         let alpha = dir(op, pxy);
         let before = dir(op, c) - s * FRAC_PI_2;
-        // turn: how far the path turns away from the tool (> 0: convex corner, the tool goes
-        // around the outside), in (−π/2, 3π/2].
-        let mut turn = s * (before - alpha);
-        while turn <= -FRAC_PI_2 {
-            turn += TAU;
-        }
-        while turn > 1.5 * PI {
-            turn -= TAU;
-        }
+        let turn = corner_turn(s, before, alpha);
         let offset = alpha + s * FRAC_PI_2;
         let end = polar(pxy, r, offset);
         let mid = polar(op, r, offset);
@@ -753,13 +759,7 @@ impl Interp<'_> {
         let radial = dir(centre, op);
         let alpha = radial + if ccw { FRAC_PI_2 } else { -FRAC_PI_2 };
         let before = dir(op, c) - s * FRAC_PI_2;
-        let mut turn = s * (before - alpha);
-        while turn <= -FRAC_PI_2 {
-            turn += TAU;
-        }
-        while turn > 1.5 * PI {
-            turn -= TAU;
-        }
+        let turn = corner_turn(s, before, alpha);
         // The tool's offset direction from the path: away from the centre outside, towards it
         // inside.
         let out = if inside { PI } else { 0.0 };
