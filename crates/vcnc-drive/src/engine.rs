@@ -469,7 +469,9 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
             // ideal drive's quiet reading adds −0, which the compiler drops when it sees the
             // constant ($x + (-0) = x$ for every $x$).
             let ticks = |sat: T, st: &mut S::State, nz: (T, T)| {
-                refs[..last].iter().fold(sat, |sat, r| sat + one.masked(s.tick(st, r, nz)))
+                refs[..last]
+                    .iter()
+                    .fold(sat, |sat, r| sat + one.masked(s.tick(st, r, nz)))
             };
             let nz = cur[0];
             let minus_zero = |v: T| (0..T::WIDTH).all(|l| v.at(l).to_bits() == (-0.0f64).to_bits());
