@@ -21,7 +21,10 @@
 //! # Simulation
 //!
 //! The realisation keeps physical states: the filter's ($y_f$, $\dot y_f$), the core's
-//! $[q = \int (x_{r,f} - x_c)\,dt,\ x_c,\ v_c]$ and the lag's output. It is discretised exactly
+//! $[q = \int (x_{r,f} - x_c)\,dt,\ x_c,\ v_c]$ and the lag's output. Without integral action
+//! ($a_3 = 0$) $q$ is instead a constant position offset ($\dot q = 0$, $\dot v_c$ gets
+//! $a_2 q$: a constant load such as asymmetric friction), zero in a run from rest and
+//! estimated with the rest of the state for a trace that starts moving. It is discretised exactly
 //! for inputs that are piecewise linear between their knots. Two input conventions:
 //!
 //! - [`DriveModel::simulate`]: reference position, velocity and acceleration samples, each held
@@ -536,14 +539,20 @@ impl DriveModel {
             }
         }
         let c = &self.core;
-        // q' = rf - x.
-        for j in 0..n {
-            a[(iq, j)] += rf[j];
+        if c.a3 != 0.0 {
+            // q' = rf - x.
+            for j in 0..n {
+                a[(iq, j)] += rf[j];
+            }
+            for j in 0..3 {
+                b[(iq, j)] += rf[n + j];
+            }
+            a[(iq, ix)] -= 1.0;
+        } else {
+            // Without integral action q is a constant position offset (q' = 0; a constant
+            // load, such as asymmetric friction, moves the loop's rest by q): v' gets a2 q.
+            a[(iv, iq)] += c.a2;
         }
-        for j in 0..3 {
-            b[(iq, j)] += rf[n + j];
-        }
-        a[(iq, ix)] -= 1.0;
         // x' = v.
         a[(ix, iv)] = 1.0;
         // v' = a3 q - a2 x - a1 v + b2 rf + b1 rf' + b0 rf'' - dc f.
