@@ -427,6 +427,11 @@ fn cases() -> Vec<Case> {
             &["o.toml:1:", "invalid type"],
         ),
         opts(
+            "options: a misspelt structure",
+            "structures = [\"paper\", \"no-integrl\"]\n",
+            &["o.toml:1:", "no-integrl", "no-integral"],
+        ),
+        opts(
             "options: negative deadband",
             "deadband = -1.0\n",
             &["o.toml:1:", "deadband", "-1"],
@@ -540,6 +545,68 @@ fn cases() -> Vec<Case> {
                 (
                     "model.toml",
                     "[axes.X]\nunit = \"mm\"\na1 = 1.0\na2 = 1.0\na3 = 100.0\nb0 = 0.0\nb1 = 0.0\nb2 = 1.0\ndc = 0.0\n",
+                ),
+            ],
+            args: &[
+                "simulate",
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml:1:", "axis X", "not stable"],
+        },
+        // A model without integral action (a3 = 0, the `no-integral` structure) is read by
+        // the same rules as any other.
+        Case {
+            name: "no-integral model file without b2",
+            files: &[
+                ("p.ngc", PROG),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = 94.8\na2 = 16194.3\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\ndc = 239.8\ninput = \"hold\"\n",
+                ),
+            ],
+            args: &[
+                "predict",
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml", "missing field `b2`"],
+        },
+        Case {
+            name: "no-integral model file with an unknown key",
+            files: &[
+                ("p.ngc", PROG),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = 94.8\na2 = 16194.3\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\nb2 = 16194.3\ndc = 239.8\nintegral = false\n",
+                ),
+            ],
+            args: &[
+                "predict",
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ],
+            expect: &["model.toml:10:", "unknown field `integral`"],
+        },
+        Case {
+            name: "no-integral model file with a negative damping term",
+            files: &[
+                ("p.ngc", PROG),
+                (
+                    "model.toml",
+                    "[axes.X]\nunit = \"mm\"\na1 = -94.8\na2 = 16194.3\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\nb2 = 16194.3\ndc = 239.8\n",
                 ),
             ],
             args: &[

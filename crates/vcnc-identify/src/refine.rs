@@ -392,7 +392,10 @@ impl Layout {
         let (mut lo, mut hi) = if boxed_core {
             (pb.lower()[skip..].to_vec(), pb.upper()[skip..].to_vec())
         } else {
-            (vec![f64::NEG_INFINITY; 3 - skip], vec![f64::INFINITY; 3 - skip])
+            (
+                vec![f64::NEG_INFINITY; 3 - skip],
+                vec![f64::INFINITY; 3 - skip],
+            )
         };
         let ln = |v: [f64; 2]| [v[0].ln(), v[1].ln()];
         let mut push = |b: [f64; 2]| {
