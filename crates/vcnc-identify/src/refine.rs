@@ -850,8 +850,9 @@ fn advance<const N: usize>(p: &Fixed<N>, y: &[f64; N], u0: f64, u1: f64) -> [f64
 
 /// Positions-mode pass: tracking through $1/D_u$ (order `NU`) driven by the delayed
 /// first-order hold of the reference, friction through $1/D_f$ (order `NF`). Fills the
-/// columns and the target $x - c_u a_3 W$ into `w.resid`; returns the Gram matrix (target
-/// last).
+/// columns and the target $x - c_u a_3 W$ into `w.resid` (without the integral mode
+/// $D = s^2 + a_1 s + a_2$, the columns one power of $s$ lower and the target $x - c_u a_2 W$,
+/// $b_2$'s column held at 0: [`Disc::lead`]); returns the Gram matrix (target last).
 fn pass_positions<const NU: usize, const NF: usize>(
     prob: &OutputErrorProblem,
     d: &Disc,
