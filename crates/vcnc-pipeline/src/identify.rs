@@ -326,8 +326,8 @@ pub fn identify_trace(
     let result =
         vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(&subject, e))?;
     // The chosen model's fit on the whole trace (its structure was chosen on a held-out part,
-    // reported beside it in `structures`).
-    let validation = if result.model.is_core_only() {
+    // reported beside it in `structures`): the paper structure's own when it was chosen.
+    let validation = if result.model == result.identified_model {
         Ok(result.fit_estimation.clone())
     } else {
         vcnc_identify::score(&result.model, &trace, None, &opts)
