@@ -50,6 +50,22 @@ fn cases() -> Vec<Case> {
         args: &["identify", "--trace", "t.csv", "--out", "out"],
         expect,
     };
+    // A model file given to `cmd` (`predict`, `simulate`) on the P-PI machine.
+    let model =
+        |name, cmd: &'static str, model: &'static str, expect: &'static [&'static str]| Case {
+            name,
+            files: Box::leak(Box::new([("p.ngc", PROG), ("model.toml", model)])),
+            args: Box::leak(Box::new([
+                cmd,
+                PPI,
+                "p.ngc",
+                "--model",
+                "model.toml",
+                "--out",
+                "out",
+            ])),
+            expect,
+        };
     // A bad options file is reported before the trace is read (this trace is valid CSV).
     let opts = |name, options: &'static str, expect: &'static [&'static str]| Case {
         name,
@@ -427,6 +443,11 @@ fn cases() -> Vec<Case> {
             &["o.toml:1:", "invalid type"],
         ),
         opts(
+            "options: a misspelt structure",
+            "structures = [\"paper\", \"no-integrl\"]\n",
+            &["o.toml:1:", "no-integrl", "no-integral"],
+        ),
+        opts(
             "options: negative deadband",
             "deadband = -1.0\n",
             &["o.toml:1:", "deadband", "-1"],
@@ -533,66 +554,44 @@ fn cases() -> Vec<Case> {
             ],
             expect: &["--shard", "4/3"],
         },
-        Case {
-            name: "unstable model file",
-            files: &[
-                ("p.ngc", PROG),
-                (
-                    "model.toml",
-                    "[axes.X]\nunit = \"mm\"\na1 = 1.0\na2 = 1.0\na3 = 100.0\nb0 = 0.0\nb1 = 0.0\nb2 = 1.0\ndc = 0.0\n",
-                ),
-            ],
-            args: &[
-                "simulate",
-                PPI,
-                "p.ngc",
-                "--model",
-                "model.toml",
-                "--out",
-                "out",
-            ],
-            expect: &["model.toml:1:", "axis X", "not stable"],
-        },
-        Case {
-            name: "negative actual-value latency in a model file",
-            files: &[
-                ("p.ngc", PROG),
-                (
-                    "model.toml",
-                    "[axes.X]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\nactual_latency_s = -1e-4\n",
-                ),
-            ],
-            args: &[
-                "predict",
-                PPI,
-                "p.ngc",
-                "--model",
-                "model.toml",
-                "--out",
-                "out",
-            ],
-            expect: &["model.toml:10:20:", "axes.X.actual_latency_s", "-0.0001"],
-        },
-        Case {
-            name: "model file without the machine's axis",
-            files: &[
-                ("p.ngc", PROG),
-                (
-                    "model.toml",
-                    "[axes.Y]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\n",
-                ),
-            ],
-            args: &[
-                "simulate",
-                PPI,
-                "p.ngc",
-                "--model",
-                "model.toml",
-                "--out",
-                "out",
-            ],
-            expect: &["model.toml", "no model for axis X"],
-        },
+        model(
+            "unstable model file",
+            "simulate",
+            "[axes.X]\nunit = \"mm\"\na1 = 1.0\na2 = 1.0\na3 = 100.0\nb0 = 0.0\nb1 = 0.0\nb2 = 1.0\ndc = 0.0\n",
+            &["model.toml:1:", "axis X", "not stable"],
+        ),
+        // A model without integral action (a3 = 0, the `no-integral` structure) is read by
+        // the same rules as any other.
+        model(
+            "no-integral model file without b2",
+            "predict",
+            "[axes.X]\nunit = \"mm\"\na1 = 94.8\na2 = 16194.3\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\ndc = 239.8\ninput = \"hold\"\n",
+            &["model.toml", "missing field `b2`"],
+        ),
+        model(
+            "no-integral model file with an unknown key",
+            "predict",
+            "[axes.X]\nunit = \"mm\"\na1 = 94.8\na2 = 16194.3\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\nb2 = 16194.3\ndc = 239.8\nintegral = false\n",
+            &["model.toml:10:", "unknown field `integral`"],
+        ),
+        model(
+            "no-integral model file with a negative damping term",
+            "simulate",
+            "[axes.X]\nunit = \"mm\"\na1 = -94.8\na2 = 16194.3\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\nb2 = 16194.3\ndc = 239.8\n",
+            &["model.toml:1:", "axis X", "not stable"],
+        ),
+        model(
+            "negative actual-value latency in a model file",
+            "predict",
+            "[axes.X]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\nactual_latency_s = -1e-4\n",
+            &["model.toml:10:20:", "axes.X.actual_latency_s", "-0.0001"],
+        ),
+        model(
+            "model file without the machine's axis",
+            "simulate",
+            "[axes.Y]\nunit = \"mm\"\na1 = 238.4\na2 = 48421.6\na3 = 2487140.3\nb0 = 0.0\nb1 = 117.5\nb2 = 37259.0\ndc = 47.7\n",
+            &["model.toml", "no model for axis X"],
+        ),
         Case {
             name: "actual-value latency in the wrong unit",
             files: &[],

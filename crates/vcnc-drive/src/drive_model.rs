@@ -21,7 +21,10 @@
 //! # Simulation
 //!
 //! The realisation keeps physical states: the filter's ($y_f$, $\dot y_f$), the core's
-//! $[q = \int (x_{r,f} - x_c)\,dt,\ x_c,\ v_c]$ and the lag's output. It is discretised exactly
+//! $[q = \int (x_{r,f} - x_c)\,dt,\ x_c,\ v_c]$ and the lag's output. Without integral action
+//! ($a_3 = 0$) $q$ is instead a constant position offset ($\dot q = 0$, $\dot v_c$ gets
+//! $a_2 q$: a constant load such as asymmetric friction), zero in a run from rest and
+//! estimated with the rest of the state for a trace that starts moving. It is discretised exactly
 //! for inputs that are piecewise linear between their knots. Two input conventions:
 //!
 //! - [`DriveModel::simulate`]: reference position, velocity and acceleration samples, each held
@@ -536,14 +539,20 @@ impl DriveModel {
             }
         }
         let c = &self.core;
-        // q' = rf - x.
-        for j in 0..n {
-            a[(iq, j)] += rf[j];
+        if c.a3 != 0.0 {
+            // q' = rf - x.
+            for j in 0..n {
+                a[(iq, j)] += rf[j];
+            }
+            for j in 0..3 {
+                b[(iq, j)] += rf[n + j];
+            }
+            a[(iq, ix)] -= 1.0;
+        } else {
+            // Without integral action q is a constant position offset (q' = 0; a constant
+            // load, such as asymmetric friction, moves the loop's rest by q): v' gets a2 q.
+            a[(iv, iq)] += c.a2;
         }
-        for j in 0..3 {
-            b[(iq, j)] += rf[n + j];
-        }
-        a[(iq, ix)] -= 1.0;
         // x' = v.
         a[(ix, iv)] = 1.0;
         // v' = a3 q - a2 x - a1 v + b2 rf + b1 rf' + b0 rf'' - dc f.
@@ -1372,6 +1381,79 @@ mod tests {
             &[1.0, 2.0],
         );
         assert!(matches!(bad, Err(Error::BadParameter { .. })), "{bad:?}");
+    }
+
+    #[test]
+    fn without_integral_action_the_core_follows_its_second_order_closed_form() {
+        // Truth: the Laplace transform by hand. With a3 = 0 and b2 = a2 the tracking path is
+        // G = (b0 s^2 + b1 s + a2)/(s^2 + a1 s + a2); a ramp v t from rest (the hold of its
+        // samples, whose velocity step at t = 0 is an impulse of acceleration) gives
+        // x = v [t + (b1 - a1)/a2 + e^{-st} (A cos wd t + (B - A s)/wd sin wd t)],
+        // s = a1/2, wd = sqrt(a2 - s^2), A = (a1 - b1)/a2, B = b0 - 1 - (b1 - a1) a1/a2.
+        let (a1, a2, b1, b0) = (95.0, 16194.0, 20.0, 0.03);
+        let core = ClosedLoopModel {
+            a1,
+            a2,
+            a3: 0.0,
+            b0,
+            b1,
+            b2: a2,
+            dc: 0.0,
+        };
+        let m = DriveModel {
+            input: ReferenceInput::Hold,
+            ..DriveModel::from(core)
+        };
+        let (ts, v, n) = (1e-3, 10.0, 2000);
+        let pos: Vec<f64> = (0..n).map(|k| 5.0 + v * k as f64 * ts).collect();
+        let o = SimOptions::default();
+        let x = m.simulate_positions(&pos, ts, &o).unwrap();
+        let (sg, wd) = (0.5 * a1, (a2 - 0.25 * a1 * a1).sqrt());
+        let (ca, cb) = ((a1 - b1) / a2, b0 - 1.0 - (b1 - a1) * a1 / a2);
+        let exact = |t: f64| {
+            v * (t
+                + (b1 - a1) / a2
+                + (-sg * t).exp() * (ca * (wd * t).cos() + (cb - ca * sg) / wd * (wd * t).sin()))
+        };
+        let d = (0..n)
+            .map(|k| (x[k] - 5.0 - exact(k as f64 * ts)).abs())
+            .fold(0.0, f64::max);
+        assert!(d < 1e-9, "{d}");
+        // Coulomb friction moving forward leaves the steady offset -dc/a2 (no integral to
+        // remove it), on top of the ramp's following error v (a1 - b1)/a2.
+        let dc = 50.0;
+        let mf = DriveModel {
+            core: ClosedLoopModel { dc, ..core },
+            ..m
+        };
+        let xf = mf.simulate_positions(&pos, ts, &o).unwrap();
+        let t = (n - 1) as f64 * ts;
+        let lag = pos[n - 1] - xf[n - 1];
+        let want = v * (a1 - b1) / a2 + dc / a2;
+        assert!((lag - want).abs() < 1e-9, "{lag} vs {want}");
+        assert!((t - 1.999).abs() < 1e-12);
+        // The realisation's state q is a constant position offset (a constant load): from
+        // q0 at rest, x'' + a1 x' + a2 x = a2 q0, x = q0 [1 - e^{-st}(cos wd t + s/wd sin wd t)].
+        let real = m.realisation();
+        assert_eq!(real.a.nrows(), 3);
+        let q0 = 0.004;
+        let still = vec![5.0; 400];
+        let xq = m
+            .simulate_run_from(ModelInput::Positions(&still), ts, &o, &[q0, 0.0, 0.0])
+            .unwrap()
+            .position;
+        let d = (0..still.len())
+            .map(|k| {
+                let t = k as f64 * ts;
+                let e = q0 * (1.0 - (-sg * t).exp() * ((wd * t).cos() + sg / wd * (wd * t).sin()));
+                (xq[k] - 5.0 - e).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(d < 1e-12, "{d}");
+        assert!(m.is_marginally_stable() && !m.is_stable());
+        let p = m.core.poles().unwrap();
+        assert_eq!(p.p.to_bits(), 0.0f64.to_bits(), "p = +0, not -0");
+        assert!((p.wn - a2.sqrt()).abs() < 1e-9 && (p.zeta - a1 / (2.0 * a2.sqrt())).abs() < 1e-12);
     }
 
     #[test]

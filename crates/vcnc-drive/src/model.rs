@@ -379,8 +379,9 @@ impl ClosedLoopModel {
             if wn == 0.0 {
                 return None;
             }
+            // 0.0 - r: a root at the origin is p = +0, not -0.
             return Some(Poles {
-                p: -real[0],
+                p: 0.0 - real[0],
                 wn,
                 zeta: -c.re / wn,
             });
@@ -404,7 +405,7 @@ impl ClosedLoopModel {
         }
         let wn = prod.sqrt();
         Some(Poles {
-            p: -p_root,
+            p: 0.0 - p_root,
             wn,
             zeta: -sum / (2.0 * wn),
         })

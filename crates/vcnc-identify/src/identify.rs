@@ -700,9 +700,10 @@ type Validate<'a> = dyn Fn(&DriveModel) -> Result<FitMetrics, Error> + Sync + 'a
 /// The compared fits of `cands` on `trace` and their validation scores (docs/identification.md,
 /// "Choosing a structure"): first the paper's structure with every input (in parallel), whose
 /// validation chooses the model input ([`choose`]); then every other structure with that input
-/// (in parallel). Starts: the swarm's distinct good particles (paper's structure), a grid of
-/// the extra parameter screened by the equation-error swarm (extended, found while the
-/// paper's structure is fitted); at most [`COMPARE_STARTS`] each. Candidates of another input
+/// (in parallel). Starts: the swarm's distinct good particles (paper's structure), those of
+/// the swarm without the integral mode ([`no_integral_starts`]), a grid of the extra parameter
+/// screened by the equation-error swarm (extended); found while the paper's structure is
+/// fitted, at most [`COMPARE_STARTS`] each. Candidates of another input
 /// than the chosen one with a structure other than the paper's are not fitted.
 fn compare(
     trace: &Trace,
@@ -741,6 +742,9 @@ fn compare(
             structures
                 .par_iter()
                 .map(|&s| {
+                    if s == ModelStructure::NoIntegral {
+                        return no_integral_starts(&sw.regs, k, opts);
+                    }
                     let mut st = extended_starts(trace, s, opts)?;
                     st.truncate(COMPARE_EXTENDED_STARTS.min(k));
                     Ok(st)
@@ -781,9 +785,10 @@ fn compare(
 
 /// Index of the candidate chosen by validation free-run RMS, and the verdict on each
 /// (docs/identification.md, "Choosing a structure"): among the trusted candidates (no
-/// parameter on a bound or undetermined) the lowest error wins, unless one with fewer extra
-/// parameters comes within `selection_margin` (relative) of it — then the one with the fewest
-/// extra parameters among those within the margin (ties to the lower error). A candidate that
+/// parameter on a bound or undetermined) the lowest error wins, unless one with fewer
+/// parameters ([`ModelStructure::parameters`]) comes within `selection_margin` (relative) of it
+/// — then the one with the fewest parameters among those within the margin (ties to the lower
+/// error). A candidate that
 /// is not trusted wins only when its error is below the trusted choice's by
 /// `degenerate_margin` (relative); when none is trusted, the rule runs over all.
 fn choose(
@@ -809,11 +814,11 @@ fn choose(
         let mut chosen: Option<usize> = None;
         for &i in pool {
             if rms[i] <= best * (1.0 + opts.selection_margin) {
-                let key = (fits[i].structure.extra_parameters(), rms[i]);
+                let key = (fits[i].structure.parameters(), rms[i]);
                 let better = match chosen {
                     None => true,
                     Some(c) => {
-                        let ck = (fits[c].structure.extra_parameters(), rms[c]);
+                        let ck = (fits[c].structure.parameters(), rms[c]);
                         key.0 < ck.0 || (key.0 == ck.0 && key.1 < ck.1)
                     }
                 };
@@ -1001,6 +1006,32 @@ const COMPARE_EXTENDED_STARTS: usize = 1;
 const COMPARE_ITERATIONS: usize = 20;
 const COMPARE_TOLERANCE: f64 = 1e-6;
 
+/// Starts of the structure without integral action ([`ModelStructure::NoIntegral`]): the
+/// paper's equation-error swarm with $p \equiv 0$ ($\alpha_3 = 0$, the integral regressor
+/// dropped; $b_2$ stays free in the regression) over $(\omega_n, \zeta)$ within their bounds, on
+/// the regressors `regs` already built; its distinct good particles, at most `k`.
+fn no_integral_starts(
+    regs: &Regressors,
+    k: usize,
+    opts: &IdentifyOptions,
+) -> Result<Vec<Start>, Error> {
+    let cost = regs.equation_error_cost()?;
+    let (lo, hi) = (opts.bounds.lower(), opts.bounds.upper());
+    let pso = Pso::new(lo[1..].to_vec(), hi[1..].to_vec())?.with_settings(opts.pso)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    let pair_cost = |s: &[f64]| match s {
+        [wn, zeta] => cost.cost_hz(0.0, *wn, *zeta),
+        _ => f64::INFINITY,
+    };
+    let result = pso.run(&pair_cost, &mut rng);
+    let with_p: Vec<(Vec<f64>, f64)> = result
+        .candidates
+        .into_iter()
+        .map(|(pos, c)| (std::iter::once(0.0).chain(pos).collect(), c))
+        .collect();
+    Ok(distinct_starts(&with_p, k, &[]))
+}
+
 /// Starts of an extended structure: its extra parameter on a grid over its bounds; at each
 /// grid value the reference is shaped (dead time, filter) or the measured position freed of
 /// the extra pole, and the paper's equation-error swarm (a shorter run) finds the poles; the
@@ -1019,7 +1050,7 @@ fn extended_starts(
     };
     // Grid points as (extra parameters in search coordinates, the shaping model).
     let grid: Vec<Vec<f64>> = match s {
-        ModelStructure::Paper => return Ok(vec![]),
+        ModelStructure::Paper | ModelStructure::NoIntegral => return Ok(vec![]),
         ModelStructure::Delay => {
             // Even steps of 5 ms (at most 41 points): a dead time shifts the whole response,
             // so the equation-error cost has narrow valleys in it.
@@ -1121,7 +1152,7 @@ fn shaped_trace(trace: &Trace, s: ModelStructure, g: &[f64]) -> Result<Trace, Er
             }
             return Trace::new(trace.ts, trace.xr.clone(), xc);
         }
-        ModelStructure::Paper => return Ok(trace.clone()),
+        ModelStructure::Paper | ModelStructure::NoIntegral => return Ok(trace.clone()),
     }
     let (pos, _, _, prefixed) = trace.prefixed_reference();
     let mut xr = shaper.simulate_positions(&pos, trace.ts, &SimOptions::default())?;

@@ -39,8 +39,8 @@
 //! 6. [`fit_metrics`] and [`score`]: one-step and free-run prediction errors and fit % of any
 //!    model ([`vcnc_drive::DriveModel`], the paper's structure or an extended one) on any trace
 //!    (estimation or validation run, or a held-out part).
-//! 7. Model structures beyond the paper ([`ModelStructure`]: dead time, first- or second-order
-//!    reference filter, extra pole), each identified by the same swarm and refinement and
+//! 7. Model structures beyond the paper ([`ModelStructure`]: the core without integral action,
+//!    dead time, first- or second-order reference filter, extra pole), each identified by the same swarm and refinement and
 //!    chosen by validation error ([`identify`] holds out the end of a single trace,
 //!    [`identify_with_validation`] takes a second trace).
 //!
@@ -53,7 +53,8 @@
 //!
 //! Drives without integral action (the EMPS benchmark) have their third pole at the origin: set
 //! `bounds.p_hz = [0.0, ...]` ([`PoleBounds`]); the model found may then have $a_3 = 0$, which
-//! [`vcnc_drive::ClosedLoopModel::is_marginally_stable`] accepts.
+//! [`vcnc_drive::ClosedLoopModel::is_marginally_stable`] accepts. The structure without integral
+//! action ([`ModelStructure::NoIntegral`]) has $a_3 = 0$ exactly, with no bound on $p$ to end on.
 //!
 //! Variables are named as in the paper (`a1`, `wn`, `zeta`, `dc`, `alpha3`, ...). Positions are in
 //! axis units (mm for linear axes, deg for rotary axes), times in seconds, pole frequencies in Hz

@@ -54,12 +54,18 @@ pub struct IdentifyOptions {
 }
 
 /// A model structure ([`vcnc_drive::DriveModel`], docs/identification.md): the paper's seven
-/// parameters, or those with one addition.
+/// parameters, the paper's core without its integral mode, or the paper's with one addition.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ModelStructure {
     /// The paper's 7-parameter model.
     Paper,
+    /// A position loop without integral action: the paper's core with $p \equiv 0$ exactly
+    /// ($a_3 = 0$: no integral state) and unit reference gain ($b_2 = a_2$), so
+    /// $x = \frac{b_0 s^2 + b_1 s + a_2}{s^2 + a_1 s + a_2}\,x_r - \frac{d_c}{s^2 + a_1 s + a_2}\,\operatorname{sgn}\dot x$
+    /// (a P or PD position loop on a rigid drive; Coulomb friction leaves the steady offset
+    /// $d_c/a_2$). Five parameters: $\omega_n$, $\zeta$, $b_1$, $b_0$, $d_c$.
+    NoIntegral,
     /// With an input dead time $T_d$ (sub-sample resolution).
     Delay,
     /// With a first-order reference filter $1/(\tau s + 1)$.
@@ -71,29 +77,35 @@ pub enum ModelStructure {
 }
 
 impl ModelStructure {
-    /// Every structure, simplest first.
-    pub const ALL: [ModelStructure; 5] = [
+    /// Every structure, simplest first (the paper's, which every search identifies first,
+    /// before its reduction).
+    pub const ALL: [ModelStructure; 6] = [
         ModelStructure::Paper,
+        ModelStructure::NoIntegral,
         ModelStructure::Delay,
         ModelStructure::FirstOrderFilter,
         ModelStructure::ExtraPole,
         ModelStructure::SecondOrderFilter,
     ];
 
-    /// Nonlinear parameters beyond the paper's three poles.
-    pub fn extra_parameters(&self) -> usize {
+    /// Parameters fitted: the paper's seven (three poles, $b_0$, $b_1$, $b_2$, $d_c$), five
+    /// without the integral mode (no $p$, $b_2 = a_2$), the paper's and one or two more with an
+    /// addition. Fewer is simpler in the choice ([`crate::identify`]).
+    pub fn parameters(&self) -> usize {
         match self {
-            ModelStructure::Paper => 0,
-            ModelStructure::SecondOrderFilter => 2,
-            _ => 1,
+            ModelStructure::NoIntegral => 5,
+            ModelStructure::Paper => 7,
+            ModelStructure::SecondOrderFilter => 9,
+            _ => 8,
         }
     }
 
     /// Order of the tracking path's denominator (the core's three poles, the filter's and the
-    /// extra pole): the number of free responses of the model's output.
+    /// extra pole): the number of free responses of the model's output. Without the integral
+    /// mode, the pair's two and the constant offset that takes the integral state's place.
     pub fn order(&self) -> usize {
         match self {
-            ModelStructure::Paper | ModelStructure::Delay => 3,
+            ModelStructure::NoIntegral | ModelStructure::Paper | ModelStructure::Delay => 3,
             ModelStructure::FirstOrderFilter | ModelStructure::ExtraPole => 4,
             ModelStructure::SecondOrderFilter => 5,
         }
@@ -103,6 +115,7 @@ impl ModelStructure {
     pub fn name(&self) -> &'static str {
         match self {
             ModelStructure::Paper => "paper",
+            ModelStructure::NoIntegral => "no-integral",
             ModelStructure::Delay => "delay",
             ModelStructure::FirstOrderFilter => "first-order-filter",
             ModelStructure::SecondOrderFilter => "second-order-filter",

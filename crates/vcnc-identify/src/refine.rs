@@ -387,10 +387,15 @@ impl Layout {
         pb: &PoleBounds,
         eb: &ExtendedBounds,
     ) -> Layout {
+        // The core without the integral mode has no p: its pair alone.
+        let skip = usize::from(s == ModelStructure::NoIntegral);
         let (mut lo, mut hi) = if boxed_core {
-            (pb.lower().to_vec(), pb.upper().to_vec())
+            (pb.lower()[skip..].to_vec(), pb.upper()[skip..].to_vec())
         } else {
-            (vec![f64::NEG_INFINITY; 3], vec![f64::INFINITY; 3])
+            (
+                vec![f64::NEG_INFINITY; 3 - skip],
+                vec![f64::INFINITY; 3 - skip],
+            )
         };
         let ln = |v: [f64; 2]| [v[0].ln(), v[1].ln()];
         let mut push = |b: [f64; 2]| {
@@ -398,7 +403,7 @@ impl Layout {
             hi.push(b[1]);
         };
         match s {
-            ModelStructure::Paper => {}
+            ModelStructure::Paper | ModelStructure::NoIntegral => {}
             ModelStructure::Delay => push(eb.delay_s),
             ModelStructure::FirstOrderFilter => push(ln(eb.filter_tau_s)),
             ModelStructure::SecondOrderFilter => {
@@ -420,21 +425,93 @@ impl Layout {
         self.lo.len()
     }
 
+    /// Whether the core has no integral mode ($a_3 \equiv 0$, $b_2 = a_2$).
+    fn no_integral(&self) -> bool {
+        self.structure == ModelStructure::NoIntegral
+    }
+
+    /// Entries of `eta` that are the core's: 3, or 2 without the integral mode (the pair
+    /// alone: $(\ln a_1, \ln a_2)$, or $(\omega_n, \zeta)$ in pole coordinates). The
+    /// structure's own parameters follow.
+    fn nc(&self) -> usize {
+        if self.no_integral() { 2 } else { 3 }
+    }
+
+    /// Entries of the physical poles $(p, \omega_n, \zeta)$ that the core does not search
+    /// (without the integral mode, $p \equiv 0$): pole `i` is `eta[i - pole_offset()]`.
+    fn pole_offset(&self) -> usize {
+        3 - self.nc()
+    }
+
     /// Core coefficients of `eta`.
     fn core(&self, eta: &[f64]) -> (f64, f64, f64) {
-        if self.boxed_core {
-            Poles::from_hz(eta[0], eta[1], eta[2]).denominator()
-        } else {
-            let a1 = eta[0].exp();
-            let a3 = eta[2].exp();
-            (a1, a3 / a1 + eta[1].exp(), a3)
+        match (self.no_integral(), self.boxed_core) {
+            (true, true) => Poles::from_hz(0.0, eta[0], eta[1]).denominator(),
+            (true, false) => (eta[0].exp(), eta[1].exp(), 0.0),
+            (false, true) => Poles::from_hz(eta[0], eta[1], eta[2]).denominator(),
+            (false, false) => {
+                let a1 = eta[0].exp();
+                let a3 = eta[2].exp();
+                (a1, a3 / a1 + eta[1].exp(), a3)
+            }
         }
+    }
+
+    /// The core's poles at `eta` as searched: exact in pole coordinates, $p = 0$ without the
+    /// integral mode; `None` in coefficient space with the integral mode (the split is chosen
+    /// against the bounds, [`poles_inside`]).
+    fn searched_poles(&self, eta: &[f64]) -> Option<Poles> {
+        match (self.no_integral(), self.boxed_core) {
+            (true, true) => Some(Poles::from_hz(0.0, eta[0], eta[1])),
+            (false, true) => Some(Poles::from_hz(eta[0], eta[1], eta[2])),
+            (true, false) => {
+                let (a1, a2, _) = self.core(eta);
+                let wn = a2.sqrt();
+                Some(Poles {
+                    p: 0.0,
+                    wn,
+                    zeta: a1 / (2.0 * wn),
+                })
+            }
+            (false, false) => None,
+        }
+    }
+
+    /// The core's poles inside the pole bounds `b`, if they are (without the integral mode
+    /// the pair alone is bounded).
+    fn poles_inside(&self, core: &ClosedLoopModel, b: &PoleBounds) -> Option<Poles> {
+        if !self.no_integral() {
+            return poles_inside(core, b);
+        }
+        let wn = core.a2.sqrt();
+        let p = Poles {
+            p: 0.0,
+            wn,
+            zeta: core.a1 / (2.0 * wn),
+        };
+        let v = [p.wn_hz(), p.zeta];
+        let (lo, hi) = (b.lower(), b.upper());
+        (0..2)
+            .all(|j| v[j] >= lo[j + 1] && v[j] <= hi[j + 1])
+            .then_some(p)
     }
 
     /// `eta` of a core (coefficients) and extra parameters.
     fn eta_of(&self, core: (f64, f64, f64), extra: &[f64]) -> Option<Vec<f64>> {
         let (a1, a2, a3) = core;
-        let mut v = if self.boxed_core {
+        let mut v = if self.no_integral() {
+            // The pair of the start's denominator (a start with an integral mode keeps its
+            // a1, a2).
+            if !(a1 > 0.0 && a2 > 0.0) {
+                return None;
+            }
+            if self.boxed_core {
+                let wn = a2.sqrt();
+                vec![wn / TAU, a1 / (2.0 * wn)]
+            } else {
+                vec![a1.ln(), a2.ln()]
+            }
+        } else if self.boxed_core {
             let p = ClosedLoopModel::characteristic(a1, a2, a3).poles()?;
             vec![p.p_hz(), p.wn_hz(), p.zeta]
         } else {
@@ -463,7 +540,8 @@ impl Layout {
             a3,
             b0: lin[2],
             b1: lin[1],
-            b2: lin[0],
+            // Unit reference gain without the integral mode (its column is held at 0).
+            b2: if self.no_integral() { a2 } else { lin[0] },
             dc: lin[3],
         };
         let mut m = DriveModel {
@@ -471,7 +549,7 @@ impl Layout {
             ..DriveModel::from(core)
         };
         match self.structure {
-            ModelStructure::Paper => {}
+            ModelStructure::Paper | ModelStructure::NoIntegral => {}
             ModelStructure::Delay => m.delay_s = eta[3],
             ModelStructure::FirstOrderFilter => {
                 m.reference_filter = Some(ReferenceFilter::FirstOrder {
@@ -492,7 +570,7 @@ impl Layout {
     /// Names of the extra parameters, with the map from `eta` to their physical value.
     fn extra_names(&self) -> Vec<&'static str> {
         match self.structure {
-            ModelStructure::Paper => vec![],
+            ModelStructure::Paper | ModelStructure::NoIntegral => vec![],
             ModelStructure::Delay => vec!["delay_s"],
             ModelStructure::FirstOrderFilter => vec!["filter_tau_s"],
             ModelStructure::SecondOrderFilter => vec!["filter_wn_hz", "filter_zeta"],
@@ -502,7 +580,7 @@ impl Layout {
 
     fn extra_physical(&self, eta: &[f64]) -> Vec<f64> {
         match self.structure {
-            ModelStructure::Paper => vec![],
+            ModelStructure::Paper | ModelStructure::NoIntegral => vec![],
             ModelStructure::Delay => vec![eta[3]],
             ModelStructure::FirstOrderFilter | ModelStructure::ExtraPole => vec![eta[3].exp()],
             ModelStructure::SecondOrderFilter => vec![eta[3].exp(), eta[4]],
@@ -511,7 +589,7 @@ impl Layout {
 
     /// Forward-difference step of parameter `j` at `v`.
     fn step(&self, j: usize, v: f64, ts: f64) -> f64 {
-        let h = if self.boxed_core && j < 3 {
+        let h = if self.boxed_core && j < self.nc() {
             1e-6 * v.abs().max(1e-3 * (self.hi[j] - self.lo[j]))
         } else if self.structure == ModelStructure::Delay && j == 3 {
             1e-4 * ts
@@ -534,10 +612,18 @@ struct Disc {
     om: f64,
     cu: f64,
     cf: f64,
-    a3: f64,
+    /// The numerator constant held by the unit static gain: $a_3$, or $a_2$ without the
+    /// integral mode (where it is $b_2$, whose column is then held at 0).
+    fixed: f64,
+    /// Power of $s$ of the first linear column ($b_2$'s): 1 ($N = \ldots + b_2 s + a_3$ over
+    /// $D$), or 0 without the integral mode (the common factor $s$ of $N$ and $D$ cancelled).
+    lead: usize,
     /// Whole samples and fraction of the dead time.
     m: usize,
     phi: f64,
+    /// 1 without the integral mode: a constant position offset is a state of the model
+    /// ([`vcnc_drive::DriveModel::realisation`]), a free response of a trace that starts moving.
+    offset: usize,
 }
 
 impl Disc {
@@ -605,11 +691,15 @@ impl Layout {
         if !(a1.is_finite() && a2.is_finite() && a3.is_finite() && a2 > 0.0) {
             return None;
         }
-        let d = vec![a3, a2, a1, 1.0];
+        let (d, fixed, lead) = if self.no_integral() {
+            (vec![a2, a1, 1.0], a2, 0)
+        } else {
+            (vec![a3, a2, a1, 1.0], a3, 1)
+        };
         let (mut du, mut df, mut cu, mut cf) = (d.clone(), d.clone(), 1.0, 1.0);
         let (mut m, mut phi) = (0usize, 0.0);
         match self.structure {
-            ModelStructure::Paper => {}
+            ModelStructure::Paper | ModelStructure::NoIntegral => {}
             ModelStructure::Delay => {
                 let mut q = eta[3] / ts;
                 if (q - q.round()).abs() < 1e-9 {
@@ -656,9 +746,11 @@ impl Layout {
             om,
             cu,
             cf,
-            a3,
+            fixed,
+            lead,
             m,
             phi,
+            offset: 1 - lead,
         })
     }
 }
@@ -758,8 +850,9 @@ fn advance<const N: usize>(p: &Fixed<N>, y: &[f64; N], u0: f64, u1: f64) -> [f64
 
 /// Positions-mode pass: tracking through $1/D_u$ (order `NU`) driven by the delayed
 /// first-order hold of the reference, friction through $1/D_f$ (order `NF`). Fills the
-/// columns and the target $x - c_u a_3 W$ into `w.resid`; returns the Gram matrix (target
-/// last).
+/// columns and the target $x - c_u a_3 W$ into `w.resid` (without the integral mode
+/// $D = s^2 + a_1 s + a_2$, the columns one power of $s$ lower and the target $x - c_u a_2 W$,
+/// $b_2$'s column held at 0: [`Disc::lead`]); returns the Gram matrix (target last).
 fn pass_positions<const NU: usize, const NF: usize>(
     prob: &OutputErrorProblem,
     d: &Disc,
@@ -784,8 +877,9 @@ fn pass_positions<const NU: usize, const NF: usize>(
     let mut yf = [0.0; NF];
     let mut g = [[0.0; KMAX + 1]; KMAX + 1];
     let pw: [f64; 7] = std::array::from_fn(|k| om.powi(k as i32));
-    // Free responses (a trace that starts moving): the first companion state of Phi^k e_j.
-    let nh = if prob.moving { NU } else { 0 };
+    // Free responses (a trace that starts moving): the first companion state of Phi^k e_j,
+    // and without the integral mode the constant offset state.
+    let nh = if prob.moving { NU + d.offset } else { 0 };
     let kk = 4 + nh;
     w.k = kk;
     let mut rho = [0.0; NU];
@@ -794,7 +888,7 @@ fn pass_positions<const NU: usize, const NF: usize>(
     let p0 = Fixed::<NU>::of(&d.pieces[0]);
     let p1 = d.pieces.get(1).map(Fixed::<NU>::of);
     let pf = Fixed::<NF>::of(&d.fric);
-    let (cu, cf, a3) = (d.cu, d.cf, d.a3);
+    let (cu, cf, fixed, lead) = (d.cu, d.cf, d.fixed, d.lead);
     for k in 0..n {
         let j = k as isize - d.m as isize;
         let u_now = if phi == 0.0 { sample(j) } else { between(j) };
@@ -812,12 +906,19 @@ fn pass_positions<const NU: usize, const NF: usize>(
             };
         }
         let mut row = [0.0; KMAX + 1];
-        row[0] = cu * sw[1];
-        row[1] = cu * sw[2];
-        row[2] = cu * sw[3];
-        row[3] = -cf * om * yf[1];
-        row[4..4 + nh].copy_from_slice(&rho[..nh]);
-        row[kk] = x[k] - cu * a3 * sw[0];
+        for (c, v) in row.iter_mut().enumerate().take(3) {
+            *v = cu * sw[c + lead];
+        }
+        row[3] = -cf * pw[lead] * yf[lead];
+        row[4..4 + nh.min(NU)].copy_from_slice(&rho[..nh.min(NU)]);
+        if nh > NU {
+            row[4 + NU] = 1.0;
+        }
+        row[kk] = x[k] - cu * fixed * sw[0];
+        if lead == 0 {
+            // b2 is the held constant.
+            row[0] = 0.0;
+        }
         if k < prob.skip {
             row = [0.0; KMAX + 1];
         }
@@ -884,22 +985,30 @@ fn pass_derivatives<const NU: usize, const NF: usize>(
     let mut y = [[0.0; NU]; 3];
     let mut yf = [0.0; NF];
     let mut g = [[0.0; KMAX + 1]; KMAX + 1];
-    let nh = if prob.moving { NU } else { 0 };
+    let nh = if prob.moving { NU + d.offset } else { 0 };
     let kk = 4 + nh;
     w.k = kk;
     let mut rho = [0.0; NU];
     rho[0] = 1.0;
     let step_phi = d.step_phi();
-    let (cu, cf, a3) = (d.cu, d.cf, d.a3);
+    let (cu, cf, fixed, lead) = (d.cu, d.cf, d.fixed, d.lead);
+    let oml = om.powi(lead as i32);
     for k in 0..n {
         let j = k as isize - d.m as isize;
         let mut row = [0.0; KMAX + 1];
-        row[0] = cu * om * y[0][1];
-        row[1] = cu * om * y[1][1];
-        row[2] = cu * om * y[2][1];
-        row[3] = -cf * om * yf[1];
-        row[4..4 + nh].copy_from_slice(&rho[..nh]);
-        row[kk] = x[k] - cu * a3 * y[0][0];
+        for (c, v) in row.iter_mut().enumerate().take(3) {
+            *v = cu * oml * y[c][lead];
+        }
+        row[3] = -cf * oml * yf[lead];
+        row[4..4 + nh.min(NU)].copy_from_slice(&rho[..nh.min(NU)]);
+        if nh > NU {
+            row[4 + NU] = 1.0;
+        }
+        row[kk] = x[k] - cu * fixed * y[0][0];
+        if lead == 0 {
+            // b2 is the held constant.
+            row[0] = 0.0;
+        }
         if k < prob.skip {
             row = [0.0; KMAX + 1];
         }
@@ -970,10 +1079,12 @@ impl OutputErrorProblem {
         };
         use ReferenceInput::{Hold, Smooth};
         let g = match (self.input, d.du.len() - 1, d.fric.gamma.len()) {
+            (Hold, 2, 2) => pass_positions::<2, 2>(self, &d, w),
             (Hold, 3, 3) => pass_positions::<3, 3>(self, &d, w),
             (Hold, 4, 3) => pass_positions::<4, 3>(self, &d, w),
             (Hold, 5, 3) => pass_positions::<5, 3>(self, &d, w),
             (Hold, 4, 4) => pass_positions::<4, 4>(self, &d, w),
+            (Smooth, 2, 2) => pass_derivatives::<2, 2>(self, &d, w),
             (Smooth, 3, 3) => pass_derivatives::<3, 3>(self, &d, w),
             (Smooth, 4, 3) => pass_derivatives::<4, 3>(self, &d, w),
             (Smooth, 5, 3) => pass_derivatives::<5, 3>(self, &d, w),
@@ -1317,10 +1428,10 @@ pub fn refine(
     let stage_a_cost = run.cost;
     // Outside the pole bounds: again in bounded pole coordinates from the nearest point inside.
     let model = lay.model(&run.eta, &run.lin);
-    if !inside(&model.core, setup.bounds) {
+    if lay.poles_inside(&model.core, setup.bounds).is_none() {
         let boxed = Layout::new(s, setup.input, true, setup.bounds, setup.extended);
         let (a1, a2, a3) = lay.core(&run.eta);
-        let extra = run.eta[3..].to_vec();
+        let extra = run.eta[lay.nc()..].to_vec();
         // From the nearest point inside, else from the best start.
         let from_run = boxed.eta_of((a1, a2, a3), &extra);
         let from_start = starts
@@ -1372,7 +1483,7 @@ pub fn refine(
         evaluations += r.evaluations;
         let m = lay.model(&r.eta, &r.lin);
         // A stage that leaves the pole bounds (free coordinates) is not a candidate.
-        if !lay.boxed_core && !inside(&m.core, setup.bounds) {
+        if !lay.boxed_core && lay.poles_inside(&m.core, setup.bounds).is_none() {
             break;
         }
         let (fr, f_next) = own(&prob, &m);
@@ -1405,17 +1516,15 @@ pub fn refine(
     let on_bounds = bound_hits(&lay, &eta, setup.bounds);
     // Poles as searched (exact on a bound) in pole coordinates; else the split inside the
     // bounds.
-    let poles = if lay.boxed_core {
-        Poles::from_hz(eta[0], eta[1], eta[2])
-    } else {
-        poles_inside(&model.core, setup.bounds)
-            .or_else(|| model.core.poles())
-            .unwrap_or(Poles {
-                p: 0.0,
-                wn: 0.0,
-                zeta: 0.0,
-            })
-    };
+    let poles = lay
+        .searched_poles(&eta)
+        .or_else(|| poles_inside(&model.core, setup.bounds))
+        .or_else(|| model.core.poles())
+        .unwrap_or(Poles {
+            p: 0.0,
+            wn: 0.0,
+            zeta: 0.0,
+        });
     // Other local minima of stage A, their cost relative to stage A's best (same friction
     // input), for the uncertainty.
     let others: Vec<Alternative> = alternatives
@@ -1477,10 +1586,6 @@ fn splits(core: &ClosedLoopModel) -> Vec<Poles> {
     cands
 }
 
-fn inside(core: &ClosedLoopModel, b: &PoleBounds) -> bool {
-    poles_inside(core, b).is_some()
-}
-
 fn bound_hits(lay: &Layout, eta: &[f64], pb: &PoleBounds) -> Vec<BoundHit> {
     let mut out = Vec::new();
     let mut check = |name: &'static str, j: usize, value: f64| {
@@ -1501,21 +1606,27 @@ fn bound_hits(lay: &Layout, eta: &[f64], pb: &PoleBounds) -> Vec<BoundHit> {
     };
     if lay.boxed_core {
         let _ = pb;
-        check("p_hz", 0, eta[0]);
-        check("wn_hz", 1, eta[1]);
-        check("zeta", 2, eta[2]);
+        let off = lay.pole_offset();
+        for (i, name) in ["p_hz", "wn_hz", "zeta"].into_iter().enumerate().skip(off) {
+            check(name, i - off, eta[i - off]);
+        }
     }
     let phys = lay.extra_physical(eta);
     for (i, name) in lay.extra_names().into_iter().enumerate() {
-        check(name, 3 + i, phys[i]);
+        check(name, lay.nc() + i, phys[i]);
     }
     out
 }
 
-/// Physical parameters of a refined model: core poles, $d_c$, the extra ones.
+/// Physical parameters of a refined model: core poles ($p = 0$ without the integral mode),
+/// $d_c$, the extra ones.
 fn physical(lay: &Layout, eta: &[f64], lin: &[f64]) -> Option<Vec<f64>> {
     let m = lay.model(eta, lin);
-    let p = m.core.poles()?;
+    let p = if lay.no_integral() {
+        lay.searched_poles(eta)?
+    } else {
+        m.core.poles()?
+    };
     let mut v = vec![p.p_hz(), p.wn_hz(), p.zeta, lin[3]];
     v.extend(lay.extra_physical(eta));
     v.iter().all(|x| x.is_finite()).then_some(v)
@@ -1761,6 +1872,11 @@ fn uncertainty(
         })
         .collect();
     let real_pair = real_pair_std(&parameters, &cp);
+    // Without the integral mode p is no parameter (held at 0, not estimated).
+    let mut parameters = parameters;
+    if lay.no_integral() {
+        parameters.retain(|p| p.name != "p_hz");
+    }
     Some(Uncertainty {
         parameters,
         real_pair,
@@ -1843,23 +1959,26 @@ fn profile_std(
         return 0.0;
     }
     let boxed = Layout::new(lay.structure, lay.input, true, setup.bounds, setup.extended);
-    let extra = eta[3..].to_vec();
-    let start: Vec<f64> = phys[..3].iter().copied().chain(extra).collect();
+    // Pole i in the bounded coordinates (without the integral mode there is no p).
+    let off = lay.pole_offset();
+    let extra = eta[lay.nc()..].to_vec();
+    let start: Vec<f64> = phys[off..3].iter().copied().chain(extra).collect();
+    let j = i - off;
     let target = PROFILE_LEVEL * PROFILE_LEVEL * level;
     let side = |sign: f64| -> f64 {
         let mut sigma = linear;
         for _ in 0..PROFILE_STEPS {
             let want = phys[i] + sign * PROFILE_LEVEL * sigma;
-            let v = want.clamp(boxed.lo[i], boxed.hi[i]);
+            let v = want.clamp(boxed.lo[j], boxed.hi[j]);
             let delta = (v - phys[i]).abs();
             if delta <= 0.0 {
                 break;
             }
             let mut pinned = boxed.clone();
-            pinned.lo[i] = v;
-            pinned.hi[i] = v;
+            pinned.lo[j] = v;
+            pinned.hi[j] = v;
             let mut e = start.clone();
-            e[i] = v;
+            e[j] = v;
             let Some(run) = levenberg_marquardt(prob, &pinned, &e, setup.opts) else {
                 break;
             };

@@ -268,8 +268,10 @@ const EMPS_PHYSICAL: ClosedLoopModel = ClosedLoopModel {
 fn emps_real_drive_free_run_within_3_um() {
     // Real ball-screw drive without integral action (a3 = 0), not starting at rest. Truth:
     // the measured position. The benchmark's physical model, mapped onto the 7 parameters
-    // (docs/reference-numbers.md), gives 4.0 µm RMS by the same simulation: a cross-check of the
-    // simulation convention (rest at the measured x0).
+    // (docs/reference-numbers.md), gives 3.15 µm RMS by the same simulation: a cross-check of
+    // the simulation convention (the state at the moving start estimated, with the constant
+    // position offset that a model without integral action carries as its third state; 3.99 µm
+    // before that state existed).
     let tr = emps();
     assert!(!tr.starts_at_rest(1.5));
     assert!(
@@ -287,7 +289,7 @@ fn emps_real_drive_free_run_within_3_um() {
     let physical = EMPS_PHYSICAL;
     let fp = fit_metrics(&physical, &tr, &opts).expect("fit");
     assert!(
-        (fp.freerun_rms - 4.0e-3).abs() < 0.1e-3,
+        (fp.freerun_rms - 3.15e-3).abs() < 0.1e-3,
         "physical model {} µm",
         1e3 * fp.freerun_rms
     );
@@ -454,3 +456,68 @@ fn emps_held_out_part_is_predicted_better_than_the_published_physical_model() {
     );
     assert!(held.freerun_rms < held_phys.freerun_rms);
 }
+
+#[test]
+fn a_drive_without_integral_action_gets_the_structure_without_it() {
+    // Truth: the analytic closed loop of the Table 1 plant under a P-P cascade (the Table 1
+    // gains with K_i = 0: a3 = 0, b2 = a2, docs/drive-model.md), simulated by the true drive
+    // (20 kHz controller, Coulomb friction with sticking, encoder). With every structure tried
+    // as `vcnc identify --trace` does, the structure without integral action is chosen, with
+    // no parameter on a bound, and recovers ωn and ζ; on the Table 1 P-PI drive (which has
+    // integral action) it is not chosen.
+    let mut pp = vcnc_drive::table1_drive();
+    match &mut pp.controller {
+        ControllerSpec::PPi { ki, .. } => *ki = Some(0.0),
+        other => panic!("Table 1 is a P-PI drive: {other:?}"),
+    }
+    let truth = pp.closed_loop_model().expect("valid drive");
+    assert_eq!(truth.a3, 0.0);
+    let opts = command_options();
+    let est = drive_trace(&pp, &gcode_program(AxisName::X, 7, 2500.0));
+    let id = identify(&est, &opts).expect("identifies");
+    let (pe, pt) = (
+        id.model.core.poles().expect("poles"),
+        truth.poles().expect("poles"),
+    );
+    let (e_wn, e_zeta) = (rel(pe.wn, pt.wn), rel(pe.zeta, pt.zeta));
+    println!(
+        "P-P drive: chosen {} ({}), wn {:.4} Hz ({:+.3} %), zeta {:.4} ({:+.3} %), truth {:.4} Hz / {:.4}",
+        id.structure,
+        id.input,
+        pe.wn_hz(),
+        100.0 * e_wn,
+        pe.zeta,
+        100.0 * e_zeta,
+        pt.wn_hz(),
+        pt.zeta
+    );
+    for s in &id.structures {
+        println!(
+            "  {:>20} {:>6}: held-out {:?} µm, {:?}",
+            s.structure.name(),
+            s.input.name(),
+            s.validation.as_ref().map(|v| 1e3 * v.freerun_rms),
+            s.verdict
+        );
+    }
+    assert_eq!(id.structure, ModelStructure::NoIntegral);
+    assert_eq!(id.model.core.a3, 0.0);
+    assert_eq!(id.model.core.b2, id.model.core.a2);
+    assert!(id.on_bounds.is_empty(), "{:?}", id.on_bounds);
+    assert!(
+        e_wn.abs() < WN_TOL && e_zeta.abs() < ZETA_TOL,
+        "{e_wn} {e_zeta}"
+    );
+
+    let ppi = vcnc_drive::table1_drive();
+    let est = drive_trace(&ppi, &gcode_program(AxisName::X, 7, 2500.0));
+    let id = identify(&est, &opts).expect("identifies");
+    println!("P-PI drive: chosen {} ({})", id.structure, id.input);
+    assert_ne!(id.structure, ModelStructure::NoIntegral);
+}
+
+/// Tolerances of the P-P drive's ωn and ζ: about twice the errors measured when the structure
+/// came (ωn +0.31 %, most of it the 20 kHz sampling's pole shift against the continuous truth,
+/// docs/drive-model.md; ζ −0.01 %, floored at 0.5 %; see the test's printout).
+const WN_TOL: f64 = 0.006;
+const ZETA_TOL: f64 = 0.005;

@@ -103,6 +103,7 @@ pub fn short_tag(s: ModelStructure) -> &'static str {
     use ModelStructure as M;
     match s {
         M::Paper => "P",
+        M::NoIntegral => "NI",
         M::Delay => "D",
         M::FirstOrderFilter => "F1",
         M::SecondOrderFilter => "F2",
@@ -115,8 +116,8 @@ pub const BUDGET_NOTE: &str = "ideal: the drives without any effect table and wi
      noise; each other row adds one group of machines/nmv5000-realistic.toml \
      (docs/machine-file.md, Drive effects); |prediction − true| over the feed moves; vcnc+lat.: vcnc's \
      models with the actual-value latency stated from the configuration (dead_time_cycles / \
-     servo_rate_hz; 0 without a dead time); structures chosen per axis: P paper, D delay, F1/F2 \
-     first/second-order reference filter, XP extra pole";
+     servo_rate_hz; 0 without a dead time); structures chosen per axis: P paper, NI no integral \
+     action, D delay, F1/F2 first/second-order reference filter, XP extra pole";
 
 /// A short tag of a structure for tables (its name in summaries).
 pub fn structure_tag(s: ModelStructure) -> String {

@@ -26,8 +26,8 @@ use crate::summary::{FitSummary, ModelSummary, PoleErrors};
 /// same two rules for machines and traces (docs/machine-file.md): unless the options set
 /// `bounds.p_hz`, the real pole may approach 0 (lower bound 1e-4 Hz), so that drives without
 /// integral action ($a_3 = 0$, such as the EMPS benchmark) are identifiable; unless they set
-/// `structures`, every model structure is tried (the paper's, dead time, first- and
-/// second-order reference filter, extra pole), and unless they list `inputs`, both model inputs
+/// `structures`, every model structure is tried (the paper's, without integral action, dead
+/// time, first- and second-order reference filter, extra pole), and unless they list `inputs`, both model inputs
 /// (smooth and hold); the candidate with the smallest validation error is kept
 /// (docs/identification.md).
 pub fn identifier_options(file: &OptionsFile, seed: Option<u64>) -> IdentifyOptions {
@@ -326,8 +326,8 @@ pub fn identify_trace(
     let result =
         vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(&subject, e))?;
     // The chosen model's fit on the whole trace (its structure was chosen on a held-out part,
-    // reported beside it in `structures`).
-    let validation = if result.model.is_core_only() {
+    // reported beside it in `structures`): the paper structure's own when it was chosen.
+    let validation = if result.model == result.identified_model {
         Ok(result.fit_estimation.clone())
     } else {
         vcnc_identify::score(&result.model, &trace, None, &opts)

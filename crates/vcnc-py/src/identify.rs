@@ -226,8 +226,8 @@ impl Identification {
         self.id.unit.to_string()
     }
 
-    /// The chosen model structure (`"paper"`, `"delay"`, `"first-order-filter"`,
-    /// `"second-order-filter"`, `"extra-pole"`).
+    /// The chosen model structure (`"paper"`, `"no-integral"`, `"delay"`,
+    /// `"first-order-filter"`, `"second-order-filter"`, `"extra-pole"`).
     #[getter]
     fn structure(&self) -> &'static str {
         self.id.result.structure.name()

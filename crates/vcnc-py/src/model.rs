@@ -100,10 +100,14 @@ impl Model {
         self.model.unit.to_string()
     }
 
-    /// The model's structure: `"paper"`, or the one addition it has (`"delay"`,
-    /// `"first-order-filter"`, `"second-order-filter"`, `"extra-pole"`).
+    /// The model's structure: `"paper"`, `"no-integral"` (no integral mode, `a3 = 0`), or the
+    /// one addition it has (`"delay"`, `"first-order-filter"`, `"second-order-filter"`,
+    /// `"extra-pole"`).
     #[getter]
     fn structure(&self) -> &'static str {
+        if self.model.a3 == 0.0 {
+            return "no-integral";
+        }
         match (&self.model.reference_filter, self.model.extra_pole_hz) {
             (Some(f), _) if f.order() == 1 => "first-order-filter",
             (Some(_), _) => "second-order-filter",
