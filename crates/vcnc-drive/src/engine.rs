@@ -216,9 +216,8 @@ pub(crate) struct Run<T: Lane, S: Servo<T>> {
     noise_src: Vec<(Noise, Noise)>,
     /// Some lane's motor reading is noisy (else the motor noise stays +0).
     motor_noise: bool,
-    /// Every lane's readings are quiet: their noise is a constant, drawn once into both
-    /// buffers, and the ticks run without draws between them.
-    quiet: bool,
+    /// How the readings get their noise.
+    readings: Readings,
     /// After the first sample: the loop state, the shaping and the last sample.
     running: Option<Running<T, S::State>>,
     /// Ticks at the limit per lane, counted in floats (exact below 2^53).
@@ -228,6 +227,19 @@ pub(crate) struct Run<T: Lane, S: Servo<T>> {
     refs: Vec<RefSample<T>>,
     noise: Vec<(T, T)>,
     noise_next: Vec<(T, T)>,
+}
+
+/// How a run's readings get their noise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Readings {
+    /// Some lane draws from a generator, a block ahead (during the ticks of the block before).
+    Drawn,
+    /// Every lane is quiet: the noise is a constant, drawn once into both buffers, and the
+    /// ticks run without draws between them.
+    Constant,
+    /// Quiet, and the constant is −0 in every lane (the ideal drive): the ticks are given the
+    /// literal, which the compiler folds away ($x + (-0) = x$ for every $x$).
+    MinusZero,
 }
 
 /// The state a run carries from one sample to the next.
@@ -340,6 +352,11 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
         shaping.resize(T::WIDTH, last);
         let motor_noise = servo.second_encoder() && noise_src.iter().any(|n| n.1.is_noisy());
         let quiet = noise_src.iter().all(|n| !n.0.is_noisy() && !n.1.is_noisy());
+        let readings = if quiet {
+            Readings::Constant
+        } else {
+            Readings::Drawn
+        };
         let zero = T::splat(0.0);
         let mut run = Run {
             servo,
@@ -349,7 +366,7 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
             shaping,
             noise_src,
             motor_noise,
-            quiet,
+            readings,
             running: None,
             saturated: zero,
             refs: vec![RefSample::zero(); n_sub],
@@ -361,6 +378,11 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
             for (now, next) in run.noise.iter_mut().zip(&mut run.noise_next) {
                 Self::draw(&mut run.noise_src, motor_noise, now);
                 *next = *now;
+            }
+            let minus_zero = |v: T| (0..T::WIDTH).all(|l| v.at(l).to_bits() == (-0.0f64).to_bits());
+            let nz = run.noise[0];
+            if minus_zero(nz.0) && minus_zero(nz.1) {
+                run.readings = Readings::MinusZero;
             }
         }
         run
@@ -463,22 +485,18 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
         let paired = last.min(n_next);
         let refs = &self.refs[..ticks];
         let cur = &self.noise[..ticks];
-        if self.quiet {
+        if self.readings != Readings::Drawn {
             // Nothing to draw: the loop state stays in registers through the ticks (with the
-            // draws between them it went through the stack, on the loop's critical path). The
-            // ideal drive's quiet reading adds −0, which the compiler drops when it sees the
-            // constant ($x + (-0) = x$ for every $x$).
+            // draws between them it went through the stack, on the loop's critical path).
             let ticks = |sat: T, st: &mut S::State, nz: (T, T)| {
                 refs[..last]
                     .iter()
                     .fold(sat, |sat, r| sat + one.masked(s.tick(st, r, nz)))
             };
-            let nz = cur[0];
-            let minus_zero = |v: T| (0..T::WIDTH).all(|l| v.at(l).to_bits() == (-0.0f64).to_bits());
-            sat = if minus_zero(nz.0) && minus_zero(nz.1) {
+            sat = if self.readings == Readings::MinusZero {
                 ticks(sat, st, (T::splat(-0.0), T::splat(-0.0)))
             } else {
-                ticks(sat, st, nz)
+                ticks(sat, st, cur[0])
             };
             let (logged, saturated) = s.logged_tick(st, &refs[last], cur[last]);
             self.saturated = sat + one.masked(saturated);
