@@ -187,7 +187,8 @@ pub struct FineProgram {
     pub blocks: usize,
     /// Dwell blocks (`G4`) written.
     pub dwells: usize,
-    /// The shortest motion block, sample periods.
+    /// The shortest motion block, sample periods (0 when there is none). It is at least
+    /// `rules.min_samples` unless all the samples together last fewer periods.
     pub shortest_block: u64,
     /// Per axis (in the order given): the largest distance between a sample and the position
     /// the program runs through at that sample, axis units — the chord error of the merged
@@ -274,6 +275,14 @@ pub fn fine_blocks(
         // A rest: the samples that read back as the current position.
         let rest = (s + 1..n).take_while(|&k| same(k, &at)).count();
         if rest >= min || s + 1 + rest == n {
+            // When fewer than `min` samples follow the rest, the dwell leaves the block after
+            // it the samples it lacks (the rest is at least `min` long, so the dwell keeps one).
+            let tail = n - 1 - s - rest;
+            let rest = if tail > 0 && tail < min {
+                rest - (min - tail)
+            } else {
+                rest
+            };
             for (i, (_, v)) in axes.iter().enumerate() {
                 for x in &v[s + 1..=s + rest] {
                     program.deviation[i] = program.deviation[i].max((x - at[i]).abs());
@@ -286,15 +295,13 @@ pub fn fine_blocks(
         }
         // A straight block of m periods: the longest within the tolerance; failing that, the
         // one that strays least. It must not leave fewer than `min` samples after it, unless
-        // those are a rest at its end; when no block fits, the samples left make one block.
+        // those are a rest at its end; when no block can (a block cycle of more than half the
+        // longest block), the longest is taken. A block that ends where it starts is a dwell.
         let left = n - 1 - s;
         let mut best: Option<(usize, f64, Vec<f64>)> = None;
         for m in min.min(left)..=max.min(left) {
             let e = s + m;
             let end: Vec<f64> = q.iter().map(|c| c[e]).collect();
-            if end == at {
-                continue;
-            }
             let after = left - m;
             if after > 0 && after < min && !(e + 1..n).all(|k| same(k, &end)) {
                 continue;
@@ -309,8 +316,22 @@ pub fn fine_blocks(
                 best = Some((m, excess, dev));
             }
         }
-        let (m, _, dev) = best.unwrap_or_else(|| (left, 0.0, stray(&at, s, left)));
+        let (m, _, dev) = best.unwrap_or_else(|| {
+            let m = left.min(max);
+            (m, 0.0, stray(&at, s, m))
+        });
         let e = s + m;
+        if q.iter().zip(&at).all(|(c, x)| c[e] == *x) {
+            // The samples left return to where they start, as written: a line from a point
+            // to itself is no move (the interpreter drops it), so they are a dwell there.
+            for (d, v) in program.deviation.iter_mut().zip(&dev) {
+                *d = d.max(*v);
+            }
+            out.push_str(&format!("G4 P{}\n", fmt_exact(m as f64 * ts)));
+            program.dwells += 1;
+            s = e;
+            continue;
+        }
         out.push_str("G1");
         for (i, (a, v)) in axes.iter().enumerate() {
             if q[i][e] != at[i] {

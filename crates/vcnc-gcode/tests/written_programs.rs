@@ -73,7 +73,11 @@ fn check(x: &[f64], c: &[f64], rules: &BlockRules) {
             let f = b.words.iter().find(|w| w.letter == 'F').expect("F").value;
             let m = (60.0 / (f * TS)).round();
             assert!(((60.0 / (f * TS)) - m).abs() <= 1e-7 * m, "F{f}");
-            assert!(m as u64 >= rules.min_samples, "F{f}: {m} periods");
+            // No block is shorter than the block cycle, unless the whole run is.
+            assert!(
+                m as u64 >= rules.min_samples.min(n as u64 - 1),
+                "F{f}: {m} periods"
+            );
             assert!(m as u64 <= FINE_BLOCK_MAX_SAMPLES);
             periods += m as u64;
         } else if g4 {
@@ -82,7 +86,11 @@ fn check(x: &[f64], c: &[f64], rules: &BlockRules) {
         }
     }
     assert_eq!(periods as usize, n - 1, "the blocks last the samples' time");
-    assert!(written.shortest_block >= rules.min_samples);
+    if written.blocks == 0 {
+        assert_eq!(written.shortest_block, 0);
+    } else {
+        assert!(written.shortest_block >= rules.min_samples.min(n as u64 - 1));
+    }
 
     // The run passes every sample within the deviation reported.
     let limits = Limits::uniform(1e6, 1e12);
@@ -145,6 +153,38 @@ fn merged_blocks_are_fewer_on_a_smooth_path() {
     assert!(written.deviation.iter().all(|d| *d <= 1e-3));
 }
 
+#[test]
+fn motion_shorter_than_a_block_cycle_after_a_rest_takes_time_from_the_dwell() {
+    // 100 samples of motion, 50 at rest, 3 of motion, 3 at rest: with blocks of at least
+    // 8 periods the last 8 periods (2 taken from the rest) are one block.
+    let mut x = series(100, 2.0, 20.0, 0, 0, 0.0);
+    x.truncate(100);
+    let at = x[99];
+    x.extend(std::iter::repeat_n(at, 50));
+    x.extend([at + 0.01, at + 0.02, at + 0.03]);
+    x.extend(std::iter::repeat_n(at + 0.03, 3));
+    let c = vec![0.0; x.len()];
+    let rules = BlockRules {
+        min_samples: 8,
+        ..BlockRules::EXACT
+    };
+    check(&x, &c, &rules);
+    let written = fine_blocks(&[(AxisName::X, &x), (AxisName::C, &c)], TS, &[], &rules);
+    assert_eq!(written.shortest_block, 8);
+    assert_eq!(written.dwells, 1, "the rest, shortened");
+    let last = written.text.lines().rfind(|l| l.starts_with("G1")).unwrap();
+    assert!(
+        last.ends_with(" F7500"),
+        "{last}: the motion and 2 periods of the rest"
+    );
+    // A run shorter than a block cycle is one block of its length.
+    let x = [0.0, 0.001, 0.002];
+    let c = [0.0; 3];
+    let written = fine_blocks(&[(AxisName::X, &x), (AxisName::C, &c)], TS, &[], &rules);
+    assert_eq!((written.blocks, written.shortest_block), (1, 2));
+    check(&x, &c, &rules);
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, ..ProptestConfig::default() })]
 
@@ -171,4 +211,29 @@ proptest! {
         };
         check(&x, &c, &rules);
     }
+}
+
+#[test]
+fn samples_that_return_to_where_a_block_starts_are_a_dwell() {
+    // A case proptest found: C's last samples (at 0.001°) dip and come back to where the
+    // last block ended, too few for two blocks of 3 periods. A line from a point to itself is
+    // no move, so the interpreter would drop it and the run would lose those periods; they are
+    // a dwell.
+    let (n, amp, freq) = (468, 14.997777920923589, 19.26144181421281);
+    let x = series(n, amp, freq, 422, 58, 0.02972679876679603);
+    let c = series(n, 3.0 * amp, 0.7 * freq, 211, 58, 0.0);
+    let rules = BlockRules {
+        min_samples: 3,
+        resolution: 0.001,
+        rotary_resolution: 0.001,
+        tolerance: 0.0,
+        rotary_tolerance: 0.0,
+    };
+    check(&x, &c, &rules);
+    let written = fine_blocks(&[(AxisName::X, &x), (AxisName::C, &c)], TS, &[], &rules);
+    assert!(
+        written.text.ends_with("G4 P0.007\nG94 G61\nM2\n%\n"),
+        "{}",
+        written.text
+    );
 }
