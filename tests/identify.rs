@@ -241,11 +241,23 @@ fn emps_real_trace() {
         "raw tracking error {tracking} µm RMS"
     );
     assert!(rms <= 3.0, "free-run RMS {rms} µm");
-    assert_eq!(
-        s["axes"]["X"]["identified"]["stable"],
-        Value::Bool(true),
-        "{}",
-        s["axes"]["X"]["identified"]
+    // `identified` is the model written to model.toml: without integral action its pole at the
+    // origin (the loop's constant offset) makes it marginally stable; the paper structure's
+    // refined model beside it is stable.
+    let identified = &s["axes"]["X"]["identified"];
+    assert_eq!(identified["a3"], 0.0, "{identified}");
+    assert_eq!(identified["marginally_stable"], true, "{identified}");
+    assert_eq!(s["axes"]["X"]["paper_refined"]["stable"], true);
+    // The printout's first row is that model, with its structure and its own error.
+    let first = stdout
+        .lines()
+        .find(|l| l.starts_with("identified"))
+        .expect("the identified row");
+    assert!(
+        first.starts_with("identified (no-integral)")
+            && first.contains(&format!("{:.4}", num(identified, "zeta")))
+            && first.contains(&format!("{rms:.2} um")),
+        "{first}"
     );
     assert_eq!(
         s["axes"]["X"]["unconstrained_ls"]["stable"],
@@ -272,7 +284,11 @@ fn emps_real_trace() {
     assert_eq!(num(&s2, "identify_options.seed"), 5.0);
     assert_eq!(num(&s2, "identify_options.pso.particles"), 120.0);
     assert_eq!(num(&s2, "identify_options.bounds.p_hz.0"), 1e-4);
-    assert_eq!(s2["axes"]["X"]["identified"]["stable"], Value::Bool(true));
+    let identified = &s2["axes"]["X"]["identified"];
+    assert!(
+        identified["stable"] == true || identified["marginally_stable"] == true,
+        "{identified}"
+    );
     let rms2 = num(&s2, "axes.X.fit.freerun_rms_um");
     assert!(rms2 <= 3.0, "free-run RMS with the options file {rms2} µm");
 }

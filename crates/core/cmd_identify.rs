@@ -126,28 +126,33 @@ fn identify_trace(path: &Path, args: &IdentifyArgs, ctx: &Ctx) -> Result<()> {
         for id in &ids {
             let (k, l) = (id.unit.micro_factor(), id.unit.micro_label());
             let r = &id.result;
-            let rows: Vec<Vec<String>> = [
-                ("identified", &r.identified, Some(&r.fit_estimation)),
-                ("paper PSO", &r.paper_pso, Some(&r.fit_estimation_paper)),
-                ("unconstrained LS", &r.unconstrained_ls.model, None),
-            ]
-            .iter()
-            .map(|(n, m, f)| {
-                vec![
-                    n.to_string(),
-                    fmt_poles(m),
-                    format!("{:.1}", m.dc),
-                    if m.is_stable() {
-                        "yes".into()
-                    } else if m.is_marginally_stable() {
-                        "marginal".into()
-                    } else {
-                        "NO".into()
-                    },
-                    f.map_or("-".into(), |f| format!("{:.2} {l}", f.freerun_rms * k)),
-                ]
-            })
-            .collect();
+            // "identified" is the model written to model.toml, with its fit on the whole trace;
+            // the paper structure's refined fit beside it when another structure was chosen.
+            let chosen = format!("identified ({})", r.structure);
+            let mut models = vec![(chosen.as_str(), &r.model.core, Some(&id.validation))];
+            if r.model != r.identified_model {
+                models.push(("paper, refined", &r.identified, Some(&r.fit_estimation)));
+            }
+            models.push(("paper PSO", &r.paper_pso, Some(&r.fit_estimation_paper)));
+            models.push(("unconstrained LS", &r.unconstrained_ls.model, None));
+            let rows: Vec<Vec<String>> = models
+                .iter()
+                .map(|(n, m, f)| {
+                    vec![
+                        n.to_string(),
+                        fmt_poles(m),
+                        format!("{:.1}", m.dc),
+                        if m.is_stable() {
+                            "yes".into()
+                        } else if m.is_marginally_stable() {
+                            "marginal".into()
+                        } else {
+                            "NO".into()
+                        },
+                        f.map_or("-".into(), |f| format!("{:.2} {l}", f.freerun_rms * k)),
+                    ]
+                })
+                .collect();
             let t = &id.validation_trace;
             println!(
                 "axis {}: {} samples at {} s, tracking error {:.1} {l} RMS",

@@ -270,6 +270,21 @@ pub struct Identification {
     pub fit_estimation_paper: FitMetrics,
 }
 
+impl Identification {
+    /// The chosen candidate's entry in [`structures`](Identification::structures), refined on
+    /// the whole estimation trace: its `estimation` fit is the fit of
+    /// [`model`](Identification::model), what the model file holds.
+    pub fn chosen(&self) -> &StructureFit {
+        let whole = |f: &&StructureFit| f.whole && f.input == self.input;
+        self.structures
+            .iter()
+            .filter(whole)
+            .find(|f| f.structure == self.structure)
+            .or_else(|| self.structures.iter().find(whole))
+            .unwrap_or(&self.structures[0])
+    }
+}
+
 /// Unconstrained least squares of the seven parameters on prepared regressors.
 pub fn unconstrained_ls(regs: &Regressors) -> Result<LsBaseline, Error> {
     let (theta, _intercept, cost) = regs.least_squares()?;

@@ -350,7 +350,8 @@ pub fn fmt_poles(m: &ClosedLoopModel) -> String {
     }
 }
 
-/// Per axis of a simulated machine: true vs identified poles, dc, and validation fit; the
+/// Per axis of a simulated machine: true vs identified poles (the model written to
+/// `model.toml`, whatever its structure), dc, and validation fit; the
 /// header and the rows, errors labelled by `unit_label` (`um` for the terminal, `µm` in
 /// reports).
 pub fn identification_rows(
@@ -366,13 +367,13 @@ pub fn identification_rows(
         rows.push(vec![
             r.axis.to_string(),
             truth.map_or("-".into(), fmt_poles),
-            fmt_poles(&r.result.identified),
+            fmt_poles(&r.result.model.core),
             fmt_poles(&r.result.paper_pso),
             (if ls.stable { "stable" } else { "UNSTABLE" }).to_string(),
             format!(
                 "{} / {:.1}",
                 truth.map_or("-".into(), |t| format!("{:.1}", t.dc)),
-                r.result.identified.dc
+                r.result.model.core.dc
             ),
             format!(
                 "{:.2} / {:.2} {label}",

@@ -466,9 +466,12 @@ pub struct PsoSummary {
 /// Relative pole errors of the refined and the paper-PSO models against the truth.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ErrorsVsTrue {
-    /// The refined model's errors.
+    /// The errors of the identified model (the one written to `model.toml`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub identified: Option<PoleErrors>,
+    /// The errors of the paper structure's refined model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub paper_refined: Option<PoleErrors>,
     /// The paper-PSO model's errors.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub paper_pso: Option<PoleErrors>,
@@ -479,8 +482,12 @@ pub struct ErrorsVsTrue {
 pub struct AxisIdentifySummary {
     /// `mm` or `deg`.
     pub unit: Unit,
-    /// The final (refined) model.
+    /// The identified model: the chosen structure's, refined on the whole estimation run, with
+    /// its dead time, reference filter or extra pole — what `model.toml` holds.
     pub identified: ModelSummary,
+    /// The paper's 7-parameter structure refined by output error (with the chosen model
+    /// input): `identified` when the paper structure is the one chosen.
+    pub paper_refined: ModelSummary,
     /// The paper's equation-error PSO alone.
     pub paper_pso: ModelSummary,
     /// Unconstrained least squares of the seven parameters (may be unstable).
@@ -491,10 +498,10 @@ pub struct AxisIdentifySummary {
     /// Pole errors against the truth, % (simulated machines).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error_percent_vs_true: Option<ErrorsVsTrue>,
-    /// The refined model's fit on the validation run (a simulated machine's second run; a
+    /// The identified model's fit on the validation run (a simulated machine's second run; a
     /// measured trace's own run).
     pub fit: FitSummary,
-    /// The refined model's fit on the estimation run (simulated machines).
+    /// The identified model's fit on the estimation run (simulated machines).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fit_estimation: Option<FitSummary>,
     /// The paper-PSO model's fit on the validation run.
@@ -512,12 +519,9 @@ pub struct AxisIdentifySummary {
     /// Where a measured axis' samples come from (measured traces).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub trace: Option<AxisTraceSummary>,
-    /// The structure chosen by validation error (`paper`, `delay`, `first-order-filter`,
-    /// `second-order-filter`, `extra-pole`).
+    /// The structure chosen by validation error (`paper`, `no-integral`, `delay`,
+    /// `first-order-filter`, `second-order-filter`, `extra-pole`).
     pub structure: vcnc_identify::ModelStructure,
-    /// The chosen model, with its dead time, reference filter or extra pole: what model.toml
-    /// holds (`identified` is the paper structure's model).
-    pub model: ModelSummary,
     /// Every structure tried, with its estimation fit and the validation error that chose.
     pub structures: Vec<StructureSummary>,
     /// Standard deviations of the chosen model's parameters (p_hz, wn_hz, zeta, dc, then its
@@ -650,16 +654,18 @@ impl AxisIdentifySummary {
         let simulated = truth.is_some();
         AxisIdentifySummary {
             unit: r.unit,
-            identified: ModelSummary::of(&id.identified),
+            identified: ModelSummary::of_drive(&id.model),
+            paper_refined: ModelSummary::of(&id.identified),
             paper_pso: ModelSummary::of(&id.paper_pso),
             unconstrained_ls: ModelSummary::of(&id.unconstrained_ls.model),
             truth: truth.map(ModelSummary::of),
             error_percent_vs_true: truth.map(|t| ErrorsVsTrue {
-                identified: PoleErrors::of_models(t, &id.identified),
+                identified: PoleErrors::of_models(t, &id.model.core),
+                paper_refined: PoleErrors::of_models(t, &id.identified),
                 paper_pso: PoleErrors::of_models(t, &id.paper_pso),
             }),
             fit: fit(&r.validation),
-            fit_estimation: simulated.then(|| fit(&id.fit_estimation)),
+            fit_estimation: simulated.then(|| fit(&id.chosen().estimation)),
             fit_paper_pso: fit(&r.validation_paper),
             fit_paper_pso_estimation: simulated.then(|| fit(&id.fit_estimation_paper)),
             pso: PsoSummary {
@@ -669,7 +675,6 @@ impl AxisIdentifySummary {
             regressor_condition: id.condition_number,
             moving_start: (!simulated).then_some(id.moving_start),
             structure: id.structure,
-            model: ModelSummary::of_drive(&id.model),
             structures: id
                 .structures
                 .iter()
@@ -818,11 +823,11 @@ fn axes_summary(ids: &[AxisIdentification]) -> BTreeMap<String, AxisIdentifySumm
         .collect()
 }
 
-/// Per-axis pole errors of the refined and paper-PSO models (p, ωn, ζ; %), for the demo's
+/// Per-axis pole errors of the identified and paper-PSO models (p, ωn, ζ; %), for the demo's
 /// overview (keys `identified_error_percent`, `paper_pso_error_percent`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AxisOverview {
-    /// The refined model's errors (null when not writable as poles).
+    /// The identified model's errors (null when not writable as poles).
     pub identified_error_percent: Option<PoleErrors>,
     /// The paper-PSO model's errors.
     pub paper_pso_error_percent: Option<PoleErrors>,
@@ -839,7 +844,7 @@ pub fn overview(ids: &[AxisIdentification]) -> BTreeMap<String, AxisOverview> {
             (
                 r.axis.to_string(),
                 AxisOverview {
-                    identified_error_percent: errs(&r.result.identified),
+                    identified_error_percent: errs(&r.result.model.core),
                     paper_pso_error_percent: errs(&r.result.paper_pso),
                 },
             )
