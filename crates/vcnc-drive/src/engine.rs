@@ -426,36 +426,41 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
                 }
             })
         };
-        let mut k0 = 0;
-        let mut running = match self.running.take() {
-            Some(r) => r,
+        let (mut running, mut first) = match self.running.take() {
+            Some(r) => (r, false),
             None => {
                 if n == 0 {
                     return Ok(());
                 }
                 let r0 = sample(0);
                 let xm0 = self.servo.quant().read(r0.xr, T::splat(-0.0));
-                let mut running = Running {
+                let running = Running {
                     st: self.servo.rest(r0.xr, xm0),
                     shapers: Shapers::new(&self.shaping, self.h, r0)?,
                     prev: r0,
                 };
-                // The first sample is the block of its first tick alone; its reading's noise is
-                // drawn now, the next blocks' ahead.
-                running.shapers.block(&mut self.refs[..1], &r0, &r0, 0.0);
-                Self::draw(&mut self.noise_src, self.motor_noise, &mut self.noise[0]);
-                self.run_block(&mut running.st, 1, channels, out);
-                k0 = 1;
-                running
+                (running, true)
             }
         };
         let inv_sub = 1.0 / self.n_sub as f64;
-        for k in k0..n {
+        // One call of `run_block` (always inlined, with the servo's tick inlined in it): a
+        // second call site for the first sample doubled the crate's machine code and build time.
+        for k in 0..n {
             let r = sample(k);
-            running
-                .shapers
-                .block(&mut self.refs, &running.prev, &r, inv_sub);
-            self.run_block(&mut running.st, self.n_sub, channels, out);
+            let ticks = if first {
+                // The first sample is the block of its first tick alone; its reading's noise is
+                // drawn now, the next blocks' ahead.
+                first = false;
+                running.shapers.block(&mut self.refs[..1], &r, &r, 0.0);
+                Self::draw(&mut self.noise_src, self.motor_noise, &mut self.noise[0]);
+                1
+            } else {
+                running
+                    .shapers
+                    .block(&mut self.refs, &running.prev, &r, inv_sub);
+                self.n_sub
+            };
+            self.run_block(&mut running.st, ticks, channels, out);
             running.prev = r;
         }
         self.running = Some(running);
@@ -479,10 +484,10 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
         let n_next = self.n_sub;
         let one = T::splat(1.0);
         let mut sat = self.saturated;
+        // The block's last tick is logged apart. A block has at most `n_sub` ticks (the first
+        // has one), so every other tick draws the noise of one of the next block's.
         let last = ticks - 1;
-        // Ticks with a draw for the next block each, then the rest (the block's last tick is
-        // logged apart).
-        let paired = last.min(n_next);
+        debug_assert!(last < n_next);
         let refs = &self.refs[..ticks];
         let cur = &self.noise[..ticks];
         if self.readings != Readings::Drawn {
@@ -504,21 +509,14 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
             return;
         }
         let next = &mut self.noise_next[..n_next];
-        for ((r, nz), dn) in refs[..paired]
-            .iter()
-            .zip(&cur[..paired])
-            .zip(&mut next[..paired])
-        {
+        for ((r, nz), dn) in refs[..last].iter().zip(&cur[..last]).zip(&mut next[..last]) {
             sat = sat + one.masked(s.tick(st, r, *nz));
             Self::draw(&mut self.noise_src, motor, dn);
-        }
-        for (r, nz) in refs[paired..last].iter().zip(&cur[paired..last]) {
-            sat = sat + one.masked(s.tick(st, r, *nz));
         }
         let (logged, saturated) = s.logged_tick(st, &refs[last], cur[last]);
         sat = sat + one.masked(saturated);
         Self::log(logged, self.drives, channels, out);
-        for dn in &mut next[paired..] {
+        for dn in &mut next[last..] {
             Self::draw(&mut self.noise_src, motor, dn);
         }
         self.saturated = sat;
