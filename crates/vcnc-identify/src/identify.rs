@@ -275,14 +275,20 @@ impl Identification {
     /// the whole estimation trace: its `estimation` fit is the fit of
     /// [`model`](Identification::model), what the model file holds.
     pub fn chosen(&self) -> &StructureFit {
-        let whole = |f: &&StructureFit| f.whole && f.input == self.input;
-        self.structures
-            .iter()
-            .filter(whole)
-            .find(|f| f.structure == self.structure)
-            .or_else(|| self.structures.iter().find(whole))
+        whole_fit(&self.structures, self.structure, self.input)
+            .or_else(|| whole_fit(&self.structures, ModelStructure::Paper, self.input))
             .unwrap_or(&self.structures[0])
     }
+}
+
+/// The fit of `structure` with `input` refined on the whole estimation trace, if any.
+fn whole_fit(
+    fits: &[StructureFit],
+    structure: ModelStructure,
+    input: ReferenceInput,
+) -> Option<&StructureFit> {
+    fits.iter()
+        .find(|f| f.structure == structure && f.input == input && f.whole)
 }
 
 /// Unconstrained least squares of the seven parameters on prepared regressors.
@@ -1189,16 +1195,12 @@ fn assemble(
         structure: ModelStructure::Paper,
         input: fits.first().map_or(ReferenceInput::Smooth, |f| f.input),
     });
-    let paper = fits
-        .iter()
-        .find(|f| f.structure == ModelStructure::Paper && f.input == chosen.input && f.whole)
+    let paper = whole_fit(&fits, ModelStructure::Paper, chosen.input)
         .cloned()
         .ok_or(Error::RefinementFailed {
             structure: ModelStructure::Paper,
         })?;
-    let sel = fits
-        .iter()
-        .find(|f| f.structure == chosen.structure && f.input == chosen.input && f.whole)
+    let sel = whole_fit(&fits, chosen.structure, chosen.input)
         .cloned()
         .unwrap_or_else(|| paper.clone());
     let fit_estimation_paper = fit_metrics_with(&main.paper_pso, trace, &main.regs)?;

@@ -325,14 +325,9 @@ pub fn identify_trace(
     let subject = format!("{file} axis {}", axis.axis);
     let result =
         vcnc_identify::identify(&trace, &opts).map_err(|e| Error::identify(&subject, e))?;
-    // The chosen model's fit on the whole trace (its structure was chosen on a held-out part,
-    // reported beside it in `structures`): the paper structure's own when it was chosen.
-    let validation = if result.model == result.identified_model {
-        Ok(result.fit_estimation.clone())
-    } else {
-        vcnc_identify::score(&result.model, &trace, None, &opts)
-    }
-    .map_err(|e| Error::identify(&subject, e))?;
+    // The chosen model's fit on the whole trace, from its refinement there (its structure was
+    // chosen on a held-out part, reported beside it in `structures`).
+    let validation = result.chosen().estimation.clone();
     Ok(AxisIdentification {
         axis: axis.axis,
         unit: axis.unit,
