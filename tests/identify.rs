@@ -220,8 +220,9 @@ fn emps_real_trace() {
         "{rows:?}"
     );
     assert!(
-        rows.iter()
-            .all(|l| l.contains("chosen") || l.contains("higher held-out error")),
+        rows.iter().all(|l| l.contains("chosen")
+            || l.contains("higher held-out error")
+            || l.contains("below the best trusted")),
         "{rows:?}"
     );
     // Issue 29: a physical model with no parameter on a bound. The EMPS position loop has no

@@ -167,8 +167,8 @@ pub enum Verdict {
     Degenerate {
         /// Its validation free-run RMS, axis units.
         rms: f64,
-        /// The chosen candidate's, axis units.
-        chosen_rms: f64,
+        /// The best trusted candidate's, axis units.
+        trusted_rms: f64,
         /// The margin, relative.
         margin: f64,
     },
@@ -199,14 +199,14 @@ impl std::fmt::Display for Verdict {
             ),
             Verdict::Degenerate {
                 rms,
-                chosen_rms,
+                trusted_rms,
                 margin,
             } => write!(
                 f,
-                "parameters on a bound or not determined, and its validation error {:.4e} is not {:.0} % below the chosen {:.4e}",
+                "parameters on a bound or not determined, and its validation error {:.4e} is not {:.0} % below the best trusted candidate's {:.4e}",
                 rms,
                 100.0 * margin,
-                chosen_rms
+                trusted_rms
             ),
         }
     }
@@ -805,41 +805,64 @@ fn compare(
 }
 
 /// Index of the candidate chosen by validation free-run RMS, and the verdict on each
-/// (docs/identification.md, "Choosing a structure"): among the trusted candidates (no
-/// parameter on a bound or undetermined) the lowest error wins, unless one with fewer
-/// parameters ([`ModelStructure::parameters`]) comes within `selection_margin` (relative) of it
-/// — then the one with the fewest parameters among those within the margin (ties to the lower
-/// error). A candidate that
-/// is not trusted wins only when its error is below the trusted choice's by
-/// `degenerate_margin` (relative); when none is trusted, the rule runs over all.
+/// ([`choose_among`]).
 fn choose(
     fits: &[StructureFit],
     val: &[FitMetrics],
     opts: &IdentifyOptions,
 ) -> (usize, Vec<Verdict>) {
-    let rms: Vec<f64> = val
+    let entries: Vec<Entry> = fits
         .iter()
-        .map(|v| {
-            if v.freerun_rms.is_finite() {
+        .zip(val)
+        .map(|(f, v)| Entry {
+            parameters: f.structure.parameters(),
+            trusted: f.degenerate.is_empty(),
+            rms: if v.freerun_rms.is_finite() {
                 v.freerun_rms
             } else {
                 f64::INFINITY
-            }
+            },
         })
         .collect();
-    let trusted: Vec<usize> = (0..fits.len())
-        .filter(|&i| fits[i].degenerate.is_empty())
-        .collect();
+    choose_among(&entries, opts.selection_margin, opts.degenerate_margin)
+}
+
+/// A compared candidate as the choice sees it.
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    /// Its number of parameters ([`ModelStructure::parameters`]).
+    parameters: usize,
+    /// No parameter on a bound or undetermined ([`StructureFit::degenerate`] empty).
+    trusted: bool,
+    /// Validation free-run RMS (infinite when the free run failed).
+    rms: f64,
+}
+
+/// The choice among `entries` (docs/identification.md, "Choosing a structure"): among the
+/// trusted candidates the lowest error wins, unless one with fewer parameters comes within
+/// `selection_margin` (relative) of it — then the one with the fewest parameters among those
+/// within the margin (ties to the lower error). A candidate that is not trusted wins only when
+/// its error is below the best trusted candidate's by `degenerate_margin` (relative): the best
+/// trusted error, not the trusted choice's, so that adding a trusted candidate never turns the
+/// choice to an untrusted one. When none is trusted, the first rule runs over all.
+fn choose_among(
+    entries: &[Entry],
+    selection_margin: f64,
+    degenerate_margin: f64,
+) -> (usize, Vec<Verdict>) {
+    let rms: Vec<f64> = entries.iter().map(|e| e.rms).collect();
+    let trusted: Vec<usize> = (0..entries.len()).filter(|&i| entries[i].trusted).collect();
+    let lowest = |pool: &[usize]| pool.iter().map(|&i| rms[i]).fold(f64::INFINITY, f64::min);
     let parsimonious = |pool: &[usize]| -> Option<usize> {
-        let best = pool.iter().map(|&i| rms[i]).fold(f64::INFINITY, f64::min);
+        let best = lowest(pool);
         let mut chosen: Option<usize> = None;
         for &i in pool {
-            if rms[i] <= best * (1.0 + opts.selection_margin) {
-                let key = (fits[i].structure.parameters(), rms[i]);
+            if rms[i] <= best * (1.0 + selection_margin) {
+                let key = (entries[i].parameters, rms[i]);
                 let better = match chosen {
                     None => true,
                     Some(c) => {
-                        let ck = (fits[c].structure.parameters(), rms[c]);
+                        let ck = (entries[c].parameters, rms[c]);
                         key.0 < ck.0 || (key.0 == ck.0 && key.1 < ck.1)
                     }
                 };
@@ -850,36 +873,37 @@ fn choose(
         }
         chosen
     };
-    let all: Vec<usize> = (0..fits.len()).collect();
+    let all: Vec<usize> = (0..entries.len()).collect();
+    let best_trusted = lowest(&trusted);
     let chosen = match parsimonious(&trusted) {
         Some(t) => {
-            let degenerate_best = (0..fits.len())
-                .filter(|i| !trusted.contains(i))
+            let untrusted_best = (0..entries.len())
+                .filter(|&i| !entries[i].trusted)
                 .min_by(|&a, &b| rms[a].total_cmp(&rms[b]));
-            match degenerate_best {
-                Some(d) if rms[d] < (1.0 - opts.degenerate_margin) * rms[t] => d,
+            match untrusted_best {
+                Some(d) if rms[d] < (1.0 - degenerate_margin) * best_trusted => d,
                 _ => t,
             }
         }
         None => parsimonious(&all).unwrap_or(0),
     };
-    let best = rms.iter().copied().fold(f64::INFINITY, f64::min);
-    let verdicts = (0..fits.len())
+    let best = lowest(&all);
+    let verdicts = (0..entries.len())
         .map(|i| {
             let (r, c) = (rms[i], rms[chosen]);
             if i == chosen {
                 Verdict::Chosen
-            } else if !fits[i].degenerate.is_empty() && r < c {
+            } else if !entries[i].trusted && !trusted.is_empty() && r < c {
                 Verdict::Degenerate {
                     rms: r,
-                    chosen_rms: c,
-                    margin: opts.degenerate_margin,
+                    trusted_rms: best_trusted,
+                    margin: degenerate_margin,
                 }
-            } else if r <= c || r <= best * (1.0 + opts.selection_margin) {
+            } else if r <= c || r <= best * (1.0 + selection_margin) {
                 Verdict::Simpler {
                     rms: r,
                     chosen_rms: c,
-                    margin: opts.selection_margin,
+                    margin: selection_margin,
                 }
             } else {
                 Verdict::HigherError {
@@ -1241,4 +1265,68 @@ fn from_poles_and_theta(poles: &Poles, theta: &Theta) -> ClosedLoopModel {
         theta.beta0 * a2,
         theta.delta * a2,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Entry, Verdict, choose_among};
+
+    fn entry(parameters: usize, trusted: bool, rms: f64) -> Entry {
+        Entry {
+            parameters,
+            trusted,
+            rms,
+        }
+    }
+
+    /// The rule of docs/identification.md, "Choosing a structure", with the default margins
+    /// (5 % selection, 30 % for an untrusted candidate).
+    fn choice(entries: &[Entry]) -> usize {
+        choose_among(entries, 0.05, 0.3).0
+    }
+
+    #[test]
+    fn the_lowest_trusted_error_wins_unless_a_simpler_one_is_within_the_margin() {
+        assert_eq!(choice(&[entry(7, true, 1.0), entry(9, true, 0.9)]), 1);
+        assert_eq!(choice(&[entry(7, true, 1.0), entry(9, true, 0.97)]), 0);
+        assert_eq!(choice(&[entry(7, true, 1.03), entry(5, true, 1.0)]), 1);
+    }
+
+    #[test]
+    fn an_untrusted_candidate_must_beat_the_best_trusted_error_by_the_margin() {
+        assert_eq!(choice(&[entry(7, true, 1.0), entry(9, false, 0.69)]), 1);
+        let (c, v) = choose_among(&[entry(7, true, 1.0), entry(9, false, 0.71)], 0.05, 0.3);
+        assert_eq!(c, 0);
+        assert_eq!(
+            v[1],
+            Verdict::Degenerate {
+                rms: 0.71,
+                trusted_rms: 1.0,
+                margin: 0.3
+            }
+        );
+    }
+
+    /// Before this rule compared with the trusted choice's error: a simpler trusted candidate
+    /// within the selection margin (1.04, kept for its 5 parameters) raised the bar to
+    /// 0.7 × 1.04 = 0.728, and the untrusted 0.72 was chosen — only because a worse trusted
+    /// candidate had been added.
+    #[test]
+    fn adding_a_trusted_candidate_never_turns_the_choice_to_an_untrusted_one() {
+        let base = [entry(7, true, 1.0), entry(9, false, 0.72)];
+        assert_eq!(choice(&base), 0);
+        let more = [
+            entry(7, true, 1.0),
+            entry(9, false, 0.72),
+            entry(5, true, 1.04),
+        ];
+        assert_eq!(choice(&more), 2);
+    }
+
+    #[test]
+    fn with_none_trusted_the_margin_rule_runs_over_all() {
+        let (c, v) = choose_among(&[entry(9, false, 1.0), entry(7, false, 1.02)], 0.05, 0.3);
+        assert_eq!(c, 1);
+        assert!(matches!(v[0], Verdict::Simpler { .. }), "{:?}", v[0]);
+    }
 }

@@ -284,7 +284,7 @@ fn short_verdict(v: &Verdict) -> String {
             100.0 * margin
         ),
         Verdict::Degenerate { margin, .. } => format!(
-            "not trusted and not {:.0} % below the chosen",
+            "not trusted and not {:.0} % below the best trusted",
             100.0 * margin
         ),
         Verdict::DegenerateOnWholeTrace => "not trusted on the whole trace".into(),
