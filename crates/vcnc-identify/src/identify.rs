@@ -850,28 +850,22 @@ fn choose_among(
     selection_margin: f64,
     degenerate_margin: f64,
 ) -> (usize, Vec<Verdict>) {
-    let rms: Vec<f64> = entries.iter().map(|e| e.rms).collect();
+    let rms = |i: usize| entries[i].rms;
     let trusted: Vec<usize> = (0..entries.len()).filter(|&i| entries[i].trusted).collect();
-    let lowest = |pool: &[usize]| pool.iter().map(|&i| rms[i]).fold(f64::INFINITY, f64::min);
+    let lowest = |pool: &[usize]| pool.iter().map(|&i| rms(i)).fold(f64::INFINITY, f64::min);
+    // Within the margin of the pool's lowest error: the fewest parameters, then the lower
+    // error, then the earlier candidate.
     let parsimonious = |pool: &[usize]| -> Option<usize> {
-        let best = lowest(pool);
-        let mut chosen: Option<usize> = None;
-        for &i in pool {
-            if rms[i] <= best * (1.0 + selection_margin) {
-                let key = (entries[i].parameters, rms[i]);
-                let better = match chosen {
-                    None => true,
-                    Some(c) => {
-                        let ck = (entries[c].parameters, rms[c]);
-                        key.0 < ck.0 || (key.0 == ck.0 && key.1 < ck.1)
-                    }
-                };
-                if better {
-                    chosen = Some(i);
-                }
-            }
-        }
-        chosen
+        let bar = lowest(pool) * (1.0 + selection_margin);
+        pool.iter()
+            .copied()
+            .filter(|&i| rms(i) <= bar)
+            .min_by(|&a, &b| {
+                let (ea, eb) = (&entries[a], &entries[b]);
+                ea.parameters
+                    .cmp(&eb.parameters)
+                    .then(ea.rms.total_cmp(&eb.rms))
+            })
     };
     let all: Vec<usize> = (0..entries.len()).collect();
     let best_trusted = lowest(&trusted);
@@ -879,9 +873,9 @@ fn choose_among(
         Some(t) => {
             let untrusted_best = (0..entries.len())
                 .filter(|&i| !entries[i].trusted)
-                .min_by(|&a, &b| rms[a].total_cmp(&rms[b]));
+                .min_by(|&a, &b| rms(a).total_cmp(&rms(b)));
             match untrusted_best {
-                Some(d) if rms[d] < (1.0 - degenerate_margin) * best_trusted => d,
+                Some(d) if rms(d) < (1.0 - degenerate_margin) * best_trusted => d,
                 _ => t,
             }
         }
@@ -890,7 +884,7 @@ fn choose_among(
     let best = lowest(&all);
     let verdicts = (0..entries.len())
         .map(|i| {
-            let (r, c) = (rms[i], rms[chosen]);
+            let (r, c) = (rms(i), rms(chosen));
             if i == chosen {
                 Verdict::Chosen
             } else if !entries[i].trusted && !trusted.is_empty() && r < c {
@@ -1290,6 +1284,8 @@ mod tests {
         assert_eq!(choice(&[entry(7, true, 1.0), entry(9, true, 0.9)]), 1);
         assert_eq!(choice(&[entry(7, true, 1.0), entry(9, true, 0.97)]), 0);
         assert_eq!(choice(&[entry(7, true, 1.03), entry(5, true, 1.0)]), 1);
+        // A tie in parameters and error goes to the earlier candidate (the paper's first).
+        assert_eq!(choice(&[entry(7, true, 1.0), entry(7, true, 1.0)]), 0);
     }
 
     #[test]
