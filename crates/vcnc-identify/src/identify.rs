@@ -162,6 +162,15 @@ pub enum Verdict {
     /// structure with the same input, while the paper's structure with the other input is
     /// trusted there: that one is chosen instead.
     DegenerateOnWholeTrace,
+    /// Its model input is not the drive's: refined on the whole trace, the paper's structure
+    /// with the other input has the lower free-run error (a single trace; the compared stretch
+    /// chose this input, the whole trace did not).
+    OtherInput {
+        /// Whole-trace free-run RMS of the paper's structure with this input, axis units.
+        rms: f64,
+        /// The same with the other input, axis units.
+        other_rms: f64,
+    },
     /// Its parameters are not trusted ([`StructureFit::degenerate`]) and its validation error
     /// is not below the best trusted candidate's by `degenerate_margin`.
     Degenerate {
@@ -196,6 +205,11 @@ impl std::fmt::Display for Verdict {
             ),
             Verdict::DegenerateOnWholeTrace => f.write_str(
                 "refined on the whole trace, its parameters are on a bound or not determined; the paper's structure with the other model input is trusted there",
+            ),
+            Verdict::OtherInput { rms, other_rms } => write!(
+                f,
+                "the other model input fits the whole trace better: the paper's structure with it {:.4e}, with this one {:.4e}",
+                other_rms, rms
             ),
             Verdict::Degenerate {
                 rms,
@@ -530,8 +544,13 @@ fn sole_fit(
 }
 
 /// The choice among the compared candidates, then the whole-trace refinement of the chosen one
-/// and of the paper's structure with the chosen input (in parallel), from their compared fits
-/// (and, for the paper's structure, the swarm's best particle); every candidate reported.
+/// and of the paper's structure with the chosen input, from their compared fits (and, for the
+/// paper's structure, the swarm's distinct starts when its compared fit is not trusted); every
+/// candidate reported. On a single trace (`source` held out) the paper's structure with the
+/// other model input is refined on the whole trace too, in parallel, and the model input is the
+/// one whose paper fit has the lower whole-trace error (docs/identification.md, "Choosing a
+/// structure"): when that is the other input, the choice runs again among the candidates with
+/// it, and those with the input it replaces get [`Verdict::OtherInput`].
 fn finish(
     trace: &Trace,
     main: Swarm,
@@ -540,69 +559,119 @@ fn finish(
     source: ValidationSource,
     opts: &IdentifyOptions,
 ) -> Result<Identification, Error> {
-    let (chosen, verdicts) = choose(&screened, &validations, opts);
-    for ((f, v), verdict) in screened.iter_mut().zip(validations).zip(verdicts) {
+    let (chosen, mut verdicts) = choose(&screened, &validations, opts);
+    for (f, v) in screened.iter_mut().zip(validations) {
         f.validation = Some(v);
-        f.verdict = Some(verdict);
     }
-    let c = Candidate {
-        structure: screened[chosen].structure,
-        input: screened[chosen].input,
-    };
-    let paper = Candidate {
+    let screened = screened;
+    let mut c = candidate_of(&screened[chosen]);
+    let paper_with = |input: ReferenceInput| Candidate {
         structure: ModelStructure::Paper,
-        input: c.input,
+        input,
+    };
+    let other_input = |input: ReferenceInput| {
+        screened
+            .iter()
+            .find(|f| f.structure == ModelStructure::Paper && f.input != input)
+            .map(|f| f.input)
     };
     let refit = |cand: Candidate| -> Result<StructureFit, Error> {
-        let prev = screened
-            .iter()
-            .find(|f| f.structure == cand.structure && f.input == cand.input);
-        // From the compared fit (near the whole trace's optimum), else the swarm's best.
-        let starts: Vec<Start> = match prev {
-            Some(f) => vec![start_of(&f.model, cand.structure)],
-            None => distinct_starts(&main.result.candidates, opts.refine.starts, &[]),
-        };
+        let prev = screened.iter().find(|f| candidate_of(f) == cand);
+        // From the compared fit (near the whole trace's optimum); for the paper's structure
+        // also from the swarm's distinct starts when that fit is missing or not trusted (a
+        // parameter on a bound is a poor place to start).
+        let mut starts: Vec<Start> = prev
+            .map(|f| start_of(&f.model, cand.structure))
+            .into_iter()
+            .collect();
+        if cand.structure == ModelStructure::Paper && prev.is_none_or(|f| !f.degenerate.is_empty())
+        {
+            starts.extend(distinct_starts(
+                &main.result.candidates,
+                opts.refine.starts,
+                &[],
+            ));
+        }
         let mut fit = fit_one(trace, &main, cand, &starts, opts, Stage::Whole)?;
         if let Some(p) = prev {
             fit.validation = p.validation.clone();
-            fit.verdict = p.verdict.clone();
             fit.degenerate = p.degenerate.clone();
         }
         Ok(fit)
     };
-    let (mut chosen_fit, mut paper_fit) = if c == paper {
-        (refit(c)?, None)
-    } else {
-        let (a, b) = rayon::join(|| refit(c), || refit(paper));
-        (a?, Some(b?))
+    let held_out = matches!(source, ValidationSource::HeldOut { .. });
+    let mut jobs = vec![c];
+    for j in std::iter::once(paper_with(c.input))
+        .chain(other_input(c.input).filter(|_| held_out).map(paper_with))
+    {
+        if !jobs.contains(&j) {
+            jobs.push(j);
+        }
+    }
+    let mut whole: Vec<StructureFit> = jobs
+        .par_iter()
+        .map(|&j| refit(j))
+        .collect::<Result<_, _>>()?;
+    let at = |whole: &[StructureFit], cand: Candidate| {
+        whole.iter().position(|f| candidate_of(f) == cand)
     };
+    // The model input on the whole trace: the paper's structure with either input.
+    if held_out && let Some(other) = other_input(c.input) {
+        let (mine, theirs) = (
+            &whole[at(&whole, paper_with(c.input)).expect("refined")],
+            &whole[at(&whole, paper_with(other)).expect("refined")],
+        );
+        let (rms, other_rms) = (mine.estimation.freerun_rms, theirs.estimation.freerun_rms);
+        if degeneracy(&theirs.refinement).is_empty() && other_rms < rms {
+            let pool: Vec<usize> = (0..screened.len())
+                .filter(|&i| screened[i].input == other)
+                .collect();
+            let entries: Vec<Entry> = pool.iter().map(|&i| entry_of(&screened[i])).collect();
+            let (k, pool_verdicts) =
+                choose_among(&entries, opts.selection_margin, opts.degenerate_margin);
+            for (i, f) in screened.iter().enumerate() {
+                if f.input != other {
+                    verdicts[i] = Verdict::OtherInput { rms, other_rms };
+                }
+            }
+            for (&i, v) in pool.iter().zip(pool_verdicts) {
+                verdicts[i] = v;
+            }
+            c = candidate_of(&screened[pool[k]]);
+            if at(&whole, c).is_none() {
+                whole.push(refit(c)?);
+            }
+        }
+    }
+    for f in &mut whole {
+        f.verdict = screened
+            .iter()
+            .position(|g| candidate_of(g) == candidate_of(f))
+            .map(|i| verdicts[i].clone());
+    }
     // The whole trace's own verdict (docs/identification.md, "Choosing a structure"): when the
     // chosen candidate and the paper's structure with its input both end on a bound or leave a
     // parameter undetermined once refined on the whole trace, the paper's structure with the
-    // other input is refined there too, and chosen when it is trusted.
-    let mut c = c;
-    let mut demoted = vec![];
-    let paper_whole = paper_fit.as_ref().unwrap_or(&chosen_fit);
-    if !degeneracy(&chosen_fit.refinement).is_empty()
-        && !degeneracy(&paper_whole.refinement).is_empty()
-        && let Some(other) = screened
-            .iter()
-            .find(|f| f.structure == ModelStructure::Paper && f.input != c.input)
-            .map(|f| Candidate {
-                structure: f.structure,
-                input: f.input,
-            })
+    // other input is refined there too (if it is not yet), and chosen when it is trusted.
+    let degenerate_whole = |whole: &[StructureFit], cand: Candidate| {
+        at(whole, cand).is_some_and(|i| !degeneracy(&whole[i].refinement).is_empty())
+    };
+    if degenerate_whole(&whole, c)
+        && degenerate_whole(&whole, paper_with(c.input))
+        && let Some(other) = other_input(c.input)
     {
-        let mut alt = refit(other)?;
-        if degeneracy(&alt.refinement).is_empty() {
-            for mut f in std::iter::once(chosen_fit).chain(paper_fit.take()) {
+        let alt = paper_with(other);
+        if at(&whole, alt).is_none() {
+            whole.push(refit(alt)?);
+        }
+        let i = at(&whole, alt).expect("refined");
+        if degeneracy(&whole[i].refinement).is_empty() {
+            for f in whole.iter_mut().filter(|f| f.input == c.input) {
                 f.degenerate = degeneracy(&f.refinement);
                 f.verdict = Some(Verdict::DegenerateOnWholeTrace);
-                demoted.push(f);
             }
-            alt.verdict = Some(Verdict::Chosen);
-            chosen_fit = alt;
-            c = other;
+            whole[i].verdict = Some(Verdict::Chosen);
+            c = alt;
         }
     }
     // The sensitivity to the model input: the paper's structure compared with either input.
@@ -612,24 +681,31 @@ fn finish(
     let me = screened
         .iter()
         .find(|f| f.structure == ModelStructure::Paper && f.input == c.input);
-    if let (Some(me), Some(twin), Some(u)) = (me, twin, chosen_fit.refinement.uncertainty.as_mut())
-    {
+    let ci = at(&whole, c).expect("refined");
+    if let (Some(me), Some(twin), Some(u)) = (me, twin, whole[ci].refinement.uncertainty.as_mut()) {
         widen_by_input(u, me, twin);
     }
-    // The whole-trace fits, the paper's structure first.
-    let mut fits = vec![chosen_fit];
-    fits.extend(paper_fit);
-    fits.sort_by_key(|f| f.structure != ModelStructure::Paper);
-    fits.extend(demoted);
-    for f in screened {
-        if !fits
-            .iter()
-            .any(|g| g.structure == f.structure && g.input == f.input)
-        {
+    // The whole-trace fits: the paper's structure with the chosen input first, then the chosen
+    // candidate, the rest in the order refined; then the compared-only candidates.
+    whole.sort_by_key(|f| {
+        let k = candidate_of(f);
+        (k != paper_with(c.input), k != c)
+    });
+    let mut fits = whole;
+    for (mut f, v) in screened.into_iter().zip(verdicts) {
+        if !fits.iter().any(|g| candidate_of(g) == candidate_of(&f)) {
+            f.verdict = Some(v);
             fits.push(f);
         }
     }
     assemble(trace, main, fits, source, Some(c), opts)
+}
+
+fn candidate_of(f: &StructureFit) -> Candidate {
+    Candidate {
+        structure: f.structure,
+        input: f.input,
+    }
 }
 
 /// Widens the chosen model's deviations `u` by its sensitivity to the model input (docs/
@@ -811,20 +887,33 @@ fn choose(
     val: &[FitMetrics],
     opts: &IdentifyOptions,
 ) -> (usize, Vec<Verdict>) {
-    let entries: Vec<Entry> = fits
-        .iter()
-        .zip(val)
-        .map(|(f, v)| Entry {
+    let entries: Vec<Entry> = fits.iter().zip(val).map(|(f, v)| entry(f, v)).collect();
+    choose_among(&entries, opts.selection_margin, opts.degenerate_margin)
+}
+
+/// A compared candidate `f` with its validation `v` as the choice sees it.
+fn entry(f: &StructureFit, v: &FitMetrics) -> Entry {
+    Entry {
+        parameters: f.structure.parameters(),
+        trusted: f.degenerate.is_empty(),
+        rms: if v.freerun_rms.is_finite() {
+            v.freerun_rms
+        } else {
+            f64::INFINITY
+        },
+    }
+}
+
+/// [`entry`] of a compared candidate whose validation is attached (infinite error when not).
+fn entry_of(f: &StructureFit) -> Entry {
+    match &f.validation {
+        Some(v) => entry(f, v),
+        None => Entry {
             parameters: f.structure.parameters(),
             trusted: f.degenerate.is_empty(),
-            rms: if v.freerun_rms.is_finite() {
-                v.freerun_rms
-            } else {
-                f64::INFINITY
-            },
-        })
-        .collect();
-    choose_among(&entries, opts.selection_margin, opts.degenerate_margin)
+            rms: f64::INFINITY,
+        },
+    }
 }
 
 /// A compared candidate as the choice sees it.

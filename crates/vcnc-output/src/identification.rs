@@ -288,6 +288,7 @@ fn short_verdict(v: &Verdict) -> String {
             100.0 * margin
         ),
         Verdict::DegenerateOnWholeTrace => "not trusted on the whole trace".into(),
+        Verdict::OtherInput { .. } => "the other input fits the whole trace better".into(),
     }
 }
 
