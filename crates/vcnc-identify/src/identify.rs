@@ -73,7 +73,8 @@ pub struct StructureFit {
     /// of the compared stretch).
     pub estimation: FitMetrics,
     /// Whether it was refined on the whole estimation trace with every stage (the chosen
-    /// candidate and the paper's structure with the chosen input), or only compared (a quicker
+    /// candidate and the paper's structure with the chosen input, on a single trace with
+    /// either input), or only compared (a quicker
     /// fit on the fitted part of the stretch, docs/identification.md, "Choosing a structure").
     pub whole: bool,
     /// Validation error that chose: on the held-out samples (from the fit on the rest of the
@@ -443,8 +444,9 @@ fn candidates(trace: &Trace, opts: &IdentifyOptions) -> Vec<Candidate> {
 /// `opts.holdout_fraction` of the stretch is held out, every candidate is fitted on the rest
 /// (a quicker fit: at most two friction stages, the linearised uncertainty), runs free
 /// through the stretch and is scored on the held-out samples only; then the chosen candidate
-/// and the paper's structure with the chosen input are refined on the whole trace, from their
-/// compared fits. A candidate whose parameters are on a bound or not determined is chosen only
+/// and the paper's structure with either input are refined on the whole trace, from their
+/// compared fits, and the input whose paper fit has the lower whole-trace error is the model's
+/// (the choice runs again among its candidates when the stretch chose the other). A candidate whose parameters are on a bound or not determined is chosen only
 /// if it beats the best trusted one by `opts.degenerate_margin` ([`Verdict`]). Held out at the
 /// end, and contiguous: a free run needs the initial state, known only at the start, and the
 /// residuals of neighbouring samples are strongly correlated, so scattered held-out samples
@@ -626,7 +628,14 @@ fn finish(
             let pool: Vec<usize> = (0..screened.len())
                 .filter(|&i| screened[i].input == other)
                 .collect();
-            let entries: Vec<Entry> = pool.iter().map(|&i| entry_of(&screened[i])).collect();
+            let entries: Vec<Entry> = pool
+                .iter()
+                .map(|&i| {
+                    let f = &screened[i];
+                    let rms = f.validation.as_ref().map_or(f64::NAN, |v| v.freerun_rms);
+                    entry(f, rms, &screened)
+                })
+                .collect();
             let (k, pool_verdicts) =
                 choose_among(&entries, opts.selection_margin, opts.degenerate_margin);
             for (i, f) in screened.iter().enumerate() {
@@ -887,34 +896,42 @@ fn choose(
     val: &[FitMetrics],
     opts: &IdentifyOptions,
 ) -> (usize, Vec<Verdict>) {
-    let entries: Vec<Entry> = fits.iter().zip(val).map(|(f, v)| entry(f, v)).collect();
+    let entries: Vec<Entry> = fits
+        .iter()
+        .zip(val)
+        .map(|(f, v)| entry(f, v.freerun_rms, fits))
+        .collect();
     choose_among(&entries, opts.selection_margin, opts.degenerate_margin)
 }
 
-/// A compared candidate `f` with its validation `v` as the choice sees it.
-fn entry(f: &StructureFit, v: &FitMetrics) -> Entry {
+/// A compared candidate `f` with its validation error `rms` as the choice sees it, among the
+/// compared `fits`. The structure without integral action is the paper's with $p = 0$: when
+/// the paper's structure with the same input determines $p$ away from zero (more than
+/// [`NESTED_REJECTION_SIGMAS`] standard deviations), the data reject that restriction, and the
+/// restricted structure counts the paper's parameters (it is not simpler in any way the data
+/// allow; it can still win by a lower error).
+fn entry(f: &StructureFit, rms: f64, fits: &[StructureFit]) -> Entry {
+    let integral_determined = || {
+        fits.iter()
+            .find(|g| g.structure == ModelStructure::Paper && g.input == f.input)
+            .and_then(|g| g.refinement.uncertainty.as_ref()?.get("p_hz"))
+            .is_some_and(|q| q.value.abs() > NESTED_REJECTION_SIGMAS * q.std)
+    };
+    let parameters = if f.structure == ModelStructure::NoIntegral && integral_determined() {
+        ModelStructure::Paper.parameters()
+    } else {
+        f.structure.parameters()
+    };
     Entry {
-        parameters: f.structure.parameters(),
+        parameters,
         trusted: f.degenerate.is_empty(),
-        rms: if v.freerun_rms.is_finite() {
-            v.freerun_rms
-        } else {
-            f64::INFINITY
-        },
+        rms: if rms.is_finite() { rms } else { f64::INFINITY },
     }
 }
 
-/// [`entry`] of a compared candidate whose validation is attached (infinite error when not).
-fn entry_of(f: &StructureFit) -> Entry {
-    match &f.validation {
-        Some(v) => entry(f, v),
-        None => Entry {
-            parameters: f.structure.parameters(),
-            trusted: f.degenerate.is_empty(),
-            rms: f64::INFINITY,
-        },
-    }
-}
+/// Standard deviations from zero beyond which a fitted $p$ rejects the structure without
+/// integral action ([`entry`]): the usual three-sigma test of a nested restriction.
+const NESTED_REJECTION_SIGMAS: f64 = 3.0;
 
 /// A compared candidate as the choice sees it.
 #[derive(Debug, Clone, Copy)]
