@@ -30,8 +30,8 @@ fn rel(s: &Value, axis: &str, key: &str) -> f64 {
 
 #[test]
 fn table1_drive_with_0_1um_encoder() {
-    // Issue 4: ωn and p within 1 %, ζ within 3 %, dc within 5 % (the paper: 2.4 %, 12 %, 6 %,
-    // dc 220× off).
+    // About twice the README's published errors (p 0.03 %, ωn 0.27 %, ζ 0.21 %, dc 0.28 %;
+    // issue 4 asked for 1 %, 1 %, 3 %, 5 %; the paper: 2.4 %, 12 %, 6 %, dc 220× off).
     let dir = tempdir();
     let s = identify(&repo("machines/ballscrew-ppi.toml"), dir.path(), &[]);
     let (wn, p, z, dc) = (
@@ -42,16 +42,29 @@ fn table1_drive_with_0_1um_encoder() {
     );
     eprintln!("0.1 µm: wn {wn:.4}, p {p:.4}, zeta {z:.4}, dc {dc:.4}");
     assert!(
-        wn < 0.01 && p < 0.01 && z < 0.03 && dc < 0.05,
+        wn < 0.006 && p < 0.0006 && z < 0.005 && dc < 0.006,
         "wn {wn} p {p} zeta {z} dc {dc}"
     );
     assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
-    // The model file is readable by --model and predicts the true drive on another program.
+    // The model file is readable by --model and predicts the true drive on another program: the
+    // identification excitation with seed 3 (the estimation run uses seed 1, the validation
+    // run seed 2). Truth: the true drive simulated on the same program.
+    let program = dir.path().join("other.ngc");
+    let gcode = ok(&vcnc(&[
+        "-q",
+        "gen",
+        "identification",
+        "--axis",
+        "X",
+        "--seed",
+        "3",
+    ]));
+    std::fs::write(&program, gcode).unwrap();
     let out = dir.path().join("sim");
     ok(&vcnc(&[
         "simulate",
         "machines/ballscrew-ppi.toml",
-        "gcode/identification-X.ngc",
+        program.to_str().unwrap(),
         "--model",
         dir.path().join("model.toml").to_str().unwrap(),
         "--out",
@@ -60,8 +73,16 @@ fn table1_drive_with_0_1um_encoder() {
     let sim = json(&out.join("summary.json"));
     let err = num(&sim, "axes.X.model_vs_true_max_um");
     let peak = num(&sim, "axes.X.tracking_max_um");
-    assert!(err < 0.02 * peak, "model vs true {err} µm of {peak} µm");
+    eprintln!("another program: model vs true max {err:.3} µm of {peak:.1} µm");
+    assert!(
+        err < MODEL_VS_TRUE_MAX_UM,
+        "model vs true {err} µm of {peak} µm"
+    );
 }
+
+/// About twice the measured |model − true drive| on the seed-3 program (0.26 µm of 1024 µm peak
+/// tracking error, 2026-11-29).
+const MODEL_VS_TRUE_MAX_UM: f64 = 0.5;
 
 #[test]
 fn the_actual_value_latency_is_stated_not_identified() {
@@ -86,7 +107,8 @@ fn the_actual_value_latency_is_stated_not_identified() {
 
 #[test]
 fn table1_drive_with_1um_encoder() {
-    // Issue 4: with a 1 µm encoder: ωn and p within 2 %, ζ within 5 %, dc within 10 %.
+    // About twice the README's published errors with a 1 µm encoder (p 0.04 %, ωn 0.27 %,
+    // ζ 0.27 %, dc 0.39 %; issue 4 asked for 2 %, 2 %, 5 %, 10 %).
     let dir = tempdir();
     let src = std::fs::read_to_string(repo("machines/ballscrew-ppi.toml")).unwrap();
     let coarse = src.replace(
@@ -105,16 +127,18 @@ fn table1_drive_with_1um_encoder() {
     );
     eprintln!("1 µm: wn {wn:.4}, p {p:.4}, zeta {z:.4}, dc {dc:.4}");
     assert!(
-        wn < 0.02 && p < 0.02 && z < 0.05 && dc < 0.10,
+        wn < 0.006 && p < 0.0008 && z < 0.006 && dc < 0.008,
         "wn {wn} p {p} zeta {z} dc {dc}"
     );
 }
 
-fn validation_within_two_percent(s: &Value) {
+/// The validation run's free-run max error within `max_um`: about twice the README's figure
+/// (PID 0.26 µm of 97.7 µm, SMC 0.27 µm of 51.5 µm; issue 4 asked for 2 % of the peak).
+fn validation_within(s: &Value, max_um: f64) {
     let err = num(s, "axes.X.fit.freerun_max_um");
     let peak = num(s, "axes.X.fit.tracking_peak_um");
     eprintln!("validation: free-run max error {err:.3} µm of {peak:.3} µm peak tracking error");
-    assert!(err <= 0.02 * peak, "{err} µm of {peak} µm");
+    assert!(err <= max_um, "{err} µm of {peak} µm");
     assert_eq!(s["axes"]["X"]["identified"]["stable"], Value::Bool(true));
 }
 
@@ -122,7 +146,7 @@ fn validation_within_two_percent(s: &Value) {
 fn pid_drive_identified_stable_and_predictive() {
     let dir = tempdir();
     let s = identify(&repo("machines/ballscrew-pid.toml"), dir.path(), &[]);
-    validation_within_two_percent(&s);
+    validation_within(&s, 0.55);
 }
 
 /// Routh–Hurwitz on a model object of a summary: every pole strictly in the left half plane.
@@ -136,7 +160,7 @@ fn smc_drive_identified_stable_and_predictive() {
     // ballscrew-smc.toml: sliding mode with realistic (half) inertia estimate.
     let dir = tempdir();
     let s = identify(&repo("machines/ballscrew-smc.toml"), dir.path(), &[]);
-    validation_within_two_percent(&s);
+    validation_within(&s, 0.55);
     // The unconstrained LS baseline is reported beside it with its poles and a stability flag
     // that agrees with Routh–Hurwitz on its own coefficients (shown, whatever it is).
     let ls = &s["axes"]["X"]["unconstrained_ls"];

@@ -138,7 +138,9 @@ fn true_contour_error_is_the_published_scale() {
 
 #[test]
 fn identified_drives_predict_the_contour_error_within_a_micrometre() {
-    // Issue 5: max |contour(identified) − contour(true)| ≤ 1 µm and orientation ≤ 0.01 mrad.
+    // About twice the README's published discrepancies (identified 0.16 µm / 0.0005 mrad, the
+    // paper's equation-error PSO alone 0.47 µm / 0.0044 mrad; issue 5 asked for 1 µm and
+    // 0.01 mrad). Truth: the true machine on the same run.
     let f = fixture();
     let ((dt, dor), (pt, por)) = (f.discrepancy(0), f.discrepancy(1));
     let d_tip = max(&dt) * 1e3;
@@ -147,13 +149,23 @@ fn identified_drives_predict_the_contour_error_within_a_micrometre() {
     let p_tip = max(&pt) * 1e3;
     let p_ori = max(&por) * 1e3;
     eprintln!("paper PSO: tip discrepancy {p_tip:.4} µm, orientation {p_ori:.5} mrad");
-    assert!(d_tip <= 1.0, "tool-tip discrepancy {d_tip} µm");
-    assert!(d_ori <= 0.01, "orientation discrepancy {d_ori} mrad");
+    assert!(d_tip <= 0.32, "tool-tip discrepancy {d_tip} µm");
+    assert!(d_ori <= 0.001, "orientation discrepancy {d_ori} mrad");
+    assert!(p_tip <= 0.95, "paper PSO tool-tip discrepancy {p_tip} µm");
+    assert!(
+        p_ori <= 0.009,
+        "paper PSO orientation discrepancy {p_ori} mrad"
+    );
+    assert!(
+        d_tip < p_tip && d_ori < p_ori,
+        "the refinement gains nothing"
+    );
 }
 
 #[test]
 fn identified_nmv5000_poles_are_within_tolerance() {
-    // Issue 4: every NMV5000 axis' ωn and p within 2 %, ζ within 5 % of the analytic model of
+    // Every NMV5000 axis within about twice the README's published errors (p ≤ 0.09 %, ωn ≤
+    // 0.46 %, ζ ≤ 1.5 %, dc ≤ 3.5 %; issue 4 asked for 2 %, 2 %, 5 %) of the analytic model of
     // the true drive (truth: `DriveParams` → closed-loop model, docs/drive-model.md).
     let f = fixture();
     for r in &f.ids {
@@ -170,10 +182,18 @@ fn identified_nmv5000_poles_are_within_tolerance() {
             100.0 * (r.result.identified.dc - truth.dc) / truth.dc
         );
         assert!(r.result.identified.is_stable(), "{}", r.axis);
-        assert!(e(p.wn, t.wn) < 0.02, "{} wn {} vs {}", r.axis, p.wn, t.wn);
-        assert!(e(p.p, t.p) < 0.02, "{} p {} vs {}", r.axis, p.p, t.p);
+        assert!(e(p.wn, t.wn) < 0.01, "{} wn {} vs {}", r.axis, p.wn, t.wn);
+        assert!(e(p.p, t.p) < 0.002, "{} p {} vs {}", r.axis, p.p, t.p);
+        let dc = r.result.identified.dc;
         assert!(
-            e(p.zeta, t.zeta) < 0.05,
+            e(dc, truth.dc) < 0.07,
+            "{} dc {} vs {}",
+            r.axis,
+            dc,
+            truth.dc
+        );
+        assert!(
+            e(p.zeta, t.zeta) < 0.03,
             "{} zeta {} vs {}",
             r.axis,
             p.zeta,
