@@ -159,6 +159,8 @@ fn thread_count_does_not_change_results() {
             "machines/nmv5000.toml",
             "gcode/spiral.ngc",
             "--quiet",
+            // ζ = 0.5 is unreachable on X: failed rows must not depend on the thread count either.
+            "--keep-going",
             "--set",
             "axes.C.plant.coulomb_torque=0.2,0.8,1.6",
             "--set",
@@ -175,17 +177,44 @@ fn thread_count_does_not_change_results() {
 }
 
 #[test]
-fn bad_configurations_are_reported_per_row() {
-    // An unknown key and an impossible design fail their own configurations, not the sweep;
-    // a sweep whose every configuration failed measured nothing: it keeps its rows and exits 1
-    // (issue 11).
+fn bad_configurations_are_refused_before_running_or_reported_per_row() {
+    // Configurations whose machine cannot be built (an unknown key, an impossible design) are
+    // found before anything runs: the sweep is refused with exit code 2, naming how many, the
+    // first one and its error, and writes nothing (issue 30).
     let dir = tempdir();
+    let refused = dir.path().join("refused");
+    let r = vcnc(&[
+        "sweep",
+        "machines/nmv5000.toml",
+        "gcode/spiral.ngc",
+        "--quiet",
+        "--set",
+        "axes.X.controller.design.zeta=0.39,-0.5",
+        "--out",
+        refused.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2), "{:?}", text(&r));
+    let msg = text(&r).1;
+    assert!(
+        msg.contains("1 of 2 configurations of the sweep cannot be built")
+            && msg.contains("#1 axes.X.controller.design.zeta=-0.5")
+            && msg.contains("--keep-going"),
+        "{msg}"
+    );
+    assert!(
+        !refused.exists(),
+        "a refused sweep wrote {}",
+        refused.display()
+    );
+    // With --keep-going they fail their own configurations, not the sweep; a sweep whose every
+    // configuration failed measured nothing: it keeps its rows and exits 1 (issue 11).
     let out = dir.path().join("s");
     let all_failed = vcnc(&[
         "sweep",
         "machines/nmv5000.toml",
         "gcode/spiral.ngc",
         "--quiet",
+        "--keep-going",
         "--set",
         "axes.X.controller.design.zeta=0.39,-0.5",
         "--set",
@@ -216,6 +245,7 @@ fn bad_configurations_are_reported_per_row() {
         "machines/nmv5000.toml",
         "gcode/spiral.ngc",
         "--quiet",
+        "--keep-going",
         "--set",
         "axes.X.controller.design.zeta=0.39,-0.5",
         "--out",

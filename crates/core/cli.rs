@@ -467,6 +467,11 @@ pub struct SweepArgs {
     /// Output folder (sweep.csv streamed row by row, summary.json, plots).
     #[arg(long, default_value = "vcnc-sweep")]
     pub out: PathBuf,
+    /// Run even when some configurations cannot be built (an unreachable controller design, a
+    /// value out of range): they become failed rows. Without it such a sweep is refused before
+    /// anything runs.
+    #[arg(long)]
+    pub keep_going: bool,
 }
 
 #[derive(Debug, Subcommand)]

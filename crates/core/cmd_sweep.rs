@@ -40,6 +40,23 @@ pub fn sweep(args: &SweepArgs, ctx: &Ctx) -> Result<()> {
             .transpose()?,
         ctx.lenient,
     )?;
+    // Configurations that cannot be built are found before anything runs or is written.
+    match plan.check_buildable() {
+        Err(vcnc_pipeline::Error::InvalidConfigurations {
+            count,
+            total,
+            first_index,
+            first_set,
+            first,
+        }) if args.keep_going => {
+            if !ctx.quiet {
+                eprintln!(
+                    "warning: {count} of {total} configurations cannot be built and are recorded as failed rows, e.g. #{first_index} {first_set}: {first}"
+                );
+            }
+        }
+        other => other?,
+    }
     ensure_dir(&args.out)?;
     let csv_path = args.out.join("sweep.csv");
     let mut file =

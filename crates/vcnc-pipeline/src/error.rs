@@ -435,6 +435,23 @@ pub enum Error {
         /// Samples of the program.
         samples: usize,
     },
+    /// Configurations of a sweep whose machine cannot be built (an unreachable controller
+    /// design, a value out of its range), found before anything runs.
+    #[error(
+        "{count} of {total} configurations of the sweep cannot be built, e.g. #{first_index} {first_set}: {first}; narrow the swept ranges to values the machine accepts, or pass --keep-going to record them as failed rows"
+    )]
+    InvalidConfigurations {
+        /// How many cannot be built.
+        count: usize,
+        /// Configurations of the shard.
+        total: usize,
+        /// Index of the first.
+        first_index: usize,
+        /// Its values (`key=value ...`).
+        first_set: String,
+        /// Its error.
+        first: String,
+    },
     /// Every configuration of a sweep failed.
     #[error("all {configurations} configurations of the sweep failed; first: {first}")]
     SweepFailed {
@@ -488,7 +505,8 @@ impl Error {
             | Error::FreeRunDiverges { .. }
             | Error::Headroom { .. }
             | Error::EmptyProgram { .. }
-            | Error::SlowInverse { .. } => true,
+            | Error::SlowInverse { .. }
+            | Error::InvalidConfigurations { .. } => true,
             Error::SweepFailed { .. }
             | Error::GeneratorOutput { .. }
             | Error::SampleCount { .. }

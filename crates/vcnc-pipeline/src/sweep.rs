@@ -341,6 +341,49 @@ impl<'a> Sweep<'a> {
         cells
     }
 
+    /// The configurations of the shard whose machine cannot be built (checked without running
+    /// anything), as `(index, error)`, in configuration order.
+    pub fn unbuildable(&self) -> Vec<(usize, String)> {
+        self.indices
+            .par_iter()
+            .filter_map(|&index| {
+                let values = configuration(&self.keys, index);
+                let set: Vec<(&str, f64)> = self
+                    .keys
+                    .iter()
+                    .zip(&values)
+                    .map(|(k, v)| (k.key.as_str(), *v))
+                    .collect();
+                self.doc
+                    .with_values(&set)
+                    .err()
+                    .map(|e| (index, e.to_string().replace(['\n', '\r'], " ")))
+            })
+            .collect()
+    }
+
+    /// An error naming the configurations that cannot be built ([`Sweep::unbuildable`]), if any.
+    pub fn check_buildable(&self) -> Result<(), Error> {
+        let bad = self.unbuildable();
+        let Some((first_index, first)) = bad.first().cloned() else {
+            return Ok(());
+        };
+        let first_set = self
+            .keys
+            .iter()
+            .zip(configuration(&self.keys, first_index))
+            .map(|(k, v)| format!("{}={v}", k.key))
+            .collect::<Vec<_>>()
+            .join(" ");
+        Err(Error::InvalidConfigurations {
+            count: bad.len(),
+            total: self.indices.len(),
+            first_index,
+            first_set,
+            first,
+        })
+    }
+
     /// Runs configuration `index`.
     pub fn run_config(&self, index: usize) -> SweepRow {
         let values = configuration(&self.keys, index);
