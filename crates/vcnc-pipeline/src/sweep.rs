@@ -347,15 +347,7 @@ impl<'a> Sweep<'a> {
         self.indices
             .par_iter()
             .filter_map(|&index| {
-                let values = configuration(&self.keys, index);
-                let set: Vec<(&str, f64)> = self
-                    .keys
-                    .iter()
-                    .zip(&values)
-                    .map(|(k, v)| (k.key.as_str(), *v))
-                    .collect();
-                self.doc
-                    .with_values(&set)
+                self.machine_of(&configuration(&self.keys, index))
                     .err()
                     .map(|e| (index, e.to_string().replace(['\n', '\r'], " ")))
             })
@@ -397,14 +389,19 @@ impl<'a> Sweep<'a> {
         }
     }
 
-    fn evaluate(&self, values: &[f64]) -> Result<ConfigResult, Error> {
+    /// The machine of one configuration: the document with the swept `values`, checked.
+    fn machine_of(&self, values: &[f64]) -> Result<Machine, Error> {
         let set: Vec<(&str, f64)> = self
             .keys
             .iter()
             .zip(values)
             .map(|(k, v)| (k.key.as_str(), *v))
             .collect();
-        let mut machine = self.doc.with_values(&set)?;
+        Ok(self.doc.with_values(&set)?)
+    }
+
+    fn evaluate(&self, values: &[f64]) -> Result<ConfigResult, Error> {
+        let mut machine = self.machine_of(values)?;
         if let Some(t) = &self.tools {
             machine.tools = t.clone();
         }
