@@ -1,15 +1,29 @@
-//! Property (issue 4, docs/identification.md): every model identified from a random stable P-PI drive
-//! is stable — every pole strictly in the left half plane — for the refined model and for the
-//! paper's PSO result alike. The drives are random plants with P-PI gains designed from random
-//! poles (docs/drive-model.md) and random feed-forward, simulated by the true drive simulator.
+//! Property (issue 4, docs/identification.md): a model identified from a random stable P-PI
+//! drive predicts that drive on a program it was not identified on about as well as the
+//! drive's own analytic model does. The drives are random plants with P-PI gains designed from
+//! random poles (docs/drive-model.md) and random feed-forward, simulated by the true drive
+//! simulator; proptest draws them afresh every run (a failure prints its case, and
+//! `property.proptest-regressions` replays the saved ones first). Stability and in-bound poles
+//! are not asserted: the search's bounds make them true by construction.
+//!
+//! Truth: the analytic closed-loop model of each drive's parameters
+//! (`DriveParams::closed_loop_model`), run free on the second program with the same input.
+//! The identified model's free-run RMS error there must be at most [`VALIDATION_RATIO`] times
+//! the analytic model's (the analytic model is not exact: the true drive samples its loop at
+//! 20 kHz and quantises its encoder, so the identified model may also come out below it).
 //!
 //! 200 drives, as the issue asks: about 15 s in release mode (the README's test command).
 
 mod support;
 
 use proptest::prelude::*;
+use vcnc_drive::DriveModel;
 use vcnc_drive::{ControllerSpec, DriveParams, Encoder, Plant, PoleDesign};
 use vcnc_identify::{IdentifyOptions, identify};
+
+/// Largest identified/analytic ratio of the free-run RMS error on the second program. Measured
+/// over 603 fresh drives (2026-11-29): median 0.979, 99th percentile 1.0003, worst 1.106.
+const VALIDATION_RATIO: f64 = 1.2;
 
 #[derive(Debug, Clone)]
 struct RandomDrive {
@@ -94,28 +108,30 @@ fn check(d: &RandomDrive) -> Result<(), TestCaseError> {
         ..Default::default()
     };
     let id = identify(&tr, &opts).map_err(|e| TestCaseError::fail(format!("{e}")))?;
-    prop_assert!(
-        id.identified.is_stable(),
-        "identified unstable: {:?}",
-        id.identified
+    // Accuracy on another program (module documentation).
+    let r2 = support::identification_program(d.seed ^ 0x5eed, 30, 50.0, 250.0, 2500.0, 1e-3);
+    let val = support::drive_trace(&p, &r2);
+    let truth = DriveModel {
+        input: id.identified_model.input,
+        ..DriveModel::from(p.closed_loop_model().expect("analytic model"))
+    };
+    let (rv, rt) = (
+        support::freerun_rms(&id.identified_model, &val),
+        support::freerun_rms(&truth, &val),
     );
     prop_assert!(
-        id.paper_pso.is_stable(),
-        "paper PSO unstable: {:?}",
-        id.paper_pso
+        rv <= VALIDATION_RATIO * rt,
+        "identified {:.4} µm against the analytic model's {:.4} µm on another program",
+        1e3 * rv,
+        1e3 * rt
     );
-    let b = &opts.bounds;
-    let ip = id.identified_poles;
-    prop_assert!(ip.p_hz() >= b.p_hz[0] && ip.p_hz() <= b.p_hz[1]);
-    prop_assert!(ip.wn_hz() >= b.wn_hz[0] && ip.wn_hz() <= b.wn_hz[1]);
-    prop_assert!(ip.zeta >= b.zeta[0] && ip.zeta <= b.zeta[1]);
     Ok(())
 }
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
     #[test]
-    fn identified_models_of_200_random_ppi_drives_are_stable(d in drive()) {
+    fn identified_models_of_200_random_ppi_drives_predict_another_program(d in drive()) {
         check(&d)?;
     }
 }
