@@ -74,8 +74,8 @@ pub struct StructureFit {
     pub estimation: FitMetrics,
     /// Whether it was refined on the whole estimation trace with every stage (the chosen
     /// candidate and the paper's structure with the chosen input, on a single trace with
-    /// either input), or only compared (a quicker
-    /// fit on the fitted part of the stretch, docs/identification.md, "Choosing a structure").
+    /// either input), or only compared (a quicker fit on the fitted part of the stretch,
+    /// docs/identification.md, "Choosing a structure").
     pub whole: bool,
     /// Validation error that chose: on the held-out samples (from the fit on the rest of the
     /// stretch) or on the separate validation trace. `None` when nothing was chosen.
@@ -446,9 +446,9 @@ fn candidates(trace: &Trace, opts: &IdentifyOptions) -> Vec<Candidate> {
 /// through the stretch and is scored on the held-out samples only; then the chosen candidate
 /// and the paper's structure with either input are refined on the whole trace, from their
 /// compared fits, and the input whose paper fit has the lower whole-trace error is the model's
-/// (the choice runs again among its candidates when the stretch chose the other). A candidate whose parameters are on a bound or not determined is chosen only
-/// if it beats the best trusted one by `opts.degenerate_margin` ([`Verdict`]). Held out at the
-/// end, and contiguous: a free run needs the initial state, known only at the start, and the
+/// (the choice runs again among its candidates when the stretch chose the other). A candidate
+/// whose parameters are on a bound or not determined is chosen only if it beats the best
+/// trusted one by `opts.degenerate_margin` ([`Verdict`]). Held out at the end, and contiguous: a free run needs the initial state, known only at the start, and the
 /// residuals of neighbouring samples are strongly correlated, so scattered held-out samples
 /// would be predicted from their fitted neighbours' errors rather than from the model. When
 /// the end of a stretch that starts at rest hardly moves (less than a tenth of its reference
@@ -561,9 +561,10 @@ fn finish(
     source: ValidationSource,
     opts: &IdentifyOptions,
 ) -> Result<Identification, Error> {
-    let (chosen, mut verdicts) = choose(&screened, &validations, opts);
-    for (f, v) in screened.iter_mut().zip(validations) {
-        f.validation = Some(v);
+    let all: Vec<usize> = (0..screened.len()).collect();
+    let (chosen, mut verdicts) = choose(&screened, &validations, &all, opts);
+    for (f, v) in screened.iter_mut().zip(&validations) {
+        f.validation = Some(v.clone());
     }
     let screened = screened;
     let mut c = candidate_of(&screened[chosen]);
@@ -628,16 +629,7 @@ fn finish(
             let pool: Vec<usize> = (0..screened.len())
                 .filter(|&i| screened[i].input == other)
                 .collect();
-            let entries: Vec<Entry> = pool
-                .iter()
-                .map(|&i| {
-                    let f = &screened[i];
-                    let rms = f.validation.as_ref().map_or(f64::NAN, |v| v.freerun_rms);
-                    entry(f, rms, &screened)
-                })
-                .collect();
-            let (k, pool_verdicts) =
-                choose_among(&entries, opts.selection_margin, opts.degenerate_margin);
+            let (k, pool_verdicts) = choose(&screened, &validations, &pool, opts);
             for (i, f) in screened.iter().enumerate() {
                 if f.input != other {
                     verdicts[i] = Verdict::OtherInput { rms, other_rms };
@@ -646,7 +638,7 @@ fn finish(
             for (&i, v) in pool.iter().zip(pool_verdicts) {
                 verdicts[i] = v;
             }
-            c = candidate_of(&screened[pool[k]]);
+            c = candidate_of(&screened[k]);
             if at(&whole, c).is_none() {
                 whole.push(refit(c)?);
             }
@@ -684,12 +676,9 @@ fn finish(
         }
     }
     // The sensitivity to the model input: the paper's structure compared with either input.
-    let twin = screened
-        .iter()
-        .find(|f| f.structure == ModelStructure::Paper && f.input != c.input);
-    let me = screened
-        .iter()
-        .find(|f| f.structure == ModelStructure::Paper && f.input == c.input);
+    let compared = |cand: Candidate| screened.iter().find(|f| candidate_of(f) == cand);
+    let twin = other_input(c.input).and_then(|i| compared(paper_with(i)));
+    let me = compared(paper_with(c.input));
     let ci = at(&whole, c).expect("refined");
     if let (Some(me), Some(twin), Some(u)) = (me, twin, whole[ci].refinement.uncertainty.as_mut()) {
         widen_by_input(u, me, twin);
@@ -861,7 +850,8 @@ fn compare(
     let (mut fits, mut vals): (Vec<StructureFit>, Vec<FitMetrics>) =
         paper_fits?.into_iter().unzip();
     let starts = extended_starts_found?;
-    let (best, _) = choose(&fits, &vals, opts);
+    let all: Vec<usize> = (0..fits.len()).collect();
+    let (best, _) = choose(&fits, &vals, &all, opts);
     let input = fits[best].input;
     let rest: Vec<(StructureFit, FitMetrics)> = structures
         .par_iter()
@@ -889,19 +879,21 @@ fn compare(
     Ok((fits, vals))
 }
 
-/// Index of the candidate chosen by validation free-run RMS, and the verdict on each
-/// ([`choose_among`]).
+/// The choice by validation free-run RMS ([`choose_among`]) among the candidates `pool`
+/// (indices into `fits` and their validations `val`): the index of the chosen one in `fits`,
+/// and the verdict on each of `pool`.
 fn choose(
     fits: &[StructureFit],
     val: &[FitMetrics],
+    pool: &[usize],
     opts: &IdentifyOptions,
 ) -> (usize, Vec<Verdict>) {
-    let entries: Vec<Entry> = fits
+    let entries: Vec<Entry> = pool
         .iter()
-        .zip(val)
-        .map(|(f, v)| entry(f, v.freerun_rms, fits))
+        .map(|&i| entry(&fits[i], val[i].freerun_rms, fits))
         .collect();
-    choose_among(&entries, opts.selection_margin, opts.degenerate_margin)
+    let (k, verdicts) = choose_among(&entries, opts.selection_margin, opts.degenerate_margin);
+    (pool[k], verdicts)
 }
 
 /// A compared candidate `f` with its validation error `rms` as the choice sees it, among the
