@@ -172,6 +172,16 @@ pub enum Verdict {
         /// The same with the other input, axis units.
         other_rms: f64,
     },
+    /// It contains the paper's structure (the paper's is its limit with no dead time, filter or
+    /// extra pole), yet refined on the whole trace its free-run error is higher than the
+    /// paper's with the same input: its fit did not reach its optimum there, so its compared
+    /// validation cannot be trusted either, and the paper's structure is chosen instead.
+    WorseThanContained {
+        /// Its whole-trace free-run RMS, axis units.
+        rms: f64,
+        /// The paper's structure's, same input, axis units.
+        paper_rms: f64,
+    },
     /// Its parameters are not trusted ([`StructureFit::degenerate`]) and its validation error
     /// is not below the best trusted candidate's by `degenerate_margin`.
     Degenerate {
@@ -211,6 +221,11 @@ impl std::fmt::Display for Verdict {
                 f,
                 "the other model input fits the whole trace better: the paper's structure with it {:.4e}, with this one {:.4e}",
                 other_rms, rms
+            ),
+            Verdict::WorseThanContained { rms, paper_rms } => write!(
+                f,
+                "refined on the whole trace, its free-run error {:.4e} is above the {:.4e} of the paper's structure it contains",
+                rms, paper_rms
             ),
             Verdict::Degenerate {
                 rms,
@@ -649,6 +664,24 @@ fn finish(
             .iter()
             .position(|g| candidate_of(g) == candidate_of(f))
             .map(|i| verdicts[i].clone());
+    }
+    // A structure that contains the paper's and fits the whole trace worse than it did not
+    // converge there (docs/identification.md, "Choosing a structure"): the paper's is chosen.
+    let paper = paper_with(c.input);
+    if c.structure.contains_paper() {
+        let (ci, pi) = (
+            at(&whole, c).expect("refined"),
+            at(&whole, paper).expect("refined"),
+        );
+        let (rms, paper_rms) = (
+            whole[ci].estimation.freerun_rms,
+            whole[pi].estimation.freerun_rms,
+        );
+        if rms > paper_rms {
+            whole[ci].verdict = Some(Verdict::WorseThanContained { rms, paper_rms });
+            whole[pi].verdict = Some(Verdict::Chosen);
+            c = paper;
+        }
     }
     // The whole trace's own verdict (docs/identification.md, "Choosing a structure"): when the
     // chosen candidate and the paper's structure with its input both end on a bound or leave a
@@ -1089,6 +1122,7 @@ fn fit_one(
             };
             setup.opts = &compare_opts;
             setup.uncertainty = UncertaintyLevel::Linear;
+            setup.free_run_stage = false;
         }
         refine(trace, &sw.regs, starts, setup)?
     } else {

@@ -32,7 +32,8 @@
 //!    predictions use) minimised over all parameters, by variable projection and a bounded
 //!    Levenberg–Marquardt in coefficients mapped onto the stable region (no seam where poles
 //!    change roles), from several distinct swarm particles, with the model's own friction
-//!    (sticking included) in a fixed-point second stage, and a sandwich covariance that
+//!    (sticking included) in a fixed-point second stage and a direct fit of the model's own
+//!    free run in a third, and a sandwich covariance that
 //!    accounts for the residual's autocorrelation.
 //! 5. [`unconstrained_ls`]: the 7-parameter least-squares baseline, reported with its poles and
 //!    a stability flag, whatever they are.

@@ -100,6 +100,13 @@ impl ModelStructure {
         }
     }
 
+    /// Whether the paper's structure is a limit of this one (no dead time, no filter lag, the
+    /// extra pole far away): a converged fit of it is never worse than the paper's on the same
+    /// data.
+    pub fn contains_paper(&self) -> bool {
+        !matches!(self, ModelStructure::Paper | ModelStructure::NoIntegral)
+    }
+
     /// Order of the tracking path's denominator (the core's three poles, the filter's and the
     /// extra pole): the number of free responses of the model's output. Without the integral
     /// mode, the pair's two and the constant offset that takes the integral state's place.

@@ -289,6 +289,9 @@ fn short_verdict(v: &Verdict) -> String {
         ),
         Verdict::DegenerateOnWholeTrace => "not trusted on the whole trace".into(),
         Verdict::OtherInput { .. } => "the other input fits the whole trace better".into(),
+        Verdict::WorseThanContained { .. } => {
+            "fits the whole trace worse than the paper's structure".into()
+        }
     }
 }
 
