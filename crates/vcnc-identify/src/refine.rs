@@ -401,24 +401,6 @@ struct FreeRunFit<'a> {
     floors: Vec<f64>,
 }
 
-/// Buffers of a [`FreeRunFit`] evaluation.
-struct RunWork {
-    resid: Vec<f64>,
-    cost: f64,
-}
-
-impl Residuals for RunWork {
-    fn resid(&self) -> &[f64] {
-        &self.resid
-    }
-    fn resid_mut(&mut self) -> &mut [f64] {
-        &mut self.resid
-    }
-    fn cost(&self) -> f64 {
-        self.cost
-    }
-}
-
 impl<'a> FreeRunFit<'a> {
     fn new(prob: &'a OutputErrorProblem, lay: &'a Layout, start: &DriveModel) -> Self {
         let c = start.core;
@@ -469,18 +451,14 @@ impl<'a> FreeRunFit<'a> {
 }
 
 impl LeastSquares for FreeRunFit<'_> {
-    type Work = RunWork;
     fn n(&self) -> usize {
         self.prob.n()
     }
     fn bounds(&self) -> (&[f64], &[f64]) {
         (&self.lo, &self.hi)
     }
-    fn work(&self) -> RunWork {
-        RunWork {
-            resid: vec![0.0; self.prob.n()],
-            cost: f64::INFINITY,
-        }
+    fn work(&self) -> Work {
+        Work::residuals_only(self.prob.n())
     }
     fn step(&self, j: usize, v: f64) -> f64 {
         let m = self.lay.m();
@@ -490,7 +468,7 @@ impl LeastSquares for FreeRunFit<'_> {
             1e-6 * v.abs().max(self.floors[j - m])
         }
     }
-    fn evaluate(&self, v: &[f64], w: &mut RunWork) {
+    fn evaluate(&self, v: &[f64], w: &mut Work) {
         w.cost = f64::INFINITY;
         let (_, model) = self.split(v);
         if !model.is_stable() || self.prob.own_residual(&model, &mut w.resid).is_err() {
@@ -914,7 +892,8 @@ const FREE_RUN_TOLERANCE: f64 = 1e-6;
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
 const KMAX: usize = 9;
 
-/// Reusable buffers of one evaluation.
+/// Reusable buffers of one evaluation: the residuals and cost (every [`LeastSquares`] problem),
+/// and the projected problem's columns and linear parameters.
 struct Work {
     /// Columns $[b_2, b_1, b_0, d_c$, free responses$]$, row-major with stride `k`.
     cols: Vec<f64>,
@@ -936,6 +915,17 @@ impl Work {
         Work {
             cols: vec![0.0; kmax * n],
             k: 4,
+            resid: vec![0.0; n],
+            cost: f64::INFINITY,
+            lin: [0.0; KMAX],
+        }
+    }
+
+    /// Buffers for the `n` residuals alone (a problem without projected columns).
+    fn residuals_only(n: usize) -> Work {
+        Work {
+            cols: vec![],
+            k: 0,
             resid: vec![0.0; n],
             cost: f64::INFINITY,
             lin: [0.0; KMAX],
@@ -1306,37 +1296,16 @@ struct LmRun {
 /// A box-bounded nonlinear least-squares problem of [`lm`]: half the sum of the squared
 /// residuals of its parameters.
 trait LeastSquares: Sync {
-    /// The buffers of one evaluation.
-    type Work: Residuals + Send + Sync;
     /// Number of residuals.
     fn n(&self) -> usize;
     /// Lower and upper bounds of the parameters.
     fn bounds(&self) -> (&[f64], &[f64]);
     /// Fresh buffers.
-    fn work(&self) -> Self::Work;
+    fn work(&self) -> Work;
     /// Forward-difference step of parameter `j` at value `v`.
     fn step(&self, j: usize, v: f64) -> f64;
     /// The residuals and cost at `v` into `w` (an infinite cost when not defined there).
-    fn evaluate(&self, v: &[f64], w: &mut Self::Work);
-}
-
-/// The residuals and cost of one evaluation.
-trait Residuals {
-    fn resid(&self) -> &[f64];
-    fn resid_mut(&mut self) -> &mut [f64];
-    fn cost(&self) -> f64;
-}
-
-impl Residuals for Work {
-    fn resid(&self) -> &[f64] {
-        &self.resid
-    }
-    fn resid_mut(&mut self) -> &mut [f64] {
-        &mut self.resid
-    }
-    fn cost(&self) -> f64 {
-        self.cost
-    }
+    fn evaluate(&self, v: &[f64], w: &mut Work);
 }
 
 /// The projected residual (variable projection) of a structure's nonlinear parameters.
@@ -1346,7 +1315,6 @@ struct Projected<'a> {
 }
 
 impl LeastSquares for Projected<'_> {
-    type Work = Work;
     fn n(&self) -> usize {
         self.prob.n()
     }
@@ -1365,9 +1333,9 @@ impl LeastSquares for Projected<'_> {
 }
 
 /// A finished [`lm`] run: the parameters, the evaluation there, and the run's record.
-struct LmOut<W> {
+struct LmOut {
     v: Vec<f64>,
-    work: W,
+    work: Work,
     start_cost: f64,
     history: Vec<f64>,
     iterations: usize,
@@ -1395,7 +1363,7 @@ fn levenberg_marquardt(
 
 /// Bounded Levenberg–Marquardt (module documentation) on `prob` from `v0` (clamped into the
 /// box).
-fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmOut<P::Work>> {
+fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmOut> {
     let (lo, hi) = prob.bounds();
     let mdim = lo.len();
     let clamp = |e: &[f64]| -> Vec<f64> {
@@ -1408,14 +1376,14 @@ fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmO
     let mut eta = clamp(v0);
     let mut base = prob.work();
     let mut trial = prob.work();
-    let mut jac: Vec<P::Work> = (0..mdim).map(|_| prob.work()).collect();
+    let mut jac: Vec<Work> = (0..mdim).map(|_| prob.work()).collect();
     prob.evaluate(&eta, &mut base);
     let mut evaluations = 1;
-    if !base.cost().is_finite() {
+    if !base.cost.is_finite() {
         return None;
     }
-    let start_cost = base.cost();
-    let mut history = vec![base.cost()];
+    let start_cost = base.cost;
+    let mut history = vec![base.cost];
     let mut lambda: f64 = 1e-3;
     let mut iterations = 0;
     'outer: for _ in 0..opts.max_iterations {
@@ -1425,15 +1393,15 @@ fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmO
             let mut e = eta.clone();
             e[j] += steps[j];
             prob.evaluate(&e, w);
-            for (r, b) in w.resid_mut().iter_mut().zip(base.resid()) {
+            for (r, b) in w.resid.iter_mut().zip(&base.resid) {
                 *r = (*r - b) / steps[j];
             }
         });
         evaluations += mdim;
-        if jac.iter().any(|w| !w.cost().is_finite()) {
+        if jac.iter().any(|w| !w.cost.is_finite()) {
             break;
         }
-        let grad: Vec<f64> = jac.iter().map(|w| dot(w.resid(), base.resid())).collect();
+        let grad: Vec<f64> = jac.iter().map(|w| dot(&w.resid, &base.resid)).collect();
         let free: Vec<usize> = (0..mdim)
             .filter(|&j| {
                 !((eta[j] <= lo[j] && grad[j] > 0.0) || (eta[j] >= hi[j] && grad[j] < 0.0))
@@ -1443,7 +1411,7 @@ fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmO
             break;
         }
         // QR of the tall Jacobian of the free parameters (faer).
-        let jm = faer::Mat::<f64>::from_fn(n, free.len(), |i, c| jac[free[c]].resid()[i]);
+        let jm = faer::Mat::<f64>::from_fn(n, free.len(), |i, c| jac[free[c]].resid[i]);
         let qr = jm.qr();
         let r = qr.thin_R().to_owned();
         let k = free.len();
@@ -1464,7 +1432,7 @@ fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmO
         // ||Q^T r||^2 / 2, would lower it by less than the tolerance (Moré's relative-reduction
         // test). Without it a converged start rejects steps until the damping gives up.
         let predicted = 0.5 * dot(&qtr_v, &qtr_v);
-        if predicted <= opts.tolerance * base.cost() {
+        if predicted <= opts.tolerance * base.cost {
             break;
         }
         // Marquardt scaling by the column norms of J.
@@ -1506,11 +1474,11 @@ fn lm<P: LeastSquares>(prob: &P, v0: &[f64], opts: &RefineOptions) -> Option<LmO
             }
             prob.evaluate(&cand, &mut trial);
             evaluations += 1;
-            if trial.cost() < base.cost() {
-                let rel = (base.cost() - trial.cost()) / base.cost();
+            if trial.cost < base.cost {
+                let rel = (base.cost - trial.cost) / base.cost;
                 std::mem::swap(&mut base, &mut trial);
                 eta = cand;
-                history.push(base.cost());
+                history.push(base.cost);
                 lambda = (lambda / 5.0).max(1e-12);
                 if rel < opts.tolerance {
                     break 'outer;
