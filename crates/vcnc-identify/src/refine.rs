@@ -478,11 +478,6 @@ impl LeastSquares for FreeRunFit<'_> {
         if !model.is_stable() || self.prob.own_residual(&model, &mut w.resid).is_err() {
             return;
         }
-        let n = self.prob.n();
-        if w.resid.len() != n {
-            w.resid.resize(n, 0.0);
-            return;
-        }
         let cost = 0.5 * w.resid.iter().map(|r| r * r).sum::<f64>();
         if cost.is_finite() {
             w.cost = cost;
@@ -891,8 +886,8 @@ const SIGN_CONVERGED: f64 = 1e-6;
 const STALE_STAGES: usize = 1;
 /// Relative cost decrease that ends stage C (the direct free-run fit). A sticking drive gains
 /// its large decreases in the first iterations; beyond this the fit creeps along a flat valley,
-/// moving the poles by less than half their reported deviation for two to four times the
-/// time on a long trace (docs/identification.md, "Stage C").
+/// moving the poles by less than half their reported deviation for about 2.5 times the time
+/// on a long trace (docs/identification.md, "Stage C").
 const FREE_RUN_TOLERANCE: f64 = 1e-4;
 
 /// Most linear columns: $b_2, b_1, b_0, d_c$ and up to five free responses.
