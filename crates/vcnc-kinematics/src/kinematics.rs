@@ -489,16 +489,24 @@ impl Kinematics {
         if matches!(self, Kinematics::Xyz(_)) {
             return Ok(out);
         }
-        for (k, _) in tcp.iter().enumerate().filter(|(_, on)| **on) {
-            let v3 = |pick: usize| {
-                let at = |t: &Track<'_>| [t.pos, t.vel, t.acc][pick][k];
-                Vector3::new(at(&tip[0]), at(&tip[1]), at(&tip[2]))
-            };
+        // Every slice cut to `n` once (their lengths are checked above), so that the loop
+        // indexes without bounds checks; the arithmetic is `tcp_motion`'s alone.
+        fn cut<'a>(t: &Track<'a>, n: usize) -> [&'a [f64]; 3] {
+            [&t.pos[..n], &t.vel[..n], &t.acc[..n]]
+        }
+        let tip = tip.each_ref().map(|t| cut(t, n));
+        let rotary: Vec<(AxisName, [&[f64]; 3])> = names
+            .iter()
+            .zip(rotary)
+            .map(|(r, t)| (r.axis, cut(t, n)))
+            .collect();
+        for k in (0..n).filter(|k| tcp[*k]) {
+            let v3 = |d: usize| Vector3::new(tip[0][d][k], tip[1][d][k], tip[2][d][k]);
             let mut rot = JointMotion::default();
-            for (r, t) in names.iter().zip(rotary) {
-                rot.pos[r.axis] = t.pos[k] * DEG;
-                rot.vel[r.axis] = t.vel[k] * DEG;
-                rot.acc[r.axis] = t.acc[k] * DEG;
+            for (axis, [p, v, a]) in &rotary {
+                rot.pos[*axis] = p[k] * DEG;
+                rot.vel[*axis] = v[k] * DEG;
+                rot.acc[*axis] = a[k] * DEG;
             }
             let tip_k = PointMotion {
                 p: v3(0),
