@@ -113,6 +113,8 @@ pub(super) struct Comp {
     /// A lathe tool's controlled point (its imaginary tip) from its nose centre, in the plane
     /// (program coordinates, mm, the plane's axis order); zero for a mill or orientation 0/9.
     tip: [f64; 2],
+    /// The lathe tool orientation (0–9) `tip` comes from.
+    orientation: i32,
     /// Programmed point in the plane (program coordinates, mm) at the end of the last
     /// compensated move; `None` until the entry move.
     nominal: Option<[f64; 2]>,
@@ -407,6 +409,7 @@ impl Interp<'_> {
                         side: if code == 410 { Side::Left } else { Side::Right },
                         radius: 0.0,
                         tip: [0.0; 2],
+                        orientation: 0,
                         nominal: None,
                         circle: None,
                     });
@@ -467,6 +470,7 @@ impl Interp<'_> {
             radius: r,
             // The plane's order is Z, X.
             tip: [dz * r, dx * r],
+            orientation,
             nominal: None,
             circle: None,
         });
@@ -800,9 +804,10 @@ impl Interp<'_> {
         let r = comp.radius;
         if comp.tip != [0.0; 2] {
             // rs274 moves straight to the arc's end, then runs a full circle there.
+            let o = comp.orientation;
             self.err(span, DiagnosticKind::CutterCompensation, || {
                 format!(
-                    "an arc as the cutter compensation entry move with a lathe tool orientation (1-8) is not supported (LinuxCNC 2.9 cuts a full circle there): enter with a straight move"
+                    "an arc as the cutter compensation entry move with lathe tool orientation {o} is not supported (LinuxCNC 2.9 cuts a full circle there): enter with a straight move"
                 )
             });
             return;

@@ -654,7 +654,7 @@ fn cutter_compensation_errors_name_the_line() {
         (
             "G18 G0 X0 Z0\nG41.1 D2 L2\nG2 X5 Z5 R5 F100".to_string(),
             3,
-            "straight move",
+            "orientation 2 is not supported",
         ),
         ("G41.1\nG1 X1".to_string(), 1, "no D word"),
         ("G41.1 D2 L3".to_string(), 1, "not G18"),
