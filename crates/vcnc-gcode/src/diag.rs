@@ -66,7 +66,8 @@ pub enum DiagnosticKind {
     Unsupported,
     /// Cutter radius compensation (`G40`–`G42.1`): what LinuxCNC refuses (the tool cannot
     /// reach a concave corner, an entry move too short, codes not allowed while it is on) and
-    /// what vcnc does not do (`G18` lathe compensation).
+    /// what vcnc does not do (in `G18`: an entry arc with a lathe tool orientation, a rotated
+    /// coordinate system).
     CutterCompensation,
     /// Words that conflict, are missing or have no code that uses them.
     Block,

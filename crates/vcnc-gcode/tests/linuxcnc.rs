@@ -371,5 +371,5 @@ fn bad_programs_are_rejected_at_the_line_rs274_names() {
         println!("{name}: rs274 '{}', vcnc '{first}'", errors[0]);
         checked += 1;
     }
-    assert_eq!(checked, 14);
+    assert_eq!(checked, 17);
 }

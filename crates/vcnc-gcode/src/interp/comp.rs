@@ -1,11 +1,15 @@
 //! Cutter radius compensation (`G40`, `G41`, `G41.1`, `G42`, `G42.1`) with LinuxCNC 2.9's
 //! semantics (LinuxCNC documentation, "G-Codes", sections G40 and G41/G42/G41.1/G42.1, and its
-//! interpreter `interp_convert.cc`/`interp_queue.cc`), in the XY plane (`G17`).
+//! interpreter `interp_convert.cc`/`interp_queue.cc`), in the XY (`G17`) and XZ (`G18`) planes.
 //!
 //! **Geometry.** With compensation on, the tool centre runs at distance $r$ (the tool radius)
 //! from the programmed path, on the left (`G41`) or right (`G42`) of the direction of travel.
-//! All geometry is done in program coordinates (mm) of the XY plane; Z and the rotary axes
-//! take their programmed values.
+//! All geometry is done in program coordinates (mm) of the plane, on its first and second
+//! axes in [`Plane::axes`] order: X, Y in `G17`; Z, X in `G18`. Left, right, and the turning
+//! of arcs (`G3` counter-clockwise) are those of that order in both planes, which is what
+//! LinuxCNC's `rs274` does in `G18` (travelling +X under `G41`, the tool is on the −Z side).
+//! The axis normal to the plane (Z in `G17`, Y in `G18`) and the rotary axes take their
+//! programmed values.
 //!
 //! - **Entry move** (the first move after comp on, a straight line): from the tool's current
 //!   point $\mathbf c$ to the programmed end $\mathbf p$ moved by $r$ perpendicular to the
@@ -25,7 +29,7 @@
 //!
 //! Because a concave corner shortens the move *before* it, each compensated move is held back
 //! until the next one is known (LinuxCNC's canon queue): moves made while one is held (a dwell,
-//! a Z move with no XY motion) are held with it and follow its end point.
+//! a move of the normal axis alone) are held with it and follow its end point.
 //!
 //! - **Concave corners with arcs** (arc → line, line → arc, arc → arc): the previous move ends
 //!   where the two tool paths (offset line, or the tool circle of radius arc radius ± r about
@@ -36,8 +40,18 @@
 //!   centre; the arc runs from the tool to there about the point of the line from that end to
 //!   the programmed centre that is equally far from both ends.
 //!
-//! Not done (refused with an error naming the line): compensation in `G18` (LinuxCNC's lathe
-//! mode with tool orientations) and `G19` (LinuxCNC refuses it too).
+//! **Lathe tools** (`G18` only): a tool orientation 1–8 (the tool table's `Q`, or `L` on
+//! `G41.1`/`G42.1`) makes the controlled point the tool's imaginary tip. As `rs274` shows it,
+//! the geometry above is done for the nose centre and the whole compensated path (ends, arc
+//! and corner centres) moves by the nose radius along X and/or Z towards the tip
+//! ([`tip_direction`]). The entry move starts from the controlled point as if it were the nose
+//! centre (LinuxCNC's choice), so the tool's position in the plane is the controlled point
+//! before the entry and the nose centre after it ([`Interp::tool_in_plane`]).
+//!
+//! Not done (refused with an error naming the line): `G19` (LinuxCNC refuses it too); in
+//! `G18`, an entry arc with a lathe orientation (LinuxCNC 2.9 cuts a stray full circle there),
+//! orientations outside 0–9, and a rotated coordinate system (its arcs would leave the
+//! machine's XZ plane).
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -68,11 +82,18 @@ impl Side {
 /// What a held move's end may do when the next move moves it.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Check {
-    /// A straight move whose direction (machine XY) must not reverse.
-    Direction([f64; 2]),
+    /// A straight move whose direction in the plane must not reverse.
+    Direction {
+        /// The direction, machine frame.
+        along: [f64; 2],
+        /// The move's start in the plane (machine frame) where the tool is the nose centre:
+        /// for the entry move, the controlled point it starts from (LinuxCNC takes it for the
+        /// nose centre, see [`Interp::tool_in_plane`]).
+        from: [f64; 2],
+    },
     /// An arc whose sweep (rad) must not grow.
     Sweep(f64),
-    /// Nothing to check (corner arcs, dwells, moves without XY motion).
+    /// Nothing to check (corner arcs, dwells, moves without motion in the plane).
     Free,
 }
 
@@ -89,8 +110,13 @@ pub(super) struct Comp {
     side: Side,
     /// Tool radius, mm (≥ 0; 0 runs the programmed path).
     radius: f64,
-    /// Programmed XY (program coordinates, mm) at the end of the last compensated move; `None`
-    /// until the entry move.
+    /// A lathe tool's controlled point (its imaginary tip) from its nose centre, in the plane
+    /// (program coordinates, mm, the plane's axis order); zero for a mill or orientation 0/9.
+    tip: [f64; 2],
+    /// The lathe tool orientation (0–9) `tip` comes from.
+    orientation: i32,
+    /// Programmed point in the plane (program coordinates, mm) at the end of the last
+    /// compensated move; `None` until the entry move.
     nominal: Option<[f64; 2]>,
     /// When the last compensated move was an arc: the tool centre's circle (centre in program
     /// coordinates, radius), mm.
@@ -105,8 +131,9 @@ pub(super) struct CompState {
     pub(super) held: Vec<Held>,
     /// How the next emitted move is held (set just before [`Interp::emit`]).
     pub(super) hold_next: Option<Check>,
-    /// After `G40`: the programmed XY the next move starts from (the tool is elsewhere).
-    pub(super) nominal_after_off: Option<[f64; 2]>,
+    /// After `G40`: the programmed point the next move starts from (the tool is elsewhere),
+    /// as the in-plane axes and their coordinates (the plane may change before that move).
+    pub(super) nominal_after_off: Option<([usize; 2], [f64; 2])>,
     /// After `G40`: the next move must be straight.
     pub(super) arc_not_allowed: bool,
 }
@@ -174,6 +201,23 @@ fn corner_turn(s: f64, before: f64, alpha: f64) -> f64 {
     turn
 }
 
+/// Where a lathe tool's controlled point lies from its nose centre, in nose radii along X and
+/// Z, for LinuxCNC's tool orientations 1–8 (0 and 9: the nose centre itself). As `rs274`
+/// shows it: the whole compensated path moves by this, whichever side (`G41`/`G42`).
+fn tip_direction(orientation: i32) -> [f64; 2] {
+    match orientation {
+        1 => [-1.0, 1.0],
+        2 => [-1.0, -1.0],
+        3 => [1.0, -1.0],
+        4 => [1.0, 1.0],
+        5 => [0.0, 1.0],
+        6 => [-1.0, 0.0],
+        7 => [0.0, -1.0],
+        8 => [1.0, 0.0],
+        _ => [0.0, 0.0],
+    }
+}
+
 /// The one of `pts` nearest to `to`.
 fn nearest(pts: [[f64; 2]; 2], to: [f64; 2]) -> [f64; 2] {
     let d = |p: [f64; 2]| (p[0] - to[0]).hypot(p[1] - to[1]);
@@ -220,45 +264,83 @@ impl Interp<'_> {
         });
     }
 
-    /// Program-coordinate XY the next move starts from: the programmed point while
-    /// compensation is on or just after `G40`, else the tool's position.
-    pub(super) fn nominal_xy(&self) -> Option<[f64; 2]> {
-        self.st
-            .comp
-            .on
-            .as_ref()
-            .filter(|c| c.radius > 0.0)
-            .and_then(|c| c.nominal)
-            .or(self.st.comp.nominal_after_off)
+    /// Where the next move starts in the compensation plane, when that is not the tool's
+    /// position: the programmed point while compensation is on or just after `G40`. The
+    /// in-plane axes (indices of a position) and the point's coordinates on them.
+    pub(super) fn nominal_in_plane(&self) -> Option<([usize; 2], [f64; 2])> {
+        let on = self.st.comp.on.as_ref().filter(|c| c.radius > 0.0);
+        match on.and_then(|c| c.nominal) {
+            Some(p) => Some((self.plane_axes(), p)),
+            None => self.st.comp.nominal_after_off,
+        }
+    }
+
+    /// `p` (program coordinates) with its in-plane coordinates replaced by the programmed
+    /// point the next move starts from, if that is not the tool's position.
+    pub(super) fn with_nominal(&self, mut p: [f64; 6]) -> [f64; 6] {
+        if let Some(([u, v], at)) = self.nominal_in_plane() {
+            p[u] = at[0];
+            p[v] = at[1];
+        }
+        p
+    }
+
+    /// Compensation in `G18` under a rotated coordinate system is refused (with the error,
+    /// `true`): the rotation turns X and Y, so its arcs would leave the machine's XZ plane.
+    fn refuse_rotated_g18(&mut self, span: Span) -> bool {
+        let deg = self.st.rotation_deg;
+        if self.st.plane == Plane::XY || deg == 0.0 {
+            return false;
+        }
+        self.err(span, DiagnosticKind::CutterCompensation, || {
+            format!(
+                "cutter radius compensation in the XZ plane (G18) with a rotated coordinate system (G10 L2 R{deg}) is not supported: clear the rotation or compensate in G17"
+            )
+        });
+        true
+    }
+
+    /// The compensation plane's first and second axes (indices of a position): X, Y in
+    /// `G17`; Z, X in `G18`, where left/right of travel and `G2`/`G3` follow from that order
+    /// as in `G17` (the plane seen from +Y).
+    fn plane_axes(&self) -> [usize; 2] {
+        let (u, v, _) = self.st.plane.axes();
+        [u, v]
+    }
+
+    /// The axis normal to the compensation plane (Z in `G17`, Y in `G18`).
+    fn normal_axis(&self) -> usize {
+        self.st.plane.axes().2
+    }
+
+    /// The in-plane coordinates of position `p`.
+    fn in_plane(&self, p: [f64; 6]) -> [f64; 2] {
+        let [u, v] = self.plane_axes();
+        [p[u], p[v]]
     }
 
     /// `G40`, `G41`, `G41.1`, `G42`, `G42.1` (code × 10). `false` after an error.
     pub(super) fn cutter_mode(&mut self, code: u32, k: &Checked, span: Span) -> bool {
         if code == 400 {
-            if self.comp_active() && self.nominal_xy().is_some() {
+            if self.comp_active() && self.nominal_in_plane().is_some() {
                 // The held move ends where it is, but must not run backwards (a concave corner
                 // before it deeper than it is long).
-                let c = self.tool_xy();
+                let c = self.tool_in_plane();
                 if !self.move_held_end(c, span) {
                     return false;
                 }
-                self.st.comp.nominal_after_off = self.nominal_xy();
+                self.st.comp.nominal_after_off = self.nominal_in_plane();
                 self.st.comp.arc_not_allowed = true;
             }
             self.st.comp.on = None;
             return true;
         }
         let g = super::gname(code);
+        if self.refuse_rotated_g18(span) {
+            return false;
+        }
         match self.st.plane {
-            Plane::XY => {}
-            Plane::ZX => {
-                self.err(span, DiagnosticKind::CutterCompensation, || {
-                    format!(
-                        "{g} in the XZ plane (G18, LinuxCNC's lathe compensation) is not supported: vcnc compensates in G17 only"
-                    )
-                });
-                return false;
-            }
+            Plane::XY | Plane::ZX => {}
             Plane::YZ => {
                 self.err(span, DiagnosticKind::CutterCompensation, || {
                     format!("{g}: cutter radius compensation is allowed only in the XY (G17) and XZ (G18) planes, not G19")
@@ -273,6 +355,7 @@ impl Interp<'_> {
             return false;
         }
         let dynamic = code == 411 || code == 421;
+        let orientation;
         let radius = if dynamic {
             let Some((d, _)) = k.w.get('D') else {
                 self.err(span, DiagnosticKind::CutterCompensation, || {
@@ -280,12 +363,26 @@ impl Interp<'_> {
                 });
                 return false;
             };
-            if let Some((l, ls)) = k.w.get('L') {
-                self.err(ls, DiagnosticKind::CutterCompensation, || {
-                    format!("{g} with L{l} (lathe tool orientation), but the plane is not G18")
-                });
-                return false;
-            }
+            orientation = match k.w.get('L') {
+                None => 0,
+                Some((l, ls)) => {
+                    if self.st.plane != Plane::ZX {
+                        self.err(ls, DiagnosticKind::CutterCompensation, || {
+                            format!(
+                                "{g} with L{l} (lathe tool orientation), but the plane is not G18"
+                            )
+                        });
+                        return false;
+                    }
+                    if !(0.0..=9.0).contains(&l) || l.fract() != 0.0 {
+                        self.err(ls, DiagnosticKind::CutterCompensation, || {
+                            format!("{g} L{l}: the lathe tool orientation must be a whole number from 0 to 9")
+                        });
+                        return false;
+                    }
+                    l as i32
+                }
+            };
             d * self.lscale() / 2.0
         } else {
             let tool = match k.w.get('D') {
@@ -311,6 +408,8 @@ impl Interp<'_> {
                     self.st.comp.on = Some(Comp {
                         side: if code == 410 { Side::Left } else { Side::Right },
                         radius: 0.0,
+                        tip: [0.0; 2],
+                        orientation: 0,
                         nominal: None,
                         circle: None,
                     });
@@ -322,7 +421,8 @@ impl Interp<'_> {
                 });
                 return false;
             };
-            if t.orientation != 0 && t.orientation != 9 {
+            let lathe = t.orientation != 0 && t.orientation != 9;
+            if lathe && self.st.plane != Plane::ZX {
                 self.err(span, DiagnosticKind::CutterCompensation, || {
                     format!(
                         "{g} with lathe tool {tool} (orientation {}), but the plane is not G18",
@@ -331,6 +431,16 @@ impl Interp<'_> {
                 });
                 return false;
             }
+            if !(0..=9).contains(&t.orientation) {
+                self.err(span, DiagnosticKind::CutterCompensation, || {
+                    format!(
+                        "{g} with tool {tool} of orientation {}: a lathe tool orientation is a whole number from 0 to 9 (the tool table's Q)",
+                        t.orientation
+                    )
+                });
+                return false;
+            }
+            orientation = t.orientation;
             t.diameter * self.opts.machine_units.mm() / 2.0
         };
         let mut side = if code == 410 || code == 411 {
@@ -353,34 +463,54 @@ impl Interp<'_> {
             });
             return false;
         }
+        let [dx, dz] = tip_direction(orientation);
+        let r = radius.abs();
         self.st.comp.on = Some(Comp {
             side,
-            radius: radius.abs(),
+            radius: r,
+            // The plane's order is Z, X.
+            tip: [dz * r, dx * r],
+            orientation,
             nominal: None,
             circle: None,
         });
         true
     }
 
-    /// Machine XY of program XY `p`.
-    fn machine_xy(&self, p: [f64; 2]) -> [f64; 2] {
-        let m = self.to_machine([p[0], p[1], 0.0, 0.0, 0.0, 0.0]);
-        [m[0], m[1]]
+    /// Machine coordinates, in the plane, of in-plane program point `p`.
+    fn machine_in_plane(&self, p: [f64; 2]) -> [f64; 2] {
+        let [u, v] = self.plane_axes();
+        let mut q = [0.0; 6];
+        q[u] = p[0];
+        q[v] = p[1];
+        self.in_plane(self.to_machine(q))
     }
 
-    /// Program XY of the tool's position.
-    fn tool_xy(&self) -> [f64; 2] {
-        let p = self.to_program(self.st.pos);
-        [p[0], p[1]]
+    /// Machine coordinates, in the plane, of where the controlled point goes when the tool
+    /// (the nose centre for a lathe tool) is at in-plane program point `p`.
+    fn machine_tool(&self, p: [f64; 2]) -> [f64; 2] {
+        let tip = self.st.comp.on.as_ref().map_or([0.0; 2], |c| c.tip);
+        self.machine_in_plane([p[0] + tip[0], p[1] + tip[1]])
     }
 
-    /// Machine target of a compensated move: program point `p` with its XY replaced by `xy`.
-    fn comp_target(&self, p: [f64; 6], xy: [f64; 2]) -> [f64; 6] {
+    /// The tool's position in the plane (program coordinates): after the entry move, a lathe
+    /// tool's nose centre; before it, the controlled point (LinuxCNC computes the entry from
+    /// there as if it were the nose centre).
+    fn tool_in_plane(&self) -> [f64; 2] {
+        let p = self.in_plane(self.to_program(self.st.pos));
+        match self.st.comp.on.as_ref().filter(|c| c.nominal.is_some()) {
+            Some(c) => [p[0] - c.tip[0], p[1] - c.tip[1]],
+            None => p,
+        }
+    }
+
+    /// Machine target of a compensated move: program point `p` with the tool at in-plane point
+    /// `at`.
+    fn comp_target(&self, p: [f64; 6], at: [f64; 2]) -> [f64; 6] {
         let cur = self.to_program(self.st.pos);
         let mut m = self.to_machine_from(p, cur);
-        let mxy = self.machine_xy(xy);
-        m[0] = mxy[0];
-        m[1] = mxy[1];
+        let [u, v] = self.plane_axes();
+        [m[u], m[v]] = self.machine_tool(at);
         m
     }
 
@@ -433,11 +563,13 @@ impl Interp<'_> {
         }
     }
 
-    /// Move the XY end of the held moves to program point `p` and release them; an error (and
+    /// Move the in-plane end of the held moves to the tool at program point `p` and release them; an error (and
     /// `false`) when that reverses a held straight move or lengthens a held arc (the tool
     /// cannot reach the corner without gouging).
     fn move_held_end(&mut self, p: [f64; 2], span: Span) -> bool {
-        let m = self.machine_xy(p);
+        let m = self.machine_tool(p);
+        let nose = self.machine_in_plane(p);
+        let [u, v] = self.plane_axes();
         // LinuxCNC's allowance for an arc's sweep growing: 0.0254 in mm programs, 0.001 in
         // inch programs (compared with radians, as LinuxCNC does).
         let grow = if self.st.inch { 0.001 } else { 0.0254 };
@@ -445,11 +577,10 @@ impl Interp<'_> {
         let mut problem = None;
         for h in &mut self.st.comp.held {
             if !first {
-                h.mv.start[0] = m[0];
-                h.mv.start[1] = m[1];
+                [h.mv.start[u], h.mv.start[v]] = m;
             }
             first = false;
-            let s = [h.mv.start[0], h.mv.start[1]];
+            let s = [h.mv.start[u], h.mv.start[v]];
             match (&mut h.mv.kind, h.check) {
                 (MoveKind::Arc(a), check) => {
                     let new = sweep(a.sweep_rad > 0.0, s, m, a.centre, a.turns);
@@ -463,7 +594,9 @@ impl Interp<'_> {
                     a.sweep_rad = new;
                     a.radius_end_mm = (m[0] - a.centre[0]).hypot(m[1] - a.centre[1]);
                 }
-                (_, Check::Direction(d)) if d[0] * (m[0] - s[0]) + d[1] * (m[1] - s[1]) < 0.0 => {
+                (_, Check::Direction { along: d, from: f })
+                    if d[0] * (nose[0] - f[0]) + d[1] * (nose[1] - f[1]) < 0.0 =>
+                {
                     problem = Some(if h.mv.kind == MoveKind::Rapid {
                         "straight traverse in a concave corner cannot be reached by the tool without gouging"
                     } else {
@@ -472,8 +605,7 @@ impl Interp<'_> {
                 }
                 _ => {}
             }
-            h.mv.end[0] = m[0];
-            h.mv.end[1] = m[1];
+            [h.mv.end[u], h.mv.end[v]] = m;
             if matches!(h.mv.kind, MoveKind::Dwell { .. }) {
                 h.mv.start = h.mv.end;
             }
@@ -485,17 +617,16 @@ impl Interp<'_> {
             });
             return false;
         }
-        self.st.pos[0] = m[0];
-        self.st.pos[1] = m[1];
+        [self.st.pos[u], self.st.pos[v]] = m;
         self.release_held();
         true
     }
 
-    /// A program-frame XY direction in the machine frame (turned by the coordinate system's
-    /// rotation).
+    /// A program-frame in-plane direction in the machine frame (turned by the coordinate
+    /// system's rotation).
     fn rotate_dir(&self, d: [f64; 2]) -> [f64; 2] {
-        let o = self.machine_xy([0.0, 0.0]);
-        let m = self.machine_xy(d);
+        let o = self.machine_in_plane([0.0, 0.0]);
+        let m = self.machine_in_plane(d);
         [m[0] - o[0], m[1] - o[1]]
     }
 
@@ -517,44 +648,56 @@ impl Interp<'_> {
         };
         let r = comp.radius;
         let s = comp.side.sign();
-        let c = self.tool_xy();
-        let pxy = [p[0], p[1]];
+        if self.refuse_rotated_g18(span) {
+            return;
+        }
+        let c = self.tool_in_plane();
+        let pp = self.in_plane(p);
         let from = comp.nominal.unwrap_or(c);
-        let z0 = self.to_program(self.st.pos)[2];
-        let programmed = (pxy[0] - from[0]).hypot(pxy[1] - from[1]).hypot(p[2] - z0);
+        let w = self.normal_axis();
+        let w0 = self.to_program(self.st.pos)[w];
+        let programmed = (pp[0] - from[0]).hypot(pp[1] - from[1]).hypot(p[w] - w0);
         let feed = programmed_rate(feed, programmed);
         let Some(op) = comp.nominal else {
             // Entry move: to p moved by r perpendicular to c → p.
-            let len = (pxy[0] - c[0]).hypot(pxy[1] - c[1]);
+            let len = (pp[0] - c[0]).hypot(pp[1] - c[1]);
             if len <= r {
                 self.err(span, DiagnosticKind::CutterCompensation, || {
                     format!(
-                        "the cutter compensation entry move ({len:.4} mm in XY) is not longer than the tool radius ({r:.4} mm)"
+                        "the cutter compensation entry move ({len:.4} mm in the plane) is not longer than the tool radius ({r:.4} mm)"
                     )
                 });
                 return;
             }
-            let normal = dir(c, pxy) + s * FRAC_PI_2;
-            let end = polar(pxy, r, normal);
+            let normal = dir(c, pp) + s * FRAC_PI_2;
+            let end = polar(pp, r, normal);
             let d = self.rotate_dir([normal.cos(), normal.sin()]);
             let target = self.comp_target(p, end);
-            self.emit_held(kind, target, span, feed, Check::Direction(d));
-            self.set_nominal(pxy, None);
+            let from = self.machine_in_plane(c);
+            self.emit_held(
+                kind,
+                target,
+                span,
+                feed,
+                Check::Direction { along: d, from },
+            );
+            self.set_nominal(pp, None);
             return;
         };
-        if pxy == op {
-            // No XY motion: Z (and rotary axes) move, the tool stays beside the path.
+        if pp == op {
+            // No motion in the plane: the axis normal to it (and rotary axes) move, the tool
+            // stays beside the path.
             let target = self.comp_target(p, c);
             self.emit_held(kind, target, span, feed, Check::Free);
             return;
         }
         // Direction of the programmed move, and of the previous one at its end (the tool sits
         // at s·90° from it, so it is the direction op → tool turned back by s·90°).
-        let alpha = dir(op, pxy);
+        let alpha = dir(op, pp);
         let before = dir(op, c) - s * FRAC_PI_2;
         let turn = corner_turn(s, before, alpha);
         let offset = alpha + s * FRAC_PI_2;
-        let end = polar(pxy, r, offset);
+        let end = polar(pp, r, offset);
         let mid = polar(op, r, offset);
         let prev_arc_outside = self.st.comp.held.first().is_some_and(|h| match h.mv.kind {
             MoveKind::Arc(a) => s * a.sweep_rad < 0.0,
@@ -609,10 +752,10 @@ impl Interp<'_> {
             if rapid {
                 self.emit(MoveKind::Rapid, corner_m, span, None);
             } else {
-                let om = self.machine_xy(op);
+                let om = self.machine_tool(op);
                 let sw = sweep(comp.side == Side::Right, c, mid, op, 1);
                 let arc = ArcMove {
-                    plane: Plane::XY,
+                    plane: self.st.plane,
                     centre: om,
                     sweep_rad: sw,
                     radius_start_mm: r,
@@ -624,10 +767,17 @@ impl Interp<'_> {
         } else if !self.move_held_end(c, span) {
             return;
         }
-        let d = self.rotate_dir([pxy[0] - op[0], pxy[1] - op[1]]);
+        let d = self.rotate_dir([pp[0] - op[0], pp[1] - op[1]]);
         let target = self.comp_target(p, end);
-        self.emit_held(kind, target, span, feed, Check::Direction(d));
-        self.set_nominal(pxy, None);
+        let from = self.machine_in_plane(self.tool_in_plane());
+        self.emit_held(
+            kind,
+            target,
+            span,
+            feed,
+            Check::Direction { along: d, from },
+        );
+        self.set_nominal(pp, None);
     }
 
     /// Record the programmed end of the move just held and, for an arc, its tool circle.
@@ -652,8 +802,18 @@ impl Interp<'_> {
         feed: Option<Feed>,
     ) {
         let r = comp.radius;
-        let c = self.tool_xy();
-        let e = [end[0], end[1]];
+        if comp.tip != [0.0; 2] {
+            // rs274 moves straight to the arc's end, then runs a full circle there.
+            let o = comp.orientation;
+            self.err(span, DiagnosticKind::CutterCompensation, || {
+                format!(
+                    "an arc as the cutter compensation entry move with lathe tool orientation {o} is not supported (LinuxCNC 2.9 cuts a full circle there): enter with a straight move"
+                )
+            });
+            return;
+        }
+        let c = self.tool_in_plane();
+        let e = self.in_plane(end);
         let dist = (e[0] - c[0]).hypot(e[1] - c[1]);
         if dist <= r {
             self.err(span, DiagnosticKind::CutterCompensation, || {
@@ -689,8 +849,8 @@ impl Interp<'_> {
         let n = polar(new_end, t, ua);
         let rr = (n[0] - new_end[0]).hypot(n[1] - new_end[1]);
         let arc = ArcMove {
-            plane: Plane::XY,
-            centre: self.machine_xy(n),
+            plane: self.st.plane,
+            centre: self.machine_tool(n),
             sweep_rad: sweep(ccw, c, new_end, n, geom.turns),
             radius_start_mm: (c[0] - n[0]).hypot(c[1] - n[1]),
             radius_end_mm: rr,
@@ -723,8 +883,9 @@ impl Interp<'_> {
     /// The feed of a compensated arc to `end`: under `G93` the rate of its programmed length
     /// (LinuxCNC's F × length).
     fn arc_rate(&self, geom: &ArcMove, end: [f64; 6], feed: Option<Feed>) -> Option<Feed> {
-        let z0 = self.to_program(self.st.pos)[2];
-        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[2] - z0);
+        let w = self.normal_axis();
+        let w0 = self.to_program(self.st.pos)[w];
+        let programmed = (geom.sweep_rad.abs() * geom.radius_start_mm).hypot(end[w] - w0);
         programmed_rate(feed, programmed)
     }
 
@@ -746,8 +907,8 @@ impl Interp<'_> {
         };
         let r = comp.radius;
         let s = comp.side.sign();
-        let c = self.tool_xy();
-        let e = [end[0], end[1]];
+        let c = self.tool_in_plane();
+        let e = self.in_plane(end);
         let feed = self.arc_rate(&geom, end, feed);
         let centre = geom.centre;
         let ccw = geom.sweep_rad > 0.0;
@@ -801,8 +962,8 @@ impl Interp<'_> {
             let corner_m = self.comp_target(corner, mid);
             let sw = sweep(comp.side == Side::Right, c, mid, op, 1);
             let arc = ArcMove {
-                plane: Plane::XY,
-                centre: self.machine_xy(op),
+                plane: self.st.plane,
+                centre: self.machine_tool(op),
                 sweep_rad: sw,
                 radius_start_mm: r,
                 radius_end_mm: r,
@@ -813,8 +974,8 @@ impl Interp<'_> {
         }
         let sw = sweep(ccw, start, new_end, centre, geom.turns);
         let arc = ArcMove {
-            plane: Plane::XY,
-            centre: self.machine_xy(centre),
+            plane: self.st.plane,
+            centre: self.machine_tool(centre),
             sweep_rad: sw,
             radius_start_mm: (start[0] - centre[0]).hypot(start[1] - centre[1]),
             radius_end_mm: (new_end[0] - centre[0]).hypot(new_end[1] - centre[1]),

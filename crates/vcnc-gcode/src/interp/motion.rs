@@ -134,13 +134,9 @@ impl Interp<'_> {
     /// The programmed end point in program coordinates (LinuxCNC `find_ends`, without G53):
     /// absolute or incremental words, polar `@ ^` in the XY plane.
     fn program_target(&mut self, k: &Checked) -> Option<[f64; 6]> {
-        let mut cur = self.to_program(self.st.pos);
         // Under cutter compensation (and for the move after G40) the program continues from the
         // programmed point, not the tool's.
-        if let Some(xy) = self.nominal_xy() {
-            cur[0] = xy[0];
-            cur[1] = xy[1];
-        }
+        let cur = self.with_nominal(self.to_program(self.st.pos));
         let mut p = cur;
         for (i, v) in p.iter_mut().enumerate() {
             if let Some(x) = self.axis_value(k, i) {
@@ -399,11 +395,7 @@ impl Interp<'_> {
             );
             return;
         }
-        let mut start_p = self.to_program(self.st.pos);
-        if let Some(xy) = self.nominal_xy() {
-            start_p[0] = xy[0];
-            start_p[1] = xy[1];
-        }
+        let start_p = self.with_nominal(self.to_program(self.st.pos));
         let Some(end_p) = self.program_target(k) else {
             return;
         };

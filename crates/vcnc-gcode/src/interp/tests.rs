@@ -644,7 +644,18 @@ fn cutter_compensation_errors_name_the_line() {
     let cases = [
         (format!("{on}G41.1 D2"), 4, "when it is on"),
         ("G19 G41.1 D2".to_string(), 1, "not G19"),
-        ("G18 G41.1 D2".to_string(), 1, "G17 only"),
+        ("G18 G41.1 D2 L10".to_string(), 1, "from 0 to 9"),
+        ("G18 G41.1 D2 L2.5".to_string(), 1, "from 0 to 9"),
+        (
+            "G10 L2 P1 R30\nG18 G41.1 D2".to_string(),
+            2,
+            "rotated coordinate system",
+        ),
+        (
+            "G18 G0 X0 Z0\nG41.1 D2 L2\nG2 X5 Z5 R5 F100".to_string(),
+            3,
+            "orientation 2 is not supported",
+        ),
         ("G41.1\nG1 X1".to_string(), 1, "no D word"),
         ("G41.1 D2 L3".to_string(), 1, "not G18"),
         ("G41 D3".to_string(), 1, "not in the tool table"),
@@ -722,6 +733,17 @@ fn segment_distance(x: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 
 #[test]
 fn compensated_paths_keep_the_tool_radius_from_the_programmed_path() {
+    // In the XY plane, and in the XZ plane with the same polylines programmed on (Z, X), its
+    // first and second axes (left of travel and the corner arcs' turning are defined in that
+    // order, as rs274 shows: tests/linuxcnc.rs).
+    tool_keeps_its_radius("G17", ['X', 'Y'], [0, 1]);
+    tool_keeps_its_radius("G18", ['Z', 'X'], [2, 0]);
+}
+
+/// Random polylines compensated in `plane`, programmed with `letters` (first and second axis)
+/// and read back from the moves' coordinates `axes`.
+fn tool_keeps_its_radius(plane: &str, letters: [char; 2], axes: [usize; 2]) {
+    let [u, v] = letters;
     // Random polylines (segments 10–30 mm, turns up to ±150°), tool radius 0.5–8 mm, either
     // side. Truth from geometry, not from LinuxCNC: every compensated line lies at exactly r
     // from its programmed line on the compensation side; every corner arc is centred on the
@@ -757,13 +779,13 @@ fn compensated_paths_keep_the_tool_radius_from_the_programmed_path() {
         let start = [-20.0 * d0[0] / l0, -20.0 * d0[1] / l0].map(|v| (v * 1e4).round() / 1e4);
         let code = if s > 0.0 { "G41.1" } else { "G42.1" };
         let mut src = format!(
-            "G0 X{:.4} Y{:.4}\n{code} D{:.4}\nG1 X0 Y0 F100\n",
+            "{plane} G0 {u}{:.4} {v}{:.4}\n{code} D{:.4}\nG1 {u}0 {v}0 F100\n",
             start[0],
             start[1],
             2.0 * r
         );
         for p in &pts[1..] {
-            src += &format!("G1 X{:.4} Y{:.4}\n", p[0], p[1]);
+            src += &format!("G1 {u}{:.4} {v}{:.4}\n", p[0], p[1]);
         }
         src += "G40\nM2\n";
         let tp = match run(&src) {
@@ -790,10 +812,12 @@ fn compensated_paths_keep_the_tool_radius_from_the_programmed_path() {
             let d = [b[0] - a[0], b[1] - a[1]];
             let len = d[0].hypot(d[1]);
             let side = |x: [f64; 2]| (d[0] * (x[1] - a[1]) - d[1] * (x[0] - a[0])) / len;
+            let start = axes.map(|i| m.start[i]);
+            let end = axes.map(|i| m.end[i]);
             let samples: Vec<[f64; 2]> = match m.kind {
                 MoveKind::Linear => {
-                    for (x, tol) in [(m.start, slack), (m.end, 1e-9)] {
-                        let off = side([x[0], x[1]]);
+                    for (x, tol) in [(start, slack), (end, 1e-9)] {
+                        let off = side(x);
                         assert!(
                             (off - s * r).abs() < tol,
                             "{src}: {m:?} at {off}, not {}",
@@ -803,7 +827,7 @@ fn compensated_paths_keep_the_tool_radius_from_the_programmed_path() {
                     (0..=20)
                         .map(|i| {
                             let t = f64::from(i) / 20.0;
-                            [0, 1].map(|j| m.start[j] + t * (m.end[j] - m.start[j]))
+                            [0, 1].map(|j| start[j] + t * (end[j] - start[j]))
                         })
                         .collect()
                 }
@@ -818,7 +842,7 @@ fn compensated_paths_keep_the_tool_radius_from_the_programmed_path() {
                         arc.sweep_rad * s < 0.0,
                         "{src}: corner arc turns towards the tool"
                     );
-                    let t0 = (m.start[1] - a[1]).atan2(m.start[0] - a[0]);
+                    let t0 = (start[1] - a[1]).atan2(start[0] - a[0]);
                     (0..=20)
                         .map(|i| {
                             let t = t0 + arc.sweep_rad * f64::from(i) / 20.0;
