@@ -392,17 +392,19 @@ fn distinct_starts(candidates: &[(Vec<f64>, f64)], k: usize, extra: &[f64]) -> V
             core: Poles::from_hz(p, wn, z).denominator(),
             extra: extra.to_vec(),
         };
-        let same = |o: &Start| {
-            let (a, b) = (o.core, st.core);
-            [(a.0, b.0), (a.1, b.1), (a.2, b.2)]
-                .iter()
-                .all(|(x, y)| (x - y).abs() <= 0.05 * x.abs().max(y.abs()))
-        };
-        if !out.iter().any(same) {
+        if !out.iter().any(|o| same_cubic(o, &st)) {
             out.push(st);
         }
     }
     out
+}
+
+/// Two starts whose denominators are the same cubic (every coefficient within 5 %).
+fn same_cubic(o: &Start, st: &Start) -> bool {
+    let (a, b) = (o.core, st.core);
+    [(a.0, b.0), (a.1, b.1), (a.2, b.2)]
+        .iter()
+        .all(|(x, y)| (x - y).abs() <= 0.05 * x.abs().max(y.abs()))
 }
 
 /// One candidate of the choice: a structure with a model input.
@@ -593,11 +595,19 @@ fn finish(
             .find(|f| f.structure == ModelStructure::Paper && f.input != input)
             .map(|f| f.input)
     };
+    // The chosen structure's core when it contains the paper's: where the paper's structure
+    // also starts on the whole trace (below).
+    let chosen_core = Some(&screened[chosen])
+        .filter(|f| f.structure != ModelStructure::Paper && f.structure.contains_paper())
+        .map(|f| start_of(&f.model, ModelStructure::Paper));
     let refit = |cand: Candidate| -> Result<StructureFit, Error> {
         let prev = screened.iter().find(|f| candidate_of(f) == cand);
         // From the compared fit (near the whole trace's optimum); for the paper's structure
         // also from the swarm's distinct starts when that fit is missing or not trusted (a
-        // parameter on a bound is a poor place to start).
+        // parameter on a bound is a poor place to start), and from the core of the chosen
+        // structure when that contains the paper's and its poles differ: on a stretch the
+        // richer structure can find the drive's poles where the paper's swarm and its compared
+        // fit end in another valley (docs/identification.md, "Choosing a structure").
         let mut starts: Vec<Start> = prev
             .map(|f| start_of(&f.model, cand.structure))
             .into_iter()
@@ -609,6 +619,12 @@ fn finish(
                 opts.refine.starts,
                 &[],
             ));
+        }
+        if cand.structure == ModelStructure::Paper
+            && let Some(core) = &chosen_core
+            && !starts.iter().any(|s| same_cubic(s, core))
+        {
+            starts.push(core.clone());
         }
         let mut fit = fit_one(trace, &main, cand, &starts, opts, Stage::Whole)?;
         if let Some(p) = prev {
