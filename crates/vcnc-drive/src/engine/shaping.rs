@@ -108,7 +108,9 @@ impl<T: Lane> Shaper<T> {
                         filter: Some(f), ..
                     }) = pick(l)
                     else {
-                        unreachable!("the lanes share a first- or second-order filter")
+                        unreachable!(
+                            "the lanes share a first- or second-order filter or a band-stop"
+                        )
                     };
                     lanes.push((foh_filter(f, h)?, band_stop_output(f)));
                 }
