@@ -271,6 +271,24 @@ pub enum ShapingFilter {
         /// Window $T_w$, s: a whole number (≥ 1) of servo periods, at most 1 s.
         window_s: f64,
     },
+    /// Band-stop, second order over second order with unit static gain:
+    /// $\frac{\omega_d^2}{\omega_z^2}\,\frac{s^2 + 2\zeta_z\omega_z s + \omega_z^2}{s^2 + 2\zeta_d\omega_d s + \omega_d^2}$,
+    /// $\omega_z = 2\pi f_z$, $\omega_d = 2\pi f_d$. With $f_d = f_z$ its gain at the blocking
+    /// frequency is $\zeta_z/\zeta_d$; a lower (higher) $f_d$ lowers (raises) the gain above the
+    /// band to $(f_d/f_z)^2$.
+    BandStop {
+        /// Blocking (numerator) frequency $f_z$, Hz: at least 0.1, at most a quarter of the rate
+        /// the filter runs at.
+        frequency_hz: f64,
+        /// Numerator damping $\zeta_z$ (notch depth: 0 blocks $f_z$ entirely); in
+        /// $[0, \zeta_d]$.
+        zeta_numerator: f64,
+        /// Denominator damping $\zeta_d$ (width); in (0, 2].
+        zeta_denominator: f64,
+        /// Denominator frequency $f_d$, Hz. Default $f_z$; the same range.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        denominator_frequency_hz: Option<f64>,
+    },
 }
 
 /// Reference shaping between the logged nominal position and the position loop (docs/machine-file.md#reference).
@@ -1293,6 +1311,48 @@ pub(crate) fn check_shaping(
         }
         Some(ShapingFilter::MovingAverage { window_s }) => {
             whole_ticks("reference.filter.window_s", window_s, servo_rate_hz, 1)?;
+        }
+        Some(ShapingFilter::BandStop {
+            frequency_hz,
+            zeta_numerator,
+            zeta_denominator,
+            denominator_frequency_hz,
+        }) => {
+            // A quarter of the rate: half the Nyquist frequency, so that the band to stop lies
+            // well inside what the samples can carry.
+            let frequency = |name: &'static str, f: f64| -> Result<(), Error> {
+                if f.is_finite() && f >= 0.1 && f <= servo_rate_hz / 4.0 {
+                    Ok(())
+                } else {
+                    Err(bad(
+                        name,
+                        f,
+                        "at least 0.1 Hz and at most a quarter of the servo rate",
+                    ))
+                }
+            };
+            frequency("reference.filter.frequency_hz", frequency_hz)?;
+            if let Some(f) = denominator_frequency_hz {
+                frequency("reference.filter.denominator_frequency_hz", f)?;
+            }
+            if !(zeta_denominator.is_finite() && zeta_denominator > 0.0 && zeta_denominator <= 2.0)
+            {
+                return Err(bad(
+                    "reference.filter.zeta_denominator",
+                    zeta_denominator,
+                    "in (0, 2]",
+                ));
+            }
+            if !(zeta_numerator.is_finite()
+                && zeta_numerator >= 0.0
+                && zeta_numerator <= zeta_denominator)
+            {
+                return Err(bad(
+                    "reference.filter.zeta_numerator",
+                    zeta_numerator,
+                    "in [0, zeta_denominator] (a larger one raises the band instead of stopping it)",
+                ));
+            }
         }
         None => {}
     }

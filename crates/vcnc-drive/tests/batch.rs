@@ -143,8 +143,10 @@ fn lanes_shaped_alike_and_unlike_are_bit_identical_to_each_alone() {
     // Truth: `Drive::simulate` of each drive alone. The five realistic NMV5000 axes with one
     // reference shaping for all (the lanes then shape on lanes: none, a delay alone, a moving
     // average alone, both), then with the shaping differing per lane (each lane shapes alone):
-    // a window or delay of another length, a first-order filter. With Stribeck exponents 1, 2
-    // and 1.5 side by side (the level's exponential on lanes, a general power per lane).
+    // a window or delay of another length, a first-order filter; then band-stops of different
+    // frequencies and dampings on every lane (the lanes shape on lanes, each with its own
+    // coefficients). With Stribeck exponents 1, 2 and 1.5 side by side (the level's
+    // exponential on lanes, a general power per lane).
     let axes = common::machine_drives("nmv5000-realistic.toml");
     let prog = common::identification_program(21, 3.0, 1e-3, 0.0, 20.0, 250.0, 2500.0);
     let shaping = |window_s: Option<f64>, delay_s: f64| ReferenceShaping {
@@ -166,10 +168,26 @@ fn lanes_shaped_alike_and_unlike_are_bit_identical_to_each_alone() {
         }),
         interpolation_delay_s: 2e-3,
     };
+    let band_stop = |f: f64, zeta_numerator: f64, fd: Option<f64>| ReferenceShaping {
+        filter: Some(ShapingFilter::BandStop {
+            frequency_hz: f,
+            zeta_numerator,
+            zeta_denominator: 0.7,
+            denominator_frequency_hz: fd,
+        }),
+        interpolation_delay_s: 1e-3,
+    };
+    let band_stops = vec![
+        band_stop(180.0, 0.0, None),
+        band_stop(280.0, 0.1, Some(250.0)),
+        band_stop(90.0, 0.05, None),
+        band_stop(400.0, 0.0, Some(500.0)),
+        band_stop(60.0, 0.2, None),
+    ];
     let cases = alike
         .iter()
         .map(|s| vec![s.clone(); 5])
-        .chain(std::iter::once(unlike));
+        .chain([unlike, band_stops]);
     for (c, per_axis) in cases.enumerate() {
         let drives: Vec<Drive> = axes
             .iter()

@@ -282,6 +282,19 @@ pub enum ControlFilterFile {
         /// The base, s (an even number of sample periods).
         window_s: f64,
     },
+    /// Band-stop: $\frac{\omega_d^2}{\omega_z^2}\,\frac{s^2 + 2\zeta_z\omega_z s + \omega_z^2}{s^2 + 2\zeta_d\omega_d s + \omega_d^2}$
+    /// ([`vcnc_drive::ShapingFilter::BandStop`]).
+    BandStop {
+        /// Blocking frequency $f_z = \omega_z/2\pi$, Hz.
+        frequency_hz: f64,
+        /// $\zeta_z$ (notch depth; 0 blocks $f_z$ entirely).
+        zeta_numerator: f64,
+        /// $\zeta_d$ (width).
+        zeta_denominator: f64,
+        /// $f_d = \omega_d/2\pi$, Hz (default `frequency_hz`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        denominator_frequency_hz: Option<f64>,
+    },
     /// FIR filter of the samples: $y_k = \sum_j h_j u_{k-j}$.
     Fir {
         /// The taps $h_0, h_1, \ldots$ (newest sample first), summing to 1.
@@ -298,7 +311,8 @@ fn default_zeta() -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SinumerikJerkFilterFile {
-    /// MD32402: 2 moving average, 4 double moving average (1, 3 and 5 are not modelled).
+    /// MD32402: 2 moving average, 4 double moving average (1, 3 and 5 are not modelled; for 3,
+    /// write a `band-stop` under `filters`).
     pub ax_jerk_mode: u8,
     /// MD32410, s.
     pub ax_jerk_time: f64,

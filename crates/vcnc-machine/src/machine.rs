@@ -691,6 +691,17 @@ impl Checker<'_> {
                 ControlFilterFile::MovingAverage { window_s } => {
                     filters.push(ShapingFilter::MovingAverage { window_s })
                 }
+                ControlFilterFile::BandStop {
+                    frequency_hz,
+                    zeta_numerator,
+                    zeta_denominator,
+                    denominator_frequency_hz,
+                } => filters.push(ShapingFilter::BandStop {
+                    frequency_hz,
+                    zeta_numerator,
+                    zeta_denominator,
+                    denominator_frequency_hz,
+                }),
                 ControlFilterFile::Triangular { window_s } => {
                     let half = ShapingFilter::MovingAverage {
                         window_s: window_s / 2.0,
@@ -711,7 +722,7 @@ impl Checker<'_> {
                     return Err(self.invalid(
                         "control.sinumerik.ax_jerk_mode",
                         format!(
-                            "AX_JERK_MODE {m} is not modelled: vcnc models 2 (moving average) and 4 (double moving average); for a second-order filter (mode 1) write it under control.filters with its time constant and damping"
+                            "AX_JERK_MODE {m} is not modelled: vcnc models 2 (moving average) and 4 (double moving average); for a second-order filter (mode 1) write it under control.filters with its time constant and damping, for a band-stop (mode 3) a `band-stop` filter there with its frequencies and dampings (docs/machine-file.md#control)"
                         ),
                     ));
                 }
@@ -724,7 +735,8 @@ impl Checker<'_> {
                 .to_string()
                 .replace("reference.filter.", "filter ")
                 .replace("reference.interpolation_delay_s", "delay_s")
-                .replace("servo periods 1/servo_rate_hz", "sample periods");
+                .replace("servo periods 1/servo_rate_hz", "sample periods")
+                .replace("the servo rate", "the sample rate");
             self.invalid(
                 "control",
                 format!(
@@ -1420,6 +1432,90 @@ mod tests {
                 .to_string();
             assert!(e.contains(key) && e.contains("m.toml"), "{line}: {e}");
         }
+    }
+
+    #[test]
+    fn band_stop_keys_reach_the_chain_and_bad_or_missing_ones_name_their_key() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
+        let base = embedded::NMV5000_TOML;
+        let load = |filter: &str| {
+            let src =
+                format!("{base}\n[control]\nfilters = [{{ kind = \"band-stop\", {filter} }}]\n");
+            Machine::from_toml_str(&src, "m.toml", &dir).map_err(|e| e.to_string())
+        };
+        let m = load("frequency_hz = 40.0, zeta_numerator = 0.05, zeta_denominator = 0.7").unwrap();
+        assert_eq!(
+            m.control.expect("a chain").filters(),
+            [ShapingFilter::BandStop {
+                frequency_hz: 40.0,
+                zeta_numerator: 0.05,
+                zeta_denominator: 0.7,
+                denominator_frequency_hz: None,
+            }]
+        );
+        let m = load(
+            "frequency_hz = 40.0, zeta_numerator = 0, zeta_denominator = 1, denominator_frequency_hz = 50.0",
+        )
+        .unwrap();
+        assert!(matches!(
+            m.control.expect("a chain").filters(),
+            [ShapingFilter::BandStop {
+                denominator_frequency_hz: Some(50.0),
+                ..
+            }]
+        ));
+        // The machine's sample period is 1 ms: frequencies up to 250 Hz.
+        for (filter, says) in [
+            (
+                "frequency_hz = 40.0, zeta_denominator = 0.7",
+                "zeta_numerator",
+            ),
+            (
+                "frequency_hz = 40.0, zeta_numerator = 0.05",
+                "zeta_denominator",
+            ),
+            (
+                "zeta_numerator = 0.05, zeta_denominator = 0.7",
+                "frequency_hz",
+            ),
+            (
+                "frequency_hz = 40.0, zeta_numerator = 0.05, zeta_denominator = 0.7, depth = 3",
+                "depth",
+            ),
+            (
+                "frequency_hz = 300.0, zeta_numerator = 0.05, zeta_denominator = 0.7",
+                "filter frequency_hz",
+            ),
+            (
+                "frequency_hz = 40.0, zeta_numerator = 0.9, zeta_denominator = 0.7",
+                "filter zeta_numerator",
+            ),
+            (
+                "frequency_hz = 40.0, zeta_numerator = 0.1, zeta_denominator = 0",
+                "filter zeta_denominator",
+            ),
+            (
+                "frequency_hz = 40.0, zeta_numerator = 0.1, zeta_denominator = 0.7, denominator_frequency_hz = -5",
+                "filter denominator_frequency_hz",
+            ),
+        ] {
+            let e = load(filter).unwrap_err();
+            assert!(e.contains(says) && e.contains("m.toml"), "{filter}: {e}");
+        }
+        let e = load("frequency_hz = 300.0, zeta_numerator = 0.05, zeta_denominator = 0.7")
+            .unwrap_err();
+        assert!(e.contains("sample rate"), "{e}");
+        // Sinumerik's band-stop mode is refused with the advice to write the filter.
+        let src = format!(
+            "{base}\n[control]\n[control.sinumerik]\nax_jerk_mode = 3\nax_jerk_time = 0.0\n"
+        );
+        let e = Machine::from_toml_str(&src, "m.toml", &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("AX_JERK_MODE 3") && e.contains("band-stop"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -266,8 +266,9 @@ pub fn with_velocity_headroom(machine: &Machine, headroom: f64) -> Result<Machin
 /// delay added to each model's dead time, and its one first- or second-order filter as the
 /// model's reference filter — the same physics in the models instead of in front of them
 /// (docs/machine-file.md#control). A compensation inverts the models, so it needs them so; a
-/// chain with a moving average or several filters, or a model with a filter of its own, is
-/// refused ([`Error::ControlFilters`]).
+/// chain with a moving average, a band-stop or an FIR filter (which the models' reference
+/// filters cannot hold), or several filters, or a model with a filter of its own, is refused
+/// ([`Error::ControlFilters`]).
 pub fn with_control_filters(
     machine: &Machine,
     models: &MachineModels,

@@ -192,12 +192,61 @@ fn a_compensation_folds_a_delay_and_one_filter_into_the_models_and_refuses_the_r
         "[control]\nfilters = [{ kind = \"triangular\", window_s = 0.004 }]\n",
         "[control]\n[control.sinumerik]\nax_jerk_mode = 2\nax_jerk_time = 0.008\n",
         "[control]\nfilters = [{ kind = \"fir\", taps = [0.25, 0.5, 0.25] }]\n",
+        "[control]\nfilters = [{ kind = \"band-stop\", frequency_hz = 40.0, zeta_numerator = 0.05, zeta_denominator = 0.7 }]\n",
     ] {
         let (m, core) = machine(section, 1e-3);
         let e = with_control_filters(&m, &core).unwrap_err();
         assert!(e.is_bad_input(), "{e}");
         assert!(e.to_string().contains("[control]"), "{e}");
+        if section.contains("band-stop") {
+            assert!(e.to_string().contains("BandStop"), "{e}");
+        }
     }
+}
+
+/// The amplitude of the transmission's deflection (motor minus load position) at 180 Hz over
+/// a 20 mm move of X and a dwell, µm: the embedded NMV5000 with a compliant X transmission
+/// (nmv5000-realistic's: a 180 Hz mode with 3 % damping) and `control` appended. The run
+/// starts and ends at rest, deflection 0, so the record's Fourier coefficient at 180 Hz is
+/// the mode's excitation without an edge.
+fn vibration_at_the_mode_um(control: &str) -> f64 {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../machines");
+    let compliant = embedded::NMV5000_TOML.replace(
+        "encoder = { resolution = 0.0001 }\n\n[axes.Y]",
+        "encoder = { resolution = 0.0001 }\ncompliance = { j_motor = 0.007, mode_hz = 180.0, mode_zeta = 0.03 }\n\n[axes.Y]",
+    );
+    assert_ne!(compliant, embedded::NMV5000_TOML, "the X axis block moved");
+    let src = format!("{compliant}\n{control}");
+    let m = Machine::from_toml_str(&src, "compliant.toml", &dir).expect("machine");
+    let program = "G90 G21\nG1 X20 F9000\nG4 P0.3\nM30\n";
+    let r = run::prepare(&m, program, "move.ngc", false).expect("program");
+    let t = &simulate::true_traces(&m, &r).expect("true drives")[0];
+    let w = std::f64::consts::TAU * 180.0 * r.ts;
+    let (mut re, mut im) = (0.0, 0.0);
+    for (k, (motor, load)) in t.motor_position.iter().zip(&t.true_position).enumerate() {
+        let d = motor - load;
+        re += d * (w * k as f64).cos();
+        im += d * (w * k as f64).sin();
+    }
+    re.hypot(im) * 2.0 / t.true_position.len() as f64 * 1e3
+}
+
+#[test]
+fn a_band_stop_at_a_drive_resonance_excites_it_less() {
+    // Truth: a band-stop removes the setpoint's content at its blocking frequency, so a
+    // lightly damped mode there is excited less by the move's acceleration steps. Measured:
+    // the deflection's 180 Hz amplitude falls from 0.022 to 0.0056 µm behind an ideal notch at
+    // the mode (ζd 0.7); asserted: by half at least. (After the stop the drive's own settling,
+    // friction and encoder steps keep the mode ringing at ~0.003 µm with or without the
+    // filter: the difference is in what the move excites.)
+    let without = vibration_at_the_mode_um("");
+    let with = vibration_at_the_mode_um(
+        "[control]\nfilters = [{ kind = \"band-stop\", frequency_hz = 180.0, zeta_numerator = 0.0, zeta_denominator = 0.7 }]\n",
+    );
+    eprintln!(
+        "X's deflection at 180 Hz: {without:.5} µm without, {with:.5} µm behind the band-stop"
+    );
+    assert!(with < 0.5 * without, "{with} µm against {without} µm");
 }
 
 #[test]
@@ -221,6 +270,18 @@ fn control_sections_are_checked_naming_the_key() {
         (
             "[control]\nfilters = [{ kind = \"fir\", taps = [0.5, 0.4] }]\n",
             "sum",
+        ),
+        (
+            "[control]\nfilters = [{ kind = \"band-stop\", frequency_hz = 40.0, zeta_denominator = 0.7 }]\n",
+            "zeta_numerator",
+        ),
+        (
+            "[control]\nfilters = [{ kind = \"band-stop\", frequency_hz = 260.0, zeta_numerator = 0.1, zeta_denominator = 0.7 }]\n",
+            "frequency_hz",
+        ),
+        (
+            "[control]\n[control.sinumerik]\nax_jerk_mode = 3\nax_jerk_time = 0.0\n",
+            "band-stop",
         ),
     ] {
         let src = format!("{}\n{section}", embedded::NMV5000_TOML);

@@ -7,7 +7,12 @@
 //! block's length, and the `keep` references go back to the front when the buffer's end is
 //! reached (once per 16 blocks or more). No ring index per tick and value. The first- and
 //! second-order filters are exact for a reference that is linear between ticks (first-order
-//! hold, [`foh_filter`]). The result does not depend on how the ticks are split into blocks.
+//! hold, [`foh_filter`]). A band-stop is the second-order filter of its denominator with the
+//! input passed through: its output is a fixed combination of the input and the two states
+//! ([`band_stop_output`]), so it is exact for the same reference. The result does not depend on
+//! how the ticks are split into blocks.
+
+use std::f64::consts::TAU;
 
 use nalgebra::SMatrix;
 
@@ -28,13 +33,15 @@ pub(crate) struct Shaper<T: Lane> {
 
 enum Filter<T: Lane> {
     None,
-    /// $s^+ = \Phi s + \Gamma_0 u_k + \Gamma_1 u_{k+1}$ per channel (2 states, output $s_0$).
+    /// $s^+ = \Phi s + \Gamma_0 u_k + \Gamma_1 u_{k+1}$ per channel (2 states), output $s_0$;
+    /// with `through` (a band-stop), output $c_u u_{k+1} + c_0 s^+_0 + c_1 s^+_1$.
     Lin {
         phi: [[T; 2]; 2],
         g0: [T; 2],
         g1: [T; 2],
         s: [[T; 2]; 3],
         u_prev: [T; 3],
+        through: Option<[T; 3]>,
     },
     /// Trapezoidal moving average over `m` ticks: running sum of the last m + 1 inputs.
     Avg {
@@ -45,11 +52,11 @@ enum Filter<T: Lane> {
 }
 
 /// The structure lanes must share to be shaped together: delay plus window, and the filter
-/// kind with its window.
+/// kind with its window (a band-stop, whose input passes through, apart from the low-passes).
 #[derive(Clone, Copy, PartialEq)]
 enum Kind {
     None,
-    Lin,
+    Lin { through: bool },
     Avg(usize),
 }
 
@@ -64,7 +71,8 @@ fn window(shaping: &Option<Shaping>, h: f64) -> (Kind, usize) {
             let m = (window_s / h).round().max(1.0) as usize;
             (Kind::Avg(m), delay + m + 1)
         }
-        Some(_) => (Kind::Lin, delay),
+        Some(ShapingFilter::BandStop { .. }) => (Kind::Lin { through: true }, delay),
+        Some(_) => (Kind::Lin { through: false }, delay),
     }
 }
 
@@ -93,18 +101,20 @@ impl<T: Lane> Shaper<T> {
                     inv_m: T::splat(1.0 / m as f64),
                 }
             }
-            Kind::Lin => {
+            Kind::Lin { through } => {
                 let mut lanes = Vec::with_capacity(T::WIDTH);
                 for l in 0..T::WIDTH {
                     let Some(Shaping {
                         filter: Some(f), ..
                     }) = pick(l)
                     else {
-                        unreachable!("the lanes share a first- or second-order filter")
+                        unreachable!(
+                            "the lanes share a first- or second-order filter or a band-stop"
+                        )
                     };
-                    lanes.push(foh_filter(f, h)?);
+                    lanes.push((foh_filter(f, h)?, band_stop_output(f)));
                 }
-                let c = |f: &dyn Fn(&FohFilter) -> f64| T::from_fn(|l| f(&lanes[l]));
+                let c = |f: &dyn Fn(&FohFilter) -> f64| T::from_fn(|l| f(&lanes[l].0));
                 // At rest on u0: s = [u0, 0] (the filters have unit DC gain).
                 let zero = T::splat(0.0);
                 Filter::Lin {
@@ -113,6 +123,11 @@ impl<T: Lane> Shaper<T> {
                     g1: std::array::from_fn(|i| c(&|f| f.g1[i])),
                     s: [[u0[0], zero], [u0[1], zero], [u0[2], zero]],
                     u_prev: u0,
+                    through: through.then(|| {
+                        std::array::from_fn(|i| {
+                            T::from_fn(|l| lanes[l].1.expect("the lanes share a band-stop")[i])
+                        })
+                    }),
                 }
             }
         };
@@ -207,7 +222,7 @@ impl<T: Lane> Shaper<T> {
         self.start += b;
     }
 
-    /// The first- or second-order filter over `buf`, in place.
+    /// The first- or second-order filter or the band-stop over `buf`, in place.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // three channels side by side
     fn filter_in_place(&mut self, buf: &mut [RefSample<T>]) {
@@ -217,6 +232,7 @@ impl<T: Lane> Shaper<T> {
             g1,
             s,
             u_prev,
+            through,
         } = &mut self.filter
         else {
             return;
@@ -229,7 +245,10 @@ impl<T: Lane> Shaper<T> {
                 let n0 = phi[0][0] * s0 + phi[0][1] * s1 + g0[0] * u_prev[c] + g1[0] * u[c];
                 let n1 = phi[1][0] * s0 + phi[1][1] * s1 + g0[1] * u_prev[c] + g1[1] * u[c];
                 s[c] = [n0, n1];
-                y[c] = n0;
+                y[c] = match through {
+                    None => n0,
+                    Some([cu, c0, c1]) => *cu * u[c] + *c0 * n0 + *c1 * n1,
+                };
             }
             *u_prev = u;
             *r = RefSample {
@@ -239,6 +258,35 @@ impl<T: Lane> Shaper<T> {
             };
         }
     }
+}
+
+/// $\dot s = A s + B u$ of the second-order filter $\omega^2/(s^2 + 2\zeta\omega s + \omega^2)$:
+/// $s = (y, \dot y)$.
+fn second_order(w: f64, zeta: f64) -> ([[f64; 2]; 2], [f64; 2]) {
+    ([[0.0, 1.0], [-w * w, -2.0 * zeta * w]], [0.0, w * w])
+}
+
+/// A band-stop's output $[c_u, c_0, c_1]$ from its input and the states $s = (y, \dot y)$ of
+/// the second-order filter of its denominator (`None`: not a band-stop). With
+/// $k = \omega_d^2/\omega_z^2$ and $G = \omega_d^2/(s^2 + 2\zeta_d\omega_d s + \omega_d^2)$,
+/// $H = k + (1 - k)G + c_1 sG$ with $c_1 = 2(\zeta_z\omega_z - \zeta_d\omega_d)/\omega_z^2$
+/// (both sides' numerators agree term by term); with equal frequencies, the identity plus
+/// $2(\zeta_z - \zeta_d)/\omega$ times the filter's derivative.
+fn band_stop_output(filter: ShapingFilter) -> Option<[f64; 3]> {
+    let ShapingFilter::BandStop {
+        frequency_hz,
+        zeta_numerator,
+        zeta_denominator,
+        denominator_frequency_hz,
+    } = filter
+    else {
+        return None;
+    };
+    let wz = TAU * frequency_hz;
+    let wd = TAU * denominator_frequency_hz.unwrap_or(frequency_hz);
+    let k = (wd / wz) * (wd / wz);
+    let c1 = 2.0 * (zeta_numerator * wz - zeta_denominator * wd) / (wz * wz);
+    Some([k, 1.0 - k, c1])
 }
 
 /// The discretised first- or second-order filter of one drive.
@@ -262,10 +310,17 @@ fn foh_filter(filter: ShapingFilter, h: f64) -> Result<FohFilter, Error> {
         ShapingFilter::SecondOrder {
             time_constant_s,
             zeta,
-        } => {
-            let w = 1.0 / time_constant_s;
-            ([[0.0, 1.0], [-w * w, -2.0 * zeta * w]], [0.0, w * w])
-        }
+        } => second_order(1.0 / time_constant_s, zeta),
+        // A band-stop's states are those of its denominator's second-order filter.
+        ShapingFilter::BandStop {
+            frequency_hz,
+            zeta_denominator,
+            denominator_frequency_hz,
+            ..
+        } => second_order(
+            TAU * denominator_frequency_hz.unwrap_or(frequency_hz),
+            zeta_denominator,
+        ),
         ShapingFilter::MovingAverage { .. } => {
             unreachable!("a moving average is not a first- or second-order filter")
         }
