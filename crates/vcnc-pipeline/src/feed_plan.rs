@@ -1094,7 +1094,7 @@ fn judge(
             let (k, p) = (c.first + j, kin.pose_at(&pos, j).p);
             if let Some((prev, q)) = last {
                 let step = (p - q).norm();
-                if prev % every == 0 {
+                if prev.is_multiple_of(every) {
                     series.reference_mm.push(arc);
                     series.speed_mm_s.push(step / ts);
                 }
@@ -1112,7 +1112,7 @@ fn judge(
         if bucket.is_none_or(|b| s.tip_mm > b.1) {
             bucket = Some((original.position_mm(s.foot_u), s.tip_mm));
         }
-        if (s.k + 1) % every == 0
+        if (s.k + 1).is_multiple_of(every)
             && let Some((x, e)) = bucket.take()
         {
             position_mm.push(x);
@@ -1132,7 +1132,7 @@ fn judge(
         tip_mm.push(e);
     }
     if let Some((k, _)) = last
-        && k % every == 0
+        && k.is_multiple_of(every)
     {
         series.reference_mm.push(arc);
         series.speed_mm_s.push(0.0);
