@@ -55,10 +55,11 @@
 //! true machine at the end stream the same way ([`measure`]), and keep for `feed_plan.svg` at
 //! most [`FIGURE_POINTS`] points a series.
 //!
-//! **Cost** (`vcnc feed-plan` on the NMV5000 spiral, 2-core VM under load): 200 µm 1.05 s,
-//! 27 MB; 50 µm 2.9 s, 30 MB; 10 µm 21 s, 30 MB (before streaming: 2.9 s 45 MB, 3.4 s
-//! 104 MB, 47 s 624 MB). At 10 µm the uniform search evaluates 19 programs of about 850 000
-//! samples (0.8–1 s each) to bracket the jump above to its precision; the per-line plan's
+//! **Cost** (`vcnc feed-plan` on the NMV5000 spiral, 2-core VM shared with other work): 200 µm
+//! 0.82 s, 27 MB; 50 µm 1.96 s, 30 MB; 10 µm 15.4 s, 30 MB (before streaming, measured back
+//! to back: 1.21 s 45 MB, 2.95 s 105 MB, 29.2 s 623 MB). At 10 µm the uniform search evaluates
+//! 19 programs of about 850 000
+//! samples (0.5–1 s each) to bracket the jump above to its precision; the per-line plan's
 //! ten evaluations are shorter (about 190 000 samples).
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
