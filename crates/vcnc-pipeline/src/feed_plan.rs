@@ -58,9 +58,8 @@
 //! **Cost** (`vcnc feed-plan` on the NMV5000 spiral, 2-core VM shared with other work): 200 µm
 //! 0.82 s, 27 MB; 50 µm 1.96 s, 30 MB; 10 µm 15.4 s, 30 MB (before streaming, measured back
 //! to back: 1.21 s 45 MB, 2.95 s 105 MB, 29.2 s 623 MB). At 10 µm the uniform search evaluates
-//! 19 programs of about 850 000
-//! samples (0.5–1 s each) to bracket the jump above to its precision; the per-line plan's
-//! ten evaluations are shorter (about 190 000 samples).
+//! 19 programs of about 850 000 samples (0.5–1 s each) to bracket the jump above to its
+//! precision; the per-line plan's ten evaluations are shorter (about 190 000 samples).
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 
