@@ -105,17 +105,7 @@ pub fn feed_plan(
         "uniform.ngc",
         "the program with the uniform feed scale that meets the tolerance",
     );
-    write_figure(
-        &mut report,
-        &machine,
-        plan,
-        [
-            j.original.contour(&machine)?,
-            j.planned.contour(&machine)?,
-            j.uniform.contour(&machine)?,
-        ],
-        tolerance_mm * 1e3,
-    )?;
+    write_figure(&mut report, &j, tolerance_mm * 1e3)?;
     write_json(&out.join("summary.json"), &j.summary)?;
     report.finish()?;
     if !ctx.quiet {

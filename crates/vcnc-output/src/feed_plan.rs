@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
-use vcnc_pipeline::compensate;
-use vcnc_pipeline::feed_plan::{self, FeedPlan, FeedPlanSummary, PlanFigures};
-use vcnc_pipeline::{ContourReport, Machine, Run};
+use vcnc_pipeline::feed_plan::{
+    self, FeedPlan, FeedPlanSummary, JudgedPlan, PathSeries, PlanFigures,
+};
 use vcnc_report::{Axis, LineFigure, Panel, Series, line_figure};
 
 use crate::Result;
@@ -46,58 +46,32 @@ pub fn write_blocks(out: &Path, plan: &FeedPlan) -> Result<()> {
     )
 }
 
-/// Tool-tip speed (mm/s) of a run's reference at each sample, and the arc length (mm) of its
-/// reference tip path there.
-fn speed_along(machine: &Machine, run: &Run) -> (Vec<f64>, Vec<f64>) {
-    let poses = run.reference_poses(machine).unwrap_or_default();
-    let mut s = Vec::with_capacity(poses.len());
-    let mut v = Vec::with_capacity(poses.len());
-    let mut acc = 0.0;
-    for (k, p) in poses.iter().enumerate() {
-        let step = poses.get(k + 1).map_or(0.0, |q| (q.p - p.p).norm());
-        s.push(acc);
-        v.push(step / run.ts);
-        acc += step;
-    }
-    (s, v)
-}
-
 /// `feed_plan.svg`: contour errors on the true machine (log) and tool-tip speeds along the
-/// original path, for the original, the per-line plan and the uniform scale.
-pub fn write_figure(
-    report: &mut RunReport,
-    machine: &Machine,
-    plan: &FeedPlan,
-    judged: [&ContourReport; 3],
-    tolerance_um: f64,
-) -> Result<()> {
-    let runs: [(&str, Role, &Run); 3] = [
-        ("original program", Role::Reference, &plan.original),
-        ("per-line feeds", Role::TrueMachine, &plan.plan.run),
-        ("uniform feed scale", Role::Other(2), &plan.uniform.run),
+/// original path, for the original, the per-line plan and the uniform scale (each series at
+/// most [`feed_plan::FIGURE_POINTS`] points: a long run's largest error of each run of
+/// consecutive samples).
+pub fn write_figure(report: &mut RunReport, judged: &JudgedPlan, tolerance_um: f64) -> Result<()> {
+    let runs: [(&str, Role, &PathSeries); 3] = [
+        ("original program", Role::Reference, &judged.original.series),
+        ("per-line feeds", Role::TrueMachine, &judged.planned.series),
+        ("uniform feed scale", Role::Other(2), &judged.uniform.series),
     ];
-    let pos: Vec<Vec<f64>> = judged
+    let err: Vec<Vec<f64>> = runs
         .iter()
-        .map(|j| compensate::path_position_mm(machine, &plan.original, j))
+        .map(|r| r.2.tip_mm.iter().map(|e| (e * 1e3).max(1e-3)).collect())
         .collect();
-    let err: Vec<Vec<f64>> = judged
-        .iter()
-        .map(|j| j.tip_mm.iter().map(|e| (e * 1e3).max(1e-3)).collect())
-        .collect();
-    let speeds: Vec<(Vec<f64>, Vec<f64>)> =
-        runs.iter().map(|r| speed_along(machine, r.2)).collect();
     let tol = vec![tolerance_um; 2];
-    let ends = [0.0, pos[0].last().copied().unwrap_or(1.0)];
+    let end = |s: &PathSeries| s.reference_mm.last().copied().unwrap_or(1.0);
+    let ends = [0.0, end(&judged.original.series)];
     let mut e_series: Vec<Series> = runs
         .iter()
-        .zip(pos.iter().zip(&err))
-        .map(|((label, role, _), (x, y))| Series::line(*label, *role, x, y))
+        .zip(&err)
+        .map(|((label, role, s), y)| Series::line(*label, *role, &s.position_mm, y))
         .collect();
     e_series.push(Series::line("tolerance", Role::Other(1), &ends, &tol));
     let v_series: Vec<Series> = runs
         .iter()
-        .zip(&speeds)
-        .map(|((label, role, _), (x, y))| Series::line(*label, *role, x, y))
+        .map(|(label, role, s)| Series::line(*label, *role, &s.reference_mm, &s.speed_mm_s))
         .collect();
     let fig = line_figure(&LineFigure::new(
         "feed planning: contour errors on the true machine and tool-tip speeds",

@@ -1,0 +1,181 @@
+//! A feed plan's evaluation streamed (`feed_plan::evaluate`: the program a piece at a time,
+//! reduced on the fly) against the whole-run computation it replaced: the program prepared
+//! whole, the models' contour errors against the original path as whole series
+//! (`compensate::with_models`, `compensate::feed_samples`), the per-line charge as the maximum
+//! over each sample's lag window written out on the whole series, and the statistics over the
+//! masked series (`ContourStats::over`). Bit for bit, whatever the pieces.
+//!
+//! Programs: the spiral against its own path and, slowed to a third, against the spiral's
+//! path (a plan's evaluation: another program's run, measured against the original); the
+//! O-word program of `route.rs` with models that have a dead time, a reference filter and
+//! stated latencies (the source lines must follow the samples through the latency shift).
+
+use std::collections::BTreeMap;
+
+use vcnc_drive::{DriveModel, ReferenceFilter};
+use vcnc_machine::{Machine, MachineModels, embedded};
+use vcnc_pipeline::compensate::{self, ContourStats};
+use vcnc_pipeline::feed_plan::{self, FeedPlanOptions, OriginalPath};
+use vcnc_pipeline::run::{self, Run};
+use vcnc_pipeline::source::{self, Program};
+use vcnc_pipeline::{Source, StreamOptions};
+
+fn models(machine: &Machine, rich: bool) -> MachineModels {
+    let latency = [1e-4, 0.0, 2e-3, 0.0, 3.5e-4];
+    let m = machine
+        .axes
+        .iter()
+        .zip(latency)
+        .map(|(a, l)| {
+            let mut m = DriveModel::from(a.true_model());
+            if rich {
+                m.delay_s = 0.4e-3;
+                m.reference_filter = Some(ReferenceFilter::FirstOrder { tau_s: 0.7e-3 });
+                m.actual_latency_s = l;
+            }
+            m
+        })
+        .collect();
+    MachineModels::new(machine, m, "test models").expect("models")
+}
+
+const OWORD: &str = "\
+G21 G90 G64 P0.01
+G0 X0 Y0 Z0
+o<pocket> sub
+  G1 X[#1] Y[#2] F2400
+  G1 X[#1 + #3] C[#4]
+  G1 Y[#2 + #3]
+  G1 Z-1 F600
+  G1 X[#1] Y[#2]
+o<pocket> endsub
+#10 = 0
+o2 while [#10 LT 6]
+  o<pocket> call [#10 * 3] [#10 * 2] [5] [#10 * 8]
+  #10 = [#10 + 1]
+o2 endwhile
+G0 Z10
+M2
+";
+
+/// The whole-run figures: per line its charge, the largest excess, the largest tool-tip
+/// error, the feed samples' statistics, the cycle time.
+fn whole(
+    machine: &Machine,
+    original: &Run,
+    run: &Run,
+    models: &MachineModels,
+    opts: &FeedPlanOptions,
+    lag: usize,
+) -> (BTreeMap<u32, f64>, f64, f64, ContourStats, f64) {
+    let report = compensate::with_models(machine, original, run, models).expect("prediction");
+    let feed = compensate::feed_samples(original, &report);
+    let e: Vec<f64> = (0..report.tip_mm.len())
+        .map(|k| {
+            if !feed[k] {
+                return 0.0;
+            }
+            let tip = report.tip_mm[k].abs() / opts.tolerance_mm;
+            match opts.orientation_tolerance_rad {
+                Some(o) => tip.max(report.orientation_rad[k].abs() / o),
+                None => tip,
+            }
+        })
+        .collect();
+    let n = e.len();
+    let mut charged = BTreeMap::new();
+    for k in 0..n {
+        if run.lines[k] == 0 {
+            continue;
+        }
+        let m = e[k..(k + lag + 1).min(n)]
+            .iter()
+            .fold(0.0f64, |a, b| a.max(*b));
+        let v = charged.entry(run.lines[k]).or_insert(0.0f64);
+        *v = v.max(m);
+    }
+    (
+        charged,
+        e.iter().fold(0.0f64, |a, b| a.max(*b)),
+        report.tip_max_mm,
+        ContourStats::over(&report, &feed),
+        run.duration_s(),
+    )
+}
+
+fn stats_bits(s: &ContourStats) -> [u64; 4] {
+    [
+        s.contour_max_um.to_bits(),
+        s.contour_rms_um.to_bits(),
+        s.orientation_max_mrad.to_bits(),
+        s.orientation_rms_mrad.to_bits(),
+    ]
+}
+
+#[test]
+fn a_streamed_evaluation_is_the_whole_runs_bit_for_bit() {
+    let machine = Machine::embedded_nmv5000().expect("machine");
+    let spiral = embedded::SPIRAL_NGC.to_string();
+    assert!(spiral.contains(" F4500"));
+    let slow = spiral.replace(" F4500", " F1500");
+    let cases = [
+        (spiral.clone(), spiral.clone(), false),
+        (spiral.clone(), slow, false),
+        (OWORD.to_string(), OWORD.to_string(), true),
+    ];
+    for (original_text, text, rich) in cases {
+        let models = models(&machine, rich);
+        let original = run::prepare(&machine, &original_text, "original.ngc", false).unwrap();
+        let run = run::prepare(&machine, &text, "p.ngc", false).unwrap();
+        let path = OriginalPath::new(&machine, &original).unwrap();
+        let lag = (feed_plan::lag_window(models.models()) / original.ts).round() as usize;
+        assert!(lag > 10, "{lag}");
+        for opts in [
+            FeedPlanOptions::new(0.01),
+            FeedPlanOptions {
+                orientation_tolerance_rad: Some(1e-4),
+                ..FeedPlanOptions::new(0.01)
+            },
+        ] {
+            let (charged, excess, tip_max, stats, cycle) =
+                whole(&machine, &original, &run, &models, &opts, lag);
+            assert!(charged.len() > 3 && excess > 0.0);
+            for pieces in [
+                StreamOptions::default(),
+                StreamOptions {
+                    chunk_bytes: 300,
+                    chunk_samples: 777,
+                },
+            ] {
+                let stream = source::plan_pieces(
+                    &machine,
+                    Program::Text {
+                        text: text.clone(),
+                        name: "p.ngc".to_string(),
+                    },
+                    false,
+                    &pieces,
+                )
+                .unwrap();
+                let ev = feed_plan::evaluate(
+                    &machine,
+                    &path,
+                    Source::Streamed(&stream),
+                    &models,
+                    &opts,
+                    lag,
+                )
+                .unwrap();
+                assert_eq!(ev.samples, run.len());
+                assert_eq!(ev.cycle_time_s.to_bits(), cycle.to_bits());
+                assert_eq!(ev.excess.to_bits(), excess.to_bits());
+                assert_eq!(ev.tip_max_mm.to_bits(), tip_max.to_bits());
+                assert_eq!(stats_bits(&ev.feed), stats_bits(&stats));
+                let bits = |m: &BTreeMap<u32, f64>| -> Vec<(u32, u64)> {
+                    m.iter().map(|(l, v)| (*l, v.to_bits())).collect()
+                };
+                assert_eq!(bits(&ev.charged), bits(&charged));
+            }
+        }
+    }
+}
