@@ -239,14 +239,16 @@ pub enum Error {
     /// No feed scale meets the tolerance.
     #[error(
         "feed planning: even at {min_factor} times the programmed feeds the predicted contour \
-         error is {tip_um:.3} µm and {orientation_mrad:.4} mrad, {excess:.2} times the tolerance"
+         error on the feed moves is {tip_um:.3} µm and {orientation_mrad:.4} mrad, {excess:.2} \
+         times the tolerance"
     )]
     ToleranceUnreachable {
         /// The smallest feed factor tried.
         min_factor: f64,
-        /// The predicted tool-tip contour error there, µm.
+        /// The predicted tool-tip contour error there on the feed moves (the samples held to
+        /// the tolerance), µm.
         tip_um: f64,
-        /// The predicted orientation error there, mrad.
+        /// The predicted orientation error there on the feed moves, mrad.
         orientation_mrad: f64,
         /// Its ratio to the tolerance.
         excess: f64,

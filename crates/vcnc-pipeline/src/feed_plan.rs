@@ -929,8 +929,8 @@ fn largest_feasible(
         if next == u {
             return Err(Error::ToleranceUnreachable {
                 min_factor: opts.min_factor,
-                tip_um: p.tip_max_mm * 1e3,
-                orientation_mrad: p.orientation_max_rad * 1e3,
+                tip_um: p.feed.contour_max_um,
+                orientation_mrad: p.feed.orientation_max_mrad,
                 excess: p.excess,
             });
         }

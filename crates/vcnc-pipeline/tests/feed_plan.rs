@@ -179,3 +179,38 @@ fn a_streamed_evaluation_is_the_whole_runs_bit_for_bit() {
         }
     }
 }
+
+/// A tolerance no feed meets is refused with the error of the samples held to it: the feed
+/// moves' largest tool-tip error, whose ratio to the tolerance is the reported excess (the
+/// refusal once gave the largest error of every sample, rapids included: 1117 µm beside an
+/// excess of 5.66 at 20 µm on a generated TCP program). The program: a short generated 5-axis
+/// TCP program of 10 ms inverse-time blocks, far beyond its axes' acceleration limits, whose
+/// predicted error does not fall with the feed; the smallest factor 0.1 keeps the test short.
+#[test]
+fn an_unreachable_tolerance_reports_the_feed_moves_error() {
+    let machine = Machine::embedded_nmv5000().expect("machine");
+    let src = vcnc_pipeline::programs::long_tcp_program(60, 0.5, 0.01, 428).expect("program");
+    let opts = FeedPlanOptions {
+        min_factor: 0.1,
+        ..FeedPlanOptions::new(0.02)
+    };
+    let err = feed_plan::plan_feeds(
+        &machine,
+        &src,
+        "long.ngc",
+        &models(&machine, false),
+        &opts,
+        false,
+    )
+    .expect_err("no feed factor meets 20 µm on this program");
+    let vcnc_pipeline::Error::ToleranceUnreachable { tip_um, excess, .. } = err else {
+        panic!("unexpected error: {err}");
+    };
+    println!("{err}");
+    assert!(excess > 1.0);
+    // Without an orientation tolerance the excess is the tip error over the tolerance.
+    assert!(
+        (tip_um / 20.0 - excess).abs() <= 1e-9 * excess,
+        "reported {tip_um} µm at an excess of {excess} over 20 µm"
+    );
+}
