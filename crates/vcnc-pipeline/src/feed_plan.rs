@@ -76,6 +76,7 @@ use crate::compensate::ContourStats;
 use crate::drives::{ModelRuns, TrueDrives};
 use crate::run::{Run, prepare};
 use crate::source::{Program, ReferenceChunk, Source};
+use crate::stats::MaxRms;
 
 /// Settings of [`plan_feeds`]. Plain data; [`FeedPlanOptions::new`] gives the documented
 /// defaults for a tolerance.
@@ -522,42 +523,30 @@ impl Pending {
     }
 }
 
-/// The contour statistics of a run's feed samples, accumulated in sample order (the bits of
-/// [`ContourStats::over`] on the whole series).
+/// The contour statistics of a run's feed samples, accumulated in sample order by
+/// [`MaxRms`] (the bits of [`ContourStats::over`] on the whole series).
 #[derive(Debug, Clone, Copy, Default)]
 struct FeedStats {
-    n: usize,
-    tip_max: f64,
-    tip_sq: f64,
-    or_max: f64,
-    or_sq: f64,
+    tip: MaxRms,
+    orientation: MaxRms,
 }
 
 impl FeedStats {
     fn add(&mut self, s: &Sample) {
-        if !s.feed {
-            return;
+        if s.feed {
+            self.tip.add(s.tip_mm);
+            self.orientation.add(s.orientation_rad);
         }
-        self.n += 1;
-        self.tip_max = self.tip_max.max(s.tip_mm.abs());
-        self.or_max = self.or_max.max(s.orientation_rad.abs());
-        self.tip_sq += s.tip_mm * s.tip_mm;
-        self.or_sq += s.orientation_rad * s.orientation_rad;
     }
 
     fn stats(&self) -> ContourStats {
-        let rms = |sq: f64| {
-            if self.n == 0 {
-                0.0
-            } else {
-                (sq / self.n as f64).sqrt()
-            }
-        };
+        let ((tip_max, tip_rms), (or_max, or_rms)) =
+            (self.tip.max_rms(), self.orientation.max_rms());
         ContourStats {
-            contour_max_um: self.tip_max * 1e3,
-            contour_rms_um: rms(self.tip_sq) * 1e3,
-            orientation_max_mrad: self.or_max * 1e3,
-            orientation_rms_mrad: rms(self.or_sq) * 1e3,
+            contour_max_um: tip_max * 1e3,
+            contour_rms_um: tip_rms * 1e3,
+            orientation_max_mrad: or_max * 1e3,
+            orientation_rms_mrad: or_rms * 1e3,
         }
     }
 }

@@ -7,12 +7,14 @@
 //!
 //! Programs: the spiral against its own path and, slowed to a third, against the spiral's
 //! path (a plan's evaluation: another program's run, measured against the original); the
-//! O-word program of `route.rs` with models that have a dead time, a reference filter and
-//! stated latencies (the source lines must follow the samples through the latency shift).
+//! O-word program shared with `route.rs` (`tests/common`) with models that have a dead time,
+//! a reference filter, an extra pole and stated latencies (the source lines must follow the
+//! samples through the latency shift).
+
+mod common;
 
 use std::collections::BTreeMap;
 
-use vcnc_drive::{DriveModel, ReferenceFilter};
 use vcnc_machine::{Machine, MachineModels, embedded};
 use vcnc_pipeline::compensate::{self, ContourStats};
 use vcnc_pipeline::feed_plan::{self, FeedPlanOptions, OriginalPath};
@@ -20,43 +22,7 @@ use vcnc_pipeline::run::{self, Run};
 use vcnc_pipeline::source::{self, Program};
 use vcnc_pipeline::{Source, StreamOptions};
 
-fn models(machine: &Machine, rich: bool) -> MachineModels {
-    let latency = [1e-4, 0.0, 2e-3, 0.0, 3.5e-4];
-    let m = machine
-        .axes
-        .iter()
-        .zip(latency)
-        .map(|(a, l)| {
-            let mut m = DriveModel::from(a.true_model());
-            if rich {
-                m.delay_s = 0.4e-3;
-                m.reference_filter = Some(ReferenceFilter::FirstOrder { tau_s: 0.7e-3 });
-                m.actual_latency_s = l;
-            }
-            m
-        })
-        .collect();
-    MachineModels::new(machine, m, "test models").expect("models")
-}
-
-const OWORD: &str = "\
-G21 G90 G64 P0.01
-G0 X0 Y0 Z0
-o<pocket> sub
-  G1 X[#1] Y[#2] F2400
-  G1 X[#1 + #3] C[#4]
-  G1 Y[#2 + #3]
-  G1 Z-1 F600
-  G1 X[#1] Y[#2]
-o<pocket> endsub
-#10 = 0
-o2 while [#10 LT 6]
-  o<pocket> call [#10 * 3] [#10 * 2] [5] [#10 * 8]
-  #10 = [#10 + 1]
-o2 endwhile
-G0 Z10
-M2
-";
+use common::{OWORD, models};
 
 /// The whole-run figures: per line its charge, the largest excess, the largest tool-tip
 /// error, the feed samples' statistics, the cycle time.

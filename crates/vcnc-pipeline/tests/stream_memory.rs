@@ -20,10 +20,11 @@
 //! Its own test binary: the counting allocator sees every thread of the process, so nothing
 //! else may run beside the measurement.
 
+mod common;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
-use vcnc_drive::DriveModel;
 use vcnc_machine::{Machine, MachineModels};
 use vcnc_pipeline::predict::{self, PredictOptions};
 use vcnc_pipeline::sink::Discard;
@@ -111,12 +112,7 @@ fn streamed_peak(machine: &Machine, models: &MachineModels, path: &std::path::Pa
 #[test]
 fn a_streamed_prediction_holds_the_same_peak_for_a_program_four_times_as_long() {
     let machine = Machine::embedded_nmv5000().expect("the embedded machine loads");
-    let models: Vec<DriveModel> = machine
-        .axes
-        .iter()
-        .map(|a| DriveModel::from(a.true_model()))
-        .collect();
-    let models = MachineModels::new(&machine, models, "true drives").expect("one model per axis");
+    let models = common::models(&machine, false);
     let dir = tempfile::tempdir().expect("a temporary folder");
     let mut peaks = Vec::new();
     for segments in [3_000, 12_000] {
