@@ -183,13 +183,17 @@ pub(crate) struct Logged<T> {
 /// effects' ([`Real`]).
 pub(crate) trait Servo<T: Lane>: Send + Sync {
     /// Plant and controller state.
-    type State: Send;
+    type State: Send + Clone;
     /// The position sensor's quantisation.
     fn quant(&self) -> &Quant<T>;
     /// At rest at position `x0` with the sensors reading `xm0`, every controller state zero.
     fn rest(&self, x0: T, xm0: T) -> Self::State;
     /// Whether the velocity path reads a second (motor) encoder with its own noise.
     fn second_encoder(&self) -> bool;
+    /// Whether a quiet run of this loop can read with the noise −0 ([`Readings::MinusZero`]:
+    /// the ideal drive's); the runs of the other loops never do, and are not compiled with
+    /// that path.
+    const MINUS_ZERO_QUIET: bool = false;
     /// One tick with loop reference `r` and the noise of the tick's position and motor
     /// readings; the lanes at the limit.
     fn tick(&self, st: &mut Self::State, r: &RefSample<T>, noise: (T, T)) -> T::Mask;
@@ -237,8 +241,9 @@ enum Readings {
     /// Every lane is quiet: the noise is a constant, drawn once into both buffers, and the
     /// ticks run without draws between them.
     Constant,
-    /// Quiet, and the constant is −0 in every lane (the ideal drive): the ticks are given the
-    /// literal, which the compiler folds away ($x + (-0) = x$ for every $x$).
+    /// Quiet, the constant −0 in every lane, and no reference shaping (the ideal drive's quiet
+    /// run): the ticks are given the literal, which the compiler folds away ($x + (-0) = x$
+    /// for every $x$), and interpolate their references themselves ([`Run::minus_zero_ticks`]).
     MinusZero,
 }
 
@@ -322,16 +327,38 @@ fn interpolate<T: Lane>(
     inv_sub: f64,
 ) {
     let (last, rest) = out.split_last_mut().expect("a block has a tick");
-    let (dp, dv, da) = (next.xr - prev.xr, next.vr - prev.vr, next.ar - prev.ar);
+    let d = step(prev, next);
     for (j, r) in rest.iter_mut().enumerate() {
-        let w = T::splat((j + 1) as f64 * inv_sub);
-        *r = RefSample {
-            xr: prev.xr + w * dp,
-            vr: prev.vr + w * dv,
-            ar: prev.ar + w * da,
-        };
+        *r = interpolated(prev, &d, j, inv_sub);
     }
     *last = *next;
+}
+
+/// `next - prev`, per channel.
+#[inline(always)]
+fn step<T: Lane>(prev: &RefSample<T>, next: &RefSample<T>) -> RefSample<T> {
+    RefSample {
+        xr: next.xr - prev.xr,
+        vr: next.vr - prev.vr,
+        ar: next.ar - prev.ar,
+    }
+}
+
+/// The reference at tick `j` of a block (not its last): `prev + ((j + 1)/n_sub) d`, with `d`
+/// = [`step`]`(prev, next)`.
+#[inline(always)]
+fn interpolated<T: Lane>(
+    prev: &RefSample<T>,
+    d: &RefSample<T>,
+    j: usize,
+    inv_sub: f64,
+) -> RefSample<T> {
+    let w = T::splat((j + 1) as f64 * inv_sub);
+    RefSample {
+        xr: prev.xr + w * d.xr,
+        vr: prev.vr + w * d.vr,
+        ar: prev.ar + w * d.ar,
+    }
 }
 
 impl<T: Lane, S: Servo<T>> Run<T, S> {
@@ -380,8 +407,15 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
                 *next = *now;
             }
             let minus_zero = |v: T| (0..T::WIDTH).all(|l| v.at(l).to_bits() == (-0.0f64).to_bits());
+            // The motor reading's noise counts only where the loop reads a motor encoder: it is
+            // +0 otherwise (never drawn), which kept every ideal drive off this path until
+            // issue 27's measurement.
             let nz = run.noise[0];
-            if minus_zero(nz.0) && minus_zero(nz.1) {
+            if S::MINUS_ZERO_QUIET
+                && minus_zero(nz.0)
+                && (!run.servo.second_encoder() || minus_zero(nz.1))
+                && run.shaping.iter().all(Option::is_none)
+            {
                 run.readings = Readings::MinusZero;
             }
         }
@@ -455,12 +489,15 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
                 Self::draw(&mut self.noise_src, self.motor_noise, &mut self.noise[0]);
                 1
             } else {
-                running
-                    .shapers
-                    .block(&mut self.refs, &running.prev, &r, inv_sub);
+                if self.readings != Readings::MinusZero {
+                    running
+                        .shapers
+                        .block(&mut self.refs, &running.prev, &r, inv_sub);
+                }
                 self.n_sub
             };
-            self.run_block(&mut running.st, ticks, channels, out);
+            let ends = (&running.prev, &r, inv_sub);
+            self.run_block(&mut running.st, ticks, ends, channels, out);
             running.prev = r;
         }
         self.running = Some(running);
@@ -468,14 +505,15 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
     }
 
     /// Runs the `ticks` ticks of `self.refs` and logs the last one: the ticks from the previous
-    /// logged sample up to and including the first tick of the next sample. The noise of this
-    /// block's readings is in `self.noise`; the next block's is drawn during this block's ticks
-    /// and takes its place.
+    /// logged sample up to and including the first tick of the next sample (`ends`: the two
+    /// samples and $1/n_{sub}$). The noise of this block's readings is in `self.noise`; the
+    /// next block's is drawn during this block's ticks and takes its place.
     #[inline(always)]
     fn run_block(
         &mut self,
         st: &mut S::State,
         ticks: usize,
+        ends: (&RefSample<T>, &RefSample<T>, f64),
         channels: Channels,
         out: &mut [&mut DriveTrace],
     ) {
@@ -493,17 +531,17 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
         if self.readings != Readings::Drawn {
             // Nothing to draw: the loop state stays in registers through the ticks (with the
             // draws between them it went through the stack, on the loop's critical path).
-            let ticks = |sat: T, st: &mut S::State, nz: (T, T)| {
-                refs[..last]
-                    .iter()
-                    .fold(sat, |sat, r| sat + one.masked(s.tick(st, r, nz)))
-            };
-            sat = if self.readings == Readings::MinusZero {
-                ticks(sat, st, (T::splat(-0.0), T::splat(-0.0)))
+            let (sat, r_last) = if S::MINUS_ZERO_QUIET && self.readings == Readings::MinusZero {
+                // Unshaped, `self.refs` left unfilled: the last tick's reference is the sample.
+                let sat = Self::minus_zero_ticks(s, st, ends, last, sat);
+                (sat, ends.1)
             } else {
-                ticks(sat, st, cur[0])
+                (
+                    Self::quiet_ticks(s, st, &refs[..last], sat, cur[0]),
+                    &refs[last],
+                )
             };
-            let (logged, saturated) = s.logged_tick(st, &refs[last], cur[last]);
+            let (logged, saturated) = s.logged_tick(st, r_last, cur[last]);
             self.saturated = sat + one.masked(saturated);
             Self::log(logged, self.drives, channels, out);
             return;
@@ -521,6 +559,48 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
         }
         self.saturated = sat;
         std::mem::swap(&mut self.noise, &mut self.noise_next);
+    }
+
+    /// The ticks of `refs` with their readings' noise `nz`, without draws between them; `sat`
+    /// plus their ticks at the limit.
+    #[inline(always)]
+    fn quiet_ticks(s: &S, st: &mut S::State, refs: &[RefSample<T>], sat: T, nz: (T, T)) -> T {
+        let one = T::splat(1.0);
+        refs.iter()
+            .fold(sat, |sat, r| sat + one.masked(s.tick(st, r, nz)))
+    }
+
+    /// [`Run::quiet_ticks`] of a block's first `ticks` ticks from sample `ends.0` towards
+    /// `ends.1` (`ends.2` = $1/n_{sub}$), for −0 readings ([`Readings::MinusZero`]: the ideal
+    /// drive's quiet unshaped run, which the `drive` benchmark's ideal cases time).
+    ///
+    /// Three things keep its loop as short as the ideal drive's loop before the engine (issue
+    /// 27: these cases were 15 % slower). The noise is the literal −0, folded away: one
+    /// function called with the literal or with the buffer's noise was compiled as one loop
+    /// adding a variable. The state is a local copy, so it stays in registers: through `st`
+    /// the position went to the stack and back at every tick, on the loop's critical path.
+    /// And the references are interpolated here, where the work fills the gaps of the tick's
+    /// dependency chain, instead of in a pass over the block before its ticks ([`interpolated`]:
+    /// the same numbers as [`Shapers::block`] without shaping).
+    #[inline(always)]
+    fn minus_zero_ticks(
+        s: &S,
+        st: &mut S::State,
+        ends: (&RefSample<T>, &RefSample<T>, f64),
+        ticks: usize,
+        sat: T,
+    ) -> T {
+        let (prev, next, inv_sub) = ends;
+        let d = step(prev, next);
+        let nz = (T::splat(-0.0), T::splat(-0.0));
+        let one = T::splat(1.0);
+        let mut local = st.clone();
+        let sat = (0..ticks).fold(sat, |sat, j| {
+            let r = interpolated(prev, &d, j, inv_sub);
+            sat + one.masked(s.tick(&mut local, &r, nz))
+        });
+        *st = local;
+        sat
     }
 
     /// Logs the first `drives` lanes of a block's last tick into their traces.

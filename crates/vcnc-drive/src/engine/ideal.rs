@@ -122,6 +122,9 @@ impl<L: Law> Ideal<L> {
 impl<L: Law> Servo<f64> for Ideal<L> {
     type State = IdealState;
 
+    /// A quiet encoder's noise is −0 (`Noise::box_muller`).
+    const MINUS_ZERO_QUIET: bool = true;
+
     fn quant(&self) -> &Quant<f64> {
         &self.quant
     }
