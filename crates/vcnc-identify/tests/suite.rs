@@ -272,6 +272,15 @@ fn interp(v: &[f64], s: f64) -> f64 {
 /// hold's slope as velocity, its slope changes as acceleration pulses of the same area), then
 /// shapes the result (dead time; reference filter integrated with RK4 at the fine step,
 /// independent of the library's discretisation). Only the setpoints `r.pos` are used.
+///
+/// Known to differ from the hold it claims (issue 30, 2026-11-29): the drive interpolates these
+/// fine samples linearly between its ticks, and the knot's sample already holds the new slope,
+/// so the velocity feed-forward changes over the fine step *before* each knot (25 µs early at
+/// 50 µs). On fresh drives with strong feed-forward that biases the fitted ωn by up to +1.7 %
+/// (the identified model then predicts the unseen program better than the true one). A
+/// reference at every servo tick with the slope averaged over each sample's interval removes it
+/// (P-PI ωn unbiased, ±1σ coverage 11/16 on 16 fresh drives) but made CI's run of this file
+/// 228–254 s and 1.5 GB; it was reverted until a cheaper form is found.
 fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
     let n = (r.pos.len() - 1) * m + 1;
     let h = r.ts / m as f64;
@@ -289,35 +298,16 @@ fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
     let mut pos = vec![0.0; n];
     let mut vel = vec![0.0; n];
     let mut acc = vec![0.0; n];
-    // The drive interpolates these fine samples linearly between its ticks (`vcnc_drive`'s
-    // fine interpolation), so each sample is what the hold gives *around* it: the velocity is
-    // the hold's slope averaged over the fine sample's own interval (a slope change at a knot
-    // becomes a ramp centred on the knot), and each acceleration pulse is split between the
-    // two fine samples around its knot so that its centre is the knot. Until 2026-11-29 the
-    // fine step was 50 µs and the knot's sample held the new slope, so the velocity feed-
-    // forward led the hold by 25 µs and changed over 50 µs: on fresh drives with strong
-    // feed-forward that biased the fitted ωn by up to +1.7 %, with the identified model
-    // predicting the unseen program better than this "truth" (validation ratios 0.2–0.9).
-    let half = 0.5 / m as f64;
     for k in 0..n {
         let s = k as f64 / m as f64 - delay / r.ts;
         pos[k] = interp(&r.pos, s);
-        let (a, b) = (s - half, s + half);
-        let c = b.floor();
-        vel[k] = if a.floor() == c {
-            slope(c as isize)
-        } else {
-            (slope(c as isize - 1) * (c - a) + slope(c as isize) * (b - c)) / (b - a)
-        };
+        vel[k] = slope(s.floor() as isize);
     }
+    // Acceleration pulses at the (delayed) knots, on the nearest fine sample.
     for j in 0..r.pos.len() as isize {
-        let x = (j as f64 * r.ts + delay) / h;
-        let (k0, w1) = (x.floor(), x - x.floor());
-        let area = (slope(j) - slope(j - 1)) / h;
-        for (k, w) in [(k0, 1.0 - w1), (k0 + 1.0, w1)] {
-            if w > 0.0 && k >= 0.0 && (k as usize) < n {
-                acc[k as usize] += w * area;
-            }
+        let kf = ((j as f64 * r.ts + delay) / h).round();
+        if kf >= 0.0 && (kf as usize) < n {
+            acc[kf as usize] += (slope(j) - slope(j - 1)) / h;
         }
     }
     let (pos, vel, acc) = match shaping {
@@ -372,11 +362,10 @@ fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
     }
 }
 
-/// Runs the drive through program `r` (sampled at the drive's Ts), logging at Ts. The loop's
-/// reference is made at every servo tick ([`loop_reference`], a fine period of at most
-/// 1/[`MIN_SERVO_HZ`], shaped there) and the log is decimated back.
+/// Runs the drive through program `r` (sampled at the drive's Ts), logging at Ts. A shaped
+/// drive gets its reference at a fine period (shaped there) and its log is decimated back.
 fn run_drive(d: &SuiteDrive, r: &RefSignal, cut: bool) -> Run {
-    let m = (d.ts * MIN_SERVO_HZ).ceil().max(1.0) as usize;
+    let m = (d.ts / 50e-6).round().max(1.0) as usize;
     let lr = loop_reference(r, m, d.shaping);
     let params = d.params_at(lr.ts);
     let out = vcnc_drive::simulate_drive(&params, lr.as_ref(), lr.ts).expect("drive simulates");
@@ -638,15 +627,7 @@ fn randomised_drives_are_identified_from_csv() {
 /// same): stage C fitted the extra-pole structure's free run from an *estimated* initial state,
 /// 0.38 µm on the estimation trace against 0.032 µm for its projected fit, and bent the linear
 /// parameters to that estimate's error. Its paper fit now starts from the chosen structure's
-/// core and is chosen (0.94×, the fixed test below). The loop's reference at every servo tick
-/// with its feed-forward centred on the knots ([`loop_reference`], 2026-11-29): before, 48
-/// fresh drives gave 47/48 and 42/48, ωn within ±1σ of its error for 17/48 and ±3σ for 38/48,
-/// the ωn error biased (median +0.13 % P-PI, +0.24 % PID) and the identified model predicting
-/// the unseen program better than the true one (median ratio 0.68, 0.54); after, another 48
-/// gave 48/48 and 43/48, the P-PI drives unbiased (median ωn error +0.01 %, ±1σ 11/16, ±3σ
-/// 16/16) and every ratio ≈ 1, while the PID drives keep a bias (median +0.17 %, ±1σ 8/32,
-/// ±3σ 24/32; their ωn bias went with the Coulomb friction when it was removed, so the
-/// friction input held over each sample is the lead). Run it with
+/// core and is chosen (0.94×, the fixed test below). Run it with
 /// `cargo test --release -p vcnc-identify --test suite -- --ignored`.
 #[test]
 #[ignore = "about one fresh drive in 130 fails the per-drive criteria (issue 30 open); run with --ignored"]
