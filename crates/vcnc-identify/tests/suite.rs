@@ -276,11 +276,12 @@ fn interp(v: &[f64], s: f64) -> f64 {
 /// Known to differ from the hold it claims (issue 30, 2026-11-29): the drive interpolates these
 /// fine samples linearly between its ticks, and the knot's sample already holds the new slope,
 /// so the velocity feed-forward changes over the fine step *before* each knot (25 µs early at
-/// 50 µs). On fresh drives with strong feed-forward that biases the fitted ωn by up to +1.7 %
+/// 50 µs). On fresh drives with strong feed-forward that biases the fitted ωn by up to +1.4 %
 /// (the identified model then predicts the unseen program better than the true one). A
 /// reference at every servo tick with the slope averaged over each sample's interval removes it
-/// (P-PI ωn unbiased, ±1σ coverage 11/16 on 16 fresh drives) but made CI's run of this file
-/// 228–254 s and 1.5 GB; it was reverted until a cheaper form is found.
+/// (P-PI ωn unbiased, ±1σ coverage 11/16 on 16 fresh drives; the PID drives keep a bias that
+/// goes with the Coulomb friction) but made CI's run of this file 228–254 s and 1.5 GB; it was
+/// reverted until a cheaper form is found.
 fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
     let n = (r.pos.len() - 1) * m + 1;
     let h = r.ts / m as f64;
