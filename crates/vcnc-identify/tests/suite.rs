@@ -55,7 +55,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use support::RefSignal;
 use vcnc_drive::{
-    ClosedLoopModel, ControllerSpec, DriveModel, DriveParams, Encoder, Plant, Poles, SimOptions,
+    Channels, ClosedLoopModel, ControllerSpec, DriveModel, DriveParams, DriveTrace, Encoder, Plant,
+    Poles, Reference, SimOptions,
 };
 use vcnc_identify::{Identification, ReferenceInput, Trace, identify};
 
@@ -249,8 +250,9 @@ struct Run {
     t: Vec<f64>,
     xr: Vec<f64>,
     x: Vec<f64>,
-    /// Largest gap between the drive's true position and a fine simulation of the analytic
-    /// model, over the whole run before any cut, axis units (see [`truth_gap`]).
+    /// Largest gap between the drive's true position and the analytic model driven by the same
+    /// reference, over every servo tick of the whole run before any cut, axis units (see
+    /// [`run_drive`]).
     gap: f64,
 }
 
@@ -267,82 +269,146 @@ fn interp(v: &[f64], s: f64) -> f64 {
     v[i] + f * (v[i + 1] - v[i])
 }
 
-/// The reference the loop receives, at the fine period `r.ts / m`: the control interpolates
-/// its logged setpoints linearly (first-order hold) and derives its feed-forward from them (the
-/// hold's slope as velocity, its slope changes as acceleration pulses of the same area), then
-/// shapes the result (dead time; reference filter integrated with RK4 at the fine step,
-/// independent of the library's discretisation). Only the setpoints `r.pos` are used.
+/// The reference the loop receives, made a piece at a time at the servo tick `h = r.ts / m`
+/// (the drive then has nothing to interpolate): the control interpolates its logged setpoints
+/// linearly (first-order hold) and derives its feed-forward from them (the hold's slope as
+/// velocity, its slope changes as acceleration pulses of the same area), then shapes the result
+/// (dead time; reference filter integrated with RK4 at the tick, independent of the library's
+/// discretisation). Only the setpoints `r.pos` are used.
 ///
-/// Known to differ from the hold it claims (issue 30, 2026-11-29): the drive interpolates these
-/// fine samples linearly between its ticks, and the knot's sample already holds the new slope,
-/// so the velocity feed-forward changes over the fine step *before* each knot (25 µs early at
-/// 50 µs). On fresh drives with strong feed-forward that biases the fitted ωn by up to +1.4 %
-/// (the identified model then predicts the unseen program better than the true one). A
-/// reference at every servo tick with the slope averaged over each sample's interval removes it
-/// (P-PI ωn unbiased, ±1σ coverage 11/16 on 16 fresh drives; the PID drives keep a bias that
-/// goes with the Coulomb friction) but made CI's run of this file 228–254 s and 1.5 GB; it was
-/// reverted until a cheaper form is found.
-fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
-    let n = (r.pos.len() - 1) * m + 1;
-    let h = r.ts / m as f64;
-    let delay = match shaping {
-        Shaping::Delay(d) => d,
-        _ => 0.0,
-    };
-    let slope = |j: isize| -> f64 {
-        if j < 0 || j as usize + 1 >= r.pos.len() {
+/// Each tick's sample is what the hold gives *around* it: the velocity is the hold's slope
+/// averaged over the tick's own interval (a slope change at a knot becomes a ramp centred on the
+/// knot) and each acceleration pulse is split between the two ticks around its knot, so that its
+/// centre is the knot. Until 2026-11-29 the reference was made at a 50 µs step with the knot's
+/// sample already holding the new slope; the drive interpolated it linearly, so the velocity
+/// feed-forward led the hold by 25 µs: on fresh drives with strong feed-forward that biased the
+/// fitted ωn by up to +1.4 %, and the identified model predicted the unseen program better than
+/// this "truth" (validation ratios 0.2–0.9; issue 30). Made whole at the tick, the reference of
+/// a long trace took 1.5 GB; made in pieces it takes O(piece).
+struct LoopReference<'a> {
+    r: &'a RefSignal,
+    /// Ticks per logged sample.
+    m: usize,
+    /// The tick, s.
+    h: f64,
+    delay: f64,
+    shaping: Shaping,
+    /// Ticks in the whole reference.
+    n: usize,
+    /// The next tick to make.
+    next: usize,
+    /// The reference filter's state (position, velocity), from the first tick on.
+    filter: Option<(f64, f64)>,
+}
+
+impl<'a> LoopReference<'a> {
+    fn new(r: &'a RefSignal, m: usize, shaping: Shaping) -> Self {
+        LoopReference {
+            r,
+            m,
+            h: r.ts / m as f64,
+            delay: match shaping {
+                Shaping::Delay(d) => d,
+                _ => 0.0,
+            },
+            shaping,
+            n: (r.pos.len() - 1) * m + 1,
+            next: 0,
+            filter: None,
+        }
+    }
+
+    /// The hold's slope over logged interval `j` (0 outside the log).
+    fn slope(&self, j: isize) -> f64 {
+        let p = &self.r.pos;
+        if j < 0 || j as usize + 1 >= p.len() {
             0.0
         } else {
-            (r.pos[j as usize + 1] - r.pos[j as usize]) / r.ts
-        }
-    };
-    let mut pos = vec![0.0; n];
-    let mut vel = vec![0.0; n];
-    let mut acc = vec![0.0; n];
-    for k in 0..n {
-        let s = k as f64 / m as f64 - delay / r.ts;
-        pos[k] = interp(&r.pos, s);
-        vel[k] = slope(s.floor() as isize);
-    }
-    // Acceleration pulses at the (delayed) knots, on the nearest fine sample.
-    for j in 0..r.pos.len() as isize {
-        let kf = ((j as f64 * r.ts + delay) / h).round();
-        if kf >= 0.0 && (kf as usize) < n {
-            acc[kf as usize] += (slope(j) - slope(j - 1)) / h;
+            (p[j as usize + 1] - p[j as usize]) / self.r.ts
         }
     }
-    let (pos, vel, acc) = match shaping {
-        Shaping::None | Shaping::Delay(_) => (pos, vel, acc),
-        Shaping::Filter1(tau) => {
-            // y' = (u - y)/tau with u piecewise linear: RK4 is exact to O(h^5) per step.
-            let mut y = pos[0];
-            let (mut py, mut pv, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            for k in 0..n {
-                py[k] = y;
-                pv[k] = (pos[k] - y) / tau;
-                pa[k] = (vel[k] - pv[k]) / tau;
-                if k + 1 < n {
-                    let u = |s: f64| pos[k] + s * (pos[k + 1] - pos[k]);
-                    let f = |s: f64, y: f64| (u(s) - y) / tau;
-                    let k1 = f(0.0, y);
-                    let k2 = f(0.5, y + 0.5 * h * k1);
-                    let k3 = f(0.5, y + 0.5 * h * k2);
-                    let k4 = f(1.0, y + h * k3);
-                    y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+
+    /// The unshaped (but delayed) position and velocity at tick `k`.
+    fn hold_at(&self, k: usize) -> (f64, f64) {
+        let s = k as f64 / self.m as f64 - self.delay / self.r.ts;
+        let half = 0.5 / self.m as f64;
+        let (a, b) = (s - half, s + half);
+        let c = b.floor();
+        let vel = if a.floor() == c {
+            self.slope(c as isize)
+        } else {
+            (self.slope(c as isize - 1) * (c - a) + self.slope(c as isize) * (b - c)) / (b - a)
+        };
+        (interp(&self.r.pos, s), vel)
+    }
+
+    /// Makes the next ticks, at most `len`, into `pos`, `vel`, `acc` (cleared first); false
+    /// when the reference is done.
+    fn piece(
+        &mut self,
+        len: usize,
+        pos: &mut Vec<f64>,
+        vel: &mut Vec<f64>,
+        acc: &mut Vec<f64>,
+    ) -> bool {
+        let (k0, k1) = (self.next, (self.next + len).min(self.n));
+        self.next = k1;
+        pos.clear();
+        vel.clear();
+        acc.clear();
+        if k0 == k1 {
+            return false;
+        }
+        for k in k0..k1 {
+            let (p, v) = self.hold_at(k);
+            pos.push(p);
+            vel.push(v);
+            acc.push(0.0);
+        }
+        // The acceleration pulses of the knots whose two ticks fall in this piece, in the order
+        // of the knots (the knots at x = (j Ts + delay)/h ticks, each pulse split between
+        // ticks floor(x) and floor(x) + 1).
+        let (ts, h) = (self.r.ts, self.h);
+        let j_lo = (((k0 as f64 - 1.0) * h - self.delay) / ts).floor() as isize - 1;
+        let j_hi = ((k1 as f64 * h - self.delay) / ts).ceil() as isize + 1;
+        for j in j_lo.max(0)..j_hi.min(self.r.pos.len() as isize) {
+            let x = (j as f64 * ts + self.delay) / h;
+            let (t0, w1) = (x.floor(), x - x.floor());
+            let area = (self.slope(j) - self.slope(j - 1)) / h;
+            for (t, w) in [(t0, 1.0 - w1), (t0 + 1.0, w1)] {
+                if w > 0.0 && t >= k0 as f64 && t < k1 as f64 {
+                    acc[t as usize - k0] += w * area;
                 }
             }
-            (py, pv, pa)
         }
-        Shaping::Filter2(f_hz, zeta) => {
-            let w = std::f64::consts::TAU * f_hz;
-            let (mut y, mut v) = (pos[0], 0.0);
-            let (mut py, mut pv, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            for k in 0..n {
-                py[k] = y;
-                pv[k] = v;
-                pa[k] = w * w * (pos[k] - y) - 2.0 * zeta * w * v;
-                if k + 1 < n {
-                    let u = |s: f64| pos[k] + s * (pos[k + 1] - pos[k]);
+        match self.shaping {
+            Shaping::None | Shaping::Delay(_) => {}
+            Shaping::Filter1(tau) => {
+                // y' = (u - y)/tau with u piecewise linear: RK4 is exact to O(h^5) per step.
+                let (mut y, _) = *self.filter.get_or_insert((pos[0], 0.0));
+                for i in 0..pos.len() {
+                    let (u0, u1) = (pos[i], self.next_position(k0 + i, pos));
+                    let (py, pv) = (y, (u0 - y) / tau);
+                    let pa = (vel[i] - pv) / tau;
+                    let u = |s: f64| u0 + s * (u1 - u0);
+                    let f = |s: f64, y: f64| (u(s) - y) / tau;
+                    let k1_ = f(0.0, y);
+                    let k2 = f(0.5, y + 0.5 * h * k1_);
+                    let k3 = f(0.5, y + 0.5 * h * k2);
+                    let k4 = f(1.0, y + h * k3);
+                    y += h / 6.0 * (k1_ + 2.0 * k2 + 2.0 * k3 + k4);
+                    (pos[i], vel[i], acc[i]) = (py, pv, pa);
+                }
+                self.filter = Some((y, 0.0));
+            }
+            Shaping::Filter2(f_hz, zeta) => {
+                let w = std::f64::consts::TAU * f_hz;
+                let (mut y, mut v) = *self.filter.get_or_insert((pos[0], 0.0));
+                for i in 0..pos.len() {
+                    let (u0, u1) = (pos[i], self.next_position(k0 + i, pos));
+                    let (py, pv) = (y, v);
+                    let pa = w * w * (u0 - y) - 2.0 * zeta * w * v;
+                    let u = |s: f64| u0 + s * (u1 - u0);
                     let f = |s: f64, y: f64, v: f64| (v, w * w * (u(s) - y) - 2.0 * zeta * w * v);
                     let (a1, b1) = f(0.0, y, v);
                     let (a2, b2) = f(0.5, y + 0.5 * h * a1, v + 0.5 * h * b1);
@@ -350,32 +416,73 @@ fn loop_reference(r: &RefSignal, m: usize, shaping: Shaping) -> RefSignal {
                     let (a4, b4) = f(1.0, y + h * a3, v + h * b3);
                     y += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
                     v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+                    (pos[i], vel[i], acc[i]) = (py, pv, pa);
                 }
+                self.filter = Some((y, v));
             }
-            (py, pv, pa)
         }
-    };
-    RefSignal {
-        ts: h,
-        pos,
-        vel,
-        acc,
+        true
+    }
+
+    /// The unshaped position at the tick after `k` (the filters' step needs it), from the
+    /// piece `pos` (which starts at tick `self.next - pos.len()`) while that holds it
+    /// unshaped; the last tick's is its own (the filter is not stepped past the end).
+    fn next_position(&self, k: usize, pos: &[f64]) -> f64 {
+        let k0 = self.next - pos.len();
+        if k + 1 < self.next {
+            pos[k + 1 - k0]
+        } else if k + 1 < self.n {
+            self.hold_at(k + 1).0
+        } else {
+            pos[k - k0]
+        }
     }
 }
 
-/// Runs the drive through program `r` (sampled at the drive's Ts), logging at Ts. A shaped
-/// drive gets its reference at a fine period (shaped there) and its log is decimated back.
+/// Runs the drive through program `r` (sampled at the drive's Ts), logging at Ts: the loop's
+/// reference is made at every servo tick ([`LoopReference`], in pieces) and fed to the true
+/// drive and to the analytic model side by side; the log keeps the drive's true position at
+/// the logged samples, quantised, and the largest gap between the two over every tick.
 fn run_drive(d: &SuiteDrive, r: &RefSignal, cut: bool) -> Run {
-    let m = (d.ts / 50e-6).round().max(1.0) as usize;
-    let lr = loop_reference(r, m, d.shaping);
-    let params = d.params_at(lr.ts);
-    let out = vcnc_drive::simulate_drive(&params, lr.as_ref(), lr.ts).expect("drive simulates");
-    let n = r.pos.len();
+    let m = (d.ts * MIN_SERVO_HZ).ceil().max(1.0) as usize;
+    let mut lr = LoopReference::new(r, m, d.shaping);
+    // One servo tick per fine sample: the servo rate is m / Ts ([`SuiteDrive::params_at`]).
+    let drive = d.params_at(d.ts).validate().expect("valid drive");
+    let mut drive_run = drive
+        .stream(lr.h, Channels::TruePosition)
+        .expect("drive streams");
+    // Sticking friction at the tick, the drive's own: both start at rest at the first sample.
+    let mut model_run = d
+        .truth()
+        .stream(lr.h, &SimOptions::default())
+        .expect("model streams");
     let q = d.resolution;
-    let x: Vec<f64> = (0..n)
-        .map(|k| q * (out.true_position[k * m] / q).round())
-        .collect();
-    let gap = truth_gap(d, &lr, &out.true_position);
+    let mut x = Vec::with_capacity(r.pos.len());
+    let mut gap = 0.0_f64;
+    let (mut pos, mut vel, mut acc) = (vec![], vec![], vec![]);
+    let (mut trace, mut xm) = (DriveTrace::default(), vec![]);
+    let mut k0 = 0;
+    while lr.piece(512 * m, &mut pos, &mut vel, &mut acc) {
+        let piece = Reference {
+            pos: &pos,
+            vel: &vel,
+            acc: &acc,
+        };
+        trace.true_position.clear();
+        xm.clear();
+        drive_run.feed(piece, &mut trace).expect("drive simulates");
+        model_run.feed(piece, &mut xm).expect("model simulates");
+        for (i, (a, b)) in trace.true_position.iter().zip(&xm).enumerate() {
+            gap = gap.max((a - b).abs());
+            if (k0 + i) % m == 0 {
+                x.push(q * (a / q).round());
+            }
+        }
+        k0 += pos.len();
+    }
+    drive_run.finish().expect("drive simulates");
+    let n = r.pos.len();
+    assert_eq!(x.len(), n);
     let mut run = Run {
         t: (0..n).map(|k| k as f64 * r.ts).collect(),
         xr: r.pos.clone(),
@@ -394,21 +501,6 @@ fn run_drive(d: &SuiteDrive, r: &RefSignal, cut: bool) -> Run {
         run.x.drain(..k0);
     }
     run
-}
-
-/// Largest difference between the drive's true position `x_true` (logged at `lr.ts`) and a
-/// fine simulation of the analytic model driven by the loop's reference `lr` (interpolated
-/// linearly to a step of at most 20 µs, as the servo does; sticking friction at that step),
-/// axis units. The drive and the model both start at rest at the first sample.
-fn truth_gap(d: &SuiteDrive, lr: &RefSignal, x_true: &[f64]) -> f64 {
-    let xm = d
-        .truth()
-        .simulate(lr.as_ref(), lr.ts, &SimOptions::default())
-        .expect("model simulates");
-    xm.iter()
-        .zip(x_true)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max)
 }
 
 fn write_csv(path: &Path, run: &Run) {
