@@ -470,7 +470,7 @@ impl<T: Lane, S: Servo<T>> Run<T, S> {
                 let xm0 = self.servo.quant().read(r0.xr, T::splat(-0.0));
                 let running = Running {
                     st: self.servo.rest(r0.xr, xm0),
-                    shapers: Shapers::new(&self.shaping, self.h, r0)?,
+                    shapers: Shapers::new(&self.shaping, self.h, RefSample::rest(r0))?,
                     prev: r0,
                 };
                 (running, true)

@@ -37,6 +37,20 @@ pub(crate) struct RefSample<T> {
 }
 
 impl<T: Lane> RefSample<T> {
+    /// Standing at `r`'s position, velocity and acceleration zero: what a run's reference
+    /// shaping holds before its first reference. A shaper that held the first reference itself
+    /// handed on, for the length of a delay, that reference's velocity and acceleration (a
+    /// trapezoid starts with its full acceleration): a spurious feed-forward, 8 ms of it behind
+    /// an 8 ms `[control]` delay, which the same model with the delay inside did not see.
+    #[inline(always)]
+    pub(crate) fn rest(r: RefSample<T>) -> RefSample<T> {
+        RefSample {
+            xr: r.xr,
+            vr: T::splat(0.0),
+            ar: T::splat(0.0),
+        }
+    }
+
     /// Lane `l` is `f(l)`.
     #[inline(always)]
     pub(crate) fn from_fn(f: impl Fn(usize) -> RefSample<f64>) -> RefSample<T> {

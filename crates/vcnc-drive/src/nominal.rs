@@ -189,11 +189,11 @@ impl NominalStream {
             return Ok(());
         }
         if self.shapers.is_empty() && !self.filter.stages.is_empty() {
-            let r0 = RefSample {
+            let r0 = RefSample::rest(RefSample {
                 xr: r.pos[0],
                 vr: r.vel[0],
                 ar: r.acc[0],
-            };
+            });
             for s in &self.filter.stages {
                 let shaper = ReferenceShaper::new(&[Some(*s)], self.filter.ts, r0)?
                     .expect("one lane always has one structure");
@@ -294,6 +294,60 @@ mod tests {
             assert_eq!(*yk, x[k.saturating_sub(3)]);
         }
         assert!(NominalFilter::new(0.0, &[], ts).unwrap().is_identity());
+    }
+
+    #[test]
+    fn a_delay_holds_the_axis_at_rest_before_the_first_reference() {
+        // Truth: the axis stood at the first position before the run, at rest. A delay of d
+        // periods hands on (x0, 0, 0) for d samples, then the reference with its own velocity
+        // and acceleration: a move that starts with its full acceleration (a trapezoid's first
+        // sample) must not have that acceleration repeated over the delay (the filter chain's
+        // filters likewise start with velocity and acceleration zero).
+        let ts = 1e-3;
+        let n = 50;
+        let x: Vec<f64> = (0..n)
+            .map(|k| 5.0 + 0.5 * 2500.0 * (k as f64 * ts).powi(2))
+            .collect();
+        let v: Vec<f64> = (0..n).map(|k| 2500.0 * k as f64 * ts).collect();
+        let a = vec![2500.0; n];
+        for filters in [
+            vec![],
+            vec![ShapingFilter::FirstOrder {
+                time_constant_s: 0.002,
+            }],
+        ] {
+            let f = NominalFilter::new(0.003, &filters, ts).unwrap();
+            let (mut p, mut vv, mut aa) = (Vec::new(), Vec::new(), Vec::new());
+            f.stream()
+                .feed(
+                    Reference {
+                        pos: &x,
+                        vel: &v,
+                        acc: &a,
+                    },
+                    &mut p,
+                    &mut vv,
+                    &mut aa,
+                )
+                .unwrap();
+            for k in 0..3 {
+                assert_eq!(
+                    (p[k], vv[k], aa[k]),
+                    (5.0, 0.0, 0.0),
+                    "{filters:?} sample {k}"
+                );
+            }
+            if filters.is_empty() {
+                assert_eq!((p[3], vv[3], aa[3]), (x[0], v[0], a[0]));
+            } else {
+                assert!(
+                    aa[3] > 0.0 && vv[3] == 0.0,
+                    "{filters:?}: {} {}",
+                    vv[3],
+                    aa[3]
+                );
+            }
+        }
     }
 
     #[test]

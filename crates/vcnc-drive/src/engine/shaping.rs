@@ -77,9 +77,10 @@ fn window(shaping: &Option<Shaping>, h: f64) -> (Kind, usize) {
 }
 
 impl<T: Lane> Shaper<T> {
-    /// At rest on `r0` (the loop's first reference), lane `l` shaped by `shapings[l]` (the last
-    /// one in the lanes beyond) at servo period `h`; `None` when the lanes' shapings differ in
-    /// structure.
+    /// Holding `r0` before the first reference (every delayed or filtered channel starts
+    /// there: a run starts at rest, [`RefSample::rest`]; a frequency response in its steady
+    /// motion), lane `l` shaped by `shapings[l]` (the last one in the lanes beyond) at servo
+    /// period `h`; `None` when the lanes' shapings differ in structure.
     pub(crate) fn new(
         shapings: &[Option<Shaping>],
         h: f64,
