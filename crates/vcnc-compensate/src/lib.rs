@@ -135,13 +135,26 @@ type Poly = Vec<f64>;
 
 /// `p` without leading coefficients below `1e-14` of its largest one.
 fn trim(p: &[f64]) -> Poly {
+    trim_below(p, 1e-14)
+}
+
+/// `p` without leading coefficients below `fraction` of its largest one.
+fn trim_below(p: &[f64], fraction: f64) -> Poly {
     let scale = p.iter().fold(0.0f64, |m, c| m.max(c.abs()));
     let first = p
         .iter()
-        .position(|c| c.abs() > 1e-14 * scale)
+        .position(|c| c.abs() > fraction * scale)
         .unwrap_or(p.len().saturating_sub(1));
     p[first..].to_vec()
 }
+
+/// Leading coefficients of a sampled model's numerator below this fraction of its largest one
+/// are dropped before it is inverted ([`StableInverse::of`]). Such a coefficient comes from a
+/// dead time just under a whole number of samples (3.9963 ms at 1 ms: 1e-9 of the largest); it
+/// puts a zero near infinity, whose factor $(1 - z/\zeta)$ is 1 to within this fraction on the
+/// unit circle, yet dividing by it gave the inverse's polynomial part coefficients of order
+/// 1e9 that cancel: the realistic NMV5000's compensated X set-point reached 7e12 mm/s.
+pub const NEGLIGIBLE_LEAD: f64 = 1e-6;
 
 /// Polynomial division `num / den = q + r / den`, deg r < deg den.
 fn divide(num: &[f64], den: &[f64]) -> (Poly, Poly) {
@@ -352,7 +365,7 @@ impl StableInverse {
             0.0,
             (h.num.len() - h.den.len()).saturating_sub(1),
         ));
-        let den = trim(&h.num);
+        let den = trim_below(&h.num, NEGLIGIBLE_LEAD);
         if den.len() < 2 {
             return Err(Error::ConstantNumerator);
         }
@@ -703,6 +716,14 @@ mod tests {
                 delay_s: 1.4e-3,
                 ..DriveModel::from(core)
             },
+            // Just under four samples (an identified 3.9963 ms, the realistic NMV5000's X):
+            // the sampled numerator's first coefficient is about 1e-9 of its largest and is
+            // dropped (NEGLIGIBLE_LEAD); the inverse is then exact but for that coefficient
+            // (measured 6.8e-6 mm; before, 7.5e11 mm).
+            DriveModel {
+                delay_s: 3.9963e-3,
+                ..DriveModel::from(core)
+            },
             DriveModel {
                 reference_filter: Some(ReferenceFilter::FirstOrder { tau_s: 3e-3 }),
                 ..DriveModel::from(core)
@@ -733,7 +754,8 @@ mod tests {
             let r: Vec<f64> = inv.apply(&dev).iter().map(|v| v + x0).collect();
             let after = max_diff(&sim(&m, &r), &desired);
             assert!(before > 0.2, "{before}");
-            assert!(after < 1e-8, "{m:?}: {before} → {after}");
+            let tol = if m.delay_s == 3.9963e-3 { 1.5e-5 } else { 1e-8 };
+            assert!(after < tol, "{m:?}: {before} → {after}");
         }
     }
 
