@@ -271,6 +271,23 @@ mod tests {
         out
     }
 
+    /// `f`'s position, velocity and acceleration outputs for the whole reference in one piece.
+    fn fed_whole(
+        f: &NominalFilter,
+        x: &[f64],
+        v: &[f64],
+        a: &[f64],
+    ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let (mut p, mut vv, mut aa) = (Vec::new(), Vec::new(), Vec::new());
+        let r = Reference {
+            pos: x,
+            vel: v,
+            acc: a,
+        };
+        f.stream().feed(r, &mut p, &mut vv, &mut aa).unwrap();
+        (p, vv, aa)
+    }
+
     #[test]
     fn a_triangle_is_two_moving_averages_and_a_delay_shifts_by_whole_periods() {
         // Truths: a moving average of m samples over a reference linear between samples is
@@ -317,19 +334,7 @@ mod tests {
             }],
         ] {
             let f = NominalFilter::new(0.003, &filters, ts).unwrap();
-            let (mut p, mut vv, mut aa) = (Vec::new(), Vec::new(), Vec::new());
-            f.stream()
-                .feed(
-                    Reference {
-                        pos: &x,
-                        vel: &v,
-                        acc: &a,
-                    },
-                    &mut p,
-                    &mut vv,
-                    &mut aa,
-                )
-                .unwrap();
+            let (p, vv, aa) = fed_whole(&f, &x, &v, &a);
             for k in 0..3 {
                 assert_eq!(
                     (p[k], vv[k], aa[k]),
@@ -411,19 +416,7 @@ mod tests {
         let x: Vec<f64> = (0..n).map(|k| (w * t(k)).sin()).collect();
         let v: Vec<f64> = (0..n).map(|k| w * (w * t(k)).cos()).collect();
         let a: Vec<f64> = (0..n).map(|k| -w * w * (w * t(k)).sin()).collect();
-        let mut s = f.stream();
-        let (mut p, mut vv, mut aa) = (Vec::new(), Vec::new(), Vec::new());
-        s.feed(
-            Reference {
-                pos: &x,
-                vel: &v,
-                acc: &a,
-            },
-            &mut p,
-            &mut vv,
-            &mut aa,
-        )
-        .unwrap();
+        let (p, vv, aa) = fed_whole(f, &x, &v, &a);
         let (gain, phase) = (h.norm(), h.arg());
         let mut worst = 0.0f64;
         for k in n - n / 4..n {

@@ -461,24 +461,24 @@ fn run_drive(d: &SuiteDrive, r: &RefSignal, cut: bool) -> Run {
     let mut gap = 0.0_f64;
     let (mut pos, mut vel, mut acc) = (vec![], vec![], vec![]);
     let (mut trace, mut xm) = (DriveTrace::default(), vec![]);
-    let mut k0 = 0;
     while lr.piece(512 * m, &mut pos, &mut vel, &mut acc) {
         let piece = Reference {
             pos: &pos,
             vel: &vel,
             acc: &acc,
         };
+        // The piece's first tick.
+        let k0 = lr.next - pos.len();
         trace.true_position.clear();
         xm.clear();
         drive_run.feed(piece, &mut trace).expect("drive simulates");
         model_run.feed(piece, &mut xm).expect("model simulates");
         for (i, (a, b)) in trace.true_position.iter().zip(&xm).enumerate() {
             gap = gap.max((a - b).abs());
-            if (k0 + i) % m == 0 {
+            if (k0 + i).is_multiple_of(m) {
                 x.push(q * (a / q).round());
             }
         }
-        k0 += pos.len();
     }
     drive_run.finish().expect("drive simulates");
     let n = r.pos.len();
