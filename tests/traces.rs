@@ -942,10 +942,23 @@ fn an_identified_dead_time_moves_into_the_control_section_and_predicts_the_same(
         .as_str()
         .expect("a suggested [control] section")
         .to_string();
-    assert!(
-        section.contains("[control]\ndelay_s = 0.008\n"),
-        "{section}"
+    // Truth: the control's 8 ms, to within one sample period. A dead time trades, to first
+    // order, with the model's feed-forward numerator: on this trace (1 ms samples, 0.1 µm
+    // encoder steps, quantisation 0.029 µm RMS) the dead-time structure reaches the noise floor
+    // at 7.43 ms with the smooth input (0.030 µm) and 8.33 ms with the hold (0.032 µm), while
+    // the true drive with the true 8 ms gives 0.035 µm: the data do not decide the delay
+    // within the period, though the reported deviation (0.015 ms) says they do (issue 30,
+    // calibrated uncertainty). Which input is chosen there is a near-tie of the two paper
+    // fits (0.1 %). The section must hold the identified delay's whole periods.
+    let delay = s["axes"]["X"]["identified"]["delay_s"]
+        .as_f64()
+        .expect("the identified dead time");
+    assert!((delay - 0.008).abs() < 0.001, "{delay} s");
+    let whole = format!(
+        "[control]\ndelay_s = {}\n",
+        ((delay / 0.001 + 1e-9).floor() * 0.001 * 1e9).round() / 1e9
     );
+    assert!(section.contains(&whole), "{section} against {whole}");
     // The model as the comment says: the delay's fraction of a period stays in it.
     let rest: f64 = section
         .lines()

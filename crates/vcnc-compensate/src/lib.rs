@@ -800,7 +800,10 @@ mod tests {
         let last = max_diff(&simulate(&m, &c.reference, ts), &desired);
         assert!(first > 1e-3, "{:?}", c.history);
         assert!(last < 5e-5 && last < first / 50.0, "{:?}", c.history);
-        assert_eq!(last, max_diff(&c.model, &desired));
+        // `c.model` is the model's response to `c.reference`, simulated in deviations from
+        // the start (5 mm): the re-simulation from absolute positions differs by the rounding
+        // of that shift (a few ulps of 5 mm, carried through the friction events).
+        assert!((last - max_diff(&c.model, &desired)).abs() < 1e-12);
     }
 
     #[test]

@@ -57,7 +57,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::model::{
-    ClosedLoopModel, Reference, SimOptions, check_exp_norm, friction_sign, implicit_friction_level,
+    ClosedLoopModel, Reference, SimOptions, check_exp_norm, friction_level, friction_sign,
 };
 
 /// Largest dead time accepted, s.
@@ -874,7 +874,7 @@ impl Stepper {
         }
         let v_free = dot(&self.cv, next);
         let f = if opts.sticking {
-            implicit_friction_level(v_free, self.l)
+            friction_level(v_start, v_free, self.l).0
         } else {
             friction_sign(v_start, opts.friction_deadband)
         };

@@ -656,7 +656,13 @@ fn finish(
             &whole[at(&whole, paper_with(other)).expect("refined")],
         );
         let (rms, other_rms) = (mine.estimation.freerun_rms, theirs.estimation.freerun_rms);
-        if degeneracy(&theirs.refinement).is_empty() && other_rms < rms {
+        // Decisively lower: below this input's by the margin the choice among structures
+        // uses, so that a tie between the two paper fits (a trace where the paper's structure
+        // is not the drive's, its error dominated by what it lacks) leaves the compared
+        // stretch's input.
+        if degeneracy(&theirs.refinement).is_empty()
+            && other_rms < (1.0 - opts.selection_margin) * rms
+        {
             let pool: Vec<usize> = (0..screened.len())
                 .filter(|&i| screened[i].input == other)
                 .collect();

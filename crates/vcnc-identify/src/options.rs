@@ -40,7 +40,9 @@ pub struct IdentifyOptions {
     /// separate validation trace is given. Default 0.3.
     pub holdout_fraction: f64,
     /// Relative margin by which a structure with more parameters must beat a simpler one's
-    /// validation error to be chosen. Default 0.05.
+    /// validation error to be chosen, and by which the paper's structure with the other model
+    /// input must beat its whole-trace error with the compared stretch's input for the input
+    /// to change (docs/identification.md, "Choosing a structure"). Default 0.05.
     pub selection_margin: f64,
     /// Model inputs to try ([`ReferenceInput`]: `"smooth"`, `"hold"`), chosen with the
     /// structures by validation error (docs/identification.md, "The model input"). Default
