@@ -565,3 +565,42 @@ fn without_kinematics_compensation_is_judged_by_tracking_and_rapids_need_headroo
     assert!(s["before"].get("contour_max_um").is_none());
     assert_eq!(s["within_limits"], true);
 }
+
+#[test]
+fn a_set_point_ten_times_the_velocity_limit_is_refused_not_replanned() {
+    // A model far slower than the drive (ωn 1 Hz, ζ 0.7, no zeros, for the Table 1 ball screw
+    // of about 18 Hz): its exact inverse leads every acceleration step of the trapezoids with
+    // a set-point velocity of roughly a_max / (ωn² T_s), hundreds of times the 250 mm/s limit.
+    // Replanning would slow the rapids to a crawl and hide the bad model: below a headroom of
+    // 0.1 the command refuses, naming the axis, and leaves no output directory.
+    let out = tempdir();
+    let (wn, zeta) = (std::f64::consts::TAU, 0.7);
+    let model = out.path().join("slow.toml");
+    std::fs::write(
+        &model,
+        format!(
+            "machine = \"slow\"\n\n[axes.X]\nunit = \"mm\"\na1 = {}\na2 = {}\na3 = 0.0\nb0 = 0.0\nb1 = 0.0\nb2 = {}\ndc = 0.0\ninput = \"hold\"\n",
+            2.0 * zeta * wn,
+            wn * wn,
+            wn * wn
+        ),
+    )
+    .unwrap();
+    let dir = out.path().join("c");
+    let o = vcnc(&[
+        "compensate",
+        repo("machines/ballscrew-ppi.toml").to_str().unwrap(),
+        repo("gcode/identification-X.ngc").to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("axis X") && err.contains("does not replan below a headroom of 0.1"),
+        "{err}"
+    );
+    assert!(!dir.exists(), "{err}");
+}

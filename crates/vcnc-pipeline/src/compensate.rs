@@ -326,6 +326,13 @@ pub fn with_control_filters(
 /// Replanning rounds [`compensate_within_limits`] may take when no headroom is given.
 pub const MAX_REPLANS: usize = 3;
 
+/// The smallest velocity headroom [`compensate_within_limits`] replans with by itself. A
+/// set-point that needs more than ten times an axis' velocity limit is rarely a program's
+/// rapids: it is a model that does not describe the drive (a near-cancelled zero, a dead time
+/// the inverse cannot lead), and replanning would only hide it. An explicit headroom is
+/// still honoured.
+pub const MIN_AUTO_HEADROOM: f64 = 0.1;
+
 /// A compensation within the axes' limits and the velocity headroom it was planned with.
 #[derive(Debug, Clone)]
 pub struct Planned {
@@ -381,7 +388,30 @@ pub fn compensate_within_limits(
         if headroom.is_some() || replanned.len() == MAX_REPLANS || ratio <= 1.0 {
             return Err(e);
         }
-        h = (h / ratio * 0.99).min(1.0);
+        let next = (h / ratio * 0.99).min(1.0);
+        if next < MIN_AUTO_HEADROOM {
+            return Err(match e {
+                Error::Limit {
+                    axis,
+                    what,
+                    value,
+                    limit,
+                    unit,
+                    advice,
+                } => Error::Limit {
+                    axis,
+                    what,
+                    value,
+                    limit,
+                    unit,
+                    advice: format!(
+                        "{advice}. vcnc does not replan below a headroom of {MIN_AUTO_HEADROOM} by itself: a set-point {ratio:.1} times the velocity limit usually means a model that does not describe this drive; check it with `vcnc validate`, or give --headroom to plan with it anyway"
+                    ),
+                },
+                other => other,
+            });
+        }
+        h = next;
         replanned.push(h);
     }
 }
