@@ -30,7 +30,7 @@ use crate::{Error, Result};
 /// Tables with at most this many rows are CSV under `--format auto`.
 pub const AUTO_CSV_ROWS: usize = 200_000;
 
-/// Rows per Parquet row group (and per record batch).
+/// Rows per Parquet row group.
 pub const ROW_GROUP_ROWS: usize = 65_536;
 
 /// `--format`.
@@ -234,8 +234,8 @@ impl TableWriter {
         Ok(())
     }
 
-    /// Writes column-major rows to the open file (a Parquet batch of at most
-    /// [`ROW_GROUP_ROWS`] rows takes the columns' memory, not a copy).
+    /// Writes column-major rows to the open file (Parquet: a row group per [`ROW_GROUP_ROWS`]
+    /// rows, encoded from the columns in place).
     fn emit(&mut self, cols: Vec<Vec<f64>>) -> Result<()> {
         let n = cols.first().map_or(0, Vec::len);
         match &mut self.state {

@@ -121,7 +121,9 @@ fn append<T: DataType>(
     to_f64: impl Fn(&T::T) -> f64,
     out: &mut Vec<f64>,
 ) -> Result<(), Error> {
-    let (mut values, mut levels) = (Vec::with_capacity(rows), Vec::with_capacity(rows));
+    // No capacity from the row count: it is the file's word, and a damaged footer may claim
+    // any number.
+    let (mut values, mut levels) = (Vec::new(), Vec::new());
     let mut read = 0;
     while read < rows {
         let (n, _, _) = reader
@@ -195,7 +197,8 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         .map(|c| c.name().to_string())
         .collect();
     let rows = usize::try_from(meta.file_metadata().num_rows()).unwrap_or(0);
-    let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(rows); names.len()];
+    // The capacity no more than the file's bytes: the row count is the footer's word.
+    let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(rows.min(bytes.len())); names.len()];
     let mut row0 = 0;
     for g in 0..reader.num_row_groups() {
         let group = reader.get_row_group(g).map_err(|e| unreadable(file, e))?;
