@@ -11,7 +11,7 @@ use vcnc_drive::{
     simulate_batch, simulate_batch_into,
 };
 
-mod common;
+use crate::common;
 
 /// Every channel of `a` and `b` as bits (so that −0.0 ≠ 0.0 and NaN = NaN), and the
 /// saturation count.

@@ -1,7 +1,7 @@
 //! Acceptance tests of the true drive (issue 3, "Done means"). Each test states where its truth
 //! comes from. Run with `--nocapture` to see the measured figures.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::TAU;
 

@@ -4,7 +4,7 @@
 //! drives with effects in SIMD lanes).
 //!
 //! Truth: `tests/data/engine-golden.txt`, written by this test run against vcnc-drive at commit
-//! 13c6b18 (`VCNC_GOLDEN=write cargo test --release -p vcnc-drive --test golden`; the file's
+//! 13c6b18 (`VCNC_GOLDEN=write cargo test --release -p vcnc-drive --test integration golden`; the file's
 //! header says which fingerprints were recorded later, and why). Each line is a
 //! case and the FNV-1a hash of the bits of everything it produced: every channel of a trace
 //! (with its length, the saturated ticks and `ts`), the true position alone, a measured
@@ -21,7 +21,7 @@
 //! without dead time, velocity filter, every reference filter and delay, a second noisy
 //! encoder), drives of random structure, references starting at −0.0 and far from the origin.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -1,7 +1,7 @@
 //! Acceptance tests of the drive's effects (issue 14, "Done means"). Each test states where its
 //! truth comes from. Run with `--nocapture` to see the measured figures.
 
-mod common;
+use crate::common;
 
 use vcnc_drive::{
     AxisName, ControllerSpec, DriveParams, DriveTrace, Encoder, Friction, FrictionLocation,

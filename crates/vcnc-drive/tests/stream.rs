@@ -10,7 +10,7 @@
 //! that reach the other paths of the effects engine; the models as `predict` runs them
 //! (core alone, or with a sub-sample dead time, reference filter and extra pole).
 
-mod common;
+use crate::common;
 
 use std::ops::Range;
 

@@ -2,7 +2,7 @@
 //! PROVENANCE.md). Each program, strict and lenient, is parsed and interpreted, and a text
 //! snapshot of its blocks, diagnostics and moves is compared exactly with the committed one in
 //! `tests/data/golden`. Regenerate after an intended change with
-//! `VCNC_BLESS=1 cargo test -p vcnc-gcode --test golden`, then review the diff.
+//! `VCNC_BLESS=1 cargo test -p vcnc-gcode --test integration golden`, then review the diff.
 
 use std::fmt::Write;
 use std::path::{Path, PathBuf};

@@ -4,7 +4,7 @@
 //! `Kinematics`. The hashes (FNV-1a over the outputs' bits) were recorded by running the same
 //! inputs through the code of that commit.
 
-mod common;
+use crate::common;
 
 use common::{ok, spiral};
 use vcnc_kinematics::nalgebra::Vector3;

@@ -2,7 +2,7 @@
 //! `xyzac-trt` kinematics (transcribed, fresh random cases every run), sequence inverse kinematics.
 //! The derivatives of the TCP inverse are checked for every family in tests/families.rs.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::{PI, TAU};
 

@@ -3,7 +3,7 @@
 //! differences, each closed form against the generic URDF chain of the same machine, the same
 //! bits whole or in pieces, parameter tables and axis maps.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::PI;
 

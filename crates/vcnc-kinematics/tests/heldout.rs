@@ -4,7 +4,7 @@
 //! the answers (tests/data/linuxcnc/heldout-answers.csv). A second test draws fresh machines
 //! every run (seed printed) from transcriptions of the same functions.
 
-mod common;
+use crate::common;
 
 use common::{col, fresh_seed, ok, read_vectors};
 use rand::{RngExt, SeedableRng};

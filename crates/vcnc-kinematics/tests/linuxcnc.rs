@@ -11,7 +11,7 @@
 //! - `maxkins`: head-table B/C with pivot (0, 0, pivot-length), r = 0; c = −C; b = −B with
 //!   `conventional-directions` off, b = B with it on.
 
-mod common;
+use crate::common;
 
 use common::{col, ok, read_vectors};
 use proptest::prelude::*;

@@ -2,7 +2,7 @@
 //! and marked in each file as assumed or cited): each reads as its family, with its travels,
 //! and round-trips a 5-axis path through the sequence inverse and the TCP inverse.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::TAU;
 

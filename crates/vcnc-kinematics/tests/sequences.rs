@@ -3,7 +3,7 @@
 //! half a turn); C is unwound within a limited travel; a chain follows its previous sample and
 //! says clearly where it cannot.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 

@@ -11,7 +11,7 @@
 //! a reference filter, an extra pole and stated latencies (the source lines must follow the
 //! samples through the latency shift).
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 

@@ -18,7 +18,7 @@
 //! pole and a stated latency, and the realistic NMV5000 (compliance, friction, backlash,
 //! current loop, noise, dead time, reference shaping).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,7 +1,7 @@
 //! Bad input for every reader: truncated files, header/count mismatches, missing position
 //! channels, unknown units, time that goes back, stalls or skips, names that match no axis, NaN.
 //! Each case must give the typed error it names, with the file and line in the message — and no
-//! panic. `VCNC_PRINT_MESSAGES=1 cargo test -p vcnc-trace --test bad_input -- --nocapture` prints
+//! panic. `VCNC_PRINT_MESSAGES=1 cargo test -p vcnc-trace --test integration bad_input -- --nocapture` prints
 //! the table of messages.
 
 use vcnc_axis::AxisName;

@@ -6,7 +6,7 @@
 //! same motion independently of the readers. Tolerances are half the last digit each format
 //! printed (halscope `%.14f`, halsampler `%f`, TNCscope `%.4f`, …), converted to mm or deg.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -3,11 +3,11 @@
 //! middle and last values, sum), and the per-axis pairing where the file has pairs.
 //!
 //! The expected outputs live in `tests/data/golden/<file>.txt`. After an intended change,
-//! regenerate with `VCNC_BLESS=1 cargo test -p vcnc-trace --test golden` and review the diff.
+//! regenerate with `VCNC_BLESS=1 cargo test -p vcnc-trace --test integration golden` and review the diff.
 //! The values themselves are checked against the motion the files were written from in
 //! `tests/fixtures.rs`; these files pin everything else.
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

@@ -5,7 +5,7 @@
 //! and row when a value is null, not finite or not a number. The file `vcnc simulate` wrote
 //! with the crate's Arrow writer (before vcnc used the column writers) is read too.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

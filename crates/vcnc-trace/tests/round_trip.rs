@@ -2,7 +2,7 @@
 //! sample bit for bit, names, periods and gaps as written; and every format detected from its
 //! content whatever the file is called.
 
-mod common;
+use crate::common;
 
 use common::values;
 use proptest::prelude::*;
