@@ -371,7 +371,7 @@ pub fn compensate_within_limits(
             original
         };
         let compensation = compensate_run(machine, planned, models, opts)?;
-        let Err(e) = compensation.check_limits(planned, h) else {
+        let Err(mut e) = compensation.check_limits(planned, h) else {
             return Ok(Planned {
                 compensation,
                 headroom: h,
@@ -390,26 +390,12 @@ pub fn compensate_within_limits(
         }
         let next = (h / ratio * 0.99).min(1.0);
         if next < MIN_AUTO_HEADROOM {
-            return Err(match e {
-                Error::Limit {
-                    axis,
-                    what,
-                    value,
-                    limit,
-                    unit,
-                    advice,
-                } => Error::Limit {
-                    axis,
-                    what,
-                    value,
-                    limit,
-                    unit,
-                    advice: format!(
-                        "{advice}. vcnc does not replan below a headroom of {MIN_AUTO_HEADROOM} by itself: a set-point {ratio:.1} times the velocity limit usually means a model that does not describe this drive; check it with `vcnc validate`, or give --headroom to plan with it anyway"
-                    ),
-                },
-                other => other,
-            });
+            if let Error::Limit { advice, .. } = &mut e {
+                advice.push_str(&format!(
+                    ". vcnc does not replan below a headroom of {MIN_AUTO_HEADROOM} by itself: a set-point {ratio:.1} times the velocity limit usually means a model that does not describe this drive; check it with `vcnc validate`, or give --headroom to plan with it anyway"
+                ));
+            }
+            return Err(e);
         }
         h = next;
         replanned.push(h);
