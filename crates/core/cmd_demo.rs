@@ -21,7 +21,7 @@ use vcnc_output::report::RunReport;
 use vcnc_output::runs::{CONTOUR_TABLE_NOTE, contour_report_table, report_table_file};
 use vcnc_output::table::{ContourTable, TableOptions};
 use vcnc_output::text::table as text_table;
-use vcnc_pipeline::demo::{DemoSummary, RealisticSummary};
+use vcnc_pipeline::demo::{DemoPrediction, DemoSummary, RealisticSummary};
 use vcnc_pipeline::identify::{self, IdentifySummary};
 use vcnc_pipeline::predict::{self, PredictOptions};
 use vcnc_pipeline::realistic::{self, Discrepancy, TARGET_ORIENTATION_MRAD, TARGET_TIP_UM, set};
@@ -81,11 +81,13 @@ pub fn demo(
     )?;
     let table_path = contour.finish()?;
     let summary = DemoSummary {
-        contour: outcome.summaries[0].clone(),
-        machine: machine.name.clone(),
-        program: SPIRAL,
-        models: "identified (PSO + output-error refinement)",
-        paper_pso: outcome.summaries[1].clone(),
+        prediction: DemoPrediction {
+            contour: outcome.summaries[0].clone(),
+            machine: machine.name.clone(),
+            program: SPIRAL,
+            models: "identified (PSO + output-error refinement)",
+            paper_pso: outcome.summaries[1].clone(),
+        },
         identification: identify::overview(&ids),
     };
     write_json(&out.join("summary.json"), &summary)?;

@@ -168,23 +168,15 @@ impl<T: Lane> LawOn<T> for PPi<T> {
 impl PPi<f64> {
     /// The law with gains `g` on `plant` at servo period `h`.
     pub(crate) fn new(g: PPiGains, plant: &Plant, h: f64) -> PPi<f64> {
-        let PPiGains {
-            kv,
-            kp,
-            ki,
-            vff,
-            bff,
-            jff,
-        } = g;
         let rg = plant.rg;
-        let (ff_a, ff_v) = feed_forward(plant, jff, bff);
+        let (ff_a, ff_v) = feed_forward(plant, g.jff, g.bff);
         PPi {
-            kp,
-            ki,
-            kv,
-            vff_over_rg: vff / rg,
+            kp: g.kp,
+            ki: g.ki,
+            kv: g.kv,
+            vff_over_rg: g.vff / rg,
             inv_rg: 1.0 / rg,
-            half_h_kv: 0.5 * h * kv,
+            half_h_kv: 0.5 * h * g.kv,
             inv_2h: 0.5 / h,
             ff_a,
             ff_v,

@@ -953,6 +953,70 @@ fn put_row(dst: &mut [f64], row: &[f64; KMAX + 1]) {
     }
 }
 
+/// The rest of a sample's row once its model columns are in, shared by both passes: the
+/// initial state's free-response columns (a trace that starts moving: the first companion state
+/// of $\Phi^k e_j$, and without the integral mode the constant offset), the target, $b_2$'s
+/// column held at 0 without the integral mode, the skipped samples as zero rows.
+struct FreeRows<const NU: usize> {
+    /// Free-response columns: `NU` (+1 for the offset), or 0 for a trace that starts at rest.
+    nh: usize,
+    /// Columns with the free responses (target not counted).
+    kk: usize,
+    lead: usize,
+    skip: usize,
+    rho: [f64; NU],
+    step_phi: DMatrix<f64>,
+}
+
+impl<const NU: usize> FreeRows<NU> {
+    fn new(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> FreeRows<NU> {
+        let nh = if prob.moving { NU + d.offset } else { 0 };
+        w.k = 4 + nh;
+        let mut rho = [0.0; NU];
+        rho[0] = 1.0;
+        FreeRows {
+            nh,
+            kk: 4 + nh,
+            lead: d.lead,
+            skip: prob.skip,
+            rho,
+            step_phi: d.step_phi(),
+        }
+    }
+
+    /// Completes `row` (model columns 0–3 filled) with the target and stores it as sample `k`.
+    #[inline(always)]
+    fn put(&self, w: &mut Work, k: usize, mut row: [f64; KMAX + 1], target: f64) {
+        let (nh, kk) = (self.nh, self.kk);
+        row[4..4 + nh.min(NU)].copy_from_slice(&self.rho[..nh.min(NU)]);
+        if nh > NU {
+            row[4 + NU] = 1.0;
+        }
+        row[kk] = target;
+        if self.lead == 0 {
+            // b2 is the held constant.
+            row[0] = 0.0;
+        }
+        if k < self.skip {
+            row = [0.0; KMAX + 1];
+        }
+        put_row(&mut w.cols[kk * k..kk * (k + 1)], &row);
+        w.resid[k] = row[kk];
+    }
+
+    /// The free responses one sample on.
+    #[inline(always)]
+    fn step(&mut self) {
+        if self.nh > 0 {
+            let mut next = [0.0; NU];
+            for (jj, v) in next.iter_mut().enumerate() {
+                *v = (0..NU).map(|i| self.rho[i] * self.step_phi[(i, jj)]).sum();
+            }
+            self.rho = next;
+        }
+    }
+}
+
 /// The upper triangle of the Gram matrix of `k` columns (row-major in `cols`) and the target
 /// `resid` (last), summed over the samples in order. A separate pass over the stored rows
 /// rather than a sum inside the model pass: with the column count fixed per instance the
@@ -1054,14 +1118,7 @@ fn pass_positions<const NU: usize, const NF: usize>(
     let mut y = [0.0; NU];
     let mut yf = [0.0; NF];
     let pw: [f64; 7] = std::array::from_fn(|k| om.powi(k as i32));
-    // Free responses (a trace that starts moving): the first companion state of Phi^k e_j,
-    // and without the integral mode the constant offset state.
-    let nh = if prob.moving { NU + d.offset } else { 0 };
-    let kk = 4 + nh;
-    w.k = kk;
-    let mut rho = [0.0; NU];
-    rho[0] = 1.0;
-    let step_phi = d.step_phi();
+    let mut free = FreeRows::<NU>::new(prob, d, w);
     let p0 = Fixed::<NU>::of(&d.pieces[0]);
     let p1 = d.pieces.get(1).map(Fixed::<NU>::of);
     let pf = Fixed::<NF>::of(&d.fric);
@@ -1087,30 +1144,11 @@ fn pass_positions<const NU: usize, const NF: usize>(
             *v = cu * sw[c + lead];
         }
         row[3] = -cf * pw[lead] * yf[lead];
-        row[4..4 + nh.min(NU)].copy_from_slice(&rho[..nh.min(NU)]);
-        if nh > NU {
-            row[4 + NU] = 1.0;
-        }
-        row[kk] = x[k] - cu * fixed * sw[0];
-        if lead == 0 {
-            // b2 is the held constant.
-            row[0] = 0.0;
-        }
-        if k < prob.skip {
-            row = [0.0; KMAX + 1];
-        }
-        put_row(&mut w.cols[kk * k..kk * (k + 1)], &row);
-        w.resid[k] = row[kk];
+        free.put(w, k, row, x[k] - cu * fixed * sw[0]);
         if k + 1 == n {
             break;
         }
-        if nh > 0 {
-            let mut next = [0.0; NU];
-            for (jj, v) in next.iter_mut().enumerate() {
-                *v = (0..NU).map(|i| rho[i] * step_phi[(i, jj)]).sum();
-            }
-            rho = next;
-        }
+        free.step();
         y = match &p1 {
             None => advance(&p0, &y, sample(j), sample(j + 1)),
             Some(p1) => {
@@ -1120,7 +1158,7 @@ fn pass_positions<const NU: usize, const NF: usize>(
         };
         yf = advance(&pf, &yf, f[k], f[k]);
     }
-    gram(&w.cols[..kk * n], &w.resid[..n], kk)
+    gram(&w.cols[..free.kk * n], &w.resid[..n], free.kk)
 }
 
 /// Smooth-input pass: $x_r$, $\dot x_r$, $\ddot x_r$ each through $1/D_u$ (order `NU`, the
@@ -1160,12 +1198,7 @@ fn pass_derivatives<const NU: usize, const NF: usize>(
     let pf = Fixed::<NF>::of(&d.fric);
     let mut y = [[0.0; NU]; 3];
     let mut yf = [0.0; NF];
-    let nh = if prob.moving { NU + d.offset } else { 0 };
-    let kk = 4 + nh;
-    w.k = kk;
-    let mut rho = [0.0; NU];
-    rho[0] = 1.0;
-    let step_phi = d.step_phi();
+    let mut free = FreeRows::<NU>::new(prob, d, w);
     let (cu, cf, fixed, lead) = (d.cu, d.cf, d.fixed, d.lead);
     let oml = om.powi(lead as i32);
     for k in 0..n {
@@ -1175,30 +1208,11 @@ fn pass_derivatives<const NU: usize, const NF: usize>(
             *v = cu * oml * y[c][lead];
         }
         row[3] = -cf * oml * yf[lead];
-        row[4..4 + nh.min(NU)].copy_from_slice(&rho[..nh.min(NU)]);
-        if nh > NU {
-            row[4 + NU] = 1.0;
-        }
-        row[kk] = x[k] - cu * fixed * y[0][0];
-        if lead == 0 {
-            // b2 is the held constant.
-            row[0] = 0.0;
-        }
-        if k < prob.skip {
-            row = [0.0; KMAX + 1];
-        }
-        put_row(&mut w.cols[kk * k..kk * (k + 1)], &row);
-        w.resid[k] = row[kk];
+        free.put(w, k, row, x[k] - cu * fixed * y[0][0]);
         if k + 1 == n {
             break;
         }
-        if nh > 0 {
-            let mut next = [0.0; NU];
-            for (jj, v) in next.iter_mut().enumerate() {
-                *v = (0..NU).map(|i| rho[i] * step_phi[(i, jj)]).sum();
-            }
-            rho = next;
-        }
+        free.step();
         let (s0, s1) = (sample(j), sample(j + 1));
         for (c, yc) in y.iter_mut().enumerate() {
             *yc = match &p1 {
@@ -1212,7 +1226,7 @@ fn pass_derivatives<const NU: usize, const NF: usize>(
         }
         yf = advance(&pf, &yf, f[k], f[k]);
     }
-    gram(&w.cols[..kk * n], &w.resid[..n], kk)
+    gram(&w.cols[..free.kk * n], &w.resid[..n], free.kk)
 }
 
 /// Least squares on the column-scaled Gram matrix (target last): $(S G S) z = S g$, Cholesky
@@ -2346,6 +2360,22 @@ mod tests {
         RefineSetup::full(s, input, opts)
     }
 
+    /// `clean` plus a first-order filtered uniform noise (pole 0.95 a sample, about 2 µm),
+    /// drawn from `seed`: an unmodelled slow error.
+    fn with_coloured_noise(clean: &[f64], seed: u64) -> Vec<f64> {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut e = 0.0;
+        clean
+            .iter()
+            .map(|v| {
+                let w: f64 = rng.random::<f64>() - 0.5;
+                e = 0.95 * e + 0.002 * w;
+                v + e
+            })
+            .collect()
+    }
+
     fn table1(dc: f64) -> ClosedLoopModel {
         ClosedLoopModel {
             b0: 0.2,
@@ -2450,7 +2480,6 @@ mod tests {
         // white noise, 2 µm, correlated over about 20 ms, as an unmodelled slow error would
         // be). Over 24 noise seeds the spread of the estimates is compared with the reported
         // standard deviations: a white-noise formula would understate it many times over.
-        use rand::{RngExt, SeedableRng};
         let core = table1(47.7);
         let m = DriveModel {
             delay_s: 0.0173,
@@ -2468,16 +2497,7 @@ mod tests {
         let mut est = vec![];
         let mut std = vec![];
         for seed in 0..24u64 {
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-            let mut e = 0.0;
-            let x: Vec<f64> = clean
-                .iter()
-                .map(|v| {
-                    let w: f64 = rng.random::<f64>() - 0.5;
-                    e = 0.95 * e + 0.002 * w;
-                    v + e
-                })
-                .collect();
+            let x = with_coloured_noise(&clean, seed);
             let tr = Trace::new(1e-3, p.clone(), x).unwrap();
             let regs = Regressors::build(&tr, &opts).unwrap();
             let start = Start {
@@ -2579,16 +2599,7 @@ mod tests {
         let mut errors: [Vec<f64>; 3] = Default::default();
         let mut reported: [Vec<f64>; 3] = Default::default();
         for seed in 0..24u64 {
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(100 + seed);
-            let mut e = 0.0;
-            let x: Vec<f64> = clean
-                .iter()
-                .map(|v| {
-                    let w: f64 = rng.random::<f64>() - 0.5;
-                    e = 0.95 * e + 0.002 * w;
-                    v + e
-                })
-                .collect();
+            let x = with_coloured_noise(&clean, 100 + seed);
             let tr = Trace::new(1e-3, p.clone(), x).unwrap();
             let regs = Regressors::build(&tr, &opts).unwrap();
             let start =

@@ -96,13 +96,17 @@ impl ChainJoint {
 enum Step {
     /// A fixed transform (joint origins, inverted on the workpiece side).
     Fixed(Isometry3<f64>),
-    /// A joint's motion by `sign` times its value: +1 on the tool side, −1 on the workpiece side.
-    Joint {
-        prismatic: bool,
-        axis: Unit<Vector3<f64>>,
-        role: AxisName,
-        sign: f64,
-    },
+    /// A joint's motion.
+    Joint(JointStep),
+}
+
+/// A joint's motion by `sign` times its value: +1 on the tool side, −1 on the workpiece side.
+#[derive(Debug, Clone, PartialEq)]
+struct JointStep {
+    prismatic: bool,
+    axis: Unit<Vector3<f64>>,
+    role: AxisName,
+    sign: f64,
 }
 
 /// The tool tip and its motion, and the chain's Jacobian columns, at one set of joints: the
@@ -297,17 +301,12 @@ impl KinematicChain {
         for step in &self.steps {
             match step {
                 Step::Fixed(f) => t *= f,
-                Step::Joint {
-                    prismatic,
-                    axis,
-                    role,
-                    sign,
-                } => {
-                    let q = sign * axes[*role];
-                    if *prismatic {
-                        t *= Translation3::from(axis.into_inner() * q);
+                Step::Joint(j) => {
+                    let q = j.sign * axes[j.role];
+                    if j.prismatic {
+                        t *= Translation3::from(j.axis.into_inner() * q);
                     } else {
-                        t *= UnitQuaternion::from_axis_angle(axis, q);
+                        t *= UnitQuaternion::from_axis_angle(&j.axis, q);
                     }
                 }
             }
@@ -359,27 +358,22 @@ impl KinematicChain {
                     a += da;
                     rot *= f.rotation.to_rotation_matrix().into_inner();
                 }
-                Step::Joint {
-                    prismatic,
-                    axis,
-                    role,
-                    sign,
-                } => {
-                    let z = rot * axis.into_inner() * *sign;
-                    let (qv, qdv, qddv) = (q[*role], qd[*role], qdd[*role]);
-                    if *prismatic {
+                Step::Joint(j) => {
+                    let z = rot * j.axis.into_inner() * j.sign;
+                    let (qv, qdv, qddv) = (q[j.role], qd[j.role], qdd[j.role]);
+                    if j.prismatic {
                         let off = z * qv;
                         let (dv, da) = carry(off, &w, &alpha);
                         o += off;
                         v += dv + z * qdv;
                         a += da + w.cross(&z) * (2.0 * qdv) + z * qddv;
-                        let col = role.index().min(2);
+                        let col = j.role.index().min(2);
                         slides.set_column(col, &z);
                     } else {
                         alpha += z * qddv + w.cross(&z) * qdv;
                         w += z * qdv;
-                        rot *= Rotation3::from_axis_angle(axis, sign * qv).into_inner();
-                        rotary.push((*role, z));
+                        rot *= Rotation3::from_axis_angle(&j.axis, j.sign * qv).into_inner();
+                        rotary.push((j.role, z));
                     }
                 }
             }
@@ -1174,11 +1168,11 @@ fn push_fixed(steps: &mut Vec<Step>, f: Isometry3<f64>) {
 
 fn push_joint(steps: &mut Vec<Step>, j: &ChainJoint, sign: f64) {
     if let Some(role) = j.role {
-        steps.push(Step::Joint {
+        steps.push(Step::Joint(JointStep {
             prismatic: j.kind == JointKind::Prismatic,
             axis: j.axis,
             role,
             sign,
-        });
+        }));
     }
 }

@@ -12,17 +12,27 @@ use crate::realistic::{
     BudgetRow, Discrepancy, Evaluation, RealisticAxis, TARGET_ORIENTATION_MRAD, TARGET_TIP_UM, set,
 };
 
+/// What both demos' `summary.json` open with: vcnc's models' prediction (its keys at the top
+/// level), the run's names and the paper-PSO models' prediction.
+#[derive(Debug, Clone, Serialize)]
+pub struct DemoPrediction {
+    /// vcnc's models' prediction.
+    #[serde(flatten)]
+    pub contour: ContourSummary,
+    pub machine: String,
+    pub program: &'static str,
+    /// How vcnc's models were made.
+    pub models: &'static str,
+    /// The paper-PSO models' prediction.
+    pub paper_pso: ContourSummary,
+}
+
 /// `summary.json` of the demo.
 #[derive(Debug, Clone, Serialize)]
 pub struct DemoSummary {
     /// The refined models' prediction.
     #[serde(flatten)]
-    pub contour: ContourSummary,
-    pub machine: String,
-    pub program: &'static str,
-    pub models: &'static str,
-    /// The paper-PSO models' prediction.
-    pub paper_pso: ContourSummary,
+    pub prediction: DemoPrediction,
     /// Per axis: pole errors of both model sets, %.
     pub identification: BTreeMap<String, AxisOverview>,
 }
@@ -30,14 +40,9 @@ pub struct DemoSummary {
 /// `summary.json` of `vcnc demo --realistic`.
 #[derive(Debug, Clone, Serialize)]
 pub struct RealisticSummary {
-    /// vcnc's chosen models' prediction.
+    /// vcnc's chosen models' prediction and the paper's method's.
     #[serde(flatten)]
-    pub contour: ContourSummary,
-    pub machine: String,
-    pub program: &'static str,
-    pub models: &'static str,
-    /// The paper's method's prediction.
-    pub paper_pso: ContourSummary,
+    pub prediction: DemoPrediction,
     /// vcnc's chosen models with the actual-value latency stated from the machine's control
     /// configuration.
     pub stated_latency: StatedLatency,
@@ -101,11 +106,13 @@ impl RealisticSummary {
             Discrepancy::of(&f[set::MODEL_STATED]),
         );
         RealisticSummary {
-            contour: s[set::MODEL].clone(),
-            machine: machine.to_string(),
-            program,
-            models: "identified, structure chosen by validation error (PSO + output-error refinement)",
-            paper_pso: s[set::PAPER].clone(),
+            prediction: DemoPrediction {
+                contour: s[set::MODEL].clone(),
+                machine: machine.to_string(),
+                program,
+                models: "identified, structure chosen by validation error (PSO + output-error refinement)",
+                paper_pso: s[set::PAPER].clone(),
+            },
             stated_latency: StatedLatency {
                 source: STATED_LATENCY_SOURCE,
                 actual_latency_s: e

@@ -25,20 +25,9 @@ pub struct Root {
 /// model is not stable).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ModelSummary {
-    /// Denominator coefficient of s², 1/s.
-    pub a1: f64,
-    /// Denominator coefficient of s, 1/s².
-    pub a2: f64,
-    /// Denominator constant, 1/s³.
-    pub a3: f64,
-    /// Numerator coefficient of s³.
-    pub b0: f64,
-    /// Numerator coefficient of s², 1/s.
-    pub b1: f64,
-    /// Numerator coefficient of s, 1/s².
-    pub b2: f64,
-    /// Coulomb friction acceleration, axis units/s².
-    pub dc: f64,
+    /// The coefficients `a1 a2 a3 b0 b1 b2 dc`, as the model file holds them.
+    #[serde(flatten)]
+    pub coefficients: ClosedLoopModel,
     /// Real pole p, Hz (null when the poles are not one real and a pair).
     pub p_hz: Option<f64>,
     /// Natural frequency ωn of the pair, Hz.
@@ -70,13 +59,7 @@ impl ModelSummary {
         let poles = m.poles();
         let stable = m.is_stable();
         ModelSummary {
-            a1: m.a1,
-            a2: m.a2,
-            a3: m.a3,
-            b0: m.b0,
-            b1: m.b1,
-            b2: m.b2,
-            dc: m.dc,
+            coefficients: *m,
             p_hz: poles.map(|p| p.p_hz()),
             wn_hz: poles.map(|p| p.wn_hz()),
             zeta: poles.map(|p| p.zeta),
