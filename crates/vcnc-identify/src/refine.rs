@@ -969,6 +969,7 @@ struct FreeRows<const NU: usize> {
 }
 
 impl<const NU: usize> FreeRows<NU> {
+    /// The rows of `prob` under `d`; sets `w.k`, the row width the pass stores.
     fn new(prob: &OutputErrorProblem, d: &Disc, w: &mut Work) -> FreeRows<NU> {
         let nh = if prob.moving { NU + d.offset } else { 0 };
         w.k = 4 + nh;

@@ -197,8 +197,11 @@ pub(crate) fn read(file: &str, bytes: &[u8], opts: &ReadOptions) -> Result<Trace
         .map(|c| c.name().to_string())
         .collect();
     let rows = usize::try_from(meta.file_metadata().num_rows()).unwrap_or(0);
-    // The capacity no more than the file's bytes: the row count is the footer's word.
-    let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(rows.min(bytes.len())); names.len()];
+    // Reserved up front: at most as many bytes as the file holds, all columns together (the
+    // row and column counts are the footer's word, and a damaged footer may claim any number;
+    // a well-compressed column just grows past its share).
+    let share = bytes.len() / (8 * names.len().max(1));
+    let mut cols: Vec<Vec<f64>> = vec![Vec::with_capacity(rows.min(share)); names.len()];
     let mut row0 = 0;
     for g in 0..reader.num_row_groups() {
         let group = reader.get_row_group(g).map_err(|e| unreadable(file, e))?;
