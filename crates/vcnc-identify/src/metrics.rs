@@ -118,8 +118,10 @@ pub(crate) fn run_from_estimated_state(
     let real = model.realisation();
     let ns = real.a.nrows();
     let phi = (&real.a * trace.ts).exp();
-    let skip = (model.delay_s / trace.ts).ceil() as usize + 1;
-    let fit = fit.start.max(skip).min(trace.len())..fit.end.min(trace.len());
+    let fit = fit
+        .start
+        .max(first_predicted(model, trace.ts))
+        .min(trace.len())..fit.end.min(trace.len());
     let mut z = vec![0.0; ns];
     let mut run = run_from(model, trace, &[])?;
     if fit.len() < 4 * ns || ns > NS {
@@ -165,6 +167,13 @@ pub(crate) fn run_from_estimated_state(
     Ok((run, z))
 }
 
+/// The first sample a run from an estimated state predicts (and its state is fitted on): the
+/// first sample and those within the model's dead time depend on the reference before the
+/// trace, which is not known.
+fn first_predicted(model: &DriveModel, ts: f64) -> usize {
+    (model.delay_s / ts).ceil() as usize + 1
+}
+
 /// Corrections of the estimated initial state ([`run_from_estimated_state`]): the friction of
 /// the run depends on the state, so the linear estimate is repeated once on the corrected run.
 const STATE_ROUNDS: usize = 2;
@@ -204,20 +213,60 @@ fn solve_spd(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
 pub(crate) fn scored_run(
     model: &DriveModel,
     trace: &Trace,
-    range: Option<&std::ops::Range<usize>>,
-) -> Result<(Vec<f64>, Option<Vec<f64>>), Error> {
-    let fit = match range {
+    range: Option<std::ops::Range<usize>>,
+) -> Result<ScoredRun, Error> {
+    let n = trace.len();
+    let fit = match &range {
         _ if trace.starts_at_rest(crate::trace::REST_SPEED) => None,
-        None => Some(0..trace.len()),
+        None => Some(0..n),
         Some(r) if r.start > 0 => Some(0..r.start),
         Some(_) => None,
     };
+    let range = range.map_or(0..n, |r| r.start.min(n)..r.end.min(n));
     match fit {
         Some(fit) => {
             let (run, z) = run_from_estimated_state(model, trace, fit)?;
-            Ok((run.position, Some(z)))
+            let first = range
+                .start
+                .max(first_predicted(model, trace.ts))
+                .min(range.end);
+            Ok(ScoredRun {
+                position: run.position,
+                state: Some(z),
+                first,
+                range,
+            })
         }
-        None => Ok((free_run_model(model, trace)?, None)),
+        None => Ok(ScoredRun {
+            position: free_run_model(model, trace)?,
+            state: None,
+            first: range.start,
+            range,
+        }),
+    }
+}
+
+/// A free run to score ([`scored_run`]).
+pub(crate) struct ScoredRun {
+    /// The model's positions at every sample.
+    position: Vec<f64>,
+    /// The estimated initial state of a run that starts moving.
+    state: Option<Vec<f64>>,
+    /// The samples asked for (all when `None`).
+    range: std::ops::Range<usize>,
+    /// The first sample of `range` to score: its first, or for a run from an estimated state
+    /// the first the run predicts ([`first_predicted`]: were the samples before it scored, a
+    /// fast state the fit barely sees, an extra pole far above the sample rate, would count at
+    /// the first sample with whatever value fitted the second).
+    first: usize,
+}
+
+impl ScoredRun {
+    /// The run's metrics with the one-step error `onestep_rms`.
+    fn metrics(self, trace: &Trace, onestep_rms: f64) -> FitMetrics {
+        let mut m = metrics_over(trace, self.position, self.range, self.first, onestep_rms);
+        m.initial_state = self.state;
+        m
     }
 }
 
@@ -226,7 +275,9 @@ pub(crate) fn scored_run(
 /// error ([`FitMetrics`]), over the samples `range` of the trace (all of them when `None`;
 /// the free run always starts at the trace's first sample, so a held-out tail is predicted
 /// from the reference alone). A trace that starts moving is run from the state estimated on
-/// the samples before `range` (all samples when `None`; [`FitMetrics::initial_state`]). The one-step error is the equation error of the model's core
+/// the samples before `range` (all samples when `None`; [`FitMetrics::initial_state`]) and
+/// scored from the first sample it predicts (after the first and the dead time). The one-step
+/// error is the equation error of the model's core
 /// (paper eq. 7) with the reference shaped by the model's dead time and filter and the
 /// measured position freed of its extra pole, on the regressors of `opts`.
 pub fn score(
@@ -236,13 +287,10 @@ pub fn score(
     opts: &IdentifyOptions,
 ) -> Result<FitMetrics, Error> {
     model.validate()?;
-    let (xhat, state) = scored_run(model, trace, range.as_ref())?;
-    let range = range.unwrap_or(0..trace.len());
-    let range = range.start.min(trace.len())..range.end.min(trace.len());
-    let onestep = one_step_shaped(model, trace, &range, opts).unwrap_or(f64::NAN);
-    let mut m = metrics_over(trace, xhat, range, onestep);
-    m.initial_state = state;
-    Ok(m)
+    let run = scored_run(model, trace, range)?;
+    let scored = run.first..run.range.end;
+    let onestep = one_step_shaped(model, trace, &scored, opts).unwrap_or(f64::NAN);
+    Ok(run.metrics(trace, onestep))
 }
 
 /// The one-step error of an extended model (see [`score`]).
@@ -303,20 +351,23 @@ fn shape_reference(unit: &DriveModel, trace: &Trace) -> Result<Vec<f64>, Error> 
     Ok(x)
 }
 
+/// The metrics of the run `xhat` scored over `first..range.end`, its positions kept over `range`.
 fn metrics_over(
     trace: &Trace,
     xhat: Vec<f64>,
     range: std::ops::Range<usize>,
+    first: usize,
     onestep_rms: f64,
 ) -> FitMetrics {
-    let n = range.len().max(1);
+    let scored = first..range.end;
+    let n = scored.len().max(1);
     let (mut s2, mut mx) = (0.0, 0.0f64);
-    for k in range.clone() {
+    for k in scored.clone() {
         let d = trace.x[k] - xhat[k];
         s2 += d * d;
         mx = mx.max(d.abs());
     }
-    let e: Vec<f64> = range.clone().map(|k| trace.xr[k] - trace.x[k]).collect();
+    let e: Vec<f64> = scored.clone().map(|k| trace.xr[k] - trace.x[k]).collect();
     let mean_e = e.iter().sum::<f64>() / n as f64;
     let var_e: f64 = e.iter().map(|v| (v - mean_e).powi(2)).sum();
     let fit_percent = if var_e > 0.0 && s2.is_finite() {
@@ -335,7 +386,7 @@ fn metrics_over(
         fit_percent,
         tracking_rms: (e.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt(),
         tracking_peak: e.iter().fold(0.0, |a, v| a.max(v.abs())),
-        samples: range.len(),
+        samples: scored.len(),
         initial_state: None,
         predicted_x: xhat[range].to_vec(),
     }
@@ -360,10 +411,7 @@ pub(crate) fn score_paper(
     regs: &Regressors,
 ) -> Result<FitMetrics, Error> {
     model.validate()?;
-    let (xhat, state) = scored_run(model, trace, None)?;
-    let mut m = metrics_over(trace, xhat, 0..trace.len(), regs.one_step_rms(&model.core));
-    m.initial_state = state;
-    Ok(m)
+    Ok(scored_run(model, trace, None)?.metrics(trace, regs.one_step_rms(&model.core)))
 }
 
 /// [`fit_metrics`] with the trace's regressors already built (several models on one trace
@@ -373,8 +421,51 @@ pub fn fit_metrics_with(
     trace: &Trace,
     regs: &Regressors,
 ) -> Result<FitMetrics, Error> {
-    let (xhat, state) = scored_run(&DriveModel::from(*model), trace, None)?;
-    let mut m = metrics_over(trace, xhat, 0..trace.len(), regs.one_step_rms(model));
-    m.initial_state = state;
-    Ok(m)
+    Ok(
+        scored_run(&DriveModel::from(*model), trace, None)?
+            .metrics(trace, regs.one_step_rms(model)),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::{MOVES, TS, smooth_moves};
+    use vcnc_drive::TABLE1_MODEL;
+    use vcnc_drive::drive_model::ReferenceInput;
+
+    #[test]
+    fn a_moving_start_is_scored_from_the_first_sample_it_predicts() {
+        // Truth: the model itself, with a 2 kHz extra pole at 1 kHz sampling (its mode decays
+        // by e^{-4π} ≈ 3.5e-6 in a sample), run through smooth moves and cut to start in the
+        // middle of the first; 1e-5 mm of alternating noise on the measured position. The
+        // state estimate fits the second sample's noise with an extra-pole state of about
+        // 1e-5 / 3.5e-6 ≈ 3 mm, which the first sample shows; scored from the second sample,
+        // the error is the noise.
+        let model = DriveModel {
+            extra_pole_hz: Some(2000.0),
+            input: ReferenceInput::Hold,
+            ..DriveModel::from(TABLE1_MODEL)
+        };
+        let n = 3000;
+        let (p, _, _) = smooth_moves(n, &MOVES);
+        let x = model
+            .simulate_positions(&p, TS, &SimOptions::default())
+            .unwrap();
+        let cut = 220; // the first move (0.1 .. 0.35 s) at full speed
+        let noisy: Vec<f64> = x[cut..]
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + if k % 2 == 0 { 1e-5 } else { -1e-5 })
+            .collect();
+        let tr = Trace::new(TS, p[cut..].to_vec(), noisy).unwrap();
+        assert!(!tr.starts_at_rest(crate::trace::REST_SPEED));
+        let m = score(&model, &tr, None, &IdentifyOptions::default()).unwrap();
+        assert_eq!(m.predicted_x.len(), tr.len(), "positions at every sample");
+        assert!(m.freerun_max < 3e-5, "largest error {} mm", m.freerun_max);
+        assert_eq!(m.samples, tr.len() - first_predicted(&model, TS));
+        // The held-out part alone: scored over the range asked for.
+        let part = score(&model, &tr, Some(1000..2000), &IdentifyOptions::default()).unwrap();
+        assert_eq!((part.samples, part.predicted_x.len()), (1000, 1000));
+    }
 }

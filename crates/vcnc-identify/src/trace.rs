@@ -249,19 +249,24 @@ impl Trace {
         self.len().saturating_sub(1) as f64 * self.ts
     }
 
-    /// Whether the axis is at rest at the first sample: the reference speed (the attached exact
-    /// one, else the forward difference over the first step) and the measured forward-difference
-    /// speed are within `deadband` (axis units/s). A forward difference sees a trapezoid that
-    /// starts accelerating at $t_0$ as $a T_s / 2$ (1.25 mm/s at 2500 mm/s²), a drive that is
-    /// already moving (EMPS: 14 mm/s) as its speed.
+    /// Whether the axis is at rest at the first sample: the reference speed there (the attached
+    /// exact one, else the one-sided second-order difference $(-3x_0 + 4x_1 - x_2)/(2T_s)$,
+    /// exact for a parabola) and the measured forward-difference speed are within `deadband`
+    /// (axis units/s). The second-order difference sees a reference that starts accelerating
+    /// from rest at $t_0$ as 0 whatever the acceleration (a forward difference sees
+    /// $a T_s / 2$: 2.5 mm/s at 5000 mm/s² and 1 ms, above [`REST_SPEED`]), and a drive that
+    /// is already moving (EMPS: 14 mm/s) as its speed. The measured position lags the
+    /// reference, so its forward difference is near 0 at a rest start; a second-order
+    /// difference would amplify its quantisation four times.
     pub fn starts_at_rest(&self, deadband: f64) -> bool {
         let forward = |s: &[f64]| match s {
             [a, b, ..] => ((b - a) / self.ts).abs(),
             _ => 0.0,
         };
-        let vr0 = match &self.reference_derivatives {
-            Some((vr, _)) => vr.first().copied().unwrap_or(0.0).abs(),
-            None => forward(&self.xr),
+        let vr0 = match (&self.reference_derivatives, self.xr.as_slice()) {
+            (Some((vr, _)), _) => vr.first().copied().unwrap_or(0.0).abs(),
+            (None, [a, b, c, ..]) => ((4.0 * b - 3.0 * a - c) / (2.0 * self.ts)).abs(),
+            (None, xr) => forward(xr),
         };
         vr0 <= deadband && forward(&self.x) <= deadband
     }
@@ -306,6 +311,33 @@ mod tests {
 
     fn ramp(n: usize) -> Vec<f64> {
         (0..n).map(|k| k as f64 * 0.01).collect()
+    }
+
+    #[test]
+    fn a_reference_accelerating_from_rest_is_a_rest_start_at_any_acceleration() {
+        // Truth: x_r = a t^2 / 2 from t = 0 has zero speed at the first sample; x_r = x_0 + v t
+        // has speed v. Accelerations from 500 to 50 000 mm/s² at 1 ms (a forward difference
+        // would report a Ts / 2 = 0.25 .. 25 mm/s, most above the 1.5 mm/s rest speed).
+        let n = 100;
+        let ts = 1e-3;
+        for a in [500.0, 2500.0, 5000.0, 20_000.0, 50_000.0] {
+            let xr: Vec<f64> = (0..n).map(|k| 0.5 * a * (k as f64 * ts).powi(2)).collect();
+            let tr = Trace::new(ts, xr, vec![0.0; n]).unwrap();
+            assert!(tr.starts_at_rest(REST_SPEED), "a = {a} mm/s²");
+        }
+        for v in [2.0, 14.0, 250.0] {
+            let xr: Vec<f64> = (0..n).map(|k| v * k as f64 * ts).collect();
+            let x: Vec<f64> = xr.iter().map(|r| r - 0.01).collect();
+            let tr = Trace::new(ts, xr, x).unwrap();
+            assert!(!tr.starts_at_rest(REST_SPEED), "v = {v} mm/s");
+        }
+        // The reference starting from rest but the measured axis moving at 5 mm/s (a drive
+        // still settling): not a rest start.
+        let xr: Vec<f64> = (0..n)
+            .map(|k| 0.5 * 2500.0 * (k as f64 * ts).powi(2))
+            .collect();
+        let x: Vec<f64> = (0..n).map(|k| 0.005 * k as f64).collect();
+        assert!(!Trace::new(ts, xr, x).unwrap().starts_at_rest(REST_SPEED));
     }
 
     #[test]
