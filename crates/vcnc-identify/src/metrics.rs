@@ -188,7 +188,7 @@ pub(crate) fn flush_negligible(v: &mut [f64]) {
 /// The first sample a run from an estimated state predicts (and its state is fitted on): the
 /// first sample and those within the model's dead time depend on the reference before the
 /// trace, which is not known.
-fn first_predicted(model: &DriveModel, ts: f64) -> usize {
+pub(crate) fn first_predicted(model: &DriveModel, ts: f64) -> usize {
     (model.delay_s / ts).ceil() as usize + 1
 }
 
