@@ -2501,13 +2501,10 @@ mod tests {
         );
     }
 
-    #[test]
-    fn recovers_a_sub_sample_dead_time_and_its_uncertainty_is_honest() {
-        // Truth: a delayed model (17.3 ms, not a whole number of samples) driven by positions
-        // alone, with a coloured disturbance added to the measurement (a first-order filtered
-        // white noise, 2 µm, correlated over about 20 ms, as an unmodelled slow error would
-        // be). Over 24 noise seeds the spread of the estimates is compared with the reported
-        // standard deviations: a white-noise formula would understate it many times over.
+    /// The delayed drive of the dead-time tests: the Table 1 core with a 17.3 ms dead time (not
+    /// a whole number of samples) driven by positions alone, its noise-free positions over
+    /// the reference, and the options that fit the dead-time structure alone.
+    fn delayed_truth() -> (ClosedLoopModel, Vec<f64>, Vec<f64>, IdentifyOptions) {
         let core = table1(47.7);
         let m = DriveModel {
             delay_s: 0.0173,
@@ -2522,23 +2519,39 @@ mod tests {
             structures: vec![ModelStructure::Delay],
             ..Default::default()
         };
+        (core, p, clean, opts)
+    }
+
+    /// The dead-time structure refined on `tr` from the true core and a 10 ms dead time.
+    fn refine_delay(tr: &Trace, core: &ClosedLoopModel, opts: &IdentifyOptions) -> RefineResult {
+        let regs = Regressors::build(tr, opts).unwrap();
+        let start = Start {
+            core: core.poles().unwrap().denominator(),
+            extra: vec![0.01],
+        };
+        refine(
+            tr,
+            &regs,
+            &[start],
+            setup(opts, ModelStructure::Delay, ReferenceInput::Hold),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn recovers_a_sub_sample_dead_time_and_its_uncertainty_is_honest() {
+        // Truth: a delayed model (17.3 ms, not a whole number of samples) driven by positions
+        // alone, with a coloured disturbance added to the measurement (a first-order filtered
+        // white noise, 2 µm, correlated over about 20 ms, as an unmodelled slow error would
+        // be). Over 24 noise seeds the spread of the estimates is compared with the reported
+        // standard deviations: a white-noise formula would understate it many times over.
+        let (core, p, clean, opts) = delayed_truth();
         let mut est = vec![];
         let mut std = vec![];
         for seed in 0..24u64 {
             let x = with_coloured_noise(&clean, seed);
             let tr = Trace::new(1e-3, p.clone(), x).unwrap();
-            let regs = Regressors::build(&tr, &opts).unwrap();
-            let start = Start {
-                core: core.poles().unwrap().denominator(),
-                extra: vec![0.01],
-            };
-            let r = refine(
-                &tr,
-                &regs,
-                &[start],
-                setup(&opts, ModelStructure::Delay, ReferenceInput::Hold),
-            )
-            .unwrap();
+            let r = refine_delay(&tr, &core, &opts);
             let u = r.uncertainty.expect("uncertainty");
             est.push([r.model.delay_s, r.poles.wn_hz()]);
             std.push([u.get("delay_s").unwrap().std, u.get("wn_hz").unwrap().std]);
@@ -2576,36 +2589,12 @@ mod tests {
         // free run was counted from the first sample, where that state (1e7 times the first
         // sample's response, the modes having decayed by 1e-10 at sample 202) gave metres:
         // stage C then bent b0, b1 and dc to it (on a 570 k-sample trace: 19 mm RMS).
-        let core = table1(47.7);
-        let m = DriveModel {
-            delay_s: 0.0173,
-            input: ReferenceInput::Hold,
-            ..DriveModel::from(core)
-        };
-        let (p, _, _) = reference(3000);
-        let clean = m
-            .simulate_positions(&p, 1e-3, &SimOptions::default())
-            .unwrap();
+        let (core, p, clean, opts) = delayed_truth();
         let x = with_coloured_noise(&clean, 3);
         let cut = 220;
         let tr = Trace::new(1e-3, p[cut..].to_vec(), x[cut..].to_vec()).unwrap();
         assert!(!tr.starts_at_rest(crate::trace::REST_SPEED));
-        let opts = IdentifyOptions {
-            structures: vec![ModelStructure::Delay],
-            ..Default::default()
-        };
-        let regs = Regressors::build(&tr, &opts).unwrap();
-        let start = Start {
-            core: core.poles().unwrap().denominator(),
-            extra: vec![0.01],
-        };
-        let r = refine(
-            &tr,
-            &regs,
-            &[start],
-            setup(&opts, ModelStructure::Delay, ReferenceInput::Hold),
-        )
-        .unwrap();
+        let r = refine_delay(&tr, &core, &opts);
         let fit = crate::metrics::score(&r.model, &tr, None, &opts).unwrap();
         // Measured 1.7 µm (the noise is about 2 µm); twice that allowed (without the fix:
         // 259 µm, with b1 and dc of the wrong sign). The dead time itself is not asserted: 2.8 s of smooth
