@@ -172,16 +172,18 @@ pub(crate) fn run_from_estimated_state(
 /// (its coefficient would have to be $10^{100}$ times the first sample's to matter).
 const NEGLIGIBLE_RESPONSE: f64 = 1e-100;
 
-/// Sets the free responses `v` (of the modes of a moving start, one sample's) to zero once all
-/// are below [`NEGLIGIBLE_RESPONSE`]. Left alone they decay into subnormal numbers and stay
-/// there (round-to-nearest keeps the smallest subnormal under a factor near 1), and every
-/// product with a subnormal is a microcode assist: on a 570 k-sample moving start 1.7 M of the
-/// 4 M values of the fit's columns were subnormal and each evaluation took 11 times as long as
-/// the same trace's at rest (perf; `cols.iter().filter(is_subnormal)`). Zero stays zero, at full
+/// Sets each of the free responses `v` (of the modes of a moving start, one sample's) below
+/// [`NEGLIGIBLE_RESPONSE`] to zero. Left alone they decay into subnormal numbers and stay there
+/// (round-to-nearest keeps the smallest subnormal under a factor near 1), and every product
+/// with a subnormal is a microcode assist: on a 570 k-sample moving start 1.7 M of the 4 M
+/// values of the fit's columns were subnormal and each evaluation took 11 times as long as the
+/// same trace's at rest (perf; `cols.iter().filter(is_subnormal)`). Zero stays zero, at full
 /// speed.
 pub(crate) fn flush_negligible(v: &mut [f64]) {
-    if v.iter().all(|x| x.abs() < NEGLIGIBLE_RESPONSE) {
-        v.fill(0.0);
+    for x in v.iter_mut() {
+        if x.abs() < NEGLIGIBLE_RESPONSE {
+            *x = 0.0;
+        }
     }
 }
 
