@@ -76,6 +76,23 @@ fn bench(c: &mut Criterion) {
     g.bench_function("identify_measured_paper_only", |b| {
         b.iter(|| identify(black_box(&measured), &opts).expect("identify"))
     });
+    // The same cut 50 samples after the reference first exceeds 100 mm/s (a moving start: the
+    // fit estimates the initial state with free-response columns; until 2026-11-30 they
+    // decayed into subnormal numbers, and a 570 k-sample moving start's evaluations took 11
+    // times as long as at rest). 2-core VM, 2026-11-30: 137 ms against 106 ms at rest.
+    let cut = (1..measured.len() - 1)
+        .find(|&k| (measured.xr[k + 1] - measured.xr[k]).abs() > 0.1 * measured.ts * 1e3)
+        .expect("a move");
+    let moving = Trace::new(
+        measured.ts,
+        measured.xr[cut + 50..].to_vec(),
+        measured.x[cut + 50..].to_vec(),
+    )
+    .expect("trace");
+    assert!(!moving.starts_at_rest(vcnc_identify::REST_SPEED));
+    g.bench_function("identify_measured_paper_only_moving_start", |b| {
+        b.iter(|| identify(black_box(&moving), &opts).expect("identify"))
+    });
     g.bench_function("identify_measured_all_structures", |b| {
         b.iter(|| identify(black_box(&measured), &all).expect("identify"))
     });
