@@ -81,7 +81,7 @@ fn bench(c: &mut Criterion) {
     // decayed into subnormal numbers, and a 570 k-sample moving start's evaluations took 11
     // times as long as at rest). 2-core VM, 2026-11-30: 137 ms against 106 ms at rest.
     let cut = (1..measured.len() - 1)
-        .find(|&k| (measured.xr[k + 1] - measured.xr[k]).abs() > 0.1 * measured.ts * 1e3)
+        .find(|&k| (measured.xr[k + 1] - measured.xr[k]).abs() > 100.0 * measured.ts)
         .expect("a move");
     let moving = Trace::new(
         measured.ts,
